@@ -1,0 +1,1 @@
+//! fts-servo `daq-io` (filled by its own issue).

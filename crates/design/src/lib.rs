@@ -1,0 +1,1 @@
+//! fts-servo `design` (filled by its own issue).

@@ -1,0 +1,1 @@
+//! fts-servo `plant-sim` (filled by its own issue).

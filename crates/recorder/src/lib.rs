@@ -1,0 +1,1 @@
+//! fts-servo `recorder` (filled by its own issue).

@@ -1,0 +1,266 @@
+//! Discrete state-space controller of any order: `x⁺ = A x + B e`, `u = C x + D e`.
+//!
+//! Shapes are const generics (`StateSpace<27, 1, 1>` runs the full-order H2 controller of thesis
+//! §6.4.1). The tick is two dense products laid out for the FMA units: `A` and `B` are stored by
+//! column so `A x` is a sum of column·scalar products (independent lanes, no horizontal sums),
+//! and even and odd columns go to separate accumulators to halve the dependency chain. `C` is
+//! stored by row and reduced with four partial sums.
+
+use crate::block::{Block, FaultLatch};
+use crate::error::{check_period, Error};
+use crate::limits::Limits;
+use nalgebra::SMatrix;
+
+/// A discrete state-space realisation in nalgebra matrices (any unit; the thesis uses V/V).
+///
+/// ```
+/// use nalgebra::SMatrix;
+/// use servo_core::{Block, Limits, StateSpaceConfig};
+/// // A discrete integrator x⁺ = x + T·e, u = x.
+/// let config = StateSpaceConfig::<1, 1, 1> {
+///     a: SMatrix::new(1.0),
+///     b: SMatrix::new(1e-3),
+///     c: SMatrix::new(1.0),
+///     d: SMatrix::zeros(),
+///     limits: Limits::UNLIMITED,
+/// };
+/// let mut ss = config.try_build(1e-3).unwrap();
+/// ss.update([1.0]);
+/// assert_eq!(ss.update([1.0]), [1e-3]);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateSpaceConfig<const NX: usize, const NU: usize, const NY: usize> {
+    /// State transition matrix (NX × NX).
+    pub a: SMatrix<f64, NX, NX>,
+    /// Input matrix (NX × NU).
+    pub b: SMatrix<f64, NX, NU>,
+    /// Output matrix (NY × NX).
+    pub c: SMatrix<f64, NY, NX>,
+    /// Feed-through matrix (NY × NU).
+    pub d: SMatrix<f64, NY, NU>,
+    /// Limits applied to every output.
+    pub limits: Limits,
+}
+
+impl<const NX: usize, const NU: usize, const NY: usize> StateSpaceConfig<NX, NU, NY> {
+    /// Validates the matrices (all finite) for a controller sampled every `sample_period_s` s.
+    pub fn try_build(&self, sample_period_s: f64) -> Result<StateSpace<NX, NU, NY>, Error> {
+        let sample_period_s = check_period(sample_period_s)?;
+        let finite = |s: &[f64]| s.iter().all(|x| x.is_finite());
+        for (name, ok) in [
+            ("a", finite(self.a.as_slice())),
+            ("b", finite(self.b.as_slice())),
+            ("c", finite(self.c.as_slice())),
+            ("d", finite(self.d.as_slice())),
+        ] {
+            if !ok {
+                return Err(Error::NotFinite { param: name });
+            }
+        }
+        // nalgebra stores column-major, which is the layout we want for A, B and D.
+        let a_cols = core::array::from_fn(|j| core::array::from_fn(|i| self.a[(i, j)]));
+        let b_cols = core::array::from_fn(|j| core::array::from_fn(|i| self.b[(i, j)]));
+        let c_rows = core::array::from_fn(|i| core::array::from_fn(|j| self.c[(i, j)]));
+        let d_cols = core::array::from_fn(|j| core::array::from_fn(|i| self.d[(i, j)]));
+        Ok(StateSpace {
+            a_cols,
+            b_cols,
+            c_rows,
+            d_cols,
+            limits: self.limits,
+            sample_period_s,
+            x: [0.0; NX],
+            fault: FaultLatch::default(),
+        })
+    }
+}
+
+/// A running discrete state-space block; input `e` (NU), output `u` (NY), clamped.
+///
+/// The state keeps evolving while an output is clamped (no anti-windup: an H2 controller has
+/// no integrator to protect unless the designer put one in; add a limit-aware design there).
+#[derive(Debug, Clone)]
+pub struct StateSpace<const NX: usize, const NU: usize, const NY: usize> {
+    a_cols: [[f64; NX]; NX],
+    b_cols: [[f64; NX]; NU],
+    c_rows: [[f64; NX]; NY],
+    d_cols: [[f64; NY]; NU],
+    limits: Limits,
+    sample_period_s: f64,
+    x: [f64; NX],
+    fault: FaultLatch,
+}
+
+impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
+    /// The current state vector.
+    pub fn state(&self) -> &[f64; NX] {
+        &self.x
+    }
+
+    /// The sample period the matrices were designed for, in s.
+    pub fn sample_period_s(&self) -> f64 {
+        self.sample_period_s
+    }
+}
+
+/// `acc += col · s` for every lane.
+#[inline(always)]
+fn axpy<const N: usize>(acc: &mut [f64; N], col: &[f64; N], s: f64) {
+    for (a, c) in acc.iter_mut().zip(col) {
+        *a += c * s;
+    }
+}
+
+/// Dot product with four partial sums (breaks the FMA latency chain).
+#[inline(always)]
+fn dot<const N: usize>(a: &[f64; N], b: &[f64; N]) -> f64 {
+    let mut part = [0.0f64; 4];
+    let (a4, a_rest) = a.as_chunks::<4>();
+    let (b4, b_rest) = b.as_chunks::<4>();
+    for (x, y) in a4.iter().zip(b4) {
+        for l in 0..4 {
+            part[l] += x[l] * y[l];
+        }
+    }
+    for (l, (x, y)) in a_rest.iter().zip(b_rest).enumerate() {
+        part[l] += x * y;
+    }
+    (part[0] + part[1]) + (part[2] + part[3])
+}
+
+impl<const NX: usize, const NU: usize, const NY: usize> Block for StateSpace<NX, NU, NY> {
+    type Input = [f64; NU];
+    type Output = [f64; NY];
+
+    #[inline]
+    fn update(&mut self, e: [f64; NU]) -> [f64; NY] {
+        let mut y: [f64; NY] = core::array::from_fn(|i| dot(&self.c_rows[i], &self.x));
+        for (col, &ej) in self.d_cols.iter().zip(&e) {
+            axpy(&mut y, col, ej);
+        }
+        let mut even = [0.0; NX];
+        let mut odd = [0.0; NX];
+        let (pairs, last) = self.a_cols.as_chunks::<2>();
+        let (x_pairs, x_last) = self.x.as_chunks::<2>();
+        for (cols, xs) in pairs.iter().zip(x_pairs) {
+            axpy(&mut even, &cols[0], xs[0]);
+            axpy(&mut odd, &cols[1], xs[1]);
+        }
+        for (col, &xj) in last.iter().zip(x_last) {
+            axpy(&mut even, col, xj);
+        }
+        for (col, &ej) in self.b_cols.iter().zip(&e) {
+            axpy(&mut odd, col, ej);
+        }
+        for ((x, a), b) in self.x.iter_mut().zip(&even).zip(&odd) {
+            *x = a + b;
+        }
+        if self.fault.check_all(&y) | self.fault.check_all(&self.x) {
+            return [0.0; NY];
+        }
+        y.map(|v| self.limits.clamp(v))
+    }
+
+    fn reset(&mut self) {
+        self.x = [0.0; NX];
+        self.fault = FaultLatch::default();
+    }
+
+    fn faulted(&self) -> bool {
+        self.fault.is_set()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic pseudo-random numbers in [-0.5, 0.5) (xorshift), for test matrices.
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed ^= *seed << 13;
+        *seed ^= *seed >> 7;
+        *seed ^= *seed << 17;
+        (*seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+
+    fn random_config<const NX: usize, const NU: usize, const NY: usize>(
+        seed: &mut u64,
+    ) -> StateSpaceConfig<NX, NU, NY> {
+        // Scale A so that its spectral radius stays below 1 (‖A‖∞ < 0.5·… ≤ 0.95).
+        let scale = 0.95 / NX as f64 * 2.0;
+        StateSpaceConfig {
+            a: SMatrix::from_fn(|_, _| lcg(seed) * scale),
+            b: SMatrix::from_fn(|_, _| lcg(seed)),
+            c: SMatrix::from_fn(|_, _| lcg(seed)),
+            d: SMatrix::from_fn(|_, _| lcg(seed)),
+            limits: Limits::UNLIMITED,
+        }
+    }
+
+    /// Compare with the textbook nested loops over nalgebra's matrices, 1e-12 relative.
+    fn against_naive<const NX: usize, const NU: usize, const NY: usize>(seed: u64) {
+        let mut seed = seed;
+        let cfg = random_config::<NX, NU, NY>(&mut seed);
+        let mut ss = cfg.try_build(5e-5).unwrap();
+        let mut x = [0.0f64; NX];
+        for _ in 0..500 {
+            let e: [f64; NU] = core::array::from_fn(|_| lcg(&mut seed));
+            let mut y_ref = [0.0f64; NY];
+            for (i, yi) in y_ref.iter_mut().enumerate() {
+                for j in 0..NX {
+                    *yi += cfg.c[(i, j)] * x[j];
+                }
+                for j in 0..NU {
+                    *yi += cfg.d[(i, j)] * e[j];
+                }
+            }
+            let mut x_ref = [0.0f64; NX];
+            for (i, xi) in x_ref.iter_mut().enumerate() {
+                for j in 0..NX {
+                    *xi += cfg.a[(i, j)] * x[j];
+                }
+                for j in 0..NU {
+                    *xi += cfg.b[(i, j)] * e[j];
+                }
+            }
+            x = x_ref;
+            let y = ss.update(e);
+            for i in 0..NY {
+                assert!((y[i] - y_ref[i]).abs() <= 1e-12 * (1.0 + y_ref[i].abs()));
+            }
+            for i in 0..NX {
+                assert!((ss.state()[i] - x[i]).abs() <= 1e-12 * (1.0 + x[i].abs()));
+            }
+        }
+    }
+
+    #[test]
+    fn matches_naive_matrix_loop() {
+        against_naive::<27, 1, 1>(1);
+        against_naive::<8, 2, 3>(2);
+        against_naive::<13, 1, 1>(3);
+        against_naive::<1, 1, 1>(4);
+        against_naive::<4, 3, 2>(5);
+    }
+
+    #[test]
+    fn nonfinite_input_faults_to_zero() {
+        let mut seed = 9;
+        let mut ss = random_config::<27, 1, 1>(&mut seed).try_build(5e-5).unwrap();
+        ss.update([1.0]);
+        assert_eq!(ss.update([f64::INFINITY]), [0.0]);
+        assert!(ss.faulted());
+        assert_eq!(ss.update([1.0]), [0.0]);
+        ss.reset();
+        assert!(!ss.faulted());
+        assert_ne!(ss.update([1.0]), [0.0]);
+    }
+
+    #[test]
+    fn rejects_nonfinite_matrix() {
+        let mut seed = 3;
+        let mut cfg = random_config::<4, 1, 1>(&mut seed);
+        cfg.c[(0, 2)] = f64::NAN;
+        assert_eq!(cfg.try_build(1e-4).unwrap_err(), Error::NotFinite { param: "c" });
+    }
+}
