@@ -18,9 +18,9 @@ use nalgebra::SMatrix;
 /// use servo_core::{Block, Limits, StateSpaceConfig};
 /// // A discrete integrator x⁺ = x + T·e, u = x.
 /// let config = StateSpaceConfig::<1, 1, 1> {
-///     a: SMatrix::new(1.0),
-///     b: SMatrix::new(1e-3),
-///     c: SMatrix::new(1.0),
+///     a: SMatrix::from_element(1.0),
+///     b: SMatrix::from_element(1e-3),
+///     c: SMatrix::from_element(1.0),
 ///     d: SMatrix::zeros(),
 ///     limits: Limits::UNLIMITED,
 /// };
