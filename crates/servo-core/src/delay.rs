@@ -56,7 +56,8 @@ impl<const CAP: usize> Block for IntegerDelay<CAP> {
             self.head = if self.head + 1 == self.len { 0 } else { self.head + 1 };
             y
         };
-        if self.fault.check(y) {
+        // The input is checked too: a NaN must fault now, not `n` ticks later.
+        if self.fault.check(x + y) {
             return 0.0;
         }
         y
@@ -181,10 +182,14 @@ impl<const CAP: usize> Block for TransportDelay<CAP> {
     #[inline]
     fn update(&mut self, x: f64) -> f64 {
         let y = self.whole.update(x);
-        match &mut self.fraction {
+        let y = match &mut self.fraction {
             Some(f) => f.update(y),
             None => y,
+        };
+        if self.faulted() {
+            return 0.0;
         }
+        y
     }
 
     fn reset(&mut self) {
