@@ -1,1 +1,102 @@
-fn main() {}
+//! One servo tick of the servo-core controllers (thesis Table 6-1 sizes), with a plain
+//! nalgebra state-space product as the same-run baseline. `python3 benches/report.py` turns
+//! the criterion estimates into the README's ratios.
+
+#![allow(missing_docs)] // criterion_group! generates undocumented items.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::{SMatrix, SVector};
+use servo_core::*;
+use std::hint::black_box;
+
+const T: f64 = 1.0 / 199_600.0;
+
+/// A stable pseudo-random realisation of order `N` (the numbers do not change the cost).
+fn realisation<const N: usize>() -> StateSpaceConfig<N, 1, 1> {
+    let mut seed = 0x2545f4914f6cdd1du64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let scale = 1.8 / N as f64;
+    StateSpaceConfig {
+        a: SMatrix::from_fn(|_, _| rnd() * scale),
+        b: SMatrix::from_fn(|_, _| rnd()),
+        c: SMatrix::from_fn(|_, _| rnd()),
+        d: SMatrix::from_fn(|_, _| rnd()),
+        limits: Limits::DAC_10V,
+    }
+}
+
+fn state_space<const N: usize>(c: &mut Criterion) {
+    let cfg = realisation::<N>();
+    let mut group = c.benchmark_group(format!("state_space_{N}"));
+    let mut ss = cfg.try_build(5e-5).unwrap();
+    group.bench_function("servo_core", |b| b.iter(|| ss.update([black_box(1e-3)])));
+    // Baseline: the textbook nalgebra expression of the same update.
+    let (a, bm, cm, d) = (cfg.a, cfg.b, cfg.c, cfg.d);
+    let mut x = SVector::<f64, N>::zeros();
+    group.bench_function("nalgebra_baseline", |b| {
+        b.iter(|| {
+            let e = SVector::<f64, 1>::new(black_box(1e-3));
+            let y = cm * x + d * e;
+            x = a * x + bm * e;
+            y[0].clamp(-10.0, 10.0)
+        })
+    });
+    group.finish();
+}
+
+fn pid(c: &mut Criterion) {
+    let mut pid = PidConfig::THESIS_CH7.try_build(T).unwrap();
+    c.bench_function("pid/servo_core", |b| b.iter(|| pid.update(black_box(1e-3))));
+}
+
+fn cascade(c: &mut Criterion) {
+    let lp = BiquadDesign::LowPass {
+        f0_hz: 10e3,
+        q: core::f64::consts::FRAC_1_SQRT_2,
+    }
+    .try_coeffs(T)
+    .unwrap();
+    let cfg = AccelCascadeConfig {
+        pid: PidConfig::THESIS_CH7,
+        ka: 1.0,
+        limits: Limits::DAC_10V,
+    };
+    let mut cas = cfg.try_build(T, BiquadCascade::new([lp, lp])).unwrap();
+    c.bench_function("cascade/servo_core", |b| {
+        b.iter(|| {
+            cas.update(CascadeInput {
+                error: black_box(1e-3),
+                accel: black_box(2e-3),
+            })
+        })
+    });
+}
+
+fn biquad(c: &mut Criterion) {
+    let notch = BiquadDesign::Notch {
+        f0_hz: 1600.0,
+        q: 5.0,
+    }
+    .try_coeffs(T)
+    .unwrap();
+    let mut bq = Iir::new(notch);
+    c.bench_function("biquad/servo_core", |b| {
+        b.iter(|| bq.update(black_box(1e-3)))
+    });
+}
+
+criterion_group!(
+    benches,
+    pid,
+    cascade,
+    biquad,
+    state_space::<8>,
+    state_space::<13>,
+    state_space::<27>
+);
+criterion_main!(benches);

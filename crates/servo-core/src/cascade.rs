@@ -30,7 +30,13 @@ pub const THESIS_ACCEL_SENSITIVITY_V_PER_M_S2: f64 = 1.0 / STANDARD_GRAVITY_M_S2
 /// let k = kg(0.175, 1.0, S, 1.0, 3.6658);
 /// assert!((k - 0.175 / (0.175 + 3.6658 * S)).abs() < 1e-15);
 /// ```
-pub fn kg(mass_kg: f64, ka: f64, accel_v_per_m_s2: f64, current_a_per_v: f64, kt_n_per_a: f64) -> f64 {
+pub fn kg(
+    mass_kg: f64,
+    ka: f64,
+    accel_v_per_m_s2: f64,
+    current_a_per_v: f64,
+    kt_n_per_a: f64,
+) -> f64 {
     mass_kg / (mass_kg + ka * accel_v_per_m_s2 * current_a_per_v * kt_n_per_a)
 }
 
@@ -147,7 +153,9 @@ mod tests {
             ka: 4.0,
             limits: Limits::DAC_10V,
         };
-        let mut c = cfg.try_build(5e-6, Iir::new(IirCoeffs::<1>::IDENTITY)).unwrap();
+        let mut c = cfg
+            .try_build(5e-6, Iir::new(IirCoeffs::<1>::IDENTITY))
+            .unwrap();
         let mut pid = PidConfig::THESIS_CH7.try_build(5e-6).unwrap();
         for k in 0..100 {
             let e = 1e-3 * (k as f64 * 0.1).sin();
@@ -188,7 +196,10 @@ mod tests {
         };
         for w in [10.0, 1e3, 3e3, 1e4, 1e5] {
             let (a, b) = (tracking(&base, 0.0, w), tracking(&scaled, ka, w));
-            assert!((a.0 - b.0).abs() < 1e-12 && (a.1 - b.1).abs() < 1e-12, "ω={w}");
+            assert!(
+                (a.0 - b.0).abs() < 1e-12 && (a.1 - b.1).abs() < 1e-12,
+                "ω={w}"
+            );
             // And without the scaling the tracking does change (the test can fail).
             let c = tracking(&base, ka, w);
             let rel = libm::hypot(a.0 - c.0, a.1 - c.1) / libm::hypot(a.0, a.1);

@@ -53,7 +53,11 @@ impl<const CAP: usize> Block for IntegerDelay<CAP> {
             x
         } else {
             let y = core::mem::replace(&mut self.buf[self.head], x);
-            self.head = if self.head + 1 == self.len { 0 } else { self.head + 1 };
+            self.head = if self.head + 1 == self.len {
+                0
+            } else {
+                self.head + 1
+            };
             y
         };
         // The input is checked too: a NaN must fault now, not `n` ticks later.
@@ -117,7 +121,7 @@ impl Block for ThiranDelay {
     fn update(&mut self, x: f64) -> f64 {
         let y = self.eta * (x - self.y_prev) + self.x_prev;
         self.x_prev = x;
-        self.y_prev = y;
+        self.y_prev = crate::math::flush(y);
         if self.fault.check(y) {
             return 0.0;
         }
@@ -214,13 +218,20 @@ mod tests {
             let mut d = IntegerDelay::<16>::try_new(n).unwrap();
             for k in 0..64 {
                 let x = if k % 20 == 0 { 1.0 } else { 0.0 };
-                let expected = if k >= n && (k - n) % 20 == 0 { 1.0 } else { 0.0 };
+                let expected = if k >= n && (k - n) % 20 == 0 {
+                    1.0
+                } else {
+                    0.0
+                };
                 assert_eq!(d.update(x), expected, "n={n} k={k}");
             }
         }
         assert_eq!(
             IntegerDelay::<4>::try_new(5).unwrap_err(),
-            Error::DelayTooLong { samples: 5, capacity: 4 }
+            Error::DelayTooLong {
+                samples: 5,
+                capacity: 4
+            }
         );
     }
 
@@ -228,7 +239,12 @@ mod tests {
     /// the running filter it must be within 1 % of the request.
     #[test]
     fn fractional_group_delay_at_dc_within_one_percent() {
-        for &(delay_s, rate) in &[(3.159e-6, 199_600.0), (3.5e-6, 199_600.0), (3.159e-6, 20_000.0), (12.0e-6, 199_600.0)] {
+        for &(delay_s, rate) in &[
+            (3.159e-6, 199_600.0),
+            (3.5e-6, 199_600.0),
+            (3.159e-6, 20_000.0),
+            (12.0e-6, 199_600.0),
+        ] {
             let mut d = TransportDelay::<8>::try_new(delay_s, 1.0 / rate).unwrap();
             let (mut m0, mut m1) = (0.0, 0.0);
             for k in 0..200_000 {
@@ -239,7 +255,10 @@ mod tests {
             let measured = m1 / m0;
             let requested = delay_s * rate;
             assert!((m0 - 1.0).abs() < 1e-9, "DC gain {m0}");
-            assert!((measured - requested).abs() < 0.01 * requested, "{measured} vs {requested}");
+            assert!(
+                (measured - requested).abs() < 0.01 * requested,
+                "{measured} vs {requested}"
+            );
         }
     }
 

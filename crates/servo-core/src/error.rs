@@ -78,9 +78,15 @@ impl fmt::Display for Error {
                 value,
                 min,
                 max,
-            } => write!(f, "`{param}` = {value} is outside the allowed range [{min}, {max}]"),
+            } => write!(
+                f,
+                "`{param}` = {value} is outside the allowed range [{min}, {max}]"
+            ),
             Error::InvalidLimits { min, max } => {
-                write!(f, "output limits [{min}, {max}]: the lower limit exceeds the upper")
+                write!(
+                    f,
+                    "output limits [{min}, {max}]: the lower limit exceeds the upper"
+                )
             }
             Error::DelayTooLong { samples, capacity } => write!(
                 f,
@@ -93,7 +99,12 @@ impl fmt::Display for Error {
 impl core::error::Error for Error {}
 
 /// Checks that `value` is finite and in `[min, max]`; returns it unchanged.
-pub(crate) fn check_range(param: &'static str, value: f64, min: f64, max: f64) -> Result<f64, Error> {
+pub(crate) fn check_range(
+    param: &'static str,
+    value: f64,
+    min: f64,
+    max: f64,
+) -> Result<f64, Error> {
     if !value.is_finite() {
         return Err(Error::NotFinite { param });
     }

@@ -8,6 +8,7 @@
 
 use crate::block::{Block, FaultLatch};
 use crate::error::{check_period, check_range, Error};
+use crate::math::flush;
 use core::f64::consts::PI;
 
 /// Coefficients of an order-`N` IIR filter with `a0 = 1`.
@@ -55,7 +56,9 @@ impl<const N: usize> IirCoeffs<N> {
         if finite {
             Ok(*self)
         } else {
-            Err(Error::NotFinite { param: "iir coefficients" })
+            Err(Error::NotFinite {
+                param: "iir coefficients",
+            })
         }
     }
 }
@@ -109,7 +112,7 @@ impl<const N: usize> Block for Iir<N> {
         let y = self.peek(x);
         for i in 0..N {
             let next = if i + 1 < N { self.state[i + 1] } else { 0.0 };
-            self.state[i] = c.b[i] * x - c.a[i] * y + next;
+            self.state[i] = flush(c.b[i] * x - c.a[i] * y + next);
         }
         if self.fault.check(y) {
             return 0.0;
@@ -131,7 +134,7 @@ impl<const N: usize> Block for Iir<N> {
 ///
 /// ```
 /// use servo_core::{Block, BiquadCascade, BiquadDesign};
-/// let lp = BiquadDesign::LowPass { f0_hz: 10e3, q: 0.7071 }.try_coeffs(1e-5).unwrap();
+/// let lp = BiquadDesign::LowPass { f0_hz: 10e3, q: core::f64::consts::FRAC_1_SQRT_2 }.try_coeffs(1e-5).unwrap();
 /// let mut two = BiquadCascade::new([lp, lp]);
 /// assert!((two.dc_gain() - 1.0).abs() < 1e-12);
 /// let _ = two.update(1.0);
@@ -267,7 +270,11 @@ fn bilinear(num: [f64; 3], den: [f64; 3], k: f64) -> IirCoeffs<2> {
         ]
     };
     let (n, d) = (map(num), map(den));
-    IirCoeffs::new(n[0] / d[0], [n[1] / d[0], n[2] / d[0]], [d[1] / d[0], d[2] / d[0]])
+    IirCoeffs::new(
+        n[0] / d[0],
+        [n[1] / d[0], n[2] / d[0]],
+        [d[1] / d[0], d[2] / d[0]],
+    )
 }
 
 #[cfg(test)]
@@ -283,7 +290,10 @@ mod tests {
         }
         fn div(self, o: C) -> C {
             let d = o.0 * o.0 + o.1 * o.1;
-            C((self.0 * o.0 + self.1 * o.1) / d, (self.1 * o.0 - self.0 * o.1) / d)
+            C(
+                (self.0 * o.0 + self.1 * o.1) / d,
+                (self.1 * o.0 - self.0 * o.1) / d,
+            )
         }
         fn abs(self) -> f64 {
             libm::hypot(self.0, self.1)
@@ -312,11 +322,28 @@ mod tests {
 
     fn designs() -> [BiquadDesign; 5] {
         [
-            BiquadDesign::LowPass { f0_hz: 15e3, q: core::f64::consts::FRAC_1_SQRT_2 },
-            BiquadDesign::HighPass { f0_hz: 50.0, q: 0.5 },
-            BiquadDesign::Notch { f0_hz: 1600.0, q: 5.0 },
-            BiquadDesign::Peak { f0_hz: 7748.0, q: 10.0, gain_db: -12.0 },
-            BiquadDesign::Peak { f0_hz: 40e3, q: 2.0, gain_db: 6.0 },
+            BiquadDesign::LowPass {
+                f0_hz: 15e3,
+                q: core::f64::consts::FRAC_1_SQRT_2,
+            },
+            BiquadDesign::HighPass {
+                f0_hz: 50.0,
+                q: 0.5,
+            },
+            BiquadDesign::Notch {
+                f0_hz: 1600.0,
+                q: 5.0,
+            },
+            BiquadDesign::Peak {
+                f0_hz: 7748.0,
+                q: 10.0,
+                gain_db: -12.0,
+            },
+            BiquadDesign::Peak {
+                f0_hz: 40e3,
+                q: 2.0,
+                gain_db: 6.0,
+            },
         ]
     }
 
@@ -334,7 +361,8 @@ mod tests {
                 let dig = digital(&c, w);
                 let scale = analog.abs().max(1e-6);
                 assert!(
-                    (dig.0 - analog.0).abs() < 1e-9 * scale && (dig.1 - analog.1).abs() < 1e-9 * scale,
+                    (dig.0 - analog.0).abs() < 1e-9 * scale
+                        && (dig.1 - analog.1).abs() < 1e-9 * scale,
                     "{d:?} at ω={w}"
                 );
             }
@@ -373,16 +401,29 @@ mod tests {
             let input_phase = w * 200_000.0 - PI / 2.0;
             let h = digital(&c, w);
             let dphase = libm::remainder(measured.arg() - input_phase - h.arg(), 2.0 * PI);
-            assert!((measured.abs() - h.abs()).abs() < 1e-9 * h.abs().max(1e-3), "{d:?}");
+            assert!(
+                (measured.abs() - h.abs()).abs() < 1e-9 * h.abs().max(1e-3),
+                "{d:?}"
+            );
             assert!(dphase.abs() < 1e-7 || h.abs() < 1e-6, "{d:?}: {dphase}");
         }
     }
 
     #[test]
     fn notch_nulls_and_cascade_multiplies() {
-        let c = BiquadDesign::Notch { f0_hz: 1600.0, q: 5.0 }.try_coeffs(T).unwrap();
+        let c = BiquadDesign::Notch {
+            f0_hz: 1600.0,
+            q: 5.0,
+        }
+        .try_coeffs(T)
+        .unwrap();
         assert!(digital(&c, 2.0 * PI * 1600.0 * T).abs() < 1e-12);
-        let lp = BiquadDesign::LowPass { f0_hz: 10e3, q: 0.7071 }.try_coeffs(T).unwrap();
+        let lp = BiquadDesign::LowPass {
+            f0_hz: 10e3,
+            q: core::f64::consts::FRAC_1_SQRT_2,
+        }
+        .try_coeffs(T)
+        .unwrap();
         let mut cascade = BiquadCascade::new([lp, c]);
         let (mut a, mut b) = (Iir::new(lp), Iir::new(c));
         for k in 0..1000 {
@@ -393,7 +434,12 @@ mod tests {
 
     #[test]
     fn rejects_f0_above_nyquist() {
-        let e = BiquadDesign::LowPass { f0_hz: 150e3, q: 0.7 }.try_coeffs(T).unwrap_err();
+        let e = BiquadDesign::LowPass {
+            f0_hz: 150e3,
+            q: 0.7,
+        }
+        .try_coeffs(T)
+        .unwrap_err();
         assert!(matches!(e, Error::OutOfRange { param: "f0_hz", .. }));
     }
 }

@@ -123,7 +123,10 @@ mod tests {
 
     /// An `Iir<N>` from numerator and denominator polynomials (den[0] normalised to 1).
     fn iir<const N: usize>(num: &[f64; 8], den: &[f64; 8]) -> Iir<N> {
-        assert!(num[N + 1..].iter().chain(&den[N + 1..]).all(|&x| x.abs() < 1e-15));
+        assert!(num[N + 1..]
+            .iter()
+            .chain(&den[N + 1..])
+            .all(|&x| x.abs() < 1e-15));
         let n = |x: f64| x / den[0];
         Iir::new(IirCoeffs::new(
             n(num[0]),
@@ -152,13 +155,19 @@ mod tests {
         let beta = 2.0 / (2.0 * pid_cfg.tf_s + t);
         let dc = mul(&[1.0, -1.0], &[1.0, -alpha]);
         let nc = add(
-            add(scale(dc, pid_cfg.kp), scale(mul(&[1.0, 1.0], &[1.0, -alpha]), pid_cfg.ki * t / 2.0)),
+            add(
+                scale(dc, pid_cfg.kp),
+                scale(mul(&[1.0, 1.0], &[1.0, -alpha]), pid_cfg.ki * t / 2.0),
+            ),
             scale(mul(&[1.0, -1.0], &[1.0, -1.0]), pid_cfg.kd * beta),
         );
         let d12c = mul(&mul(&d1, &d2)[..3], &dc[..3]);
         let n12c = mul(&mul(&n1, &n2)[..3], &nc[..3]);
         // Δ = d1·d2·dc·(1 + C2G1 + C3G1G2)
-        let delta = add(add(d12c, scale(mul(&mul(&n1, &d2)[..3], &dc[..3]), c2)), n12c);
+        let delta = add(
+            add(d12c, scale(mul(&mul(&n1, &d2)[..3], &dc[..3]), c2)),
+            n12c,
+        );
         // eq 7-5: Q = −C2G1/(1 + C2G1 + C3G1G2); Q·G1⁻¹ and Q' = z·Q (n1 = 0.8 z⁻¹).
         let q_g1_inv = scale(d12c, -c2);
         let q_prime = scale(mul(&[n1[1]], &mul(&d2, &dc[..3])[..4]), -c2);
@@ -171,7 +180,9 @@ mod tests {
             ka: c2,
             limits: Limits::UNLIMITED,
         };
-        let mut cascade = cascade_cfg.try_build(t, Iir::new(IirCoeffs::<1>::IDENTITY)).unwrap();
+        let mut cascade = cascade_cfg
+            .try_build(t, Iir::new(IirCoeffs::<1>::IDENTITY))
+            .unwrap();
         let mut pid = pid_cfg.try_build(t).unwrap();
         let mut c1p = iir::<6>(&c1p_num, &c1p_den);
         let mut dob = DisturbanceObserver::new(
@@ -188,7 +199,9 @@ mod tests {
         let (mut g1b, mut g2b) = plant();
         let mut seed = 12345u64;
         let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
         let mut worst: f64 = 0.0;
@@ -197,9 +210,15 @@ mod tests {
             // Strictly proper plants: the outputs at k come from the state alone.
             let (y1a, y2a) = (g1a.peek(0.0), g2a.peek(0.0));
             let (y1b, y2b) = (g1b.peek(0.0), g2b.peek(0.0));
-            let ua = cascade.update(CascadeInput { error: r - y2a, accel: y1a });
+            let ua = cascade.update(CascadeInput {
+                error: r - y2a,
+                accel: y1a,
+            });
             let uc = c1p.update(r) + pid.update(-y2b);
-            let ub = dob.update(ObserverInput { control: uc, inner: y1b });
+            let ub = dob.update(ObserverInput {
+                control: uc,
+                inner: y1b,
+            });
             g2a.update(g1a.update(ua + d));
             g2b.update(g1b.update(ub + d));
             assert!((y1a - y1b).abs() < 1e-9 * (1.0 + y1a.abs()));

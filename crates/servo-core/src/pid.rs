@@ -18,6 +18,7 @@
 use crate::block::{Block, FaultLatch};
 use crate::error::{check_period, check_range, Error};
 use crate::limits::Limits;
+use crate::math::flush;
 
 /// PID settings in physical units. The error and output units are the caller's (the thesis
 /// works in volts of sensor signal in, volts to the current amplifier out: V/V gains).
@@ -150,7 +151,7 @@ impl Block for Pid {
         if !winding_up {
             s.integral = integral;
         }
-        s.deriv = deriv;
+        s.deriv = flush(deriv);
         s.e_prev = e;
         let u = pd + s.integral;
         if self.fault.check(u) {
@@ -198,7 +199,10 @@ mod tests {
             let kf = k as f64;
             let expected = kp + ki * T * (kf + 0.5) + kd * 2.0 / (2.0 * tf + T) * alpha.powi(k);
             let u = pid.update(1.0);
-            assert!((u - expected).abs() <= 1e-12 * expected.abs(), "k={k}: {u} vs {expected}");
+            assert!(
+                (u - expected).abs() <= 1e-12 * expected.abs(),
+                "k={k}: {u} vs {expected}"
+            );
         }
     }
 
@@ -213,7 +217,10 @@ mod tests {
             let t = k as f64 * T;
             let expected = kp * t + ki * t * t / 2.0 + kd * (1.0 - alpha.powi(k));
             let u = pid.update(t);
-            assert!((u - expected).abs() <= 1e-12 * expected.abs().max(1e-9), "k={k}");
+            assert!(
+                (u - expected).abs() <= 1e-12 * expected.abs().max(1e-9),
+                "k={k}"
+            );
             // And the derivative term tracks its continuous-time counterpart to O(T²/Tf²).
             let continuous = kd * (1.0 - libm::exp(-t / tf));
             let discrete = kd * (1.0 - alpha.powi(k));
@@ -265,7 +272,11 @@ mod tests {
         // Only the new integral increment Ki·T·e separates the two samples (plus the decaying
         // derivative, < 1e-12 here).
         let increment = 1124.0 * T * 0.01;
-        assert!((after - before - increment).abs() < 1e-9, "jump {}", after - before);
+        assert!(
+            (after - before - increment).abs() < 1e-9,
+            "jump {}",
+            after - before
+        );
     }
 
     #[test]

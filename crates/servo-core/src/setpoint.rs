@@ -267,7 +267,10 @@ impl Chirp {
         }
         let f = self.frequency_hz(t);
         let (phi, dfdt) = match self.sweep {
-            Sweep::Linear => (2.0 * PI * (self.f0 * t + 0.5 * self.rate * t * t), self.rate),
+            Sweep::Linear => (
+                2.0 * PI * (self.f0 * t + 0.5 * self.rate * t * t),
+                self.rate,
+            ),
             Sweep::Exponential if self.rate == 0.0 => (2.0 * PI * self.f0 * t, 0.0),
             Sweep::Exponential => (2.0 * PI * (f - self.f0) / self.rate, self.rate * f),
         };
@@ -417,7 +420,13 @@ impl SteppedSine<'_> {
         } else {
             (1.0, 0.0)
         };
-        Setpoint::sine(w * n * t, w, 0.0, self.amplitude * env, self.amplitude * slope)
+        Setpoint::sine(
+            w * n * t,
+            w,
+            0.0,
+            self.amplitude * env,
+            self.amplitude * slope,
+        )
     }
 }
 
@@ -450,7 +459,12 @@ mod tests {
 
     /// Numerical derivatives of the position agree with the analytic ones (central
     /// differences, O(T²) error), relative to each derivative's peak over the record.
-    fn check_derivatives(mut g: impl Block<Input = (), Output = Setpoint>, t: f64, n: usize, tol: f64) {
+    fn check_derivatives(
+        mut g: impl Block<Input = (), Output = Setpoint>,
+        t: f64,
+        n: usize,
+        tol: f64,
+    ) {
         let mut w = [g.update(()), g.update(()), g.update(())];
         let (mut err_v, mut err_a, mut peak_v, mut peak_a) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
         for _ in 0..n {
@@ -462,26 +476,49 @@ mod tests {
             peak_a = peak_a.max(w[1].acceleration.abs());
             w = [w[1], w[2], g.update(())];
         }
-        assert!(err_v < tol * peak_v, "velocity error {err_v} of peak {peak_v}");
-        assert!(err_a < tol * peak_a, "acceleration error {err_a} of peak {peak_a}");
+        assert!(
+            err_v < tol * peak_v,
+            "velocity error {err_v} of peak {peak_v}"
+        );
+        assert!(
+            err_a < tol * peak_a,
+            "acceleration error {err_a} of peak {peak_a}"
+        );
     }
 
     #[test]
     fn analytic_derivatives_match_finite_differences() {
         let t = 1e-6;
-        let sine = SineConfig { amplitude: 1.0, frequency_hz: 200.0, phase_rad: 0.3, offset: 0.1 };
+        let sine = SineConfig {
+            amplitude: 1.0,
+            frequency_hz: 200.0,
+            phase_rad: 0.3,
+            offset: 0.1,
+        };
         check_derivatives(sine.try_build(t).unwrap(), t, 20_000, 1e-3);
         for sweep in [Sweep::Linear, Sweep::Exponential] {
-            let chirp = ChirpConfig { amplitude: 1.0, f_start_hz: 10.0, f_end_hz: 2000.0, duration_s: 0.05, sweep };
+            let chirp = ChirpConfig {
+                amplitude: 1.0,
+                f_start_hz: 10.0,
+                f_end_hz: 2000.0,
+                duration_s: 0.05,
+                sweep,
+            };
             check_derivatives(chirp.try_build(t).unwrap(), t, 40_000, 1e-3);
         }
     }
 
     #[test]
     fn chirp_instantaneous_frequency() {
-        let c = ChirpConfig { amplitude: 1.0, f_start_hz: 10.0, f_end_hz: 1000.0, duration_s: 2.0, sweep: Sweep::Exponential }
-            .try_build(1e-5)
-            .unwrap();
+        let c = ChirpConfig {
+            amplitude: 1.0,
+            f_start_hz: 10.0,
+            f_end_hz: 1000.0,
+            duration_s: 2.0,
+            sweep: Sweep::Exponential,
+        }
+        .try_build(1e-5)
+        .unwrap();
         assert!((c.frequency_hz(1.0) - 100.0).abs() < 1e-9);
         assert!((c.frequency_hz(2.0) - 1000.0).abs() < 1e-9);
     }
@@ -492,7 +529,13 @@ mod tests {
     fn stepped_sine_layout_and_exact_bins() {
         let fs = 199_600.0;
         let freqs = [37.0, 512.3, 4999.0];
-        let cfg = SteppedSineConfig { frequencies_hz: &freqs, amplitude: 0.5, ramp_periods: 3, settle_periods: 5, measure_periods: 20 };
+        let cfg = SteppedSineConfig {
+            frequencies_hz: &freqs,
+            amplitude: 0.5,
+            ramp_periods: 3,
+            settle_periods: 5,
+            measure_periods: 20,
+        };
         let mut g = cfg.try_build(1.0 / fs).unwrap();
         let segs: [SweepSegment; 3] = core::array::from_fn(|i| g.segment(i).unwrap());
         assert_eq!(segs[1].start, segs[0].end());
@@ -527,9 +570,26 @@ mod tests {
 
     #[test]
     fn step_and_bad_frequency() {
-        let mut s = StepConfig { amplitude: 2.0, delay_s: 0.0 }.try_build(1e-3).unwrap();
+        let mut s = StepConfig {
+            amplitude: 2.0,
+            delay_s: 0.0,
+        }
+        .try_build(1e-3)
+        .unwrap();
         assert_eq!(s.update(()).position, 2.0);
-        let e = SineConfig { amplitude: 1.0, frequency_hz: 1e6, phase_rad: 0.0, offset: 0.0 }.try_build(1e-3);
-        assert!(matches!(e, Err(Error::OutOfRange { param: "frequency_hz", .. })));
+        let e = SineConfig {
+            amplitude: 1.0,
+            frequency_hz: 1e6,
+            phase_rad: 0.0,
+            offset: 0.0,
+        }
+        .try_build(1e-3);
+        assert!(matches!(
+            e,
+            Err(Error::OutOfRange {
+                param: "frequency_hz",
+                ..
+            })
+        ));
     }
 }

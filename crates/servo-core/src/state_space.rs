@@ -9,6 +9,7 @@
 use crate::block::{Block, FaultLatch};
 use crate::error::{check_period, Error};
 use crate::limits::Limits;
+use crate::math::{flush, mul_add};
 use nalgebra::SMatrix;
 
 /// A discrete state-space realisation in nalgebra matrices (any unit; the thesis uses V/V).
@@ -107,7 +108,7 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
 #[inline(always)]
 fn axpy<const N: usize>(acc: &mut [f64; N], col: &[f64; N], s: f64) {
     for (a, c) in acc.iter_mut().zip(col) {
-        *a += c * s;
+        *a = mul_add(*c, s, *a);
     }
 }
 
@@ -119,11 +120,11 @@ fn dot<const N: usize>(a: &[f64; N], b: &[f64; N]) -> f64 {
     let (b4, b_rest) = b.as_chunks::<4>();
     for (x, y) in a4.iter().zip(b4) {
         for l in 0..4 {
-            part[l] += x[l] * y[l];
+            part[l] = mul_add(x[l], y[l], part[l]);
         }
     }
     for (l, (x, y)) in a_rest.iter().zip(b_rest).enumerate() {
-        part[l] += x * y;
+        part[l] = mul_add(*x, *y, part[l]);
     }
     (part[0] + part[1]) + (part[2] + part[3])
 }
@@ -153,7 +154,7 @@ impl<const NX: usize, const NU: usize, const NY: usize> Block for StateSpace<NX,
             axpy(&mut odd, col, ej);
         }
         for ((x, a), b) in self.x.iter_mut().zip(&even).zip(&odd) {
-            *x = a + b;
+            *x = flush(a + b);
         }
         if self.fault.check_all(&y) | self.fault.check_all(&self.x) {
             return [0.0; NY];
@@ -198,6 +199,7 @@ mod tests {
     }
 
     /// Compare with the textbook nested loops over nalgebra's matrices, 1e-12 relative.
+    #[allow(clippy::needless_range_loop)] // the naive index loops are the point
     fn against_naive<const NX: usize, const NU: usize, const NY: usize>(seed: u64) {
         let mut seed = seed;
         let cfg = random_config::<NX, NU, NY>(&mut seed);
@@ -246,7 +248,9 @@ mod tests {
     #[test]
     fn nonfinite_input_faults_to_zero() {
         let mut seed = 9;
-        let mut ss = random_config::<27, 1, 1>(&mut seed).try_build(5e-5).unwrap();
+        let mut ss = random_config::<27, 1, 1>(&mut seed)
+            .try_build(5e-5)
+            .unwrap();
         ss.update([1.0]);
         assert_eq!(ss.update([f64::INFINITY]), [0.0]);
         assert!(ss.faulted());
@@ -261,6 +265,9 @@ mod tests {
         let mut seed = 3;
         let mut cfg = random_config::<4, 1, 1>(&mut seed);
         cfg.c[(0, 2)] = f64::NAN;
-        assert_eq!(cfg.try_build(1e-4).unwrap_err(), Error::NotFinite { param: "c" });
+        assert_eq!(
+            cfg.try_build(1e-4).unwrap_err(),
+            Error::NotFinite { param: "c" }
+        );
     }
 }

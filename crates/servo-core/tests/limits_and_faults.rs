@@ -8,7 +8,13 @@ use proptest::prelude::*;
 use servo_core::*;
 
 fn finite() -> impl Strategy<Value = f64> {
-    prop_oneof![-1e3..1e3f64, -1e12..1e12f64, Just(0.0), Just(f64::MAX), Just(-f64::MAX)]
+    prop_oneof![
+        -1e3..1e3f64,
+        -1e12..1e12f64,
+        Just(0.0),
+        Just(f64::MAX),
+        Just(-f64::MAX)
+    ]
 }
 
 fn non_finite() -> impl Strategy<Value = f64> {

@@ -17,21 +17,43 @@ fn allocated_by(f: impl FnOnce()) -> (usize, usize) {
     let region = Region::new(GLOBAL);
     f();
     let stats = region.change();
-    (stats.bytes_allocated + stats.bytes_reallocated.max(0) as usize, stats.allocations + stats.reallocations)
+    (
+        stats.bytes_allocated + stats.bytes_reallocated.max(0) as usize,
+        stats.allocations + stats.reallocations,
+    )
 }
 
 #[test]
 fn every_block_ticks_without_allocating() {
-    let (mut pid, mut bq, mut cas, mut ss, mut dob, mut dl, mut ff) =
-        (pid(), biquad(), cascade(), state_space_27(), observer(), delay(), feedforward());
+    let (mut pid, mut bq, mut cas, mut ss, mut dob, mut dl, mut ff) = (
+        pid(),
+        biquad(),
+        cascade(),
+        state_space_27(),
+        observer(),
+        delay(),
+        feedforward(),
+    );
     let mut avg = Averager::<4>::new();
     let freqs = [100.0, 1000.0];
-    let mut sweep = SteppedSineConfig { frequencies_hz: &freqs, amplitude: 1.0, ramp_periods: 2, settle_periods: 2, measure_periods: 4 }
-        .try_build(T)
-        .unwrap();
-    let mut chirp = ChirpConfig { amplitude: 1.0, f_start_hz: 1.0, f_end_hz: 1e4, duration_s: 0.25, sweep: Sweep::Exponential }
-        .try_build(T)
-        .unwrap();
+    let mut sweep = SteppedSineConfig {
+        frequencies_hz: &freqs,
+        amplitude: 1.0,
+        ramp_periods: 2,
+        settle_periods: 2,
+        measure_periods: 4,
+    }
+    .try_build(T)
+    .unwrap();
+    let mut chirp = ChirpConfig {
+        amplitude: 1.0,
+        f_start_hz: 1.0,
+        f_end_hz: 1e4,
+        duration_s: 0.25,
+        sweep: Sweep::Exponential,
+    }
+    .try_build(T)
+    .unwrap();
     let mut sink = 0.0;
     let (bytes, count) = allocated_by(|| {
         for k in 0..TICKS {
@@ -40,11 +62,22 @@ fn every_block_ticks_without_allocating() {
             sink += pid.update(x) + bq.update(x) + dl.update(x);
             sink += cas.update(CascadeInput { error: x, accel: r });
             sink += ss.update([x])[0];
-            sink += dob.update(ObserverInput { control: x, inner: r });
-            sink += ff.update(Setpoint { position: x, velocity: r, acceleration: x });
+            sink += dob.update(ObserverInput {
+                control: x,
+                inner: r,
+            });
+            sink += ff.update(Setpoint {
+                position: x,
+                velocity: r,
+                acceleration: x,
+            });
             sink += avg.update([x, r, x, r]);
         }
     });
     assert!(sink.is_finite());
-    assert_eq!((bytes, count), (0, 0), "the servo tick allocated {bytes} bytes in {count} calls");
+    assert_eq!(
+        (bytes, count),
+        (0, 0),
+        "the servo tick allocated {bytes} bytes in {count} calls"
+    );
 }

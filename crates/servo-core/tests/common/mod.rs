@@ -12,14 +12,30 @@ pub fn pid() -> Pid {
 }
 
 pub fn biquad() -> Biquad {
-    Iir::new(BiquadDesign::Notch { f0_hz: 1600.0, q: 5.0 }.try_coeffs(T).unwrap())
+    Iir::new(
+        BiquadDesign::Notch {
+            f0_hz: 1600.0,
+            q: 5.0,
+        }
+        .try_coeffs(T)
+        .unwrap(),
+    )
 }
 
 pub fn cascade() -> AccelCascade<BiquadCascade<2>> {
-    let lp = BiquadDesign::LowPass { f0_hz: 10e3, q: 0.7071 }.try_coeffs(T).unwrap();
-    AccelCascadeConfig { pid: PidConfig::THESIS_CH7, ka: 4.0, limits: LIMITS }
-        .try_build(T, BiquadCascade::new([lp, lp]))
-        .unwrap()
+    let lp = BiquadDesign::LowPass {
+        f0_hz: 10e3,
+        q: core::f64::consts::FRAC_1_SQRT_2,
+    }
+    .try_coeffs(T)
+    .unwrap();
+    AccelCascadeConfig {
+        pid: PidConfig::THESIS_CH7,
+        ka: 4.0,
+        limits: LIMITS,
+    }
+    .try_build(T, BiquadCascade::new([lp, lp]))
+    .unwrap()
 }
 
 /// A stable 27-state controller with a deterministic pseudo-random realisation.
@@ -43,7 +59,12 @@ pub fn state_space_27() -> StateSpace<27, 1, 1> {
 }
 
 pub fn observer() -> DisturbanceObserver<Iir<2>, Iir<2>> {
-    let q = BiquadDesign::LowPass { f0_hz: 2e3, q: 0.7071 }.try_coeffs(T).unwrap();
+    let q = BiquadDesign::LowPass {
+        f0_hz: 2e3,
+        q: core::f64::consts::FRAC_1_SQRT_2,
+    }
+    .try_coeffs(T)
+    .unwrap();
     DisturbanceObserver::new(Iir::new(q), Iir::new(q), LIMITS)
 }
 
