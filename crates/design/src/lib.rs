@@ -1,1 +1,7 @@
-//! fts-servo `design` (filled by its own issue).
+//! # design
+//!
+//! Offline design and analysis for fts-servo: continuous LTI models, frequency responses,
+//! exact (delayed) zero-order-hold discretisation, and spectral estimation.
+
+pub mod lti;
+pub mod spectral;
