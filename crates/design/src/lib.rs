@@ -3,5 +3,6 @@
 //! Offline design and analysis for fts-servo: continuous LTI models, frequency responses,
 //! exact (delayed) zero-order-hold discretisation, and spectral estimation.
 
+pub mod interconnect;
 pub mod lti;
 pub mod spectral;

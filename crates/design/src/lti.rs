@@ -74,6 +74,38 @@ impl StateSpace {
         Ok(StateSpace { a, b, c, d })
     }
 
+    /// A realisation (controllable canonical form) of `num(s)/den(s)`, coefficients in
+    /// descending powers of `s`; requires `deg num ≤ deg den` and `den[0] ≠ 0`.
+    ///
+    /// ```
+    /// use design::lti::StateSpace;
+    /// let lag = StateSpace::from_tf(&[100.0], &[1.0, 100.0]).unwrap(); // 100/(s + 100)
+    /// assert!((lag.freq_response_at(0.0, 0, 0).unwrap().re - 1.0).abs() < 1e-15);
+    /// ```
+    pub fn from_tf(num: &[f64], den: &[f64]) -> Result<Self, LtiError> {
+        let lead = *den.first().ok_or(LtiError::Argument("empty denominator"))?;
+        if lead == 0.0 || num.len() > den.len() {
+            return Err(LtiError::Argument("from_tf needs den[0] ≠ 0 and deg num ≤ deg den"));
+        }
+        let n = den.len() - 1;
+        let a_coef: Vec<f64> = den[1..].iter().map(|x| x / lead).collect();
+        let mut b_coef = vec![0.0; n + 1 - num.len()];
+        b_coef.extend(num.iter().map(|x| x / lead));
+        let b0 = b_coef[0];
+        let a = DMatrix::from_fn(n, n, |i, j| {
+            if i == 0 {
+                -a_coef[j]
+            } else if i == j + 1 {
+                1.0
+            } else {
+                0.0
+            }
+        });
+        let b = DMatrix::from_fn(n, 1, |i, _| if i == 0 { 1.0 } else { 0.0 });
+        let c = DMatrix::from_fn(1, n, |_, j| b_coef[j + 1] - a_coef[j] * b0);
+        StateSpace::new(a, b, c, DMatrix::from_element(1, 1, b0))
+    }
+
     /// Number of states.
     pub fn nx(&self) -> usize {
         self.a.nrows()
@@ -304,6 +336,22 @@ mod tests {
             let got = ss.freq_response_at(f, 0, 0).unwrap();
             assert!((got - want).norm() < 1e-12 * want.norm());
         }
+    }
+
+    #[test]
+    fn from_tf_realises_the_rational_function() {
+        // (2s² + 3s + 5)/(s³ + 4s² + 6s + 8)
+        let ss = StateSpace::from_tf(&[2.0, 3.0, 5.0], &[1.0, 4.0, 6.0, 8.0]).unwrap();
+        // Biproper: (s + 1)/(0.5 s + 2)
+        let bi = StateSpace::from_tf(&[1.0, 1.0], &[0.5, 2.0]).unwrap();
+        for f in [0.0, 0.3, 1.0, 10.0] {
+            let s = Complex64::new(0.0, 2.0 * PI * f);
+            let want = (2.0 * s * s + 3.0 * s + 5.0) / (s * s * s + 4.0 * s * s + 6.0 * s + 8.0);
+            assert!((ss.freq_response_at(f, 0, 0).unwrap() - want).norm() < 1e-13);
+            let want = (s + 1.0) / (0.5 * s + 2.0);
+            assert!((bi.freq_response_at(f, 0, 0).unwrap() - want).norm() < 1e-13);
+        }
+        assert!(StateSpace::from_tf(&[1.0, 0.0, 0.0], &[1.0, 1.0]).is_err());
     }
 
     #[test]
