@@ -145,7 +145,9 @@ impl Interconnect {
         let mut k = DMatrix::zeros(m, p);
         let mut e = DMatrix::zeros(m, me);
         for (dest, source, gain) in &self.wires {
-            let i = *input_index.get(dest).ok_or_else(|| ConnectError::UnknownSignal(dest.clone()))?;
+            let i = *input_index
+                .get(dest)
+                .ok_or_else(|| ConnectError::UnknownSignal(dest.clone()))?;
             if let Some(j) = output_index.get(source) {
                 k[(i, *j)] += gain;
             } else if let Some(j) = ext_index(source) {
@@ -154,7 +156,9 @@ impl Interconnect {
                 return Err(ConnectError::UnknownSignal(source.clone()));
             }
         }
-        let f = (DMatrix::identity(m, m) - &k * &d).try_inverse().ok_or(ConnectError::AlgebraicLoop)?;
+        let f = (DMatrix::identity(m, m) - &k * &d)
+            .try_inverse()
+            .ok_or(ConnectError::AlgebraicLoop)?;
         let fkc = &f * &k * &c;
         let fe = &f * &e;
         let a_cl = &a + &bb * &fkc;
@@ -218,14 +222,22 @@ mod tests {
     fn feedthrough_chain() {
         let p = 50.0;
         let conn = Interconnect::new(&["u"])
-            .block(NamedBlock::gain("k", DMatrix::from_element(1, 1, 3.0), &["ku"], &["kv"]))
+            .block(NamedBlock::gain(
+                "k",
+                DMatrix::from_element(1, 1, 3.0),
+                &["ku"],
+                &["kv"],
+            ))
             .block(NamedBlock::new("g", first_order(p, 1.0), &["gu"], &["gy"]))
             .wire("ku", "u", 1.0)
             .wire("gu", "kv", 1.0)
             .build(&["gy", "kv", "u"])
             .unwrap();
         let s = Complex64::new(0.0, 2.0 * std::f64::consts::PI * 7.0);
-        let g = conn.sys.freq_response(2.0 * std::f64::consts::PI * 7.0).unwrap();
+        let g = conn
+            .sys
+            .freq_response(2.0 * std::f64::consts::PI * 7.0)
+            .unwrap();
         assert!((g[(0, 0)] - 3.0 * p / (s + p)).norm() < 1e-12);
         assert!((g[(1, 0)] - 3.0).norm() < 1e-15);
         assert!((g[(2, 0)] - 1.0).norm() < 1e-15);
@@ -235,12 +247,22 @@ mod tests {
     #[test]
     fn unknown_names_and_algebraic_loops_are_errors() {
         let r = Interconnect::new(&["u"])
-            .block(NamedBlock::gain("k", DMatrix::from_element(1, 1, 1.0), &["a"], &["b"]))
+            .block(NamedBlock::gain(
+                "k",
+                DMatrix::from_element(1, 1, 1.0),
+                &["a"],
+                &["b"],
+            ))
             .wire("a", "nope", 1.0)
             .build(&["b"]);
         assert_eq!(r.unwrap_err(), ConnectError::UnknownSignal("nope".into()));
         let r = Interconnect::new(&["u"])
-            .block(NamedBlock::gain("k", DMatrix::from_element(1, 1, 1.0), &["a"], &["b"]))
+            .block(NamedBlock::gain(
+                "k",
+                DMatrix::from_element(1, 1, 1.0),
+                &["a"],
+                &["b"],
+            ))
             .wire("a", "b", 1.0)
             .build(&["b"]);
         assert_eq!(r.unwrap_err(), ConnectError::AlgebraicLoop);

@@ -85,7 +85,9 @@ impl StateSpace {
     pub fn from_tf(num: &[f64], den: &[f64]) -> Result<Self, LtiError> {
         let lead = *den.first().ok_or(LtiError::Argument("empty denominator"))?;
         if lead == 0.0 || num.len() > den.len() {
-            return Err(LtiError::Argument("from_tf needs den[0] ≠ 0 and deg num ≤ deg den"));
+            return Err(LtiError::Argument(
+                "from_tf needs den[0] ≠ 0 and deg num ≤ deg den",
+            ));
         }
         let n = den.len() - 1;
         let a_coef: Vec<f64> = den[1..].iter().map(|x| x / lead).collect();
@@ -104,6 +106,33 @@ impl StateSpace {
         let b = DMatrix::from_fn(n, 1, |i, _| if i == 0 { 1.0 } else { 0.0 });
         let c = DMatrix::from_fn(1, n, |_, j| b_coef[j + 1] - a_coef[j] * b0);
         StateSpace::new(a, b, c, DMatrix::from_element(1, 1, b0))
+    }
+
+    /// `next ∘ self`: the output of `self` drives `next` (`ny(self) = nu(next)`).
+    pub fn series(&self, next: &StateSpace) -> Result<StateSpace, LtiError> {
+        check("next.b", &next.b, next.nx(), self.ny())?;
+        let (n1, n2) = (self.nx(), next.nx());
+        let mut a = DMatrix::zeros(n1 + n2, n1 + n2);
+        a.view_mut((0, 0), (n1, n1)).copy_from(&self.a);
+        a.view_mut((n1, 0), (n2, n1))
+            .copy_from(&(&next.b * &self.c));
+        a.view_mut((n1, n1), (n2, n2)).copy_from(&next.a);
+        let mut b = DMatrix::zeros(n1 + n2, self.nu());
+        b.view_mut((0, 0), (n1, self.nu())).copy_from(&self.b);
+        b.view_mut((n1, 0), (n2, self.nu()))
+            .copy_from(&(&next.b * &self.d));
+        let mut c = DMatrix::zeros(next.ny(), n1 + n2);
+        c.view_mut((0, 0), (next.ny(), n1))
+            .copy_from(&(&next.d * &self.c));
+        c.view_mut((0, n1), (next.ny(), n2)).copy_from(&next.c);
+        StateSpace::new(a, b, c, &next.d * &self.d)
+    }
+
+    /// The same model scaled at the output by `k`.
+    pub fn scaled(mut self, k: f64) -> StateSpace {
+        self.c *= k;
+        self.d *= k;
+        self
     }
 
     /// Number of states.
@@ -352,6 +381,13 @@ mod tests {
             assert!((bi.freq_response_at(f, 0, 0).unwrap() - want).norm() < 1e-13);
         }
         assert!(StateSpace::from_tf(&[1.0, 0.0, 0.0], &[1.0, 1.0]).is_err());
+        // Series is the product of the two responses.
+        let prod = ss.series(&bi).unwrap();
+        for f in [0.0, 0.7, 5.0] {
+            let want =
+                ss.freq_response_at(f, 0, 0).unwrap() * bi.freq_response_at(f, 0, 0).unwrap();
+            assert!((prod.freq_response_at(f, 0, 0).unwrap() - want).norm() < 1e-13);
+        }
     }
 
     #[test]

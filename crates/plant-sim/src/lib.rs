@@ -1,1 +1,11 @@
-//! fts-servo `plant-sim` (filled by its own issue).
+//! # plant-sim
+//!
+//! The fast tool servo stage of the thesis as a deterministic, exactly discretised simulator:
+//! four-mass flexure mechanics, FVCM current loop, capacitive sensor, accelerometer, ADC/DAC,
+//! transport delay, coloured noise and cutting forces. See `README.md` for the calibration.
+
+pub mod model;
+pub mod params;
+
+pub use model::PlantModel;
+pub use params::PlantParams;
