@@ -4,8 +4,12 @@
 //! four-mass flexure mechanics, FVCM current loop, capacitive sensor, accelerometer, ADC/DAC,
 //! transport delay, coloured noise and cutting forces. See `README.md` for the calibration.
 
+pub mod convert;
+pub mod cutting;
 pub mod model;
 pub mod params;
+pub mod sim;
 
 pub use model::PlantModel;
 pub use params::PlantParams;
+pub use sim::{SensorSample, Simulator, Truth};

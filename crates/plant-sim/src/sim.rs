@@ -1,0 +1,464 @@
+//! The discrete simulator: the continuous model integrated exactly across each servo tick.
+//!
+//! Within tick k (from `t_k` to `t_k + T`) the DAC command of the previous tick acts for the
+//! transport delay τ and the new one for `T − τ`; the cutting force and the white noises are
+//! held over the tick (band-limited white noise: variance `fs/2` for a unit one-sided PSD, so
+//! the spectrum is exact up to the `sinc²` of the hold). Every map from the state at `t_k` to
+//! the next state, to the ADC conversions inside the tick and to the truth at `t_k + T` is a
+//! matrix computed once from matrix exponentials; [`Simulator::step`] is a few dense
+//! matrix-vector products and allocates nothing.
+
+use crate::convert::Quantizer;
+use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
+use crate::model::{input, output, ModelError, PlantModel};
+use crate::params::PlantParams;
+use design::lti::zoh;
+use nalgebra::DMatrix;
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// Status bits of a [`SensorSample`].
+pub mod flags {
+    /// A gap-channel conversion clipped at the ADC range.
+    pub const GAP_CLIPPED: u32 = 1;
+    /// An accelerometer conversion clipped.
+    pub const ACCEL_CLIPPED: u32 = 1 << 1;
+    /// The command clipped at the DAC range.
+    pub const DAC_CLIPPED: u32 = 1 << 2;
+    /// The command was NaN/inf: the DAC was driven to 0 V.
+    pub const COMMAND_NOT_FINITE: u32 = 1 << 3;
+}
+
+/// What the controller sees at the end of a tick: averaged ADC readings.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SensorSample {
+    /// Index of the tick this sample closes (1 for the first [`Simulator::step`]).
+    pub tick: u64,
+    /// Time of the tick in s.
+    pub time_s: f64,
+    /// Capacitive sensor reading in V (mean of the oversampled conversions).
+    pub gap_v: f64,
+    /// Accelerometer reading in V.
+    pub accel_v: f64,
+    /// Sum of the gap channel's ADC codes over the oversampled conversions (0: ideal ADC).
+    pub gap_code_sum: i32,
+    /// Sum of the accelerometer channel's ADC codes.
+    pub accel_code_sum: i32,
+    /// [`flags`] bits.
+    pub flags: u32,
+}
+
+/// What no sensor can see, at the end of the tick.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Truth {
+    /// True tool position relative to the frame `x1 − xg` in m.
+    pub tool_m: f64,
+    /// Gap `x2 − xg` the capacitive sensor measures, in m.
+    pub gap_m: f64,
+    /// Motor force in N.
+    pub motor_force_n: f64,
+    /// Cutting force applied during the tick in N.
+    pub cutting_force_n: f64,
+    /// Coil current in A (from the current loop, without noise).
+    pub coil_current_a: f64,
+    /// Current noise in A.
+    pub current_noise_a: f64,
+    /// Base displacement in m.
+    pub base_m: f64,
+    /// Mean sensor noise added to this tick's gap conversions, in V.
+    pub sensor_noise_v: f64,
+    /// Absolute acceleration of m2 in m/s².
+    pub accel_m2_m_s2: f64,
+    /// Absolute positions x1..x4 in m.
+    pub x_m: [f64; 4],
+    /// Absolute velocities v1..v4 in m/s.
+    pub v_m_s: [f64; 4],
+    /// DAC output applied from τ into the tick, in V.
+    pub dac_v: f64,
+}
+
+/// Simulator construction errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// Model parameters.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// Cutting profile.
+    #[error(transparent)]
+    Cutting(#[from] CuttingError),
+    /// Timing parameters.
+    #[error("`{key}` = {value} is outside the allowed range {range}")]
+    Timing {
+        /// Key.
+        key: &'static str,
+        /// Value.
+        value: f64,
+        /// Allowed range.
+        range: String,
+    },
+}
+
+/// Held inputs of a tick besides the command: cutting force and the three white noises.
+const HELD: usize = 4;
+/// Truth outputs computed by matrix rows.
+const TRUTH_ROWS: [usize; 7] = [
+    output::TOOL_M,
+    output::GAP_M,
+    output::MOTOR_FORCE_N,
+    output::COIL_CURRENT_A,
+    output::CURRENT_NOISE_A,
+    output::BASE_M,
+    output::ACCEL_M2_M_S2,
+];
+
+/// An affine map `y = M x + m_prev·u_prev + m_now·u_now + M_w·w` stored for fast products:
+/// `M` row-major (rows × n), the input columns per row.
+#[derive(Debug, Clone)]
+struct Rows {
+    n: usize,
+    m: Vec<f64>,
+    prev: Vec<f64>,
+    now: Vec<f64>,
+    held: Vec<[f64; HELD]>,
+}
+
+impl Rows {
+    fn new(m: &DMatrix<f64>, prev: &DMatrix<f64>, now: &DMatrix<f64>, held: &DMatrix<f64>) -> Self {
+        Rows {
+            n: m.ncols(),
+            m: m.transpose().as_slice().to_vec(),
+            prev: prev.column(0).iter().copied().collect(),
+            now: now.column(0).iter().copied().collect(),
+            held: (0..m.nrows())
+                .map(|r| std::array::from_fn(|j| held[(r, j)]))
+                .collect(),
+        }
+    }
+
+    #[inline]
+    fn eval(&self, row: usize, x: &[f64], u_prev: f64, u_now: f64, w: &[f64; HELD]) -> f64 {
+        let m = &self.m[row * self.n..(row + 1) * self.n];
+        let mut acc = [0.0; 4];
+        let (chunks, rest) = m.as_chunks::<4>();
+        let (xc, xr) = x.as_chunks::<4>();
+        for (a, b) in chunks.iter().zip(xc) {
+            for l in 0..4 {
+                acc[l] += a[l] * b[l];
+            }
+        }
+        let tail: f64 = rest.iter().zip(xr).map(|(a, b)| a * b).sum();
+        let held: f64 = self.held[row].iter().zip(w).map(|(a, b)| a * b).sum();
+        (acc[0] + acc[1])
+            + (acc[2] + acc[3])
+            + tail
+            + self.prev[row] * u_prev
+            + self.now[row] * u_now
+            + held
+    }
+}
+
+/// State `x(s)` at time `s` into the tick as `P x_k + q_prev u_prev + q_now u_now + W w`.
+struct Propagator<'a> {
+    a: &'a DMatrix<f64>,
+    b: &'a DMatrix<f64>,
+    delay_s: f64,
+}
+
+impl Propagator<'_> {
+    fn at(&self, s: f64) -> [DMatrix<f64>; 4] {
+        let n = self.a.nrows();
+        let split = |g: &DMatrix<f64>| {
+            (
+                g.columns(input::COMMAND_V, 1).into_owned(),
+                g.columns(1, HELD).into_owned(),
+            )
+        };
+        if s <= self.delay_s {
+            let (phi, g) = zoh(self.a, self.b, s);
+            let (g_cmd, g_w) = split(&g);
+            [phi, g_cmd, DMatrix::zeros(n, 1), g_w]
+        } else {
+            let (phi_d, g_d) = zoh(self.a, self.b, self.delay_s);
+            let (phi_r, g_r) = zoh(self.a, self.b, s - self.delay_s);
+            let (gd_cmd, gd_w) = split(&g_d);
+            let (gr_cmd, gr_w) = split(&g_r);
+            [
+                &phi_r * phi_d,
+                &phi_r * gd_cmd,
+                gr_cmd,
+                &phi_r * gd_w + gr_w,
+            ]
+        }
+    }
+}
+
+/// The running simulator.
+#[derive(Debug, Clone)]
+pub struct Simulator {
+    params: PlantParams,
+    n: usize,
+    /// `e^{AT}` column-major.
+    phi: Vec<f64>,
+    next: Rows,
+    adc: Vec<Rows>,
+    truth: Rows,
+    mech: std::ops::Range<usize>,
+    x: Vec<f64>,
+    scratch: Vec<f64>,
+    u_prev: f64,
+    adc_q: Quantizer,
+    dac_q: Quantizer,
+    white_sigma: f64,
+    sensor_sigma: f64,
+    noise_on: [bool; 3],
+    cutting: CuttingForce,
+    rng: Xoshiro256PlusPlus,
+    tick: u64,
+    period_s: f64,
+}
+
+impl Simulator {
+    /// Builds the simulator for `params`, noise seeded by `seed`, with a cutting profile.
+    pub fn new(
+        params: &PlantParams,
+        seed: u64,
+        cutting: &CuttingProfile,
+    ) -> Result<Self, SimError> {
+        let t = &params.timing;
+        let timing = |key, value: f64, lo: f64, hi: f64| {
+            if value.is_finite() && value >= lo && value <= hi {
+                Ok(())
+            } else {
+                Err(SimError::Timing {
+                    key,
+                    value,
+                    range: format!("[{lo}, {hi}]"),
+                })
+            }
+        };
+        timing("timing.servo_rate_hz", t.servo_rate_hz, 1.0, 10e6)?;
+        let period = 1.0 / t.servo_rate_hz;
+        timing("timing.delay_s", t.delay_s, 0.0, period)?;
+        let adc = &params.adc;
+        timing("adc.bits", adc.bits as f64, 0.0, 31.0)?; // 0 = ideal
+        timing("adc.range_v", adc.range_v, 1e-3, 1e3)?;
+        timing("adc.conversion_rate_hz", adc.conversion_rate_hz, 1.0, 1e9)?;
+        let os = adc.oversampling as f64;
+        timing(
+            "adc.oversampling",
+            os,
+            1.0,
+            (period * adc.conversion_rate_hz).floor() + 1.0,
+        )?;
+        timing("dac.bits", params.dac.bits as f64, 0.0, 31.0)?;
+        timing("dac.range_v", params.dac.range_v, 1e-3, 1e3)?;
+
+        let model = PlantModel::new(params)?;
+        let (a, b, c, d) = (&model.sys.a, &model.sys.b, &model.sys.c, &model.sys.d);
+        let prop = Propagator {
+            a,
+            b,
+            delay_s: t.delay_s,
+        };
+        let d_cmd = |rows: &DMatrix<f64>| rows.columns(input::COMMAND_V, 1).into_owned();
+        let d_held = |rows: &DMatrix<f64>| rows.columns(1, HELD).into_owned();
+        let pick = |m: &DMatrix<f64>, rows: &[usize]| {
+            DMatrix::from_fn(rows.len(), m.ncols(), |i, j| m[(rows[i], j)])
+        };
+
+        // Next state.
+        let [phi, q_prev, q_now, w] = prop.at(period);
+        let next = Rows::new(&DMatrix::zeros(a.nrows(), a.nrows()), &q_prev, &q_now, &w);
+        // ADC conversions: the last at the tick end, the others 1/f_adc apart before it.
+        let channels = pick(c, &[output::SENSOR_V, output::ACCEL_V]);
+        let channels_d = pick(d, &[output::SENSOR_V, output::ACCEL_V]);
+        let adc_rows = (0..adc.oversampling)
+            .map(|j| {
+                let s = period - (adc.oversampling - 1 - j) as f64 / adc.conversion_rate_hz;
+                let [p, qp, qn, qw] = prop.at(s);
+                let before_switch = s <= t.delay_s;
+                let dc = d_cmd(&channels_d);
+                let zero = &dc * 0.0;
+                let (dp, dn) = if before_switch {
+                    (dc, zero)
+                } else {
+                    (zero, dc)
+                };
+                Rows::new(
+                    &(&channels * &p),
+                    &(&channels * qp + dp),
+                    &(&channels * qn + dn),
+                    &(&channels * qw + d_held(&channels_d)),
+                )
+            })
+            .collect();
+        // Truth at the tick end from the new state (left limit: this tick's inputs).
+        let tc = pick(c, &TRUTH_ROWS);
+        let td = pick(d, &TRUTH_ROWS);
+        let truth = Rows::new(
+            &tc,
+            &DMatrix::zeros(TRUTH_ROWS.len(), 1),
+            &d_cmd(&td),
+            &d_held(&td),
+        );
+        let n = a.nrows();
+        let fs = t.servo_rate_hz;
+        let noise = &params.noise;
+        Ok(Simulator {
+            params: *params,
+            n,
+            phi: phi.as_slice().to_vec(),
+            next,
+            adc: adc_rows,
+            truth,
+            mech: model.mechanics,
+            x: vec![0.0; n],
+            scratch: vec![0.0; n],
+            u_prev: 0.0,
+            adc_q: Quantizer::new(adc.bits, adc.range_v),
+            dac_q: Quantizer::new(params.dac.bits, params.dac.range_v),
+            white_sigma: (fs / 2.0).sqrt(),
+            sensor_sigma: if noise.sensor {
+                noise.sensor_v_per_rt_hz * (fs / 2.0 * os).sqrt()
+            } else {
+                0.0
+            },
+            noise_on: [noise.current, noise.base, noise.accel],
+            cutting: CuttingForce::new(cutting)?,
+            rng: Xoshiro256PlusPlus::seed_from_u64(seed),
+            tick: 0,
+            period_s: period,
+        })
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &PlantParams {
+        &self.params
+    }
+
+    /// Servo period in s.
+    pub fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    /// Number of continuous states.
+    pub fn state_len(&self) -> usize {
+        self.n
+    }
+
+    /// The DAC converter (18 bit ±10 V by default).
+    pub fn dac(&self) -> &Quantizer {
+        &self.dac_q
+    }
+
+    /// The ADC converter (16 bit ±4.096 V by default).
+    pub fn adc(&self) -> &Quantizer {
+        &self.adc_q
+    }
+
+    #[inline]
+    fn gauss(&mut self) -> f64 {
+        StandardNormal.sample(&mut self.rng)
+    }
+
+    /// Runs one tick: `command_v` goes to the DAC now and reaches the coil τ later. Returns the
+    /// ADC sample closing the tick (the controller's next input) and the truth at that time.
+    pub fn step(&mut self, command_v: f64) -> (SensorSample, Truth) {
+        let mut flag = 0;
+        let (u_now, _, clipped) = self.dac_q.convert(command_v);
+        let u_now = if command_v.is_finite() {
+            flag |= if clipped { flags::DAC_CLIPPED } else { 0 };
+            u_now
+        } else {
+            flag |= flags::COMMAND_NOT_FINITE;
+            0.0
+        };
+        let u_prev = self.u_prev;
+        let t = self.tick as f64 * self.period_s;
+        let f_cut = self.cutting.at(t);
+        let mut w = [f_cut, 0.0, 0.0, 0.0];
+        for (i, on) in self.noise_on.into_iter().enumerate() {
+            if on {
+                w[i + 1] = self.white_sigma * self.gauss();
+            }
+        }
+        // Conversions inside the tick, from the state at its start.
+        let (mut gap_sum, mut acc_sum, mut noise_sum) = (0i32, 0i32, 0.0);
+        let (mut gap_v, mut acc_v) = (0.0, 0.0);
+        for j in 0..self.adc.len() {
+            let noise = if self.sensor_sigma > 0.0 {
+                self.sensor_sigma * self.gauss()
+            } else {
+                0.0
+            };
+            noise_sum += noise;
+            let rows = &self.adc[j];
+            let gap = rows.eval(0, &self.x, u_prev, u_now, &w) + noise;
+            let acc = rows.eval(1, &self.x, u_prev, u_now, &w);
+            let (gv, g, gc) = self.adc_q.convert(gap);
+            let (av, a, ac) = self.adc_q.convert(acc);
+            (gap_v, acc_v) = (gap_v + gv, acc_v + av);
+            gap_sum += g;
+            acc_sum += a;
+            flag |=
+                if gc { flags::GAP_CLIPPED } else { 0 } | if ac { flags::ACCEL_CLIPPED } else { 0 };
+        }
+        // x ← Φ x + inputs (column-major product into scratch).
+        let n = self.n;
+        for (i, s) in self.scratch.iter_mut().enumerate() {
+            *s = self.next.prev[i] * u_prev
+                + self.next.now[i] * u_now
+                + self.next.held[i]
+                    .iter()
+                    .zip(&w)
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>();
+        }
+        for (col, &xj) in self.phi.chunks_exact(n).zip(&self.x) {
+            for (s, a) in self.scratch.iter_mut().zip(col) {
+                *s += a * xj;
+            }
+        }
+        std::mem::swap(&mut self.x, &mut self.scratch);
+        self.u_prev = u_now;
+        self.tick += 1;
+
+        let k = self.adc.len() as f64;
+        let sample = SensorSample {
+            tick: self.tick,
+            time_s: self.tick as f64 * self.period_s,
+            gap_v: gap_v / k,
+            accel_v: acc_v / k,
+            gap_code_sum: gap_sum,
+            accel_code_sum: acc_sum,
+            flags: flag,
+        };
+        let tr = |row| self.truth.eval(row, &self.x, 0.0, u_now, &w);
+        let m = self.mech.start;
+        let truth = Truth {
+            tool_m: tr(0),
+            gap_m: tr(1),
+            motor_force_n: tr(2),
+            cutting_force_n: f_cut,
+            coil_current_a: tr(3),
+            current_noise_a: tr(4),
+            base_m: tr(5),
+            sensor_noise_v: noise_sum / k,
+            accel_m2_m_s2: tr(6),
+            x_m: std::array::from_fn(|i| self.x[m + i]),
+            v_m_s: std::array::from_fn(|i| self.x[m + 4 + i]),
+            dac_v: u_now,
+        };
+        (sample, truth)
+    }
+
+    /// Back to rest at t = 0 with the noise generator reseeded.
+    pub fn reset(&mut self, seed: u64) {
+        self.x.iter_mut().for_each(|x| *x = 0.0);
+        self.u_prev = 0.0;
+        self.tick = 0;
+        self.rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    }
+}
