@@ -105,7 +105,59 @@ impl StateSpace {
         });
         let b = DMatrix::from_fn(n, 1, |i, _| if i == 0 { 1.0 } else { 0.0 });
         let c = DMatrix::from_fn(1, n, |_, j| b_coef[j + 1] - a_coef[j] * b0);
-        StateSpace::new(a, b, c, DMatrix::from_element(1, 1, b0))
+        Ok(StateSpace::new(a, b, c, DMatrix::from_element(1, 1, b0))?.balanced())
+    }
+
+    /// The same system under a diagonal similarity `x = D·x̃` (powers of 2, so exact) that
+    /// makes the rows and columns of `A` comparable in norm (Parlett–Reinsch, as LAPACK
+    /// `dgebal` without permutations). Companion forms of fast poles span 12+ decades; balanced,
+    /// the matrix exponential and eigenvalues keep their accuracy.
+    pub fn balanced(self) -> StateSpace {
+        self.balance().0
+    }
+
+    /// [`StateSpace::balanced`] and the scaling `D` (diagonal), so `x_original[i] = D[i]·x̃[i]`.
+    pub fn balance(mut self) -> (StateSpace, Vec<f64>) {
+        const RADIX: f64 = 2.0;
+        let n = self.nx();
+        let mut scale = vec![1.0; n];
+        loop {
+            let mut converged = true;
+            for i in 0..n {
+                let c: f64 = (0..n)
+                    .filter(|&j| j != i)
+                    .map(|j| self.a[(j, i)].abs())
+                    .sum();
+                let r: f64 = (0..n)
+                    .filter(|&j| j != i)
+                    .map(|j| self.a[(i, j)].abs())
+                    .sum();
+                if c == 0.0 || r == 0.0 {
+                    continue;
+                }
+                let total = c + r;
+                let (mut f, mut cs) = (1.0, c);
+                while cs < r / RADIX {
+                    f *= RADIX;
+                    cs *= RADIX * RADIX;
+                }
+                while cs >= r * RADIX {
+                    f /= RADIX;
+                    cs /= RADIX * RADIX;
+                }
+                if (cs + r) / f < 0.95 * total {
+                    converged = false;
+                    self.a.row_mut(i).scale_mut(1.0 / f);
+                    self.a.column_mut(i).scale_mut(f);
+                    self.b.row_mut(i).scale_mut(1.0 / f);
+                    self.c.column_mut(i).scale_mut(f);
+                    scale[i] *= f;
+                }
+            }
+            if converged {
+                return (self, scale);
+            }
+        }
     }
 
     /// `next ∘ self`: the output of `self` drives `next` (`ny(self) = nu(next)`).
@@ -388,6 +440,37 @@ mod tests {
                 ss.freq_response_at(f, 0, 0).unwrap() * bi.freq_response_at(f, 0, 0).unwrap();
             assert!((prod.freq_response_at(f, 0, 0).unwrap() - want).norm() < 1e-13);
         }
+    }
+
+    /// A 400 kHz second-order section: balancing evens out the companion form and keeps the
+    /// response, and the ZOH of the balanced form matches the analytic step response.
+    #[test]
+    fn balancing_keeps_the_response_and_fixes_the_exponential() {
+        let (w, z) = (2.0 * PI * 400e3, 0.707);
+        let raw = StateSpace {
+            a: DMatrix::from_row_slice(2, 2, &[-2.0 * z * w, -w * w, 1.0, 0.0]),
+            b: DMatrix::from_row_slice(2, 1, &[1.0, 0.0]),
+            c: DMatrix::from_row_slice(1, 2, &[0.0, w * w]),
+            d: DMatrix::zeros(1, 1),
+        };
+        let bal = raw.clone().balanced();
+        let spread = |m: &DMatrix<f64>| {
+            let nz: Vec<f64> = m.iter().filter(|x| **x != 0.0).map(|x| x.abs()).collect();
+            nz.iter().cloned().fold(0.0, f64::max) / nz.iter().cloned().fold(f64::MAX, f64::min)
+        };
+        assert!(spread(&bal.a) < 1e3 && spread(&raw.a) > 1e10);
+        for f in [1e3, 4e5, 3e6] {
+            let d = raw.freq_response_at(f, 0, 0).unwrap() - bal.freq_response_at(f, 0, 0).unwrap();
+            assert!(d.norm() < 1e-12);
+        }
+        let t = 1.841e-6;
+        let (phi, gam) = zoh(&bal.a, &bal.b, t);
+        let y = (&bal.c * gam)[(0, 0)];
+        let wd = w * (1.0 - z * z).sqrt();
+        let want =
+            1.0 - (-z * w * t).exp() * ((wd * t).cos() + z / (1.0 - z * z).sqrt() * (wd * t).sin());
+        assert!((y - want).abs() < 1e-12, "{y} vs {want}");
+        assert!(phi.iter().all(|x| x.is_finite()));
     }
 
     #[test]

@@ -205,6 +205,8 @@ pub struct Simulator {
     adc: Vec<Rows>,
     truth: Rows,
     mech: std::ops::Range<usize>,
+    /// Balancing scale of the mechanics states (state = scale · stored value).
+    mech_scale: [f64; 8],
     x: Vec<f64>,
     scratch: Vec<f64>,
     u_prev: f64,
@@ -256,7 +258,11 @@ impl Simulator {
         timing("dac.range_v", params.dac.range_v, 1e-3, 1e3)?;
 
         let model = PlantModel::new(params)?;
-        let (a, b, c, d) = (&model.sys.a, &model.sys.b, &model.sys.c, &model.sys.d);
+        // Balance the assembled model (mechanics at 10 Hz next to a 400 kHz current loop);
+        // keep the scaling to read the masses' states back in metres.
+        let (sys, scale) = model.sys.balance();
+        let mech_scale = std::array::from_fn(|i| scale[model.mechanics.start + i]);
+        let (a, b, c, d) = (&sys.a, &sys.b, &sys.c, &sys.d);
         let prop = Propagator {
             a,
             b,
@@ -314,6 +320,7 @@ impl Simulator {
             adc: adc_rows,
             truth,
             mech: model.mechanics,
+            mech_scale,
             x: vec![0.0; n],
             scratch: vec![0.0; n],
             u_prev: 0.0,
@@ -447,8 +454,8 @@ impl Simulator {
             base_m: tr(5),
             sensor_noise_v: noise_sum / k,
             accel_m2_m_s2: tr(6),
-            x_m: std::array::from_fn(|i| self.x[m + i]),
-            v_m_s: std::array::from_fn(|i| self.x[m + 4 + i]),
+            x_m: std::array::from_fn(|i| self.x[m + i] * self.mech_scale[i]),
+            v_m_s: std::array::from_fn(|i| self.x[m + 4 + i] * self.mech_scale[4 + i]),
             dac_v: u_now,
         };
         (sample, truth)
