@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Turns criterion's estimates (target/criterion) into the README performance table.
 
-Usage: cargo bench --bench servo_core && python3 benches/report.py
+Usage: cargo bench && python3 benches/report.py
 Ratios: against the same-run nalgebra baseline, the thesis DSP (Table 6-1 cycles at 1 GHz, i.e.
 cycles = ns) and the FMA bound of this CPU (N² + 2N FMAs for an N-state SISO tick, 2 FMA units x
 4 f64 lanes with AVX2, at the nominal clock read from /proc/cpuinfo).
@@ -49,6 +49,15 @@ def main():
         else:
             vs_fma = "-"
         print(f"| {group} | {ns:.1f} | {vs_base} | {vs_dsp} | {vs_fma} |")
+    sim = mean_ns("sim_step", "plant_sim")
+    if sim:
+        base = mean_ns("sim_step", "nalgebra_baseline")
+        rate = 1e9 / sim
+        print()
+        print("| simulator | ns/step | steps/s | x real time at 199.6 kHz | vs dense nalgebra step |")
+        print("|---|---|---|---|---|")
+        print(f"| heavy stage, all noise, intermittent cut | {sim:.0f} | {rate / 1e6:.2f} M | {rate / 199_600:.1f}x "
+              f"| {base / sim:.2f}x faster ({base:.0f} ns) |")
 
 
 if __name__ == "__main__":

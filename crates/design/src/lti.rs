@@ -123,7 +123,7 @@ impl StateSpace {
         let mut scale = vec![1.0; n];
         loop {
             let mut converged = true;
-            for i in 0..n {
+            for (i, scale_i) in scale.iter_mut().enumerate() {
                 let c: f64 = (0..n)
                     .filter(|&j| j != i)
                     .map(|j| self.a[(j, i)].abs())
@@ -151,7 +151,7 @@ impl StateSpace {
                     self.a.column_mut(i).scale_mut(f);
                     self.b.row_mut(i).scale_mut(1.0 / f);
                     self.c.column_mut(i).scale_mut(f);
-                    scale[i] *= f;
+                    *scale_i *= f;
                 }
             }
             if converged {

@@ -126,7 +126,7 @@ pub fn welch(x: &[f64], fs_hz: f64, cfg: &WelchConfig) -> Result<Psd, SpectralEr
         segments += 1;
     }
     let scale = 1.0 / (fs_hz * window_power * segments as f64);
-    let nyquist_bin = if n % 2 == 0 { Some(n / 2) } else { None };
+    let nyquist_bin = n.is_multiple_of(2).then_some(n / 2);
     let density = acc
         .iter()
         .enumerate()

@@ -13,6 +13,7 @@
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Quantizer {
     lsb: f64,
+    inv_lsb: f64,
     min_code: i32,
     max_code: i32,
 }
@@ -23,13 +24,16 @@ impl Quantizer {
         if bits == 0 {
             return Quantizer {
                 lsb: 0.0,
+                inv_lsb: 0.0,
                 min_code: 0,
                 max_code: 0,
             };
         }
         let half = 1i64 << (bits.min(31) - 1);
+        let lsb = 2.0 * range_v / (2 * half) as f64;
         Quantizer {
-            lsb: 2.0 * range_v / (2 * half) as f64,
+            lsb,
+            inv_lsb: 1.0 / lsb, // a multiply in the tick; exact for the ±4.096 V ADC
             min_code: -half as i32,
             max_code: (half - 1) as i32,
         }
@@ -58,7 +62,7 @@ impl Quantizer {
     /// The code for `volts` (nearest, ties away from zero) and whether it clipped. NaN → 0.
     #[inline]
     pub fn code(&self, volts: f64) -> (i32, bool) {
-        let raw = (volts / self.lsb).round();
+        let raw = (volts * self.inv_lsb).round();
         if raw.is_nan() {
             return (0, true);
         }

@@ -113,50 +113,85 @@ const TRUTH_ROWS: [usize; 7] = [
     output::ACCEL_M2_M_S2,
 ];
 
-/// An affine map `y = M x + m_prev·u_prev + m_now·u_now + M_w·w` stored for fast products:
-/// `M` row-major (rows × n), the input columns per row.
+/// Columns of the tick matrix after the state: previous and new command, then the held inputs.
+const INPUTS: usize = 2 + HELD;
+
+/// Rows of the tick matrix handled together, kept in registers; columns are split by index
+/// modulo 4 into separate accumulators (independent FMA chains).
+const ROW_GROUP: usize = 8;
+
+/// The whole tick as one affine map of `z = [x_k, u_prev, u_now, f_cut, w_i, w_g, w_a]`:
+/// rows `[x_{k+1} (n), ADC conversions (2 per conversion), truth (7)]`, stored column-major
+/// with the row count padded to a multiple of [`ROW_GROUP`] so the product is whole SIMD
+/// vectors whose accumulators stay in registers.
 #[derive(Debug, Clone)]
-struct Rows {
-    n: usize,
-    m: Vec<f64>,
-    prev: Vec<f64>,
-    now: Vec<f64>,
-    held: Vec<[f64; HELD]>,
+struct TickMatrix {
+    rows: usize,
+    cols: Vec<f64>,
 }
 
-impl Rows {
-    fn new(m: &DMatrix<f64>, prev: &DMatrix<f64>, now: &DMatrix<f64>, held: &DMatrix<f64>) -> Self {
-        Rows {
-            n: m.ncols(),
-            m: m.transpose().as_slice().to_vec(),
-            prev: prev.column(0).iter().copied().collect(),
-            now: now.column(0).iter().copied().collect(),
-            held: (0..m.nrows())
-                .map(|r| std::array::from_fn(|j| held[(r, j)]))
-                .collect(),
+impl TickMatrix {
+    fn new(blocks: &[DMatrix<f64>]) -> Self {
+        let stacked = blocks.iter().map(|b| b.nrows()).sum::<usize>();
+        let rows = stacked.div_ceil(ROW_GROUP) * ROW_GROUP;
+        let ncols = blocks[0].ncols();
+        let mut cols = vec![0.0; rows * ncols];
+        let mut r0 = 0;
+        for b in blocks {
+            for (j, col) in cols.chunks_exact_mut(rows).enumerate() {
+                for i in 0..b.nrows() {
+                    col[r0 + i] = b[(i, j)];
+                }
+            }
+            r0 += b.nrows();
         }
+        TickMatrix { rows, cols }
     }
 
+    /// `out = M z` (`out.len() == rows`).
     #[inline]
-    fn eval(&self, row: usize, x: &[f64], u_prev: f64, u_now: f64, w: &[f64; HELD]) -> f64 {
-        let m = &self.m[row * self.n..(row + 1) * self.n];
-        let mut acc = [0.0; 4];
-        let (chunks, rest) = m.as_chunks::<4>();
-        let (xc, xr) = x.as_chunks::<4>();
-        for (a, b) in chunks.iter().zip(xc) {
-            for l in 0..4 {
-                acc[l] += a[l] * b[l];
+    fn apply(&self, z: &[f64], out: &mut [f64]) {
+        let column = |j: usize, r0: usize| -> &[f64; ROW_GROUP] {
+            self.cols[j * self.rows + r0..][..ROW_GROUP]
+                .try_into()
+                .expect("padded rows")
+        };
+        for (g, block) in out.chunks_exact_mut(ROW_GROUP).enumerate() {
+            let r0 = g * ROW_GROUP;
+            let mut acc = [[0.0f64; ROW_GROUP]; 4];
+            let (quads, rest) = z.as_chunks::<4>();
+            for (q, zz) in quads.iter().enumerate() {
+                for (k, a) in acc.iter_mut().enumerate() {
+                    let c = column(4 * q + k, r0);
+                    for l in 0..ROW_GROUP {
+                        a[l] = c[l].mul_add(zz[k], a[l]);
+                    }
+                }
+            }
+            for (k, &zl) in rest.iter().enumerate() {
+                let c = column(4 * quads.len() + k, r0);
+                for l in 0..ROW_GROUP {
+                    acc[k][l] = c[l].mul_add(zl, acc[k][l]);
+                }
+            }
+            for (l, o) in block.iter_mut().enumerate() {
+                *o = (acc[0][l] + acc[1][l]) + (acc[2][l] + acc[3][l]);
             }
         }
-        let tail: f64 = rest.iter().zip(xr).map(|(a, b)| a * b).sum();
-        let held: f64 = self.held[row].iter().zip(w).map(|(a, b)| a * b).sum();
-        (acc[0] + acc[1])
-            + (acc[2] + acc[3])
-            + tail
-            + self.prev[row] * u_prev
-            + self.now[row] * u_now
-            + held
     }
+}
+
+/// `[a | b | c | d]` side by side.
+fn hstack(parts: &[&DMatrix<f64>]) -> DMatrix<f64> {
+    let rows = parts[0].nrows();
+    let cols: usize = parts.iter().map(|p| p.ncols()).sum();
+    let mut m = DMatrix::zeros(rows, cols);
+    let mut c0 = 0;
+    for p in parts {
+        m.view_mut((0, c0), (rows, p.ncols())).copy_from(p);
+        c0 += p.ncols();
+    }
+    m
 }
 
 /// State `x(s)` at time `s` into the tick as `P x_k + q_prev u_prev + q_now u_now + W w`.
@@ -199,16 +234,15 @@ impl Propagator<'_> {
 pub struct Simulator {
     params: PlantParams,
     n: usize,
-    /// `e^{AT}` column-major.
-    phi: Vec<f64>,
-    next: Rows,
-    adc: Vec<Rows>,
-    truth: Rows,
+    tick_matrix: TickMatrix,
+    /// `[x_k, u_prev, u_now, held inputs]`; the state lives in the first `n` entries.
+    z: Vec<f64>,
+    /// Output of the tick matrix.
+    out: Vec<f64>,
+    oversampling: usize,
     mech: std::ops::Range<usize>,
     /// Balancing scale of the mechanics states (state = scale · stored value).
     mech_scale: [f64; 8],
-    x: Vec<f64>,
-    scratch: Vec<f64>,
     u_prev: f64,
     adc_q: Quantizer,
     dac_q: Quantizer,
@@ -276,53 +310,49 @@ impl Simulator {
 
         // Next state.
         let [phi, q_prev, q_now, w] = prop.at(period);
-        let next = Rows::new(&DMatrix::zeros(a.nrows(), a.nrows()), &q_prev, &q_now, &w);
+        let mut blocks = vec![hstack(&[&phi, &q_prev, &q_now, &w])];
         // ADC conversions: the last at the tick end, the others 1/f_adc apart before it.
         let channels = pick(c, &[output::SENSOR_V, output::ACCEL_V]);
         let channels_d = pick(d, &[output::SENSOR_V, output::ACCEL_V]);
-        let adc_rows = (0..adc.oversampling)
-            .map(|j| {
-                let s = period - (adc.oversampling - 1 - j) as f64 / adc.conversion_rate_hz;
-                let [p, qp, qn, qw] = prop.at(s);
-                let before_switch = s <= t.delay_s;
-                let dc = d_cmd(&channels_d);
-                let zero = &dc * 0.0;
-                let (dp, dn) = if before_switch {
-                    (dc, zero)
-                } else {
-                    (zero, dc)
-                };
-                Rows::new(
-                    &(&channels * &p),
-                    &(&channels * qp + dp),
-                    &(&channels * qn + dn),
-                    &(&channels * qw + d_held(&channels_d)),
-                )
-            })
-            .collect();
-        // Truth at the tick end from the new state (left limit: this tick's inputs).
+        for j in 0..adc.oversampling {
+            let s = period - (adc.oversampling - 1 - j) as f64 / adc.conversion_rate_hz;
+            let [p, qp, qn, qw] = prop.at(s);
+            let dc = d_cmd(&channels_d);
+            let zero = &dc * 0.0;
+            let (dp, dn) = if s <= t.delay_s {
+                (dc, zero)
+            } else {
+                (zero, dc)
+            };
+            blocks.push(hstack(&[
+                &(&channels * &p),
+                &(&channels * qp + dp),
+                &(&channels * qn + dn),
+                &(&channels * qw + d_held(&channels_d)),
+            ]));
+        }
+        // Truth at the tick end (left limit: this tick's inputs), from the start state.
         let tc = pick(c, &TRUTH_ROWS);
         let td = pick(d, &TRUTH_ROWS);
-        let truth = Rows::new(
-            &tc,
-            &DMatrix::zeros(TRUTH_ROWS.len(), 1),
-            &d_cmd(&td),
-            &d_held(&td),
-        );
+        blocks.push(hstack(&[
+            &(&tc * &phi),
+            &(&tc * &q_prev),
+            &(&tc * &q_now + d_cmd(&td)),
+            &(&tc * &w + d_held(&td)),
+        ]));
+        let tick_matrix = TickMatrix::new(&blocks);
         let n = a.nrows();
         let fs = t.servo_rate_hz;
         let noise = &params.noise;
         Ok(Simulator {
             params: *params,
             n,
-            phi: phi.as_slice().to_vec(),
-            next,
-            adc: adc_rows,
-            truth,
+            out: vec![0.0; tick_matrix.rows],
+            z: vec![0.0; n + INPUTS],
+            tick_matrix,
+            oversampling: adc.oversampling as usize,
             mech: model.mechanics,
             mech_scale,
-            x: vec![0.0; n],
-            scratch: vec![0.0; n],
             u_prev: 0.0,
             adc_q: Quantizer::new(adc.bits, adc.range_v),
             dac_q: Quantizer::new(params.dac.bits, params.dac.range_v),
@@ -382,57 +412,43 @@ impl Simulator {
             flag |= flags::COMMAND_NOT_FINITE;
             0.0
         };
-        let u_prev = self.u_prev;
         let t = self.tick as f64 * self.period_s;
         let f_cut = self.cutting.at(t);
-        let mut w = [f_cut, 0.0, 0.0, 0.0];
+        let n = self.n;
+        self.z[n] = self.u_prev;
+        self.z[n + 1] = u_now;
+        self.z[n + 2] = f_cut;
         for (i, on) in self.noise_on.into_iter().enumerate() {
-            if on {
-                w[i + 1] = self.white_sigma * self.gauss();
-            }
+            self.z[n + 3 + i] = if on {
+                self.white_sigma * self.gauss()
+            } else {
+                0.0
+            };
         }
-        // Conversions inside the tick, from the state at its start.
+        self.tick_matrix.apply(&self.z, &mut self.out);
+        // Conversions inside the tick (rows n.. of the product), with sensor noise on the gap.
         let (mut gap_sum, mut acc_sum, mut noise_sum) = (0i32, 0i32, 0.0);
         let (mut gap_v, mut acc_v) = (0.0, 0.0);
-        for j in 0..self.adc.len() {
+        for j in 0..self.oversampling {
             let noise = if self.sensor_sigma > 0.0 {
                 self.sensor_sigma * self.gauss()
             } else {
                 0.0
             };
             noise_sum += noise;
-            let rows = &self.adc[j];
-            let gap = rows.eval(0, &self.x, u_prev, u_now, &w) + noise;
-            let acc = rows.eval(1, &self.x, u_prev, u_now, &w);
-            let (gv, g, gc) = self.adc_q.convert(gap);
-            let (av, a, ac) = self.adc_q.convert(acc);
+            let (gv, g, gc) = self.adc_q.convert(self.out[n + 2 * j] + noise);
+            let (av, a, ac) = self.adc_q.convert(self.out[n + 2 * j + 1]);
             (gap_v, acc_v) = (gap_v + gv, acc_v + av);
             gap_sum += g;
             acc_sum += a;
             flag |=
                 if gc { flags::GAP_CLIPPED } else { 0 } | if ac { flags::ACCEL_CLIPPED } else { 0 };
         }
-        // x ← Φ x + inputs (column-major product into scratch).
-        let n = self.n;
-        for (i, s) in self.scratch.iter_mut().enumerate() {
-            *s = self.next.prev[i] * u_prev
-                + self.next.now[i] * u_now
-                + self.next.held[i]
-                    .iter()
-                    .zip(&w)
-                    .map(|(a, b)| a * b)
-                    .sum::<f64>();
-        }
-        for (col, &xj) in self.phi.chunks_exact(n).zip(&self.x) {
-            for (s, a) in self.scratch.iter_mut().zip(col) {
-                *s += a * xj;
-            }
-        }
-        std::mem::swap(&mut self.x, &mut self.scratch);
+        self.z[..n].copy_from_slice(&self.out[..n]);
         self.u_prev = u_now;
         self.tick += 1;
 
-        let k = self.adc.len() as f64;
+        let k = self.oversampling as f64;
         let sample = SensorSample {
             tick: self.tick,
             time_s: self.tick as f64 * self.period_s,
@@ -442,20 +458,20 @@ impl Simulator {
             accel_code_sum: acc_sum,
             flags: flag,
         };
-        let tr = |row| self.truth.eval(row, &self.x, 0.0, u_now, &w);
-        let m = self.mech.start;
+        let tr = &self.out[n + 2 * self.oversampling..];
+        let (m, x) = (self.mech.start, &self.z);
         let truth = Truth {
-            tool_m: tr(0),
-            gap_m: tr(1),
-            motor_force_n: tr(2),
+            tool_m: tr[0],
+            gap_m: tr[1],
+            motor_force_n: tr[2],
             cutting_force_n: f_cut,
-            coil_current_a: tr(3),
-            current_noise_a: tr(4),
-            base_m: tr(5),
+            coil_current_a: tr[3],
+            current_noise_a: tr[4],
+            base_m: tr[5],
             sensor_noise_v: noise_sum / k,
-            accel_m2_m_s2: tr(6),
-            x_m: std::array::from_fn(|i| self.x[m + i] * self.mech_scale[i]),
-            v_m_s: std::array::from_fn(|i| self.x[m + 4 + i] * self.mech_scale[4 + i]),
+            accel_m2_m_s2: tr[6],
+            x_m: std::array::from_fn(|i| x[m + i] * self.mech_scale[i]),
+            v_m_s: std::array::from_fn(|i| x[m + 4 + i] * self.mech_scale[4 + i]),
             dac_v: u_now,
         };
         (sample, truth)
@@ -463,7 +479,7 @@ impl Simulator {
 
     /// Back to rest at t = 0 with the noise generator reseeded.
     pub fn reset(&mut self, seed: u64) {
-        self.x.iter_mut().for_each(|x| *x = 0.0);
+        self.z.iter_mut().for_each(|x| *x = 0.0);
         self.u_prev = 0.0;
         self.tick = 0;
         self.rng = Xoshiro256PlusPlus::seed_from_u64(seed);
