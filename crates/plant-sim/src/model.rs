@@ -2,7 +2,7 @@
 //! mechanics (DESIGN.md equations), current loop (eq 5-9), motor, capacitive sensor (eq 5-8),
 //! accelerometer chain (Table 7-2) and the noise shaping filters (eq 6-6..6-8, Table 7-2).
 
-use crate::params::{rad, PlantParams, StageParams};
+use crate::params::{rad, CurrentLoopModel, PlantParams, StageParams};
 use design::interconnect::{ConnectError, Interconnect, NamedBlock};
 use design::lti::{LtiError, StateSpace};
 use nalgebra::DMatrix;
@@ -11,7 +11,8 @@ use std::ops::Range;
 
 /// External inputs of [`PlantModel::sys`], in order.
 pub mod input {
-    /// Command to the current amplifier in V (after the DAC).
+    /// Command to the current amplifier in V (after the DAC); with the `coil` current-loop
+    /// model, the coil current in A instead (the electrical loop is simulated outside).
     pub const COMMAND_V: usize = 0;
     /// Cutting force on the tool tip m1 in N (positive away from the workpiece).
     pub const CUTTING_FORCE_N: usize = 1;
@@ -45,8 +46,10 @@ pub mod output {
     pub const BASE_M: usize = 7;
     /// Absolute acceleration of m2 in m/s².
     pub const ACCEL_M2_M_S2: usize = 8;
+    /// Coil velocity relative to the magnet, `v2 − v3`, in m/s (back-EMF = K_T·this).
+    pub const COIL_VELOCITY_M_S: usize = 9;
     /// Number of outputs.
-    pub const COUNT: usize = 9;
+    pub const COUNT: usize = 10;
     /// Signal names, in order.
     pub const NAMES: [&str; COUNT] = [
         "sensor_v",
@@ -58,6 +61,7 @@ pub mod output {
         "current_noise_a",
         "base_m",
         "accel_m2",
+        "coil_velocity",
     ];
 }
 
@@ -93,7 +97,8 @@ pub struct PlantModel {
 }
 
 /// The mechanics alone: inputs `[F_motor, F_cut, xg, ẋg]` (N, N, m, m/s), outputs
-/// `[x1 − xg, x2 − xg, ẍ2, x1, x2, x3, x4]` (m, m, m/s², m…); states `x1..x4, v1..v4`.
+/// `[x1 − xg, x2 − xg, ẍ2, x1, x2, x3, x4, v2 − v3]` (m, m, m/s², m…, m/s); states
+/// `x1..x4, v1..v4`.
 pub fn mechanics(p: &StageParams) -> StateSpace {
     let m = [p.m1_kg, p.m2_kg, p.m3_kg, p.m4_kg];
     // (body i, body j or None for the base, stiffness, damping)
@@ -138,8 +143,10 @@ pub fn mechanics(p: &StageParams) -> StateSpace {
     }
     b[(5, 0)] = 1.0 / m[1]; // motor force on m2
     b[(4, 1)] = 1.0 / m[0]; // cutting force on m1
-    let mut cm = DMatrix::zeros(7, 8);
-    let mut d = DMatrix::zeros(7, 4);
+    let mut cm = DMatrix::zeros(8, 8);
+    let mut d = DMatrix::zeros(8, 4);
+    cm[(7, 5)] = 1.0;
+    cm[(7, 6)] = -1.0;
     cm[(0, 0)] = 1.0;
     d[(0, 2)] = -1.0;
     cm[(1, 1)] = 1.0;
@@ -340,11 +347,61 @@ impl PlantModel {
         )?;
         check("noise.accel_scale", n.accel_scale, 0.0, 1e6, "[0, 1e6]")?;
 
-        let current = second_order_lowpass(
-            a.current_bandwidth_hz,
-            a.current_damping,
-            a.current_gain_a_per_v,
-        )?;
+        // The `coil` model integrates the electrical loop outside; here the input is the current.
+        let current = match a.model {
+            CurrentLoopModel::Ideal => second_order_lowpass(
+                a.current_bandwidth_hz,
+                a.current_damping,
+                a.current_gain_a_per_v,
+            )?,
+            CurrentLoopModel::Coil => {
+                let c = &a.coil;
+                check(
+                    "actuator.coil.resistance_ohm",
+                    c.resistance_ohm,
+                    1e-6,
+                    1e3,
+                    "[1e-6, 1e3] Ω",
+                )?;
+                check(
+                    "actuator.coil.sense_resistance_ohm",
+                    c.sense_resistance_ohm,
+                    0.0,
+                    1e3,
+                    "[0, 1e3] Ω",
+                )?;
+                check(
+                    "actuator.coil.inductance_h",
+                    c.inductance_h,
+                    1e-9,
+                    10.0,
+                    "[1e-9, 10] H",
+                )?;
+                check("actuator.coil.bus_v", c.bus_v, 0.1, 1e4, "[0.1, 1e4] V")?;
+                check("actuator.coil.peak_a", c.peak_a, 1e-3, 1e4, "[1e-3, 1e4] A")?;
+                check(
+                    "actuator.coil.loop_bandwidth_hz",
+                    c.loop_bandwidth_hz,
+                    1.0,
+                    1e8,
+                    "[1, 1e8] Hz",
+                )?;
+                check(
+                    "actuator.coil.substeps",
+                    c.substeps as f64,
+                    2.0,
+                    4096.0,
+                    "[2, 4096]",
+                )?;
+                NamedBlock::gain(
+                    "current",
+                    DMatrix::from_element(1, 1, 1.0),
+                    &["v_cmd_in"],
+                    &["coil_current_a"],
+                )
+                .sys
+            }
+        };
         let capa = second_order_lowpass(
             p.capa.bandwidth_hz,
             SQRT_2 / 2.0,
@@ -366,7 +423,16 @@ impl PlantModel {
                 "mech",
                 mechanics(s),
                 &["f_motor_in", "f_cut_in", "xg_in", "vg_in"],
-                &["tool_m", "gap_m", "accel_m2", "x1", "x2", "x3", "x4"],
+                &[
+                    "tool_m",
+                    "gap_m",
+                    "accel_m2",
+                    "x1",
+                    "x2",
+                    "x3",
+                    "x4",
+                    "coil_velocity",
+                ],
             ))
             .block(NamedBlock::new(
                 "current",

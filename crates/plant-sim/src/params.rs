@@ -75,10 +75,62 @@ impl Default for StageParams {
     }
 }
 
+/// Which current-loop model drives the coil.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CurrentLoopModel {
+    /// Linear second-order closed loop of eq 5-9 (exact discretisation).
+    #[default]
+    Ideal,
+    /// R-L coil driven by the analog PI current controller of §4.6.3 through a linear power
+    /// amplifier with bus-voltage and peak-current limits (nonlinear: sub-stepped).
+    Coil,
+}
+
+/// The coil circuit and analog current controller of §4.6.3–4.6.4 (used by
+/// [`CurrentLoopModel::Coil`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CoilParams {
+    /// Coil resistance in Ω (0.55, §4.6.4).
+    pub resistance_ohm: f64,
+    /// Current-sense resistor in series in Ω (2, §4.6.4).
+    pub sense_resistance_ohm: f64,
+    /// Coil inductance in H (0.23 mH, §4.6.4).
+    pub inductance_h: f64,
+    /// Amplifier supply ±`bus_v` in V (36, §4.6.4).
+    pub bus_v: f64,
+    /// Peak coil current in A; the current reference is clamped to ±this (20, Table 4-1).
+    pub peak_a: f64,
+    /// Crossover of the PI current loop in Hz; the integral corner sits at the coil pole
+    /// `R/L` (§4.6.3), so the loop is first order at this bandwidth (400 kHz, eq 5-9).
+    pub loop_bandwidth_hz: f64,
+    /// Sub-steps per servo tick for the nonlinear electrical ODE (RK4), split at the delay.
+    pub substeps: u32,
+}
+
+impl Default for CoilParams {
+    fn default() -> Self {
+        CoilParams {
+            resistance_ohm: 0.55,
+            sense_resistance_ohm: 2.0,
+            inductance_h: 0.23e-3,
+            bus_v: 36.0,
+            peak_a: 20.0,
+            loop_bandwidth_hz: 400e3,
+            substeps: 32,
+        }
+    }
+}
+
 /// Flat voice-coil motor and its closed current loop (eq 5-9).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ActuatorParams {
+    /// Current-loop model (`ideal` eq 5-9, or `coil` R-L + PI with saturation).
+    pub model: CurrentLoopModel,
+    /// Coil and analog controller, for the `coil` model.
+    pub coil: CoilParams,
     /// Force constant K_T in N/A (3.6658, §5.5.1).
     pub kt_n_per_a: f64,
     /// Current-loop bandwidth ω_I/2π in Hz (400 kHz, eq 5-9).
@@ -92,6 +144,8 @@ pub struct ActuatorParams {
 impl Default for ActuatorParams {
     fn default() -> Self {
         ActuatorParams {
+            model: CurrentLoopModel::Ideal,
+            coil: CoilParams::default(),
             kt_n_per_a: 3.6658,
             current_bandwidth_hz: 400e3,
             current_damping: 0.707,

@@ -11,7 +11,7 @@
 use crate::convert::Quantizer;
 use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
 use crate::model::{input, output, ModelError, PlantModel};
-use crate::params::PlantParams;
+use crate::params::{rad, CurrentLoopModel, PlantParams};
 use design::lti::zoh;
 use nalgebra::DMatrix;
 use rand::SeedableRng;
@@ -113,14 +113,124 @@ const TRUTH_ROWS: [usize; 7] = [
     output::ACCEL_M2_M_S2,
 ];
 
-/// Columns of the tick matrix after the state: previous and new command, then the held inputs.
-const INPUTS: usize = 2 + HELD;
+/// The intervals of constant command input within a tick (s, from the tick): for the ideal
+/// loop the previous DAC value until the delay and the new one after; for the coil model the
+/// electrical sub-steps, split so that the delay falls on a boundary.
+fn command_intervals(p: &PlantParams) -> Vec<(f64, f64)> {
+    let (t, tau) = (p.period_s(), p.timing.delay_s);
+    match p.actuator.model {
+        CurrentLoopModel::Ideal => vec![(0.0, tau), (tau, t)],
+        CurrentLoopModel::Coil => {
+            let n = p.actuator.coil.substeps.max(2) as usize;
+            let before =
+                ((n as f64 * tau / t).round() as usize).clamp(usize::from(tau > 0.0), n - 1);
+            let grid = |a: f64, b: f64, k: usize| {
+                (0..k).map(move |i| {
+                    (
+                        a + (b - a) * i as f64 / k as f64,
+                        a + (b - a) * (i + 1) as f64 / k as f64,
+                    )
+                })
+            };
+            grid(0.0, tau, before)
+                .chain(grid(tau, t, n - before))
+                .collect()
+        }
+    }
+}
+
+/// The R-L coil and its analog PI current controller (§4.6.3), integrated by RK4 sub-steps.
+/// The PI integral corner cancels the coil pole `R/L`, so the unsaturated loop is first order
+/// at `loop_bandwidth_hz`; the amplifier clips at the bus voltage (the integrator then holds)
+/// and the reference at the peak current.
+#[derive(Debug, Clone)]
+struct CoilLoop {
+    kp: f64,
+    ki: f64,
+    r: f64,
+    l: f64,
+    bus: f64,
+    peak: f64,
+    gain: f64,
+    kt: f64,
+    /// Coil current in A and PI integrator output in V.
+    i: f64,
+    q: f64,
+    /// Row giving the coil velocity `v2 − v3` from the state (balanced coordinates).
+    velocity_row: Vec<f64>,
+    /// Sub-steps before the delay (they use the previous reference).
+    before_delay: usize,
+}
+
+impl CoilLoop {
+    fn new(p: &PlantParams, velocity_row: Vec<f64>, before_delay: usize) -> Self {
+        let c = &p.actuator.coil;
+        let r = c.resistance_ohm + c.sense_resistance_ohm;
+        let kp = c.inductance_h * rad(c.loop_bandwidth_hz);
+        CoilLoop {
+            kp,
+            ki: kp * r / c.inductance_h,
+            r,
+            l: c.inductance_h,
+            bus: c.bus_v,
+            peak: c.peak_a,
+            gain: p.actuator.current_gain_a_per_v,
+            kt: p.actuator.kt_n_per_a,
+            i: 0.0,
+            q: 0.0,
+            velocity_row,
+            before_delay,
+        }
+    }
+
+    /// `(di/dt, dq/dt)` for reference `r` (A) and coil velocity `v` (m/s).
+    #[inline]
+    fn deriv(&self, i: f64, q: f64, r: f64, v: f64) -> (f64, f64) {
+        let e = r - i;
+        let raw = self.kp * e + q;
+        let volts = raw.clamp(-self.bus, self.bus);
+        let winding_up = (raw > self.bus && e > 0.0) || (raw < -self.bus && e < 0.0);
+        let dq = if winding_up { 0.0 } else { self.ki * e };
+        ((volts - self.r * i - self.kt * v) / self.l, dq)
+    }
+
+    /// One RK4 step of `h` s; returns the mean current over it (trapezoid).
+    #[inline]
+    fn substep(&mut self, h: f64, r: f64, v: f64) -> f64 {
+        let (i0, q0) = (self.i, self.q);
+        let (a1, b1) = self.deriv(i0, q0, r, v);
+        let (a2, b2) = self.deriv(i0 + 0.5 * h * a1, q0 + 0.5 * h * b1, r, v);
+        let (a3, b3) = self.deriv(i0 + 0.5 * h * a2, q0 + 0.5 * h * b2, r, v);
+        let (a4, b4) = self.deriv(i0 + h * a3, q0 + h * b3, r, v);
+        self.i = i0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+        self.q = q0 + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+        0.5 * (i0 + self.i)
+    }
+
+    /// Integrates the tick; writes the mean current of each sub-step into `out`.
+    fn tick(
+        &mut self,
+        intervals: &[(f64, f64)],
+        u_prev: f64,
+        u_now: f64,
+        x: &[f64],
+        out: &mut [f64],
+    ) {
+        let v: f64 = self.velocity_row.iter().zip(x).map(|(a, b)| a * b).sum();
+        let reference = |u: f64| (self.gain * u).clamp(-self.peak, self.peak);
+        let (r_prev, r_now) = (reference(u_prev), reference(u_now));
+        for (j, (&(a, b), o)) in intervals.iter().zip(out.iter_mut()).enumerate() {
+            let r = if j < self.before_delay { r_prev } else { r_now };
+            *o = self.substep(b - a, r, v);
+        }
+    }
+}
 
 /// Rows of the tick matrix handled together, kept in registers; columns are split by index
 /// modulo 4 into separate accumulators (independent FMA chains).
 const ROW_GROUP: usize = 8;
 
-/// The whole tick as one affine map of `z = [x_k, u_prev, u_now, f_cut, w_i, w_g, w_a]`:
+/// The whole tick as one affine map of `z = [x_k, command per interval, f_cut, w_i, w_g, w_a]`:
 /// rows `[x_{k+1} (n), ADC conversions (2 per conversion), truth (7)]`, stored column-major
 /// with the row count padded to a multiple of [`ROW_GROUP`] so the product is whole SIMD
 /// vectors whose accumulators stay in registers.
@@ -194,38 +304,49 @@ fn hstack(parts: &[&DMatrix<f64>]) -> DMatrix<f64> {
     m
 }
 
-/// State `x(s)` at time `s` into the tick as `P x_k + q_prev u_prev + q_now u_now + W w`.
+/// Exact propagation inside a tick whose command input (input 0) is constant on each of a
+/// list of intervals `[start, end)` (two for the ideal loop: before and after the delay; one
+/// per electrical sub-step for the coil model) while the other inputs are held all tick.
 struct Propagator<'a> {
     a: &'a DMatrix<f64>,
     b: &'a DMatrix<f64>,
-    delay_s: f64,
+    intervals: &'a [(f64, f64)],
 }
 
 impl Propagator<'_> {
-    fn at(&self, s: f64) -> [DMatrix<f64>; 4] {
+    /// State at time `s` as `[Φ(s) | one column per interval | held inputs]` acting on
+    /// `[x_k, interval values, held]`.
+    fn at(&self, s: f64) -> DMatrix<f64> {
         let n = self.a.nrows();
-        let split = |g: &DMatrix<f64>| {
-            (
-                g.columns(input::COMMAND_V, 1).into_owned(),
-                g.columns(1, HELD).into_owned(),
-            )
-        };
-        if s <= self.delay_s {
-            let (phi, g) = zoh(self.a, self.b, s);
-            let (g_cmd, g_w) = split(&g);
-            [phi, g_cmd, DMatrix::zeros(n, 1), g_w]
-        } else {
-            let (phi_d, g_d) = zoh(self.a, self.b, self.delay_s);
-            let (phi_r, g_r) = zoh(self.a, self.b, s - self.delay_s);
-            let (gd_cmd, gd_w) = split(&g_d);
-            let (gr_cmd, gr_w) = split(&g_r);
-            [
-                &phi_r * phi_d,
-                &phi_r * gd_cmd,
-                gr_cmd,
-                &phi_r * gd_w + gr_w,
-            ]
+        let (phi, g) = zoh(self.a, self.b, s);
+        let mut cols = vec![phi, DMatrix::zeros(n, 0)];
+        for &(start, end) in self.intervals {
+            let col = if s <= start {
+                DMatrix::zeros(n, 1)
+            } else {
+                let end = end.min(s);
+                let (after, _) = zoh(self.a, self.b, s - end);
+                let (_, during) = zoh(self.a, self.b, end - start);
+                after * during.columns(input::COMMAND_V, 1)
+            };
+            cols.push(col);
         }
+        cols.push(g.columns(1, HELD).into_owned());
+        hstack(&cols.iter().collect::<Vec<_>>())
+    }
+
+    /// The feed-through of output rows `d` at time `s`: the command acts through the interval
+    /// that contains `s` (the earlier one at a boundary), the held inputs always.
+    fn feedthrough(&self, d: &DMatrix<f64>, s: f64) -> DMatrix<f64> {
+        let active = self
+            .intervals
+            .iter()
+            .position(|&(a, b)| s > a && s <= b)
+            .unwrap_or(0);
+        let mut cmd = DMatrix::zeros(d.nrows(), self.intervals.len());
+        cmd.column_mut(active)
+            .copy_from(&d.column(input::COMMAND_V));
+        hstack(&[&cmd, &d.columns(1, HELD).into_owned()])
     }
 }
 
@@ -235,7 +356,7 @@ pub struct Simulator {
     params: PlantParams,
     n: usize,
     tick_matrix: TickMatrix,
-    /// `[x_k, u_prev, u_now, held inputs]`; the state lives in the first `n` entries.
+    /// `[x_k, command per interval, held inputs]`; the state lives in the first `n` entries.
     z: Vec<f64>,
     /// Output of the tick matrix.
     out: Vec<f64>,
@@ -244,6 +365,8 @@ pub struct Simulator {
     /// Balancing scale of the mechanics states (state = scale · stored value).
     mech_scale: [f64; 8],
     u_prev: f64,
+    intervals: Vec<(f64, f64)>,
+    coil: Option<CoilLoop>,
     adc_q: Quantizer,
     dac_q: Quantizer,
     white_sigma: f64,
@@ -297,50 +420,37 @@ impl Simulator {
         let (sys, scale) = model.sys.balance();
         let mech_scale = std::array::from_fn(|i| scale[model.mechanics.start + i]);
         let (a, b, c, d) = (&sys.a, &sys.b, &sys.c, &sys.d);
+        let intervals = command_intervals(params);
         let prop = Propagator {
             a,
             b,
-            delay_s: t.delay_s,
+            intervals: &intervals,
         };
-        let d_cmd = |rows: &DMatrix<f64>| rows.columns(input::COMMAND_V, 1).into_owned();
-        let d_held = |rows: &DMatrix<f64>| rows.columns(1, HELD).into_owned();
         let pick = |m: &DMatrix<f64>, rows: &[usize]| {
             DMatrix::from_fn(rows.len(), m.ncols(), |i, j| m[(rows[i], j)])
         };
-
-        // Next state.
-        let [phi, q_prev, q_now, w] = prop.at(period);
-        let mut blocks = vec![hstack(&[&phi, &q_prev, &q_now, &w])];
-        // ADC conversions: the last at the tick end, the others 1/f_adc apart before it.
-        let channels = pick(c, &[output::SENSOR_V, output::ACCEL_V]);
-        let channels_d = pick(d, &[output::SENSOR_V, output::ACCEL_V]);
+        // `rows` of the outputs at time `s` as a map of `[x_k, intervals, held]`.
+        let outputs_at = |rows: &[usize], s: f64| {
+            let (cr, dr) = (pick(c, rows), pick(d, rows));
+            let state = &cr * prop.at(s);
+            let mut direct = DMatrix::zeros(rows.len(), a.nrows());
+            direct = hstack(&[&direct, &prop.feedthrough(&dr, s)]);
+            state + direct
+        };
+        // Next state, then the ADC conversions (the last at the tick end, the others
+        // 1/f_adc apart before it), then the truth at the tick end (left limit).
+        let mut blocks = vec![prop.at(period)];
         for j in 0..adc.oversampling {
             let s = period - (adc.oversampling - 1 - j) as f64 / adc.conversion_rate_hz;
-            let [p, qp, qn, qw] = prop.at(s);
-            let dc = d_cmd(&channels_d);
-            let zero = &dc * 0.0;
-            let (dp, dn) = if s <= t.delay_s {
-                (dc, zero)
-            } else {
-                (zero, dc)
-            };
-            blocks.push(hstack(&[
-                &(&channels * &p),
-                &(&channels * qp + dp),
-                &(&channels * qn + dn),
-                &(&channels * qw + d_held(&channels_d)),
-            ]));
+            blocks.push(outputs_at(&[output::SENSOR_V, output::ACCEL_V], s));
         }
-        // Truth at the tick end (left limit: this tick's inputs), from the start state.
-        let tc = pick(c, &TRUTH_ROWS);
-        let td = pick(d, &TRUTH_ROWS);
-        blocks.push(hstack(&[
-            &(&tc * &phi),
-            &(&tc * &q_prev),
-            &(&tc * &q_now + d_cmd(&td)),
-            &(&tc * &w + d_held(&td)),
-        ]));
+        blocks.push(outputs_at(&TRUTH_ROWS, period));
         let tick_matrix = TickMatrix::new(&blocks);
+        let coil = (params.actuator.model == CurrentLoopModel::Coil).then(|| {
+            let velocity = c.row(output::COIL_VELOCITY_M_S).iter().copied().collect();
+            let before = intervals.iter().filter(|iv| iv.1 <= t.delay_s).count();
+            CoilLoop::new(params, velocity, before)
+        });
         let n = a.nrows();
         let fs = t.servo_rate_hz;
         let noise = &params.noise;
@@ -348,12 +458,14 @@ impl Simulator {
             params: *params,
             n,
             out: vec![0.0; tick_matrix.rows],
-            z: vec![0.0; n + INPUTS],
+            z: vec![0.0; n + intervals.len() + HELD],
             tick_matrix,
             oversampling: adc.oversampling as usize,
             mech: model.mechanics,
             mech_scale,
             u_prev: 0.0,
+            coil,
+            intervals,
             adc_q: Quantizer::new(adc.bits, adc.range_v),
             dac_q: Quantizer::new(params.dac.bits, params.dac.range_v),
             white_sigma: (fs / 2.0).sqrt(),
@@ -415,11 +527,20 @@ impl Simulator {
         let t = self.tick as f64 * self.period_s;
         let f_cut = self.cutting.at(t);
         let n = self.n;
-        self.z[n] = self.u_prev;
-        self.z[n + 1] = u_now;
-        self.z[n + 2] = f_cut;
+        let k = self.intervals.len();
+        match &mut self.coil {
+            None => {
+                self.z[n] = self.u_prev;
+                self.z[n + 1] = u_now;
+            }
+            Some(coil) => {
+                let (x, currents) = self.z.split_at_mut(n);
+                coil.tick(&self.intervals, self.u_prev, u_now, x, &mut currents[..k]);
+            }
+        }
+        self.z[n + k] = f_cut;
         for (i, on) in self.noise_on.into_iter().enumerate() {
-            self.z[n + 3 + i] = if on {
+            self.z[n + k + 1 + i] = if on {
                 self.white_sigma * self.gauss()
             } else {
                 0.0
@@ -460,12 +581,17 @@ impl Simulator {
         };
         let tr = &self.out[n + 2 * self.oversampling..];
         let (m, x) = (self.mech.start, &self.z);
+        // The coil model's current comes from its ODE (the matrix saw sub-step means).
+        let (coil_current, motor_force) = match &self.coil {
+            None => (tr[3], tr[2]),
+            Some(c) => (c.i, c.kt * (c.i + tr[4])),
+        };
         let truth = Truth {
             tool_m: tr[0],
             gap_m: tr[1],
-            motor_force_n: tr[2],
+            motor_force_n: motor_force,
             cutting_force_n: f_cut,
-            coil_current_a: tr[3],
+            coil_current_a: coil_current,
             current_noise_a: tr[4],
             base_m: tr[5],
             sensor_noise_v: noise_sum / k,
@@ -480,6 +606,9 @@ impl Simulator {
     /// Back to rest at t = 0 with the noise generator reseeded.
     pub fn reset(&mut self, seed: u64) {
         self.z.iter_mut().for_each(|x| *x = 0.0);
+        if let Some(c) = &mut self.coil {
+            (c.i, c.q) = (0.0, 0.0);
+        }
         self.u_prev = 0.0;
         self.tick = 0;
         self.rng = Xoshiro256PlusPlus::seed_from_u64(seed);
