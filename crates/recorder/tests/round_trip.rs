@@ -34,7 +34,7 @@ fn tmp(name: &str) -> PathBuf {
     dir.join(name)
 }
 
-fn write(path: &PathBuf, data: &[Frame]) {
+fn write(path: &std::path::Path, data: &[Frame]) {
     let meta = BTreeMap::from([("seed".to_string(), "7".to_string())]);
     let mut r = Recorder::create(path, meta, WhenFull::Wait).unwrap();
     for f in data {
