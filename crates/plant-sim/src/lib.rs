@@ -12,4 +12,4 @@ pub mod sim;
 
 pub use model::PlantModel;
 pub use params::PlantParams;
-pub use sim::{SensorSample, Simulator, Truth};
+pub use sim::{LinearTick, SensorSample, Simulator, Truth};

@@ -78,6 +78,25 @@ pub struct Truth {
     pub dac_v: f64,
 }
 
+/// One tick as a linear system from the DAC command to the averaged ADC readings:
+/// `x⁺ = Φx + g_prev·u[k−1] + g_now·u[k]`, `[gap_v, accel_v] = y_x·x + y_prev·u[k−1] + y_now·u[k]`
+/// (the sample closing the tick), in the simulator's balanced state coordinates.
+#[derive(Debug, Clone)]
+pub struct LinearTick {
+    /// State transition over one tick.
+    pub phi: DMatrix<f64>,
+    /// Effect of the previous command (acting for the delay).
+    pub g_prev: DMatrix<f64>,
+    /// Effect of the new command.
+    pub g_now: DMatrix<f64>,
+    /// Averaged readings from the tick-start state (2 × n).
+    pub y_x: DMatrix<f64>,
+    /// Averaged readings from the previous command (2 × 1).
+    pub y_prev: DMatrix<f64>,
+    /// Averaged readings from the new command (2 × 1).
+    pub y_now: DMatrix<f64>,
+}
+
 /// Simulator construction errors.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -490,6 +509,28 @@ impl Simulator {
     /// Servo period in s.
     pub fn period_s(&self) -> f64 {
         self.period_s
+    }
+
+    /// The tick as a linear map from the command, for stability analysis: `None` for the
+    /// nonlinear `coil` model. Noise and cutting inputs are left out (they do not affect
+    /// stability).
+    pub fn linear_tick(&self) -> Option<LinearTick> {
+        if self.coil.is_some() {
+            return None;
+        }
+        let (n, rows, os) = (self.n, self.tick_matrix.rows, self.oversampling);
+        let entry = |i: usize, j: usize| self.tick_matrix.cols[j * rows + i];
+        let avg = |ch: usize, j: usize| {
+            (0..os).map(|c| entry(n + 2 * c + ch, j)).sum::<f64>() / os as f64
+        };
+        Some(LinearTick {
+            phi: DMatrix::from_fn(n, n, |i, j| entry(i, j)),
+            g_prev: DMatrix::from_fn(n, 1, |i, _| entry(i, n)),
+            g_now: DMatrix::from_fn(n, 1, |i, _| entry(i, n + 1)),
+            y_x: DMatrix::from_fn(2, n, |ch, j| avg(ch, j)),
+            y_prev: DMatrix::from_fn(2, 1, |ch, _| avg(ch, n)),
+            y_now: DMatrix::from_fn(2, 1, |ch, _| avg(ch, n + 1)),
+        })
     }
 
     /// Number of continuous states.

@@ -168,3 +168,28 @@ fn same_seed_same_run_bit_for_bit() {
     );
     assert!(a != c);
 }
+
+/// The linear tick reproduces the running simulator (no noise, ideal converters) exactly.
+#[test]
+fn linear_tick_matches_the_simulator() {
+    let p = quiet_ideal();
+    let mut sim = Simulator::new(&p, 1, &CuttingProfile::None).unwrap();
+    let lin = sim.linear_tick().unwrap();
+    let mut x = nalgebra::DMatrix::<f64>::zeros(lin.phi.nrows(), 1);
+    let mut u_prev = 0.0;
+    for k in 0..2000 {
+        let u = ((k as f64) * 0.01).sin();
+        let y = &lin.y_x * &x + &lin.y_prev * u_prev + &lin.y_now * u;
+        x = &lin.phi * &x + &lin.g_prev * u_prev + &lin.g_now * u;
+        u_prev = u;
+        let (s, _) = sim.step(u);
+        assert!(
+            (s.gap_v - y[0]).abs() < 1e-9 * (1.0 + y[0].abs()),
+            "tick {k}"
+        );
+        assert!(
+            (s.accel_v - y[1]).abs() < 1e-9 * (1.0 + y[1].abs()),
+            "tick {k}"
+        );
+    }
+}

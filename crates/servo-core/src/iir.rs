@@ -48,6 +48,22 @@ impl<const N: usize> IirCoeffs<N> {
         num / den
     }
 
+    /// The filter as `x⁺ = A x + B u`, `y = C x + D u` (the transposed direct form's states).
+    pub fn realization(&self) -> crate::pid::Realization<N> {
+        let a = nalgebra::SMatrix::<f64, N, N>::from_fn(|i, j| {
+            if j == 0 {
+                -self.a[i]
+            } else if j == i + 1 {
+                1.0
+            } else {
+                0.0
+            }
+        });
+        let b = nalgebra::SMatrix::<f64, N, 1>::from_fn(|i, _| self.b[i] - self.a[i] * self.b0);
+        let c = nalgebra::SMatrix::<f64, 1, N>::from_fn(|_, j| if j == 0 { 1.0 } else { 0.0 });
+        (a, b, c, self.b0)
+    }
+
     /// Checks that every coefficient is finite.
     pub fn validate(&self) -> Result<Self, Error> {
         let finite = self.b0.is_finite()
@@ -429,6 +445,22 @@ mod tests {
         for k in 0..1000 {
             let x = libm::sin(k as f64 * 0.37) + if k == 3 { 1.0 } else { 0.0 };
             assert_eq!(cascade.update(x), b.update(a.update(x)));
+        }
+    }
+
+    #[test]
+    fn realization_matches_the_running_filter() {
+        for d in designs() {
+            let co = d.try_coeffs(T).unwrap();
+            let (a, b, c, dd) = co.realization();
+            let mut x = nalgebra::SMatrix::<f64, 2, 1>::zeros();
+            let mut f = Iir::new(co);
+            for k in 0..500 {
+                let u = libm::sin(k as f64 * 0.05) + if k == 0 { 1.0 } else { 0.0 };
+                let want = (c * x)[0] + dd * u;
+                x = a * x + b * u;
+                assert!((f.update(u) - want).abs() < 1e-12 * (1.0 + want.abs()));
+            }
         }
     }
 

@@ -54,7 +54,7 @@ pub use iir::{Biquad, BiquadCascade, BiquadDesign, Iir, IirCoeffs};
 pub use limits::Limits;
 pub use observer::{DisturbanceObserver, ObserverInput};
 pub use oversample::Averager;
-pub use pid::{Pid, PidCoeffs, PidConfig, PidState};
+pub use pid::{Pid, PidCoeffs, PidConfig, PidState, Realization};
 pub use setpoint::{
     Chirp, ChirpConfig, Setpoint, Sine, SineConfig, Step, StepConfig, SteppedSine,
     SteppedSineConfig, Sweep, SweepSegment,

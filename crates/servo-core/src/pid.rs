@@ -95,6 +95,29 @@ impl PidCoeffs {
     }
 }
 
+/// A linear state-space realisation `(A, B, C, D)` of a block (valid while it is unsaturated),
+/// for closed-loop analysis off the tick.
+pub type Realization<const N: usize> = (
+    nalgebra::SMatrix<f64, N, N>,
+    nalgebra::SMatrix<f64, N, 1>,
+    nalgebra::SMatrix<f64, 1, N>,
+    f64,
+);
+
+impl PidCoeffs {
+    /// The discrete PID as `x⁺ = A x + B e`, `u = C x + D e` with `x = [integral, filtered
+    /// derivative, previous error]` (unsaturated).
+    pub fn realization(&self) -> Realization<3> {
+        let (k, a, b, kd) = (self.ki_half_t, self.df_pole, self.df_gain, self.kd);
+        (
+            nalgebra::SMatrix::<f64, 3, 3>::new(1.0, 0.0, k, 0.0, a, -b, 0.0, 0.0, 0.0),
+            nalgebra::SMatrix::<f64, 3, 1>::new(k, b, 1.0),
+            nalgebra::SMatrix::<f64, 1, 3>::new(1.0, kd * a, k - kd * b),
+            self.kp + kd * b + k,
+        )
+    }
+}
+
 /// PID state: previous error, integrator (output unit), filtered error derivative (unit/s).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PidState {
@@ -277,6 +300,23 @@ mod tests {
             "jump {}",
             after - before
         );
+    }
+
+    #[test]
+    fn realization_matches_the_running_block() {
+        let mut pid = unlimited(1.65, 562.0, 9.5e-4, 9.6e-5);
+        let (a, b, c, d) = pid.coeffs().realization();
+        let mut x = nalgebra::SMatrix::<f64, 3, 1>::zeros();
+        for k in 0..3000 {
+            let e = libm::sin(k as f64 * 0.013) + 0.3 * libm::cos(k as f64 * 0.7);
+            let want = (c * x)[0] + d * e;
+            x = a * x + b * e;
+            let got = pid.update(e);
+            assert!(
+                (got - want).abs() < 1e-11 * (1.0 + want.abs()),
+                "k={k}: {got} vs {want}"
+            );
+        }
     }
 
     #[test]
