@@ -1,5 +1,352 @@
-//! The `servo` command-line tool.
+//! `servo`: run the fast tool servo closed loop against the simulated stage, record it, read
+//! it back. A thin shell over the `runner` library: parsing, progress, printing.
 
-fn main() {
-    println!("servo {}", env!("CARGO_PKG_VERSION"));
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use plant_sim::params::{NoiseParams, StageParams};
+use runner::config::{ConfigError, ControllerKind, Loaded, Scenario};
+use runner::run::{inspect, run, RunError, RunOptions};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+#[derive(Parser)]
+#[command(
+    name = "servo",
+    version,
+    about = "Fast tool servo runtime and simulator (thesis prototype by default)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the closed loop against the simulated stage and record it to MCAP.
+    ///
+    /// With no options: the thesis stage, the Chapter 7 PID at 199.6 kHz, sensor and current
+    /// noise and base vibration on, holding position for 1 s, recorded to ./run.mcap.
+    /// Example: servo run --mass heavy --scenario sine --amplitude 2e-6 --frequency 200
+    Run {
+        #[command(flatten)]
+        settings: Settings,
+        /// Output MCAP file.
+        #[arg(short, long, default_value = "run.mcap")]
+        out: PathBuf,
+        /// Do not record.
+        #[arg(long)]
+        no_record: bool,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+    },
+    /// Recompute and print the summary of a recording. Example: servo inspect run.mcap
+    Inspect {
+        /// The MCAP file written by `servo run`.
+        file: PathBuf,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Show the fully resolved configuration (every number) after the file and the flags.
+    /// Example: servo config --dump --mass heavy
+    Config {
+        #[command(flatten)]
+        settings: Settings,
+        /// Print the whole resolved configuration (the default action).
+        #[arg(long)]
+        dump: bool,
+        /// As JSON instead of TOML.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Mass {
+    /// 0.074 kg moving mass (Table 5-2).
+    Light,
+    /// 0.175 kg: +0.100 kg on the coil carrier (§5.7.3).
+    Heavy,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum ScenarioKind {
+    /// Hold position (§5.7.3).
+    Hold,
+    /// Sine reference (--amplitude, --frequency).
+    Sine,
+    /// Step reference (--amplitude) at 20 % of the run.
+    Step,
+    /// Exponential chirp over the run (--amplitude, --frequency to --f-end).
+    Chirp,
+    /// Hold during the §7.6 intermittent cut (--force, --rpm).
+    IntermittentCut,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Ctrl {
+    /// Position PID (eq 7-8).
+    Pid,
+    /// PID with acceleration feedback (Fig 7-6), gain --ka.
+    Accel,
+    /// State-space controller from --ss-file.
+    Ss,
+}
+
+/// Settings shared by `run` and `config`: a TOML file, then flags on top.
+#[derive(Args)]
+struct Settings {
+    /// TOML configuration file (see `servo config --dump` for every key).
+    #[arg(short, long)]
+    config: Option<PathBuf>,
+    /// Simulated duration in s.
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Servo (loop) rate in Hz.
+    #[arg(long)]
+    rate: Option<f64>,
+    /// Noise seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Controller.
+    #[arg(long, value_enum)]
+    controller: Option<Ctrl>,
+    /// Acceleration feedback gain Ka (V/V), for --controller accel.
+    #[arg(long)]
+    ka: Option<f64>,
+    /// Scale the PID gains by 1/Kg with acceleration feedback (§7.4.1).
+    #[arg(long)]
+    kg_scaling: bool,
+    /// Controller file for --controller ss.
+    #[arg(long)]
+    ss_file: Option<PathBuf>,
+    /// Stage preset (replaces [plant.stage]).
+    #[arg(long, value_enum)]
+    mass: Option<Mass>,
+    /// Scenario.
+    #[arg(long, value_enum)]
+    scenario: Option<ScenarioKind>,
+    /// Reference amplitude in m (sine, step, chirp).
+    #[arg(long)]
+    amplitude: Option<f64>,
+    /// Sine frequency, or chirp start frequency, in Hz.
+    #[arg(long)]
+    frequency: Option<f64>,
+    /// Chirp end frequency in Hz.
+    #[arg(long)]
+    f_end: Option<f64>,
+    /// Cutting force in N (intermittent-cut).
+    #[arg(long)]
+    force: Option<f64>,
+    /// Spindle speed in rpm (intermittent-cut).
+    #[arg(long)]
+    rpm: Option<f64>,
+    /// Noise sources on: comma list of sensor,current,base,accel, or `none` / `all`.
+    #[arg(long)]
+    noise: Option<String>,
+}
+
+impl Settings {
+    /// The configuration: defaults, then the file, then the flags.
+    fn resolve(&self) -> Result<Loaded, ConfigError> {
+        let mut l = match &self.config {
+            Some(p) => Loaded::from_file(p)?,
+            None => Loaded::default(),
+        };
+        let c = &mut l.config;
+        if let Some(v) = self.duration {
+            c.run.duration_s = v;
+        }
+        if let Some(v) = self.rate {
+            c.plant.timing.servo_rate_hz = v;
+        }
+        if let Some(v) = self.seed {
+            c.run.seed = v;
+        }
+        if let Some(k) = self.controller {
+            c.controller.kind = match k {
+                Ctrl::Pid => ControllerKind::Pid,
+                Ctrl::Accel => ControllerKind::Accel,
+                Ctrl::Ss => ControllerKind::Ss,
+            };
+        }
+        if let Some(v) = self.ka {
+            c.controller.ka = v;
+        }
+        c.controller.kg_scaling |= self.kg_scaling;
+        if let Some(p) = &self.ss_file {
+            c.controller.ss_file = Some(
+                std::env::current_dir()
+                    .map(|d| d.join(p))
+                    .unwrap_or(p.clone()),
+            );
+        }
+        if let Some(m) = self.mass {
+            c.plant.stage = match m {
+                Mass::Light => StageParams::THESIS,
+                Mass::Heavy => StageParams::THESIS_HEAVY,
+            };
+        }
+        if let Some(kind) = self.scenario {
+            let a = self.amplitude.unwrap_or(1e-6);
+            let f = self.frequency.unwrap_or(100.0);
+            c.scenario = match kind {
+                ScenarioKind::Hold => Scenario::Hold,
+                ScenarioKind::Sine => Scenario::Sine {
+                    amplitude_m: a,
+                    frequency_hz: f,
+                },
+                ScenarioKind::Step => Scenario::Step {
+                    amplitude_m: a,
+                    at_s: 0.2 * c.run.duration_s,
+                },
+                ScenarioKind::Chirp => Scenario::Chirp {
+                    amplitude_m: a,
+                    f_start_hz: self.frequency.unwrap_or(10.0),
+                    f_end_hz: self.f_end.unwrap_or(2000.0),
+                },
+                ScenarioKind::IntermittentCut => Scenario::IntermittentCut {
+                    force_n: self.force.unwrap_or(1.0),
+                    spindle_rpm: self.rpm.unwrap_or(250.0),
+                },
+            };
+        }
+        if let Some(list) = &self.noise {
+            match noise_from(list, c.plant.noise) {
+                Ok(n) => c.plant.noise = n,
+                Err(bad) => {
+                    return Err(l.invalid("--noise", bad, "sensor,current,base,accel | all | none"))
+                }
+            }
+        }
+        Ok(l)
+    }
+}
+
+fn noise_from(list: &str, mut n: NoiseParams) -> Result<NoiseParams, String> {
+    let all = |n: &mut NoiseParams, on| (n.sensor, n.current, n.base, n.accel) = (on, on, on, on);
+    all(&mut n, false);
+    for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        match item {
+            "none" => all(&mut n, false),
+            "all" => all(&mut n, true),
+            "sensor" => n.sensor = true,
+            "current" => n.current = true,
+            "base" => n.base = true,
+            "accel" => n.accel = true,
+            other => return Err(other.to_string()),
+        }
+    }
+    Ok(n)
+}
+
+fn fail(e: impl std::fmt::Display, code: u8) -> ExitCode {
+    eprintln!("error: {e}");
+    ExitCode::from(code)
+}
+
+fn print_summary(s: &runner::summary::Summary, json: bool) {
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(s).expect("summary serialises")
+        );
+    } else {
+        print!("{s}");
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Run {
+            settings,
+            out,
+            no_record,
+            json,
+            quiet,
+        } => {
+            let cfg = match settings.resolve() {
+                Ok(c) => c,
+                Err(e) => return fail(e, 2),
+            };
+            let stop = Arc::new(AtomicBool::new(false));
+            let flag = stop.clone();
+            // A second Ctrl-C while the file is being finished is ignored on purpose.
+            let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+            let bar = if quiet {
+                ProgressBar::hidden()
+            } else {
+                ProgressBar::new(0)
+            };
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{spinner} simulating [{bar:40}] {percent:>3}% {elapsed_precise} ETA {eta}",
+                )
+                .expect("valid template")
+                .progress_chars("=> "),
+            );
+            let mut progress = |done: u64, total: u64| {
+                bar.set_length(total);
+                bar.set_position(done);
+            };
+            let result = run(
+                &cfg,
+                RunOptions {
+                    out: (!no_record).then_some(out.clone()),
+                    stop: &stop,
+                    progress: &mut progress,
+                },
+            );
+            bar.finish_and_clear();
+            match result {
+                Ok(summary) => {
+                    print_summary(&summary, json);
+                    if !no_record && !json {
+                        println!(
+                            "  wrote {} (open it in Foxglove: topics /telemetry and /truth)",
+                            out.display()
+                        );
+                    }
+                    ExitCode::SUCCESS
+                }
+                Err(e @ (RunError::Config(_) | RunError::Unstable { .. })) => fail(e, 2),
+                Err(e) => fail(e, 1),
+            }
+        }
+        Command::Inspect { file, json } => match inspect(&file) {
+            Ok(s) => {
+                print_summary(&s, json);
+                ExitCode::SUCCESS
+            }
+            Err(e) => fail(e, 1),
+        },
+        Command::Config {
+            settings,
+            dump: _,
+            json,
+        } => match settings.resolve() {
+            Ok(l) => {
+                if let Err(e) = l.config.validate(&l) {
+                    return fail(e, 2);
+                }
+                if json {
+                    println!(
+                        "{}",
+                        serde_json::to_string_pretty(&l.config).expect("config serialises")
+                    );
+                } else {
+                    print!("{}", l.config.to_toml());
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => fail(e, 2),
+        },
+    }
 }

@@ -1,0 +1,295 @@
+//! One closed-loop run: controller (servo-core) against the simulated stage (plant-sim),
+//! recorded to MCAP (recorder) off the tick, summarised; and the same summary from a file.
+
+use crate::config::{ConfigError, Loaded, Scenario};
+use crate::controller::Controller;
+use crate::stability::spectral_radius;
+use crate::summary::{RunMeta, Summary, SummaryBuilder, SATURATED};
+use plant_sim::model::ModelError;
+use plant_sim::params::CurrentLoopModel;
+use plant_sim::sim::flags;
+use plant_sim::sim::SimError;
+use plant_sim::{SensorSample, Simulator};
+use recorder::{Frame, RecordError, Recorder, Telemetry, Truth, WhenFull};
+use servo_core::{Block, ChirpConfig, SineConfig, StepConfig, Sweep};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// Run errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RunError {
+    /// Configuration.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The simulator could not be built for another reason.
+    #[error("plant: {0}")]
+    Plant(String),
+    /// The controller and the plant form an unstable loop.
+    #[error("the closed loop is unstable (spectral radius {radius:.6} ≥ 1) with {controller}: lower the gains or check the controller file; nothing was run")]
+    Unstable {
+        /// Largest closed-loop eigenvalue magnitude.
+        radius: f64,
+        /// Controller description.
+        controller: String,
+    },
+    /// Recording.
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    /// Reading a recording.
+    #[error(transparent)]
+    Read(#[from] recorder::ReadError),
+    /// A recording without the metadata `servo run` writes.
+    #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
+    NotARun(PathBuf),
+}
+
+/// How to run.
+pub struct RunOptions<'a> {
+    /// Where to record (None: no recording).
+    pub out: Option<PathBuf>,
+    /// Set to stop early (Ctrl-C); the recording is still finished.
+    pub stop: &'a AtomicBool,
+    /// Called every few thousand ticks with (done, total).
+    pub progress: &'a mut dyn FnMut(u64, u64),
+}
+
+/// The reference trajectory in m, one sample per tick.
+enum Reference {
+    Zero,
+    Gen(Box<dyn Block<Input = (), Output = servo_core::Setpoint> + Send>),
+}
+
+impl Reference {
+    fn new(s: &Scenario, period: f64, duration: f64) -> Result<Self, servo_core::Error> {
+        Ok(match *s {
+            Scenario::Hold | Scenario::IntermittentCut { .. } => Reference::Zero,
+            Scenario::Sine {
+                amplitude_m,
+                frequency_hz,
+            } => Reference::Gen(Box::new(
+                SineConfig {
+                    amplitude: amplitude_m,
+                    frequency_hz,
+                    phase_rad: 0.0,
+                    offset: 0.0,
+                }
+                .try_build(period)?,
+            )),
+            Scenario::Step { amplitude_m, at_s } => Reference::Gen(Box::new(
+                StepConfig {
+                    amplitude: amplitude_m,
+                    delay_s: at_s,
+                }
+                .try_build(period)?,
+            )),
+            Scenario::Chirp {
+                amplitude_m,
+                f_start_hz,
+                f_end_hz,
+            } => Reference::Gen(Box::new(
+                ChirpConfig {
+                    amplitude: amplitude_m,
+                    f_start_hz,
+                    f_end_hz,
+                    duration_s: duration,
+                    sweep: Sweep::Exponential,
+                }
+                .try_build(period)?,
+            )),
+        })
+    }
+
+    #[inline]
+    fn next(&mut self) -> f64 {
+        match self {
+            Reference::Zero => 0.0,
+            Reference::Gen(g) => g.update(()).position,
+        }
+    }
+}
+
+fn scenario_name(s: &Scenario) -> &'static str {
+    match s {
+        Scenario::Hold => "hold",
+        Scenario::Sine { .. } => "sine",
+        Scenario::Step { .. } => "step",
+        Scenario::Chirp { .. } => "chirp",
+        Scenario::IntermittentCut { .. } => "intermittent-cut",
+    }
+}
+
+/// Plant parameter errors located at their `plant.…` key in the config file.
+fn plant_error(e: SimError, at: &Loaded) -> RunError {
+    match e {
+        SimError::Model(ModelError::Parameter { key, value, range }) => {
+            at.invalid(&format!("plant.{key}"), value, range).into()
+        }
+        SimError::Timing { key, value, range } => {
+            at.invalid(&format!("plant.{key}"), value, &range).into()
+        }
+        other => RunError::Plant(other.to_string()),
+    }
+}
+
+/// Runs `cfg`: builds everything, checks closed-loop stability, runs, records, summarises.
+pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
+    let c = &cfg.config;
+    c.validate(cfg)?;
+    let mut sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
+        .map_err(|e| plant_error(e, cfg))?;
+    let mut ctrl = Controller::build(cfg)?;
+    // Stability from the exact linear tick (the coil model is checked with the ideal loop).
+    let linear = match sim.linear_tick() {
+        Some(l) => l,
+        None => {
+            let mut ideal = c.plant;
+            ideal.actuator.model = CurrentLoopModel::Ideal;
+            Simulator::new(&ideal, 0, &Default::default())
+                .map_err(|e| plant_error(e, cfg))?
+                .linear_tick()
+                .expect("ideal model")
+        }
+    };
+    let radius = spectral_radius(&linear, &ctrl.linear);
+    if radius >= 1.0 {
+        return Err(RunError::Unstable {
+            radius,
+            controller: ctrl.description.clone(),
+        });
+    }
+    let period = sim.period_s();
+    let mut reference = Reference::new(&c.scenario, period, c.run.duration_s)
+        .map_err(|e| cfg.invalid("scenario", e, "see the message"))?;
+    let mut recorder = match &opts.out {
+        Some(path) => Some(Recorder::create(path, metadata(cfg), WhenFull::Wait)?),
+        None => None,
+    };
+    let sensitivity = c.plant.capa.sensitivity_v_per_m;
+    let accel_scale = 1.0 / c.plant.accel.sensitivity_v_per_m_s2;
+    let total = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
+    let mut summary = SummaryBuilder::new(c.run.settle_s);
+    let start = Instant::now();
+    let mut sample = SensorSample::default();
+    let mut r = reference.next();
+    let mut interrupted = false;
+    for k in 0..total {
+        if k % 8192 == 0 {
+            (opts.progress)(k, total);
+            if opts.stop.load(Ordering::Relaxed) {
+                interrupted = true;
+                break;
+            }
+        }
+        let u = ctrl.update(r * sensitivity - sample.gap_v, sample.accel_v);
+        let (s, t) = sim.step(u);
+        sample = s;
+        r = reference.next();
+        let saturated = u.abs() >= ctrl.limit_v || s.flags & flags::DAC_CLIPPED != 0;
+        let measured = s.gap_v / sensitivity;
+        let frame = Frame {
+            time_ns: (s.time_s * 1e9).round() as u64,
+            telemetry: Telemetry {
+                reference_m: r as f32,
+                measured_m: measured as f32,
+                following_error_m: (r - measured) as f32,
+                control_v: u as f32,
+                accel_m_s2: (s.accel_v * accel_scale) as f32,
+                flags: (s.flags | if saturated { SATURATED } else { 0 }) as f32,
+            },
+            truth: Truth {
+                tool_m: t.tool_m as f32,
+                true_error_m: (t.tool_m - r) as f32,
+                gap_m: t.gap_m as f32,
+                motor_force_n: t.motor_force_n as f32,
+                cutting_force_n: t.cutting_force_n as f32,
+                coil_current_a: t.coil_current_a as f32,
+                current_noise_a: t.current_noise_a as f32,
+                base_m: t.base_m as f32,
+                sensor_noise_v: t.sensor_noise_v as f32,
+            },
+        };
+        summary.add(&frame);
+        if let Some(rec) = &mut recorder {
+            rec.push(frame)?;
+        }
+    }
+    (opts.progress)(summary_ticks(&summary, total, interrupted), total);
+    let wall = start.elapsed().as_secs_f64();
+    let stats = match recorder {
+        Some(r) => Some(r.finish()?),
+        None => None,
+    };
+    Ok(summary.finish(RunMeta {
+        servo_rate_hz: c.plant.timing.servo_rate_hz,
+        seed: c.run.seed,
+        settle_s: c.run.settle_s,
+        controller: ctrl.description.clone(),
+        scenario: scenario_name(&c.scenario).into(),
+        wall_s: Some(wall),
+        interrupted,
+        recorded_messages: stats.map(|s| s.messages),
+        dropped_frames: stats.map(|s| s.dropped_frames),
+        spectral_radius: Some(radius),
+    }))
+}
+
+fn summary_ticks(_s: &SummaryBuilder, total: u64, interrupted: bool) -> u64 {
+    if interrupted {
+        0
+    } else {
+        total
+    }
+}
+
+/// Metadata written into the recording.
+fn metadata(cfg: &Loaded) -> BTreeMap<String, String> {
+    let c = &cfg.config;
+    BTreeMap::from([
+        ("config".to_string(), c.to_toml()),
+        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+        ("seed".to_string(), c.run.seed.to_string()),
+        (
+            "servo_rate_hz".to_string(),
+            c.plant.timing.servo_rate_hz.to_string(),
+        ),
+        ("settle_s".to_string(), c.run.settle_s.to_string()),
+    ])
+}
+
+/// Recomputes the summary of a recording written by [`run`].
+pub fn inspect(path: &Path) -> Result<Summary, RunError> {
+    let rec = recorder::read(path)?;
+    let text = rec
+        .metadata
+        .get("config")
+        .ok_or_else(|| RunError::NotARun(path.to_owned()))?;
+    let cfg: crate::config::RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+        path: path.to_owned(),
+        message: e.to_string(),
+    })?;
+    let mut b = SummaryBuilder::new(cfg.run.settle_s);
+    rec.frames.iter().for_each(|f| b.add(f));
+    let loaded = Loaded {
+        config: cfg.clone(),
+        ..Default::default()
+    };
+    let controller = Controller::build(&loaded)
+        .map(|c| c.description)
+        .unwrap_or_else(|_| format!("{:?}", cfg.controller.kind));
+    let expected = (cfg.run.duration_s * cfg.plant.timing.servo_rate_hz).round() as u64;
+    Ok(b.finish(RunMeta {
+        servo_rate_hz: cfg.plant.timing.servo_rate_hz,
+        seed: cfg.run.seed,
+        settle_s: cfg.run.settle_s,
+        controller,
+        scenario: scenario_name(&cfg.scenario).into(),
+        wall_s: None,
+        interrupted: (rec.frames.len() as u64) < expected,
+        recorded_messages: Some(rec.messages),
+        dropped_frames: None,
+        spectral_radius: None,
+    }))
+}

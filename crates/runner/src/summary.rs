@@ -1,0 +1,225 @@
+//! The run summary a precision engineer reads at a glance, computed from the recorded frames
+//! (so `servo inspect` recomputes exactly the same numbers from the file).
+
+use recorder::Frame;
+use serde::Serialize;
+use std::fmt;
+
+/// Telemetry flag set by the runner when the command was at its limit or the DAC clipped.
+pub const SATURATED: u32 = 1 << 8;
+
+/// RMS, peak-to-valley and mean of a signal.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Stats {
+    /// Root mean square.
+    pub rms: f64,
+    /// Peak-to-valley (max − min).
+    pub pv: f64,
+    /// Mean.
+    pub mean: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Acc {
+    n: u64,
+    sum: f64,
+    sum_sq: f64,
+    min: f64,
+    max: f64,
+}
+
+impl Default for Acc {
+    fn default() -> Self {
+        Acc {
+            n: 0,
+            sum: 0.0,
+            sum_sq: 0.0,
+            min: f64::INFINITY,
+            max: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl Acc {
+    fn add(&mut self, x: f32) {
+        let x = x as f64;
+        self.n += 1;
+        self.sum += x;
+        self.sum_sq += x * x;
+        self.min = self.min.min(x);
+        self.max = self.max.max(x);
+    }
+
+    fn stats(&self) -> Stats {
+        let n = self.n.max(1) as f64;
+        Stats {
+            rms: (self.sum_sq / n).sqrt(),
+            pv: if self.n > 0 { self.max - self.min } else { 0.0 },
+            mean: self.sum / n,
+        }
+    }
+}
+
+/// Accumulates a summary tick by tick (allocation-free).
+#[derive(Debug, Clone, Default)]
+pub struct SummaryBuilder {
+    settle_ns: u64,
+    ticks: u64,
+    last_ns: u64,
+    following: Acc,
+    truth: Acc,
+    control: Acc,
+    saturated: u64,
+}
+
+impl SummaryBuilder {
+    /// Statistics over frames at or after `settle_s`.
+    pub fn new(settle_s: f64) -> Self {
+        SummaryBuilder {
+            settle_ns: (settle_s * 1e9).round() as u64,
+            ..Default::default()
+        }
+    }
+
+    /// Adds one frame.
+    #[inline]
+    pub fn add(&mut self, f: &Frame) {
+        self.ticks += 1;
+        self.last_ns = f.time_ns;
+        if f.time_ns < self.settle_ns {
+            return;
+        }
+        self.following.add(f.telemetry.following_error_m);
+        self.truth.add(f.truth.true_error_m);
+        self.control.add(f.telemetry.control_v);
+        if (f.telemetry.flags as u32) & SATURATED != 0 {
+            self.saturated += 1;
+        }
+    }
+
+    /// The summary so far.
+    pub fn finish(&self, meta: RunMeta) -> Summary {
+        Summary {
+            ticks: self.ticks,
+            simulated_s: self.last_ns as f64 * 1e-9,
+            stats_ticks: self.following.n,
+            following_error_m: self.following.stats(),
+            true_error_m: self.truth.stats(),
+            control_v: self.control.stats(),
+            saturated_ticks: self.saturated,
+            meta,
+        }
+    }
+}
+
+/// Facts about the run besides the statistics.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunMeta {
+    /// Loop rate in Hz.
+    pub servo_rate_hz: f64,
+    /// Seed.
+    pub seed: u64,
+    /// Statistics start, s.
+    pub settle_s: f64,
+    /// Controller description.
+    pub controller: String,
+    /// Scenario kind.
+    pub scenario: String,
+    /// Wall-clock seconds (live runs only).
+    pub wall_s: Option<f64>,
+    /// Stopped before its duration (Ctrl-C).
+    pub interrupted: bool,
+    /// Messages written to the recording, if recorded.
+    pub recorded_messages: Option<u64>,
+    /// Frames dropped by the recorder.
+    pub dropped_frames: Option<u64>,
+    /// Closed-loop spectral radius checked before the run.
+    pub spectral_radius: Option<f64>,
+}
+
+/// The summary of a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    /// Ticks run.
+    pub ticks: u64,
+    /// Simulated time in s.
+    pub simulated_s: f64,
+    /// Ticks in the statistics window.
+    pub stats_ticks: u64,
+    /// Following error `reference − measured` (what the sensor reports), m.
+    pub following_error_m: Stats,
+    /// True tool error `tool − reference` (what the part gets), m.
+    pub true_error_m: Stats,
+    /// Control output, V.
+    pub control_v: Stats,
+    /// Ticks with the command at its limit or the DAC clipping.
+    pub saturated_ticks: u64,
+    /// Run facts.
+    pub meta: RunMeta,
+}
+
+impl Summary {
+    /// The statistics only (what a recording must reproduce).
+    pub fn same_statistics(&self, other: &Summary) -> bool {
+        (self.ticks, self.stats_ticks, self.saturated_ticks)
+            == (other.ticks, other.stats_ticks, other.saturated_ticks)
+            && self.following_error_m == other.following_error_m
+            && self.true_error_m == other.true_error_m
+            && self.control_v == other.control_v
+    }
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let m = &self.meta;
+        writeln!(
+            f,
+            "fts-servo run: {} scenario, {}, seed {}",
+            m.scenario, m.controller, m.seed
+        )?;
+        writeln!(
+            f,
+            "  simulated {:.4} s at {:.1} kHz ({} ticks){}; statistics after {} s",
+            self.simulated_s,
+            m.servo_rate_hz / 1e3,
+            self.ticks,
+            if m.interrupted { ", INTERRUPTED" } else { "" },
+            m.settle_s
+        )?;
+        let nm = |s: &Stats| format!("RMS {:>8.3} nm   PV {:>8.3} nm", s.rms * 1e9, s.pv * 1e9);
+        writeln!(
+            f,
+            "  following error (sensor)  {}",
+            nm(&self.following_error_m)
+        )?;
+        writeln!(f, "  true tool error           {}", nm(&self.true_error_m))?;
+        writeln!(
+            f,
+            "  control output            RMS {:>8.4} V    saturated {} ticks",
+            self.control_v.rms, self.saturated_ticks
+        )?;
+        if let Some(r) = m.spectral_radius {
+            writeln!(
+                f,
+                "  closed loop               stable, spectral radius {r:.6}"
+            )?;
+        }
+        if let Some(w) = m.wall_s {
+            writeln!(
+                f,
+                "  wall time                 {:.3} s ({:.1}× real time)",
+                w,
+                self.simulated_s / w.max(1e-9)
+            )?;
+        }
+        match (m.recorded_messages, m.dropped_frames) {
+            (Some(n), Some(d)) => writeln!(
+                f,
+                "  recorded                  {n} messages, {d} frames dropped"
+            )?,
+            (Some(n), None) => writeln!(f, "  recording                 {n} messages")?,
+            _ => {}
+        }
+        Ok(())
+    }
+}
