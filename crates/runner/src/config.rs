@@ -28,8 +28,16 @@ pub struct RunSection {
     pub duration_s: f64,
     /// Noise seed.
     pub seed: u64,
-    /// Statistics start after this many seconds (the loop and the slow noise filters settle).
-    pub settle_s: f64,
+    /// Statistics start after this many seconds (the loop and the slow noise filters settle);
+    /// unset: 10 % of the duration, at most 0.1 s.
+    pub settle_s: Option<f64>,
+}
+
+impl RunSection {
+    /// The statistics window start in s.
+    pub fn settle(&self) -> f64 {
+        self.settle_s.unwrap_or((0.1 * self.duration_s).min(0.1))
+    }
 }
 
 impl Default for RunSection {
@@ -37,7 +45,7 @@ impl Default for RunSection {
         RunSection {
             duration_s: 1.0,
             seed: 1,
-            settle_s: 0.1,
+            settle_s: None,
         }
     }
 }
@@ -286,8 +294,8 @@ impl RunConfig {
         if !(r.duration_s > 0.0 && r.duration_s <= 3600.0) {
             return Err(at.invalid("run.duration_s", r.duration_s, "(0, 3600] s"));
         }
-        if !(r.settle_s >= 0.0 && r.settle_s < r.duration_s) {
-            return Err(at.invalid("run.settle_s", r.settle_s, "[0, run.duration_s) s"));
+        if !(r.settle() >= 0.0 && r.settle() < r.duration_s) {
+            return Err(at.invalid("run.settle_s", r.settle(), "[0, run.duration_s) s"));
         }
         let rate = self.plant.timing.servo_rate_hz;
         if !(1e2..=2e6).contains(&rate) {

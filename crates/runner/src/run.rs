@@ -170,7 +170,7 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
     let sensitivity = c.plant.capa.sensitivity_v_per_m;
     let accel_scale = 1.0 / c.plant.accel.sensitivity_v_per_m_s2;
     let total = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
-    let mut summary = SummaryBuilder::new(c.run.settle_s);
+    let mut summary = SummaryBuilder::new(c.run.settle());
     let start = Instant::now();
     let mut sample = SensorSample::default();
     let mut r = reference.next();
@@ -225,7 +225,7 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
     Ok(summary.finish(RunMeta {
         servo_rate_hz: c.plant.timing.servo_rate_hz,
         seed: c.run.seed,
-        settle_s: c.run.settle_s,
+        settle_s: c.run.settle(),
         controller: ctrl.description.clone(),
         scenario: scenario_name(&c.scenario).into(),
         wall_s: Some(wall),
@@ -255,7 +255,7 @@ fn metadata(cfg: &Loaded) -> BTreeMap<String, String> {
             "servo_rate_hz".to_string(),
             c.plant.timing.servo_rate_hz.to_string(),
         ),
-        ("settle_s".to_string(), c.run.settle_s.to_string()),
+        ("settle_s".to_string(), c.run.settle().to_string()),
     ])
 }
 
@@ -270,7 +270,7 @@ pub fn inspect(path: &Path) -> Result<Summary, RunError> {
         path: path.to_owned(),
         message: e.to_string(),
     })?;
-    let mut b = SummaryBuilder::new(cfg.run.settle_s);
+    let mut b = SummaryBuilder::new(cfg.run.settle());
     rec.frames.iter().for_each(|f| b.add(f));
     let loaded = Loaded {
         config: cfg.clone(),
@@ -283,7 +283,7 @@ pub fn inspect(path: &Path) -> Result<Summary, RunError> {
     Ok(b.finish(RunMeta {
         servo_rate_hz: cfg.plant.timing.servo_rate_hz,
         seed: cfg.run.seed,
-        settle_s: cfg.run.settle_s,
+        settle_s: cfg.run.settle(),
         controller,
         scenario: scenario_name(&cfg.scenario).into(),
         wall_s: None,
