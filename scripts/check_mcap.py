@@ -1,0 +1,38 @@
+#!/usr/bin/env python3
+"""Reads a `servo run` recording with the official Python readers (PyPI `mcap` and
+`mcap-ros2-support`), decodes every message, and checks the count against the run's summary.
+
+Usage: python3 scripts/check_mcap.py run.mcap summary.json
+"""
+import json
+import math
+import sys
+
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+
+def main(path, summary_path):
+    summary = json.load(open(summary_path))
+    counts = {}
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == "/telemetry":
+                assert math.isfinite(decoded.following_error_m), "non-finite following error"
+            elif channel.topic == "/truth":
+                assert math.isfinite(decoded.tool_m), "non-finite tool position"
+    total = sum(counts.values())
+    expected = summary["meta"]["recorded_messages"]
+    ticks = summary["ticks"]
+    assert total == expected, f"decoded {total} messages, the run reported {expected}"
+    assert counts == {"/telemetry": ticks, "/truth": ticks}, counts
+    assert meta["run"]["seed"] == str(summary["meta"]["seed"]), meta["run"]["seed"]
+    print(f"{path}: decoded all {total} messages with the Python mcap readers "
+          f"({counts['/telemetry']} telemetry, {counts['/truth']} truth), as the run reported")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2])
