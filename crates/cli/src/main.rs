@@ -246,8 +246,18 @@ fn noise_from(list: &str, mut n: NoiseParams) -> Result<NoiseParams, String> {
     Ok(n)
 }
 
-fn fail(e: impl std::fmt::Display, code: u8) -> ExitCode {
-    eprintln!("error: {e}");
+/// Prints the error with its chain of causes (`error: writing x: I/O error: No space left…`).
+fn fail(e: impl std::error::Error, code: u8) -> ExitCode {
+    let mut msg = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !msg.contains(&text) {
+            msg = format!("{msg}: {text}");
+        }
+        cause = c.source();
+    }
+    eprintln!("error: {msg}");
     ExitCode::from(code)
 }
 

@@ -275,3 +275,19 @@ fn config_dump_shows_every_number() {
     assert_eq!(v["plant"]["actuator"]["kt_n_per_a"], 3.6658);
     let _ = Path::new(".");
 }
+
+/// A full disk is a clear error naming the file and the cause, not a panic.
+#[test]
+fn full_disk_is_a_clear_error() {
+    let out = servo()
+        .args(["run", "-q", "--duration", "1", "--out", "/dev/full"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("/dev/full") && err.contains("No space left"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}

@@ -524,10 +524,10 @@ impl Simulator {
             (0..os).map(|c| entry(n + 2 * c + ch, j)).sum::<f64>() / os as f64
         };
         Some(LinearTick {
-            phi: DMatrix::from_fn(n, n, |i, j| entry(i, j)),
+            phi: DMatrix::from_fn(n, n, &entry),
             g_prev: DMatrix::from_fn(n, 1, |i, _| entry(i, n)),
             g_now: DMatrix::from_fn(n, 1, |i, _| entry(i, n + 1)),
-            y_x: DMatrix::from_fn(2, n, |ch, j| avg(ch, j)),
+            y_x: DMatrix::from_fn(2, n, &avg),
             y_prev: DMatrix::from_fn(2, 1, |ch, _| avg(ch, n)),
             y_now: DMatrix::from_fn(2, 1, |ch, _| avg(ch, n + 1)),
         })

@@ -213,7 +213,10 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
         };
         summary.add(&frame);
         if let Some(rec) = &mut recorder {
-            rec.push(frame)?;
+            if rec.push(frame).is_err() {
+                // The writer thread failed (disk full…): its error comes out of finish().
+                break;
+            }
         }
     }
     (opts.progress)(summary_ticks(&summary, total, interrupted), total);
