@@ -219,6 +219,32 @@ impl StateSpace {
         Ok(c * x + self.d.map(|x| Complex64::new(x, 0.0)))
     }
 
+    /// Discrete-time `G(z) = C (zI − A)⁻¹ B + D` at `z = e^{j2πf·T}` (matrices of a sampled
+    /// system with period `period_s`).
+    pub fn freq_response_discrete(
+        &self,
+        f_hz: f64,
+        period_s: f64,
+    ) -> Result<DMatrix<Complex64>, LtiError> {
+        let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * period_s);
+        let n = self.nx();
+        let za = DMatrix::from_fn(n, n, |i, j| {
+            if i == j {
+                z - self.a[(i, j)]
+            } else {
+                Complex64::new(-self.a[(i, j)], 0.0)
+            }
+        });
+        let b = self.b.map(|x| Complex64::new(x, 0.0));
+        let x = za.lu().solve(&b).ok_or(LtiError::Singular(f_hz))?;
+        Ok(self.c.map(|x| Complex64::new(x, 0.0)) * x + self.d.map(|x| Complex64::new(x, 0.0)))
+    }
+
+    /// Poles: eigenvalues of `A` (s-plane for continuous, z-plane for discrete models).
+    pub fn poles(&self) -> Vec<Complex64> {
+        self.a.complex_eigenvalues().iter().copied().collect()
+    }
+
     /// The single entry `(output, input)` of [`StateSpace::freq_response`] at `f_hz`.
     pub fn freq_response_at(
         &self,
@@ -228,6 +254,34 @@ impl StateSpace {
     ) -> Result<Complex64, LtiError> {
         Ok(self.freq_response(2.0 * std::f64::consts::PI * f_hz)?[(output, input)])
     }
+}
+
+/// Discrete Lyapunov equation `P = A P Aᵀ + Q` for a stable `A`, by Smith's doubling
+/// (`P = Σ A^k Q A^kᵀ`, squaring `A` each step): returns `P` and the relative residual
+/// `‖A P Aᵀ + Q − P‖ / ‖P‖`. Converges for spectral radius < 1 (slow poles just take more
+/// doublings: 64 reach ρ^(2^64)).
+pub fn dlyap(a: &DMatrix<f64>, q: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64), LtiError> {
+    let mut p = q.clone();
+    let mut ak = a.clone();
+    for _ in 0..64 {
+        let next = &p + &ak * &p * ak.transpose();
+        let change = (&next - &p).norm();
+        p = next;
+        ak = &ak * &ak;
+        if !(change.is_finite() && p.norm().is_finite() && ak.norm().is_finite()) {
+            return Err(LtiError::Argument(
+                "dlyap: A is not stable (the series diverges)",
+            ));
+        }
+        if change <= 1e-16 * p.norm() {
+            break;
+        }
+    }
+    let residual = (a * &p * a.transpose() + q - &p).norm() / p.norm().max(f64::MIN_POSITIVE);
+    if residual.is_nan() || residual > 1e-8 {
+        return Err(LtiError::Argument("dlyap: no convergence (A not stable)"));
+    }
+    Ok((p, residual))
 }
 
 /// Matrix exponential `e^A` by scaling and squaring with the degree-13 Padé approximant
@@ -471,6 +525,67 @@ mod tests {
             1.0 - (-z * w * t).exp() * ((wd * t).cos() + z / (1.0 - z * z).sqrt() * (wd * t).sin());
         assert!((y - want).abs() < 1e-12, "{y} vs {want}");
         assert!(phi.iter().all(|x| x.is_finite()));
+    }
+
+    /// Scalar `p = a² p + q` → `q/(1 − a²)`; and a 2×2 case against the vectorised solution.
+    #[test]
+    fn dlyap_closed_forms() {
+        let (p, r) = dlyap(
+            &DMatrix::from_element(1, 1, 0.9),
+            &DMatrix::from_element(1, 1, 2.0),
+        )
+        .unwrap();
+        assert!((p[(0, 0)] - 2.0 / (1.0 - 0.81)).abs() < 1e-12 && r < 1e-14);
+        // A slow pole (0.1 Hz at 199.6 kHz) still converges.
+        let a = (-2.0 * PI * 0.1 / 199_600.0f64).exp();
+        let (p, _) = dlyap(
+            &DMatrix::from_element(1, 1, a),
+            &DMatrix::from_element(1, 1, 1.0),
+        )
+        .unwrap();
+        assert!((p[(0, 0)] * (1.0 - a * a) - 1.0).abs() < 1e-9);
+        let a2 = DMatrix::from_row_slice(2, 2, &[0.5, 0.3, -0.2, 0.7]);
+        let q = DMatrix::from_row_slice(2, 2, &[1.0, 0.2, 0.2, 0.5]);
+        let (p, r) = dlyap(&a2, &q).unwrap();
+        assert!(r < 1e-13, "{r}");
+        // (I − A⊗A) vec(P) = vec(Q)
+        let kron = DMatrix::from_fn(4, 4, |i, j| a2[(i / 2, j / 2)] * a2[(i % 2, j % 2)]);
+        let vp = (DMatrix::identity(4, 4) - kron)
+            .lu()
+            .solve(&DMatrix::from_iterator(4, 1, q.transpose().iter().copied()))
+            .unwrap();
+        for i in 0..2 {
+            for j in 0..2 {
+                assert!((p[(i, j)] - vp[(i * 2 + j, 0)]).abs() < 1e-12);
+            }
+        }
+        assert!(dlyap(
+            &DMatrix::from_element(1, 1, 1.1),
+            &DMatrix::from_element(1, 1, 1.0)
+        )
+        .is_err());
+    }
+
+    /// c2d by ZOH of a mass-spring-damper puts its poles at e^{sT} (the known discrete poles).
+    #[test]
+    fn zoh_poles_of_mass_spring_damper() {
+        let (m, c, k) = (0.175, 2.28, 21965.0);
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -k / m, -c / m]);
+        let t = 1.0 / 20_000.0;
+        let (phi, _) = zoh(&a, &DMatrix::from_row_slice(2, 1, &[0.0, 1.0 / m]), t);
+        let zeta = c / (2.0 * (k * m).sqrt());
+        let wn = (k / m).sqrt();
+        let s = Complex64::new(-zeta * wn, wn * (1.0 - zeta * zeta).sqrt());
+        let want = (s * t).exp();
+        let disc = StateSpace::new(
+            phi,
+            DMatrix::zeros(2, 1),
+            DMatrix::zeros(1, 2),
+            DMatrix::zeros(1, 1),
+        )
+        .unwrap();
+        let got = disc.poles().into_iter().find(|p| p.im > 0.0).unwrap();
+        assert!((got - want).norm() < 1e-12, "{got} vs {want}");
     }
 
     #[test]

@@ -89,6 +89,37 @@ impl Psd {
     }
 }
 
+/// Cumulative amplitude spectrum (thesis eq 5-16): `CAS(f_i) = √(Σ_{k≤i} PSD_k·Δf_k)`, the RMS
+/// content from DC up to each frequency (trapezoidal weights on a possibly uneven grid, the
+/// first point weighted by its half interval). By Parseval (eq 5-17) `CAS(f_max)` is the RMS.
+pub fn cas(freq_hz: &[f64], psd: &[f64]) -> Vec<f64> {
+    let mut acc = 0.0;
+    let mut out = Vec::with_capacity(psd.len());
+    for i in 0..psd.len() {
+        if i > 0 {
+            acc += 0.5 * (psd[i] + psd[i - 1]) * (freq_hz[i] - freq_hz[i - 1]);
+        }
+        out.push(acc.sqrt());
+    }
+    out
+}
+
+impl Psd {
+    /// The cumulative amplitude spectrum of this estimate, summing whole bins (rectangle rule,
+    /// so that the value at Nyquist is exactly the band power of all bins).
+    pub fn cas(&self) -> Vec<f64> {
+        let bin = self.bin_hz();
+        let mut acc = 0.0;
+        self.density
+            .iter()
+            .map(|d| {
+                acc += d * bin;
+                acc.sqrt()
+            })
+            .collect()
+    }
+}
+
 /// Welch's averaged periodogram of `x` sampled at `fs_hz`.
 pub fn welch(x: &[f64], fs_hz: f64, cfg: &WelchConfig) -> Result<Psd, SpectralError> {
     let n = cfg.segment_len;
@@ -202,6 +233,33 @@ mod tests {
         let mean = x.iter().sum::<f64>() / 1000.0;
         let ms = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / 1000.0;
         assert!((psd.band_power(0.0, 500.0) - ms).abs() < 1e-12 * ms);
+    }
+
+    /// CAS at Nyquist equals the time-domain RMS (Parseval, eq 5-17) to 1e-9 for one
+    /// rectangular segment (mean removed).
+    #[test]
+    fn cas_at_nyquist_is_the_rms() {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(3);
+        let x: Vec<f64> = (0..8192)
+            .map(|k| {
+                let z: f64 = StandardNormal.sample(&mut rng);
+                1e-9 * z + 1e-10 * (k as f64 * 0.01).sin()
+            })
+            .collect();
+        let cfg = WelchConfig {
+            segment_len: x.len(),
+            overlap: 0.0,
+            window: Window::Rectangular,
+        };
+        let psd = welch(&x, 199_600.0, &cfg).unwrap();
+        let mean = x.iter().sum::<f64>() / x.len() as f64;
+        let rms = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / x.len() as f64).sqrt();
+        let c = psd.cas();
+        assert!((c.last().unwrap() - rms).abs() < 1e-9 * rms);
+        assert!(c.windows(2).all(|w| w[1] >= w[0]));
+        // The trapezoid form on the same grid agrees to the edge half-bins.
+        let t = cas(&psd.freq_hz, &psd.density);
+        assert!((t.last().unwrap() / rms - 1.0).abs() < 0.01);
     }
 
     #[test]

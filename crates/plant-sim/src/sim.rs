@@ -78,23 +78,59 @@ pub struct Truth {
     pub dac_v: f64,
 }
 
-/// One tick as a linear system from the DAC command to the averaged ADC readings:
-/// `x⁺ = Φx + g_prev·u[k−1] + g_now·u[k]`, `[gap_v, accel_v] = y_x·x + y_prev·u[k−1] + y_now·u[k]`
-/// (the sample closing the tick), in the simulator's balanced state coordinates.
+/// One tick as a linear system, in the simulator's balanced state coordinates, with the
+/// inputs `[u[k−1], u[k], f_cut, w_i, w_g, w_a]` (DAC command before and after the delay in V,
+/// cutting force in N, and the unit white inputs of the current, base and accelerometer noise
+/// filters, held over the tick):
+///
+/// ```text
+/// x⁺ = phi·x + g·inputs
+/// [gap_v, accel_v] = y_x·x + y_in·inputs + [sensor noise, 0]      (the sample closing the tick)
+/// truth            = t_x·x + t_in·inputs                          (at the tick end)
+/// ```
+///
+/// The held white inputs have variance `white_variance` per tick (a one-sided PSD of 1/Hz);
+/// the averaged sensor noise has variance `sensor_noise_variance` (0 when that noise is off).
 #[derive(Debug, Clone)]
 pub struct LinearTick {
-    /// State transition over one tick.
+    /// State transition over one tick (n × n).
     pub phi: DMatrix<f64>,
-    /// Effect of the previous command (acting for the delay).
-    pub g_prev: DMatrix<f64>,
-    /// Effect of the new command.
-    pub g_now: DMatrix<f64>,
+    /// Input matrix (n × 6).
+    pub g: DMatrix<f64>,
     /// Averaged readings from the tick-start state (2 × n).
     pub y_x: DMatrix<f64>,
-    /// Averaged readings from the previous command (2 × 1).
-    pub y_prev: DMatrix<f64>,
-    /// Averaged readings from the new command (2 × 1).
-    pub y_now: DMatrix<f64>,
+    /// Averaged readings from the inputs (2 × 6).
+    pub y_in: DMatrix<f64>,
+    /// Truth rows [`LinearTick::TRUTH`] from the tick-start state (7 × n).
+    pub t_x: DMatrix<f64>,
+    /// Truth rows from the inputs (7 × 6).
+    pub t_in: DMatrix<f64>,
+    /// Variance per tick of each held white input (`fs/2`), or 0 for a source that is off:
+    /// `[current, base, accelerometer]`.
+    pub white_variance: [f64; 3],
+    /// Variance per tick of the averaged sensor noise on the gap reading, V².
+    pub sensor_noise_variance: f64,
+    /// Variance per tick of the averaged ADC quantisation error on each reading, V²
+    /// (`LSB²/12/oversampling`; 0 for an ideal converter).
+    pub adc_quantisation_variance: f64,
+    /// Variance of the DAC quantisation error on the command, V² (`LSB²/12`).
+    pub dac_quantisation_variance: f64,
+}
+
+impl LinearTick {
+    /// Input columns.
+    pub const INPUTS: [&'static str; 6] =
+        ["u_prev", "u_now", "f_cut", "w_current", "w_base", "w_accel"];
+    /// Truth rows.
+    pub const TRUTH: [&'static str; 7] = [
+        "tool_m",
+        "gap_m",
+        "motor_force_n",
+        "coil_current_a",
+        "current_noise_a",
+        "base_m",
+        "accel_m2_m_s2",
+    ];
 }
 
 /// Simulator construction errors.
@@ -523,13 +559,30 @@ impl Simulator {
         let avg = |ch: usize, j: usize| {
             (0..os).map(|c| entry(n + 2 * c + ch, j)).sum::<f64>() / os as f64
         };
+        let truth = |r: usize, j: usize| entry(n + 2 * os + r, j);
+        let inputs = LinearTick::INPUTS.len();
+        let var = |on: bool| {
+            if on {
+                self.white_sigma * self.white_sigma
+            } else {
+                0.0
+            }
+        };
         Some(LinearTick {
             phi: DMatrix::from_fn(n, n, &entry),
-            g_prev: DMatrix::from_fn(n, 1, |i, _| entry(i, n)),
-            g_now: DMatrix::from_fn(n, 1, |i, _| entry(i, n + 1)),
+            g: DMatrix::from_fn(n, inputs, |i, j| entry(i, n + j)),
             y_x: DMatrix::from_fn(2, n, &avg),
-            y_prev: DMatrix::from_fn(2, 1, |ch, _| avg(ch, n)),
-            y_now: DMatrix::from_fn(2, 1, |ch, _| avg(ch, n + 1)),
+            y_in: DMatrix::from_fn(2, inputs, |ch, j| avg(ch, n + j)),
+            t_x: DMatrix::from_fn(TRUTH_ROWS.len(), n, &truth),
+            t_in: DMatrix::from_fn(TRUTH_ROWS.len(), inputs, |r, j| truth(r, n + j)),
+            white_variance: [
+                var(self.noise_on[0]),
+                var(self.noise_on[1]),
+                var(self.noise_on[2]),
+            ],
+            sensor_noise_variance: self.sensor_sigma * self.sensor_sigma / os as f64,
+            adc_quantisation_variance: self.adc_q.lsb_v().powi(2) / 12.0 / os as f64,
+            dac_quantisation_variance: self.dac_q.lsb_v().powi(2) / 12.0,
         })
     }
 

@@ -169,20 +169,29 @@ fn same_seed_same_run_bit_for_bit() {
     assert!(a != c);
 }
 
-/// The linear tick reproduces the running simulator (no noise, ideal converters) exactly.
+/// The linear tick reproduces the running simulator exactly (ideal converters, noise off
+/// except what is fed in by hand through the cutting force input).
 #[test]
 fn linear_tick_matches_the_simulator() {
     let p = quiet_ideal();
-    let mut sim = Simulator::new(&p, 1, &CuttingProfile::None).unwrap();
+    let cut = CuttingProfile::Lenslet {
+        peak_force_n: 2.0,
+        frequency_hz: 300.0,
+    };
+    let mut sim = Simulator::new(&p, 1, &cut).unwrap();
+    let mut force = plant_sim::cutting::CuttingForce::new(&cut).unwrap();
     let lin = sim.linear_tick().unwrap();
     let mut x = nalgebra::DMatrix::<f64>::zeros(lin.phi.nrows(), 1);
     let mut u_prev = 0.0;
     for k in 0..2000 {
         let u = ((k as f64) * 0.01).sin();
-        let y = &lin.y_x * &x + &lin.y_prev * u_prev + &lin.y_now * u;
-        x = &lin.phi * &x + &lin.g_prev * u_prev + &lin.g_now * u;
+        let f = force.at(k as f64 * p.period_s());
+        let inputs = nalgebra::DMatrix::from_column_slice(6, 1, &[u_prev, u, f, 0.0, 0.0, 0.0]);
+        let y = &lin.y_x * &x + &lin.y_in * &inputs;
+        let t = &lin.t_x * &x + &lin.t_in * &inputs;
+        x = &lin.phi * &x + &lin.g * &inputs;
         u_prev = u;
-        let (s, _) = sim.step(u);
+        let (s, truth) = sim.step(u);
         assert!(
             (s.gap_v - y[0]).abs() < 1e-9 * (1.0 + y[0].abs()),
             "tick {k}"
@@ -191,5 +200,14 @@ fn linear_tick_matches_the_simulator() {
             (s.accel_v - y[1]).abs() < 1e-9 * (1.0 + y[1].abs()),
             "tick {k}"
         );
+        assert!(
+            (truth.tool_m - t[0]).abs() < 1e-12 * (1.0 + t[0].abs()),
+            "tick {k}"
+        );
+        assert!(
+            (truth.motor_force_n - t[2]).abs() < 1e-9 * (1.0 + t[2].abs()),
+            "tick {k}"
+        );
     }
+    assert_eq!(lin.white_variance, [0.0; 3]);
 }

@@ -15,8 +15,8 @@
 //! # Ok::<(), runner::run::RunError>(())
 //! ```
 
+pub mod analysis;
 pub mod config;
 pub mod controller;
 pub mod run;
-pub mod stability;
 pub mod summary;

@@ -1,9 +1,9 @@
 //! One closed-loop run: controller (servo-core) against the simulated stage (plant-sim),
 //! recorded to MCAP (recorder) off the tick, summarised; and the same summary from a file.
 
+use crate::analysis::ClosedLoop;
 use crate::config::{ConfigError, Loaded, Scenario};
 use crate::controller::Controller;
-use crate::stability::spectral_radius;
 use crate::summary::{RunMeta, Summary, SummaryBuilder, SATURATED};
 use plant_sim::model::ModelError;
 use plant_sim::params::CurrentLoopModel;
@@ -134,14 +134,14 @@ fn plant_error(e: SimError, at: &Loaded) -> RunError {
     }
 }
 
-/// Runs `cfg`: builds everything, checks closed-loop stability, runs, records, summarises.
-pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
+/// The sampled closed loop of `sim` with `ctrl` (the `coil` current model is linearised as
+/// the ideal loop of eq 5-9).
+fn closed_loop_of(
+    cfg: &Loaded,
+    sim: &Simulator,
+    ctrl: &Controller,
+) -> Result<ClosedLoop, RunError> {
     let c = &cfg.config;
-    c.validate(cfg)?;
-    let mut sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
-        .map_err(|e| plant_error(e, cfg))?;
-    let mut ctrl = Controller::build(cfg)?;
-    // Stability from the exact linear tick (the coil model is checked with the ideal loop).
     let linear = match sim.linear_tick() {
         Some(l) => l,
         None => {
@@ -153,7 +153,31 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
                 .expect("ideal model")
         }
     };
-    let radius = spectral_radius(&linear, &ctrl.linear);
+    Ok(ClosedLoop::new(
+        &linear,
+        &ctrl.linear,
+        c.plant.capa.sensitivity_v_per_m,
+        sim.period_s(),
+    ))
+}
+
+/// The sampled closed loop a run of `cfg` would have, and the controller's description.
+pub fn closed_loop(cfg: &Loaded) -> Result<(ClosedLoop, String), RunError> {
+    cfg.config.validate(cfg)?;
+    let sim = Simulator::new(&cfg.config.plant, 0, &Default::default())
+        .map_err(|e| plant_error(e, cfg))?;
+    let ctrl = Controller::build(cfg)?;
+    Ok((closed_loop_of(cfg, &sim, &ctrl)?, ctrl.description))
+}
+
+/// Runs `cfg`: builds everything, checks closed-loop stability, runs, records, summarises.
+pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
+    let c = &cfg.config;
+    c.validate(cfg)?;
+    let mut sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
+        .map_err(|e| plant_error(e, cfg))?;
+    let mut ctrl = Controller::build(cfg)?;
+    let radius = closed_loop_of(cfg, &sim, &ctrl)?.spectral_radius();
     if radius >= 1.0 {
         return Err(RunError::Unstable {
             radius,
