@@ -20,3 +20,4 @@ pub mod config;
 pub mod controller;
 pub mod run;
 pub mod summary;
+pub mod sweep;

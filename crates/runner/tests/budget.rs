@@ -51,3 +51,57 @@ fn budget_predicts_the_simulated_errors() {
     // CAS at Nyquist agrees with the exact (Lyapunov) RMS to the grid's accuracy.
     assert!((b.following_cas.last().unwrap() / b.following_rms_m - 1.0).abs() < 0.02);
 }
+
+/// Fig 5-14 style sweep for both masses: at every bandwidth the budget's RMS following and
+/// true errors agree with 2 s seeded simulations within 10 %.
+#[test]
+fn sweep_predictions_match_simulation_for_both_masses() {
+    for (label, plant) in [
+        ("0.075 kg", plant_sim::PlantParams::default()),
+        ("0.175 kg", plant_sim::PlantParams::heavy()),
+    ] {
+        let mut cfg = heavy_468();
+        cfg.config.plant = plant;
+        cfg.config.plant.noise.accel = false;
+        let s = runner::sweep::sweep(
+            &cfg,
+            label,
+            &[300.0, 468.0, 700.0, 874.0, 1200.0],
+            Some(2.0),
+            &mut |_, _| {},
+        )
+        .unwrap();
+        assert_eq!(s.points.len(), 5, "{label}: every bandwidth reachable");
+        for p in &s.points {
+            let (sf, st) = (
+                p.simulated_following_m.unwrap(),
+                p.simulated_true_m.unwrap(),
+            );
+            println!(
+                "{label} {:>7.1} Hz: following {:.3} vs {:.3} nm, true {:.3} vs {:.3} nm",
+                p.bandwidth_hz,
+                p.predicted_following_m * 1e9,
+                sf * 1e9,
+                p.predicted_true_m * 1e9,
+                st * 1e9
+            );
+            // The achieved −3 dB bandwidth can sit below the target: on the light stage the
+            // 422 Hz parasitic (m4) mode dips |T| below −3 dB there over a range of gains.
+            assert!(p.bandwidth_hz <= p.target_hz * 1.01);
+            assert!(
+                (p.predicted_following_m / sf - 1.0).abs() < 0.10,
+                "{label} at {} Hz",
+                p.target_hz
+            );
+            assert!(
+                (p.predicted_true_m / st - 1.0).abs() < 0.10,
+                "{label} at {} Hz",
+                p.target_hz
+            );
+        }
+        println!(
+            "{label}: predicted optimum following {:.0} Hz, true {:.0} Hz",
+            s.optimum_following_hz, s.optimum_true_hz
+        );
+    }
+}
