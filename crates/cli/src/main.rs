@@ -4,9 +4,10 @@
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use plant_sim::params::{NoiseParams, StageParams};
+use runner::analysis::Budget;
 use runner::config::{ConfigError, ControllerKind, Loaded, Scenario};
-use runner::run::{inspect, run, RunError, RunOptions};
-use std::path::PathBuf;
+use runner::run::{closed_loop, inspect, run, RunError, RunOptions};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -52,6 +53,33 @@ enum Command {
         /// Print the summary as JSON.
         #[arg(long)]
         json: bool,
+    },
+    /// Error budget of the loop (thesis §5.7.2, eq 5-13..5-17): each noise source's RMS and PSD
+    /// in the following error (what the sensor reports) and the true tool error, their CAS; with
+    /// --sweep the RMS errors against closed-loop bandwidth for both stage masses (Fig 5-14).
+    /// Example: servo budget --mass heavy --sweep --validate 1
+    Budget {
+        #[command(flatten)]
+        settings: Settings,
+        /// Sweep the closed-loop bandwidth (the PID gains scaled) for the 0.075 and 0.175 kg stages.
+        #[arg(long)]
+        sweep: bool,
+        /// Bandwidths of the sweep in Hz.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "200,300,400,468,600,750,874,1000,1200,1450"
+        )]
+        bandwidths: Vec<f64>,
+        /// Also simulate every sweep point for this many seconds and print both.
+        #[arg(long)]
+        validate: Option<f64>,
+        /// Output directory for CSV, JSON, PNG and SVG.
+        #[arg(long, default_value = "budget")]
+        out_dir: PathBuf,
+        /// Frequency points of the spectra (log-spaced, 1 Hz to Nyquist).
+        #[arg(long, default_value_t = 2000)]
+        points: usize,
     },
     /// Show the fully resolved configuration (every number) after the file and the flags.
     /// Example: servo config --dump --mass heavy
@@ -272,6 +300,109 @@ fn print_summary(s: &runner::summary::Summary, json: bool) {
     }
 }
 
+fn print_written(w: &runner::report::Written) {
+    let names: Vec<String> = w.files.iter().map(|p| p.display().to_string()).collect();
+    println!("  wrote {}", names.join(", "));
+    if let Some(n) = &w.note {
+        println!("  note: {n}");
+    }
+}
+
+fn budget(
+    s: &Settings,
+    sweep: bool,
+    bandwidths: &[f64],
+    validate: Option<f64>,
+    dir: &Path,
+    points: usize,
+) -> Result<(), RunError> {
+    let cfg = s.resolve()?;
+    let (cl, controller) = closed_loop(&cfg)?;
+    let b = Budget::new(&cl, points.max(16)).map_err(|e| RunError::Plant(e.to_string()))?;
+    let mass = cfg.config.plant.stage.m1_kg + cfg.config.plant.stage.m2_kg;
+    let title = format!("{controller}, {mass:.3} kg stage");
+    println!("Error budget (thesis §5.7.2): {title}");
+    println!(
+        "  closed-loop bandwidth {:.1} Hz; RMS in nm, sources independent (powers add)",
+        b.bandwidth_hz
+    );
+    println!("  {:<14} {:>10} {:>10}", "source", "following", "true");
+    for c in &b.contributions {
+        println!(
+            "  {:<14} {:>10.4} {:>10.4}",
+            c.source,
+            c.following_rms_m * 1e9,
+            c.true_rms_m * 1e9
+        );
+    }
+    println!(
+        "  {:<14} {:>10.4} {:>10.4}",
+        "total",
+        b.following_rms_m * 1e9,
+        b.true_rms_m * 1e9
+    );
+    let w = runner::report::budget(&b, &title, dir).map_err(|e| RunError::Plant(e.to_string()))?;
+    print_written(&w);
+    if !sweep {
+        return Ok(());
+    }
+    let bar = ProgressBar::new(bandwidths.len() as u64 * 2);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} sweeping [{bar:40}] {pos}/{len} points {elapsed_precise}",
+        )
+        .expect("valid")
+        .progress_chars("=> "),
+    );
+    let mut results = Vec::new();
+    for (i, (label, stage)) in [
+        ("0.075 kg", StageParams::THESIS),
+        ("0.175 kg", StageParams::THESIS_HEAVY),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut c = cfg.clone();
+        c.config.plant.stage = stage;
+        let offset = i as u64 * bandwidths.len() as u64;
+        results.push(runner::sweep::sweep(
+            &c,
+            label,
+            bandwidths,
+            validate,
+            &mut |done, _| bar.set_position(offset + done as u64),
+        )?);
+    }
+    bar.finish_and_clear();
+    println!(
+        "Bandwidth sweep (thesis Fig 5-14), PID gains scaled; RMS in nm (predicted{})",
+        if validate.is_some() {
+            " / simulated"
+        } else {
+            ""
+        }
+    );
+    for s in &results {
+        for p in &s.points {
+            let sim = |v: Option<f64>| v.map_or(String::new(), |x| format!(" / {:.3}", x * 1e9));
+            println!(
+                "  {} {:>7.1} Hz (×{:.3}): following {:.3}{}   true {:.3}{}",
+                s.label,
+                p.bandwidth_hz,
+                p.gain_scale,
+                p.predicted_following_m * 1e9,
+                sim(p.simulated_following_m),
+                p.predicted_true_m * 1e9,
+                sim(p.simulated_true_m)
+            );
+        }
+        println!("  {}: lowest following error at {:.0} Hz, lowest true error at {:.0} Hz (thesis: 874 Hz for 0.075 kg, 468 Hz for 0.175 kg)", s.label, s.optimum_following_hz, s.optimum_true_hz);
+    }
+    let w = runner::report::sweeps(&results, dir).map_err(|e| RunError::Plant(e.to_string()))?;
+    print_written(&w);
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
@@ -330,6 +461,18 @@ fn main() -> ExitCode {
                 Err(e) => fail(e, 1),
             }
         }
+        Command::Budget {
+            settings,
+            sweep,
+            bandwidths,
+            validate,
+            out_dir,
+            points,
+        } => match budget(&settings, sweep, &bandwidths, validate, &out_dir, points) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e @ RunError::Config(_)) => fail(e, 2),
+            Err(e) => fail(e, 1),
+        },
         Command::Inspect { file, json } => match inspect(&file) {
             Ok(s) => {
                 print_summary(&s, json);

@@ -291,3 +291,40 @@ fn full_disk_is_a_clear_error() {
     );
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// `servo budget` writes data and pictures, and its totals are the root-sum-square of the
+/// per-source contributions (independent sources, eq 5-15).
+#[test]
+fn budget_writes_data_and_plots() {
+    let dir = tmp("budget");
+    let out = servo()
+        .args(["budget", "--mass", "heavy", "--points", "200", "--out-dir"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("thesis §5.7.2") && text.contains("total"),
+        "{text}"
+    );
+    let b: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("budget.json")).unwrap()).unwrap();
+    let sum: f64 = b["contributions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["following_rms_m"].as_f64().unwrap().powi(2))
+        .sum();
+    assert!((sum.sqrt() / b["following_rms_m"].as_f64().unwrap() - 1.0).abs() < 1e-12);
+    let csv = std::fs::read_to_string(dir.join("budget.csv")).unwrap();
+    assert!(csv.starts_with("freq_hz,following_psd_sensor_m2_per_hz"));
+    assert_eq!(csv.lines().count(), 201);
+    if !text.contains("note: no TTF font") {
+        assert!(dir.join("budget_psd.png").exists() && dir.join("budget_cas.svg").exists());
+    }
+}

@@ -5,4 +5,5 @@
 
 pub mod interconnect;
 pub mod lti;
+pub mod plot;
 pub mod spectral;

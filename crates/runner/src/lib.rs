@@ -18,6 +18,7 @@
 pub mod analysis;
 pub mod config;
 pub mod controller;
+pub mod report;
 pub mod run;
 pub mod summary;
 pub mod sweep;

@@ -1,0 +1,249 @@
+//! Pictures beside the data: line plots (log axes optional) written as PNG and SVG.
+//!
+//! Values are plotted as given: pass engineering units (nm, nm²/Hz) — plotters drops the tick
+//! labels of log axes whose values are below ~1e-15. Text is drawn with DejaVu Sans (or another sans TTF) found on the system; without one the
+//! plot is skipped with [`PlotError::NoFont`] — the CSV/JSON data are what count.
+
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// Plotting errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlotError {
+    /// No usable font on this machine (install `fonts-dejavu-core`).
+    #[error("no TTF font found for plot text (install fonts-dejavu-core); plots skipped")]
+    NoFont,
+    /// Drawing or writing failed.
+    #[error("plot {path}: {message}")]
+    Draw {
+        /// Output file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+/// One curve.
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Legend text.
+    pub label: String,
+    /// Abscissae.
+    pub x: Vec<f64>,
+    /// Ordinates.
+    pub y: Vec<f64>,
+    /// Draw points instead of a line (measured data over a model line).
+    pub points: bool,
+}
+
+/// A figure.
+#[derive(Debug, Clone)]
+pub struct Figure {
+    /// Title (say which thesis figure it corresponds to, where one does).
+    pub title: String,
+    /// X label with unit.
+    pub x_label: String,
+    /// Y label with unit.
+    pub y_label: String,
+    /// Logarithmic x axis.
+    pub log_x: bool,
+    /// Logarithmic y axis.
+    pub log_y: bool,
+    /// The curves.
+    pub series: Vec<Series>,
+}
+
+const FONT_CANDIDATES: [&str; 3] = [
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+];
+
+fn font_ready() -> bool {
+    static READY: OnceLock<bool> = OnceLock::new();
+    *READY.get_or_init(|| {
+        FONT_CANDIDATES
+            .iter()
+            .find_map(|p| std::fs::read(p).ok())
+            .is_some_and(|bytes| {
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                register_font("sans-serif", FontStyle::Normal, bytes).is_ok()
+            })
+    })
+}
+
+const COLORS: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 23, 23),
+];
+
+fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite() && (!log || *v > 0.0))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    if !lo.is_finite() {
+        return (if log { 1e-3 } else { 0.0 }, 1.0);
+    }
+    if log {
+        // Ten decades are plenty to read a spectrum; deeper values are clipped.
+        ((lo / 1.5).max(hi * 1e-10), hi * 1.5)
+    } else {
+        let pad = 0.05 * (hi - lo).max(hi.abs().max(1e-30));
+        (lo - pad, hi + pad)
+    }
+}
+
+fn draw<DB: DrawingBackend>(
+    fig: &Figure,
+    root: DrawingArea<DB, plotters::coord::Shift>,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let xs = range(
+        fig.series.iter().flat_map(|s| s.x.iter().copied()),
+        fig.log_x,
+    );
+    let ys = range(
+        fig.series.iter().flat_map(|s| s.y.iter().copied()),
+        fig.log_y,
+    );
+    let mut builder = ChartBuilder::on(&root);
+    builder
+        .caption(&fig.title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(80);
+    macro_rules! body {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart
+                .configure_mesh()
+                .x_desc(&fig.x_label)
+                .y_desc(&fig.y_label)
+                .label_style(("sans-serif", 14))
+                .y_label_formatter(&|v| {
+                    if fig.log_y {
+                        format!("{v:.0e}")
+                    } else {
+                        format!("{v:.3}")
+                    }
+                })
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for (i, s) in fig.series.iter().enumerate() {
+                let color = COLORS[i % COLORS.len()];
+                let pts =
+                    s.x.iter()
+                        .zip(&s.y)
+                        .map(|(&x, &y)| (x, y))
+                        .filter(|(x, y)| x.is_finite() && y.is_finite());
+                if s.points {
+                    chart
+                        .draw_series(pts.map(|p| Circle::new(p, 3, color.filled())))
+                        .map_err(|e| e.to_string())?
+                        .label(&s.label)
+                        .legend(move |(x, y)| Circle::new((x, y), 3, color.filled()));
+                } else {
+                    chart
+                        .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                        .map_err(|e| e.to_string())?
+                        .label(&s.label)
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+                        });
+                }
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }};
+    }
+    match (fig.log_x, fig.log_y) {
+        (true, true) => body!(builder
+            .build_cartesian_2d((xs.0..xs.1).log_scale(), (ys.0..ys.1).log_scale())
+            .map_err(|e| e.to_string())?),
+        (true, false) => body!(builder
+            .build_cartesian_2d((xs.0..xs.1).log_scale(), ys.0..ys.1)
+            .map_err(|e| e.to_string())?),
+        (false, true) => body!(builder
+            .build_cartesian_2d(xs.0..xs.1, (ys.0..ys.1).log_scale())
+            .map_err(|e| e.to_string())?),
+        (false, false) => body!(builder
+            .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
+            .map_err(|e| e.to_string())?),
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
+/// Writes `stem.png` and `stem.svg`; returns their paths.
+pub fn write(fig: &Figure, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
+    if !font_ready() {
+        return Err(PlotError::NoFont);
+    }
+    let (png, svg) = (stem.with_extension("png"), stem.with_extension("svg"));
+    let size = (1000, 620);
+    draw(fig, BitMapBackend::new(&png, size).into_drawing_area()).map_err(|message| {
+        PlotError::Draw {
+            path: png.clone(),
+            message,
+        }
+    })?;
+    draw(fig, SVGBackend::new(&svg, size).into_drawing_area()).map_err(|message| {
+        PlotError::Draw {
+            path: svg.clone(),
+            message,
+        }
+    })?;
+    Ok(vec![png, svg])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_png_and_svg_when_a_font_exists() {
+        let dir = std::env::temp_dir().join(format!("fts-plot-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let x: Vec<f64> = (1..100).map(|i| i as f64 * 10.0).collect();
+        let fig = Figure {
+            title: "test".into(),
+            x_label: "frequency (Hz)".into(),
+            y_label: "PSD (m²/Hz)".into(),
+            log_x: true,
+            log_y: true,
+            series: vec![Series {
+                label: "a".into(),
+                y: x.iter().map(|f| 1e-2 / f).collect(),
+                x,
+                points: false,
+            }],
+        };
+        match write(&fig, &dir.join("p")) {
+            Ok(paths) => {
+                for p in paths {
+                    assert!(std::fs::metadata(&p).unwrap().len() > 1000, "{p:?}");
+                }
+            }
+            Err(PlotError::NoFont) => eprintln!("no font on this machine: plot test skipped"),
+            Err(e) => panic!("{e}"),
+        }
+    }
+}

@@ -1,0 +1,228 @@
+//! Analysis results as data first (CSV with a header naming column and unit, JSON), pictures
+//! second (PNG + SVG), all in one output directory.
+
+use crate::analysis::{Budget, SOURCES};
+use crate::sweep::Sweep;
+use design::plot::{self, Figure, PlotError, Series};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Report errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReportError {
+    /// Writing a file failed.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+}
+
+fn write_file(path: PathBuf, text: &str) -> Result<PathBuf, ReportError> {
+    std::fs::write(&path, text).map_err(|source| ReportError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    Ok(path)
+}
+
+/// Writes the plots, or returns the reason they were skipped (no font) as a note.
+fn plots(figs: &[(Figure, &str)], dir: &Path, written: &mut Vec<PathBuf>) -> Option<String> {
+    for (fig, stem) in figs {
+        match plot::write(fig, &dir.join(stem)) {
+            Ok(paths) => written.extend(paths),
+            Err(e @ PlotError::NoFont) => return Some(e.to_string()),
+            Err(e) => return Some(e.to_string()),
+        }
+    }
+    None
+}
+
+/// Files written, and a note if plots were skipped.
+#[derive(Debug, Default)]
+pub struct Written {
+    /// Paths written.
+    pub files: Vec<PathBuf>,
+    /// Why plots were skipped, if they were.
+    pub note: Option<String>,
+}
+
+/// `budget.csv`, `budget.json`, `budget_psd.{png,svg}`, `budget_cas.{png,svg}`.
+pub fn budget(b: &Budget, title: &str, dir: &Path) -> Result<Written, ReportError> {
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    let mut csv = String::from("freq_hz");
+    for (name, _) in SOURCES {
+        let n = name.replace(' ', "_");
+        write!(csv, ",following_psd_{n}_m2_per_hz,true_psd_{n}_m2_per_hz").unwrap();
+    }
+    csv.push_str(",following_cas_m,true_cas_m\n");
+    for (i, f) in b.freq_hz.iter().enumerate() {
+        write!(csv, "{f:.6e}").unwrap();
+        for k in 0..SOURCES.len() {
+            write!(
+                csv,
+                ",{:.6e},{:.6e}",
+                b.following_psd[k][i], b.true_psd[k][i]
+            )
+            .unwrap();
+        }
+        writeln!(csv, ",{:.6e},{:.6e}", b.following_cas[i], b.true_cas[i]).unwrap();
+    }
+    let mut out = Written::default();
+    out.files.push(write_file(dir.join("budget.csv"), &csv)?);
+    out.files.push(write_file(
+        dir.join("budget.json"),
+        &serde_json::to_string_pretty(b).expect("serialises"),
+    )?);
+    let nm2 = |v: &Vec<f64>| v.iter().map(|x| x * 1e18).collect::<Vec<f64>>();
+    let total = |psd: &Vec<Vec<f64>>| {
+        (0..b.freq_hz.len())
+            .map(|i| psd.iter().map(|p| p[i]).sum::<f64>())
+            .collect::<Vec<f64>>()
+    };
+    let mut psd_series = vec![
+        Series {
+            label: "following error, total".into(),
+            x: b.freq_hz.clone(),
+            y: nm2(&total(&b.following_psd)),
+            points: false,
+        },
+        Series {
+            label: "true error, total".into(),
+            x: b.freq_hz.clone(),
+            y: nm2(&total(&b.true_psd)),
+            points: false,
+        },
+    ];
+    for (k, (name, _)) in SOURCES.iter().enumerate() {
+        if b.contributions[k].following_rms_m > 1e-3 * b.following_rms_m {
+            psd_series.push(Series {
+                label: format!("following, {name}"),
+                x: b.freq_hz.clone(),
+                y: nm2(&b.following_psd[k]),
+                points: false,
+            });
+        }
+    }
+    let psd = Figure {
+        title: format!("Error PSD budget (thesis Fig 5-15) — {title}"),
+        x_label: "frequency (Hz)".into(),
+        y_label: "PSD (nm²/Hz)".into(),
+        log_x: true,
+        log_y: true,
+        series: psd_series,
+    };
+    let nm = |v: &Vec<f64>| v.iter().map(|x| x * 1e9).collect::<Vec<f64>>();
+    let cas = Figure {
+        title: format!("Cumulative amplitude spectrum (eq 5-16) — {title}"),
+        x_label: "frequency (Hz)".into(),
+        y_label: "CAS (nm RMS)".into(),
+        log_x: true,
+        log_y: false,
+        series: vec![
+            Series {
+                label: "following error".into(),
+                x: b.freq_hz.clone(),
+                y: nm(&b.following_cas),
+                points: false,
+            },
+            Series {
+                label: "true error".into(),
+                x: b.freq_hz.clone(),
+                y: nm(&b.true_cas),
+                points: false,
+            },
+        ],
+    };
+    out.note = plots(
+        &[(psd, "budget_psd"), (cas, "budget_cas")],
+        dir,
+        &mut out.files,
+    );
+    Ok(out)
+}
+
+/// `sweep.csv`, `sweep.json`, `sweep.{png,svg}` (thesis Fig 5-14).
+pub fn sweeps(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    let mut csv = String::from("label,target_hz,bandwidth_hz,gain_scale,predicted_following_m,predicted_true_m,simulated_following_m,simulated_true_m\n");
+    for s in sweeps {
+        for p in &s.points {
+            let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6e}"));
+            writeln!(
+                csv,
+                "{},{:.1},{:.3},{:.6},{:.6e},{:.6e},{},{}",
+                s.label,
+                p.target_hz,
+                p.bandwidth_hz,
+                p.gain_scale,
+                p.predicted_following_m,
+                p.predicted_true_m,
+                opt(p.simulated_following_m),
+                opt(p.simulated_true_m)
+            )
+            .unwrap();
+        }
+    }
+    let mut out = Written::default();
+    out.files.push(write_file(dir.join("sweep.csv"), &csv)?);
+    out.files.push(write_file(
+        dir.join("sweep.json"),
+        &serde_json::to_string_pretty(sweeps).expect("serialises"),
+    )?);
+    let mut series = Vec::new();
+    for s in sweeps {
+        let bw: Vec<f64> = s.points.iter().map(|p| p.bandwidth_hz).collect();
+        let nm = |f: fn(&crate::sweep::SweepPoint) -> Option<f64>| {
+            s.points
+                .iter()
+                .map(|p| f(p).map_or(f64::NAN, |v| v * 1e9))
+                .collect::<Vec<f64>>()
+        };
+        series.push(Series {
+            label: format!("{} following, predicted", s.label),
+            x: bw.clone(),
+            y: nm(|p| Some(p.predicted_following_m)),
+            points: false,
+        });
+        series.push(Series {
+            label: format!("{} true, predicted", s.label),
+            x: bw.clone(),
+            y: nm(|p| Some(p.predicted_true_m)),
+            points: false,
+        });
+        if s.points.iter().any(|p| p.simulated_following_m.is_some()) {
+            series.push(Series {
+                label: format!("{} following, simulated", s.label),
+                x: bw.clone(),
+                y: nm(|p| p.simulated_following_m),
+                points: true,
+            });
+            series.push(Series {
+                label: format!("{} true, simulated", s.label),
+                x: bw,
+                y: nm(|p| p.simulated_true_m),
+                points: true,
+            });
+        }
+    }
+    let fig = Figure {
+        title: "RMS error against closed-loop bandwidth (thesis Fig 5-14)".into(),
+        x_label: "closed-loop −3 dB bandwidth (Hz)".into(),
+        y_label: "RMS error (nm)".into(),
+        log_x: true,
+        log_y: false,
+        series,
+    };
+    out.note = plots(&[(fig, "sweep")], dir, &mut out.files);
+    Ok(out)
+}
