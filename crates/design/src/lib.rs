@@ -4,6 +4,7 @@
 //! exact (delayed) zero-order-hold discretisation, and spectral estimation.
 
 pub mod interconnect;
+pub mod loops;
 pub mod lti;
 pub mod plot;
 pub mod spectral;

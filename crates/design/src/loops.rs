@@ -1,0 +1,149 @@
+//! Feedback-loop quantities from frequency responses: gain and phase margins with their
+//! crossover frequencies, and the closed-loop functions of thesis eq 5-1..5-3 and 6-9.
+
+use num_complex::Complex64 as C;
+
+/// The four closed-loop functions of plant `P` and controller `K` at one frequency.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClosedLoopFunctions {
+    /// Sensitivity `S = 1/(1 + PK)` (eq 5-1): disturbance at the output → error.
+    pub s: C,
+    /// Complementary sensitivity `T = PK/(1 + PK)` (eq 5-2): reference → output.
+    pub t: C,
+    /// Input sensitivity `D = P/(1 + PK)` (eq 5-3): disturbance at the plant input → output.
+    pub d: C,
+    /// Control sensitivity `R = K/(1 + PK)` (eq 6-9): reference → controller output.
+    pub r: C,
+}
+
+impl ClosedLoopFunctions {
+    /// From `P(jω)` and `K(jω)`.
+    pub fn new(p: C, k: C) -> Self {
+        let s = 1.0 / (1.0 + p * k);
+        ClosedLoopFunctions {
+            s,
+            t: p * k * s,
+            d: p * s,
+            r: k * s,
+        }
+    }
+}
+
+/// Stability margins of a loop gain `L`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Margins {
+    /// Lowest frequency where `|L| = 1`, Hz.
+    pub gain_crossover_hz: Option<f64>,
+    /// `180° + ∠L` there, degrees.
+    pub phase_margin_deg: Option<f64>,
+    /// Lowest frequency where `∠L = −180°`, Hz.
+    pub phase_crossover_hz: Option<f64>,
+    /// `−20·log10|L|` there, dB.
+    pub gain_margin_db: Option<f64>,
+}
+
+/// First root of `g` on a log grid between `f_lo` and `f_hi` (sign change), refined by bisection.
+fn first_root(g: &impl Fn(f64) -> f64, f_lo: f64, f_hi: f64) -> Option<f64> {
+    let n = 4000;
+    let ratio = (f_hi / f_lo).powf(1.0 / n as f64);
+    let mut a = f_lo;
+    let mut ga = g(a);
+    for _ in 0..n {
+        let b = a * ratio;
+        let gb = g(b);
+        if ga.signum() != gb.signum() && ga.is_finite() && gb.is_finite() {
+            let (mut lo, mut hi, mut glo) = (a, b, ga);
+            for _ in 0..80 {
+                let mid = (lo * hi).sqrt();
+                let gm = g(mid);
+                if gm.signum() == glo.signum() {
+                    (lo, glo) = (mid, gm);
+                } else {
+                    hi = mid;
+                }
+            }
+            return Some((lo * hi).sqrt());
+        }
+        (a, ga) = (b, gb);
+    }
+    None
+}
+
+/// Margins of `loop_gain(f_hz)` searched between `f_lo` and `f_hi` Hz. The phase is unwrapped
+/// along the grid, so a phase crossover is where the unwrapped phase passes −180°.
+pub fn margins(loop_gain: impl Fn(f64) -> C, f_lo: f64, f_hi: f64) -> Margins {
+    let gain_cross = first_root(&|f| loop_gain(f).norm().ln(), f_lo, f_hi);
+    // Unwrapped phase: follow the grid from f_lo, correcting 2π jumps against the last value.
+    let unwrapped = |f: f64| {
+        let n = 400;
+        let ratio = (f / f_lo).powf(1.0 / n as f64);
+        let mut prev = loop_gain(f_lo).arg();
+        let mut x = f_lo;
+        for _ in 0..n {
+            x *= ratio;
+            let mut p = loop_gain(x).arg();
+            while p - prev > std::f64::consts::PI {
+                p -= 2.0 * std::f64::consts::PI;
+            }
+            while prev - p > std::f64::consts::PI {
+                p += 2.0 * std::f64::consts::PI;
+            }
+            prev = p;
+        }
+        prev
+    };
+    let phase_cross = first_root(&|f| unwrapped(f) + std::f64::consts::PI, f_lo, f_hi);
+    Margins {
+        gain_crossover_hz: gain_cross,
+        phase_margin_deg: gain_cross.map(|f| 180.0 + unwrapped(f).to_degrees()),
+        phase_crossover_hz: phase_cross,
+        gain_margin_db: phase_cross.map(|f| -20.0 * loop_gain(f).norm().log10()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    /// Textbook loop L(s) = 2/(s(s+1)(s+2)): phase crossover at ω = √2 with |L| = 1/3
+    /// (gain margin 20·log10 3 = 9.542 dB); gain crossover at the root of
+    /// ω²(ω²+1)(ω²+4) = 4, phase margin 180° − 90° − atan ω − atan(ω/2).
+    #[test]
+    fn margins_of_a_textbook_loop() {
+        let l = |f: f64| {
+            let s = C::new(0.0, 2.0 * PI * f);
+            2.0 / (s * (s + 1.0) * (s + 2.0))
+        };
+        let m = margins(l, 1e-3, 100.0);
+        let wpc = 2f64.sqrt();
+        assert!((m.phase_crossover_hz.unwrap() - wpc / (2.0 * PI)).abs() < 1e-9);
+        assert!((m.gain_margin_db.unwrap() - 20.0 * 3f64.log10()).abs() < 1e-9);
+        // ω² = x: x(x+1)(x+4) = 4 → solve by bisection independently.
+        let (mut lo, mut hi) = (0.1f64, 1.0f64);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if mid * (mid + 1.0) * (mid + 4.0) < 4.0 {
+                lo = mid
+            } else {
+                hi = mid
+            }
+        }
+        let wgc = lo.sqrt();
+        assert!((m.gain_crossover_hz.unwrap() - wgc / (2.0 * PI)).abs() < 1e-9);
+        let pm = 90.0 - wgc.atan().to_degrees() - (wgc / 2.0).atan().to_degrees();
+        assert!(
+            (m.phase_margin_deg.unwrap() - pm).abs() < 1e-6,
+            "{:?} vs {pm}",
+            m.phase_margin_deg
+        );
+    }
+
+    #[test]
+    fn closed_loop_functions_identities() {
+        let (p, k) = (C::new(0.3, -2.0), C::new(1.5, 0.7));
+        let f = ClosedLoopFunctions::new(p, k);
+        assert!((f.s + f.t - 1.0).norm() < 1e-15);
+        assert!((f.d - p * f.s).norm() < 1e-15 && (f.r * p - f.t).norm() < 1e-15);
+    }
+}
