@@ -98,6 +98,18 @@ pub struct LinearController {
     pub d: DMatrix<f64>,
 }
 
+impl LinearController {
+    /// No controller: output 0 (the open loop, with the injection as the only command).
+    pub fn none() -> Self {
+        LinearController {
+            a: DMatrix::zeros(0, 0),
+            b: DMatrix::zeros(0, 2),
+            c: DMatrix::zeros(1, 0),
+            d: DMatrix::zeros(1, 2),
+        }
+    }
+}
+
 fn dm<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> DMatrix<f64> {
     DMatrix::from_fn(R, C, |i, j| m[(i, j)])
 }

@@ -18,6 +18,7 @@
 pub mod analysis;
 pub mod config;
 pub mod controller;
+pub mod frf;
 pub mod report;
 pub mod run;
 pub mod summary;

@@ -122,7 +122,7 @@ fn scenario_name(s: &Scenario) -> &'static str {
 }
 
 /// Plant parameter errors located at their `plant.…` key in the config file.
-fn plant_error(e: SimError, at: &Loaded) -> RunError {
+pub(crate) fn plant_error(e: SimError, at: &Loaded) -> RunError {
     match e {
         SimError::Model(ModelError::Parameter { key, value, range }) => {
             at.invalid(&format!("plant.{key}"), value, range).into()

@@ -1,0 +1,180 @@
+//! Frequency responses measured on the running simulator by stepped sine (thesis §5.5.1:
+//! amplitude ramp, settling, integer periods, DFT at the exact bin), open loop (DAC → sensor)
+//! or closed loop (disturbance added to the controller output, §5.7.5), beside the model's
+//! response from the same sampled loop.
+
+use crate::analysis::{input, output, ClosedLoop};
+use crate::config::Loaded;
+use crate::controller::{Controller, LinearController};
+use crate::run::{plant_error, RunError};
+use design::spectral::h1_at_bin;
+use num_complex::Complex64;
+use plant_sim::{SensorSample, Simulator};
+use serde::Serialize;
+use servo_core::{Block, SteppedSineConfig};
+
+/// Which loop is measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum FrfLoop {
+    /// No controller: DAC command → measured position.
+    Open,
+    /// Controller running; injection added to its output → measured position.
+    Closed,
+}
+
+/// One measured frequency.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrfPoint {
+    /// Excitation frequency in Hz (nudged onto an exact bin).
+    pub freq_hz: f64,
+    /// Measured response, m/V: magnitude.
+    pub magnitude: f64,
+    /// Measured phase in degrees.
+    pub phase_deg: f64,
+    /// Magnitude-squared coherence across the measurement blocks.
+    pub coherence: f64,
+    /// Model magnitude, m/V.
+    pub model_magnitude: f64,
+    /// Model phase in degrees.
+    pub model_phase_deg: f64,
+    /// The ADC clipped during the measurement (the point is not linear: lower the amplitude).
+    pub clipped: bool,
+}
+
+impl FrfPoint {
+    /// Measured over model, in dB.
+    pub fn error_db(&self) -> f64 {
+        20.0 * (self.magnitude / self.model_magnitude).log10()
+    }
+
+    /// Measured minus model phase, in degrees wrapped to (−180, 180].
+    pub fn error_deg(&self) -> f64 {
+        let d = (self.phase_deg - self.model_phase_deg) % 360.0;
+        if d > 180.0 {
+            d - 360.0
+        } else if d <= -180.0 {
+            d + 360.0
+        } else {
+            d
+        }
+    }
+}
+
+/// Measurement settings.
+#[derive(Debug, Clone, Copy)]
+pub struct FrfSettings {
+    /// Excitation amplitude in V up to `knee_hz`; above it the amplitude rises as `(f/knee)²`
+    /// (the stage response falls as 1/f²), capped at `max_amplitude_v`.
+    pub amplitude_v: f64,
+    /// Where the amplitude starts to rise, Hz.
+    pub knee_hz: f64,
+    /// Largest amplitude in V.
+    pub max_amplitude_v: f64,
+    /// Settling time per frequency in s (the suspension mode rings ≈ 70 ms in open loop).
+    pub settle_s: f64,
+    /// Blocks averaged (coherence needs ≥ 2).
+    pub blocks: usize,
+    /// Minimum length of a block in s.
+    pub block_s: f64,
+}
+
+impl FrfSettings {
+    /// The excitation amplitude at `f_hz`, V.
+    pub fn amplitude_at(&self, f_hz: f64) -> f64 {
+        (self.amplitude_v * (f_hz / self.knee_hz).powi(2).max(1.0)).min(self.max_amplitude_v)
+    }
+
+    /// Defaults per loop: 2 mV open loop (the 82 Hz suspension resonance, Q ≈ 18, must stay
+    /// inside the ±4.096 V ADC), 10 mV closed loop.
+    pub fn for_loop(which: FrfLoop) -> Self {
+        FrfSettings {
+            amplitude_v: if which == FrfLoop::Open { 0.002 } else { 0.01 },
+            knee_hz: 150.0,
+            max_amplitude_v: 5.0,
+            settle_s: 0.3,
+            blocks: 8,
+            block_s: 0.02,
+        }
+    }
+}
+
+/// Measures the loop of `cfg` at `freqs_hz`; `progress` gets (done, total).
+pub fn stepped_sine(
+    cfg: &Loaded,
+    which: FrfLoop,
+    freqs_hz: &[f64],
+    s: &FrfSettings,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<FrfPoint>, RunError> {
+    let c = &cfg.config;
+    c.validate(cfg)?;
+    let mut sim = Simulator::new(&c.plant, c.run.seed, &Default::default())
+        .map_err(|e| plant_error(e, cfg))?;
+    let mut ctrl = Controller::build(cfg)?;
+    let linear = sim
+        .linear_tick()
+        .ok_or_else(|| RunError::Plant("frf needs the ideal current-loop model".into()))?;
+    let model_ctrl = match which {
+        FrfLoop::Open => LinearController::none(),
+        FrfLoop::Closed => ctrl.linear.clone(),
+    };
+    let sens = c.plant.capa.sensitivity_v_per_m;
+    let model = ClosedLoop::new(&linear, &model_ctrl, sens, sim.period_s());
+    let fs = c.plant.timing.servo_rate_hz;
+    let mut sample = SensorSample::default();
+    let mut out = Vec::new();
+    for (i, &f) in freqs_hz.iter().enumerate() {
+        progress(i, freqs_hz.len());
+        let periods_per_block = ((s.block_s * f).ceil() as u32).max(4);
+        let one = [f];
+        let sweep_cfg = SteppedSineConfig {
+            frequencies_hz: &one,
+            amplitude: s.amplitude_at(f),
+            ramp_periods: ((0.2 * s.settle_s * f).ceil() as u32).max(3),
+            settle_periods: ((s.settle_s * f).ceil() as u32).max(10),
+            measure_periods: periods_per_block * s.blocks as u32,
+        };
+        let mut gen = sweep_cfg
+            .try_build(1.0 / fs)
+            .map_err(|e| cfg.invalid("frf frequency", e, &format!("(0, {}) Hz", fs / 2.0)))?;
+        let seg = gen.segment(0).expect("one segment");
+        let (mut u_rec, mut y_rec) = (
+            Vec::with_capacity(seg.measure_len as usize),
+            Vec::with_capacity(seg.measure_len as usize),
+        );
+        let mut clipped = false;
+        for k in 0..seg.end() {
+            let d = gen.update(()).position;
+            let u = match which {
+                FrfLoop::Open => 0.0,
+                FrfLoop::Closed => ctrl.update(-sample.gap_v, sample.accel_v),
+            } + d;
+            if k >= seg.measure_start {
+                u_rec.push(d);
+                y_rec.push(sample.gap_v / sens);
+                clipped |= sample.flags & plant_sim::sim::flags::GAP_CLIPPED != 0;
+            }
+            sample = sim.step(u).0;
+        }
+        let cycles = periods_per_block as usize;
+        let (h, coherence) = h1_at_bin(&u_rec, &y_rec, cycles, s.blocks);
+        let m: Complex64 = model
+            .response(
+                output::MEASURED_M,
+                input::CONTROL_DISTURBANCE_V,
+                seg.frequency_hz,
+            )
+            .map_err(|e| RunError::Plant(e.to_string()))?;
+        out.push(FrfPoint {
+            freq_hz: seg.frequency_hz,
+            magnitude: h.norm(),
+            phase_deg: h.arg().to_degrees(),
+            coherence,
+            model_magnitude: m.norm(),
+            model_phase_deg: m.arg().to_degrees(),
+            clipped,
+        });
+    }
+    progress(freqs_hz.len(), freqs_hz.len());
+    Ok(out)
+}
