@@ -81,6 +81,32 @@ enum Command {
         #[arg(long, default_value_t = 2000)]
         points: usize,
     },
+    /// Measure a frequency response on the running simulator by stepped sine (§5.5.1: ramp,
+    /// settle, integer periods, exact-bin DFT) and compare it with the model: open loop (DAC
+    /// command → measured position) or closed loop (injection at the controller output, §5.7.5).
+    /// Example: servo frf --loop closed --from 10 --to 20000 --points 40
+    Frf {
+        #[command(flatten)]
+        settings: Settings,
+        /// Which loop.
+        #[arg(long = "loop", value_enum, default_value = "open")]
+        which: LoopKind,
+        /// Lowest frequency in Hz.
+        #[arg(long, default_value_t = 10.0)]
+        from: f64,
+        /// Highest frequency in Hz.
+        #[arg(long, default_value_t = 20000.0)]
+        to: f64,
+        /// Frequencies (log-spaced).
+        #[arg(long, default_value_t = 30)]
+        points: usize,
+        /// Excitation amplitude in V below 150 Hz (it rises as f² above, up to 5 V).
+        #[arg(long)]
+        amplitude: Option<f64>,
+        /// Output directory for CSV, JSON, PNG and SVG.
+        #[arg(long, default_value = "frf")]
+        out_dir: PathBuf,
+    },
     /// Show the fully resolved configuration (every number) after the file and the flags.
     /// Example: servo config --dump --mass heavy
     Config {
@@ -115,6 +141,14 @@ enum ScenarioKind {
     Chirp,
     /// Hold during the §7.6 intermittent cut (--force, --rpm).
     IntermittentCut,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum LoopKind {
+    /// No controller: DAC command → measured position.
+    Open,
+    /// Controller running, injection added to its output.
+    Closed,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -403,6 +437,69 @@ fn budget(
     Ok(())
 }
 
+fn frf(
+    s: &Settings,
+    which: LoopKind,
+    (from, to, n): (f64, f64, usize),
+    amplitude: Option<f64>,
+    dir: &Path,
+) -> Result<(), RunError> {
+    use runner::frf::{stepped_sine, FrfLoop, FrfSettings};
+    let cfg = s.resolve()?;
+    let which = match which {
+        LoopKind::Open => FrfLoop::Open,
+        LoopKind::Closed => FrfLoop::Closed,
+    };
+    let mut settings = FrfSettings::for_loop(which);
+    if let Some(a) = amplitude {
+        settings.amplitude_v = a;
+    }
+    let n = n.max(2);
+    let freqs: Vec<f64> = (0..n)
+        .map(|i| from * (to / from).powf(i as f64 / (n - 1) as f64))
+        .collect();
+    let bar = ProgressBar::new(n as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} stepped sine [{bar:40}] {pos}/{len} frequencies {elapsed_precise}",
+        )
+        .expect("valid")
+        .progress_chars("=> "),
+    );
+    let pts = stepped_sine(&cfg, which, &freqs, &settings, &mut |d, _| {
+        bar.set_position(d as u64)
+    })?;
+    bar.finish_and_clear();
+    println!("Stepped-sine FRF ({which:?} loop), measured vs model of the sampled loop:");
+    println!(
+        "  {:>10} {:>12} {:>9} {:>9} {:>9} {:>9}",
+        "Hz", "|H| (m/V)", "phase °", "Δ dB", "Δ °", "γ²"
+    );
+    let (mut worst_db, mut worst_deg) = (0.0f64, 0.0f64);
+    for p in &pts {
+        println!(
+            "  {:>10.2} {:>12.4e} {:>9.2} {:>+9.3} {:>+9.2} {:>9.5}{}",
+            p.freq_hz,
+            p.magnitude,
+            p.phase_deg,
+            p.error_db(),
+            p.error_deg(),
+            p.coherence,
+            if p.clipped { "  CLIPPED" } else { "" }
+        );
+        if p.coherence > 0.99 && !p.clipped {
+            worst_db = worst_db.max(p.error_db().abs());
+            worst_deg = worst_deg.max(p.error_deg().abs());
+        }
+    }
+    println!("  where γ² > 0.99: largest deviation {worst_db:.3} dB, {worst_deg:.2}°");
+    let curve = runner::frf::model_curve(&cfg, which, from, to, 600)?;
+    let w = runner::report::frf(&pts, &curve, &format!("{which:?}-loop FRF"), dir)
+        .map_err(|e| RunError::Plant(e.to_string()))?;
+    print_written(&w);
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
@@ -469,6 +566,19 @@ fn main() -> ExitCode {
             out_dir,
             points,
         } => match budget(&settings, sweep, &bandwidths, validate, &out_dir, points) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e @ RunError::Config(_)) => fail(e, 2),
+            Err(e) => fail(e, 1),
+        },
+        Command::Frf {
+            settings,
+            which,
+            from,
+            to,
+            points,
+            amplitude,
+            out_dir,
+        } => match frf(&settings, which, (from, to, points), amplitude, &out_dir) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e @ RunError::Config(_)) => fail(e, 2),
             Err(e) => fail(e, 1),

@@ -98,6 +98,50 @@ impl FrfSettings {
     }
 }
 
+/// The model of the loop for [`stepped_sine`], built once.
+fn model_of(
+    cfg: &Loaded,
+    which: FrfLoop,
+    sim: &Simulator,
+    ctrl: &Controller,
+) -> Result<ClosedLoop, RunError> {
+    let linear = sim
+        .linear_tick()
+        .ok_or_else(|| RunError::Plant("frf needs the ideal current-loop model".into()))?;
+    let model_ctrl = match which {
+        FrfLoop::Open => LinearController::none(),
+        FrfLoop::Closed => ctrl.linear.clone(),
+    };
+    Ok(ClosedLoop::new(
+        &linear,
+        &model_ctrl,
+        cfg.config.plant.capa.sensitivity_v_per_m,
+        sim.period_s(),
+    ))
+}
+
+/// The model's response (m/V) on `n` log-spaced frequencies from `from_hz` to `to_hz`.
+pub fn model_curve(
+    cfg: &Loaded,
+    which: FrfLoop,
+    from_hz: f64,
+    to_hz: f64,
+    n: usize,
+) -> Result<Vec<(f64, Complex64)>, RunError> {
+    let sim = Simulator::new(&cfg.config.plant, 0, &Default::default())
+        .map_err(|e| plant_error(e, cfg))?;
+    let model = model_of(cfg, which, &sim, &Controller::build(cfg)?)?;
+    (0..n)
+        .map(|i| {
+            let f = from_hz * (to_hz / from_hz).powf(i as f64 / (n - 1).max(1) as f64);
+            let h = model
+                .response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f)
+                .map_err(|e| RunError::Plant(e.to_string()))?;
+            Ok((f, h))
+        })
+        .collect()
+}
+
 /// Measures the loop of `cfg` at `freqs_hz`; `progress` gets (done, total).
 pub fn stepped_sine(
     cfg: &Loaded,
