@@ -107,6 +107,22 @@ enum Command {
         #[arg(long, default_value = "frf")]
         out_dir: PathBuf,
     },
+    /// Dynamic compliance X/dF at the tool with acceleration feedback (thesis eq 7-9, Table
+    /// 7-1): analytic and from the simulator's sampled loop, for a list of Ka, PID gains fixed or
+    /// scaled by 1/Kg (§7.4.1). Example: servo stiffness --kas 0,0.5,1,4 --kg-scaling --mass heavy
+    Stiffness {
+        #[command(flatten)]
+        settings: Settings,
+        /// Acceleration gains (V/V).
+        #[arg(long, value_delimiter = ',', default_value = "0,0.5,1,4")]
+        kas: Vec<f64>,
+        /// Frequencies from 10 Hz to this (Hz), log-spaced.
+        #[arg(long, default_value_t = 10000.0)]
+        to: f64,
+        /// Output directory for CSV, JSON, PNG and SVG.
+        #[arg(long, default_value = "stiffness")]
+        out_dir: PathBuf,
+    },
     /// Show the fully resolved configuration (every number) after the file and the flags.
     /// Example: servo config --dump --mass heavy
     Config {
@@ -500,6 +516,56 @@ fn frf(
     Ok(())
 }
 
+fn stiffness(s: &Settings, kas: &[f64], to: f64, dir: &Path) -> Result<(), RunError> {
+    let cfg = s.resolve()?;
+    let freqs: Vec<f64> = (0..200)
+        .map(|i| 10.0 * (to / 10.0).powf(i as f64 / 199.0))
+        .collect();
+    let curves = runner::stiffness::compliance(&cfg, kas, s.kg_scaling, &freqs)?;
+    println!(
+        "Dynamic compliance at the tool (eq 7-9), {} PID gains:",
+        if s.kg_scaling { "Kg-scaled" } else { "fixed" }
+    );
+    let at = |c: &runner::stiffness::ComplianceCurve, f: f64| {
+        let i = c
+            .freq_hz
+            .iter()
+            .position(|&x| x >= f)
+            .unwrap_or(c.freq_hz.len() - 1);
+        c.sampled_m_per_n[i] * 1e6
+    };
+    println!(
+        "  {:>5} {:>8} {:>10} {:>10} {:>10} {:>10} {:>10}  (µm/N)",
+        "Ka", "PID ×", "10 Hz", "100 Hz", "1 kHz", "5 kHz", "Δ dB"
+    );
+    for c in &curves {
+        let worst = c
+            .analytic_m_per_n
+            .iter()
+            .zip(&c.sampled_m_per_n)
+            .map(|(a, b)| (20.0 * (a / b).log10()).abs())
+            .fold(0.0, f64::max);
+        println!(
+            "  {:>5} {:>8.3} {:>10.4} {:>10.4} {:>10.4} {:>10.4} {:>10.3}{}",
+            c.ka,
+            c.pid_scale,
+            at(c, 10.0),
+            at(c, 100.0),
+            at(c, 1000.0),
+            at(c, 5000.0),
+            worst,
+            if c.stable() {
+                String::new()
+            } else {
+                format!("  UNSTABLE (spectral radius {:.4})", c.spectral_radius)
+            }
+        );
+    }
+    let w = runner::report::stiffness(&curves, dir).map_err(|e| RunError::Plant(e.to_string()))?;
+    print_written(&w);
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
@@ -579,6 +645,16 @@ fn main() -> ExitCode {
             amplitude,
             out_dir,
         } => match frf(&settings, which, (from, to, points), amplitude, &out_dir) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e @ RunError::Config(_)) => fail(e, 2),
+            Err(e) => fail(e, 1),
+        },
+        Command::Stiffness {
+            settings,
+            kas,
+            to,
+            out_dir,
+        } => match stiffness(&settings, &kas, to, &out_dir) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e @ RunError::Config(_)) => fail(e, 2),
             Err(e) => fail(e, 1),

@@ -6,6 +6,7 @@
 
 pub mod convert;
 pub mod cutting;
+pub mod impedance;
 pub mod model;
 pub mod params;
 pub mod sim;

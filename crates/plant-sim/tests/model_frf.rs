@@ -3,75 +3,11 @@
 //! to 1e-9 relative; and static/modal checks.
 
 use num_complex::Complex64 as C;
+use plant_sim::impedance::Impedances as Imp;
 use plant_sim::model::{input, mechanics, output};
 use plant_sim::params::{PlantParams, StageParams};
 use plant_sim::PlantModel;
 use std::f64::consts::PI;
-
-/// Impedance of mass `m` hanging on spring-damper `(k, c)` seen from the attachment point.
-fn hanging(m: f64, k: f64, c: f64, s: C) -> C {
-    let kc = k + c * s;
-    kc * m * s * s / (m * s * s + kc)
-}
-
-struct Imp {
-    s: C,
-    k1: C,
-    k2: C,
-    k3: C,
-    k5: C,
-    p: StageParams,
-}
-
-impl Imp {
-    fn new(p: StageParams, f: f64) -> Self {
-        let s = C::new(0.0, 2.0 * PI * f);
-        Imp {
-            s,
-            k1: p.k1_n_per_m + p.c1_n_s_per_m * s,
-            k2: p.k2_n_per_m + p.c2_n_s_per_m * s,
-            k3: p.k3_n_per_m + p.c3_n_s_per_m * s,
-            k5: p.k5_n_per_m + p.c5_n_s_per_m * s,
-            p,
-        }
-    }
-    fn z1(&self) -> C {
-        hanging(self.p.m1_kg, self.p.k1_n_per_m, self.p.c1_n_s_per_m, self.s)
-    }
-    fn z4(&self) -> C {
-        hanging(self.p.m4_kg, self.p.k4_n_per_m, self.p.c4_n_s_per_m, self.s)
-    }
-    /// m3 between k2 (to m2) and k3 (to base), seen from m2 — thesis eq 5-7's second term.
-    fn z3(&self) -> C {
-        let m3s = self.p.m3_kg * self.s * self.s + self.k3;
-        self.k2 * m3s / (m3s + self.k2)
-    }
-    /// x1/x2 through the tool shank.
-    fn tool_over_m2(&self) -> C {
-        self.k1 / (self.p.m1_kg * self.s * self.s + self.k1)
-    }
-    /// x2 per motor force on m2 (thesis eq 5-7: 1/Z).
-    fn x2_per_motor_force(&self) -> C {
-        1.0 / (self.p.m2_kg * self.s * self.s + self.z1() + self.z3() + self.z4() + self.k5)
-    }
-    /// x1 per cutting force on m1: m1 on the series of k1 and everything below m2.
-    fn x1_per_cut_force(&self) -> C {
-        let rest = self.p.m2_kg * self.s * self.s + self.z3() + self.z4() + self.k5;
-        1.0 / (self.p.m1_kg * self.s * self.s + self.k1 * rest / (rest + self.k1))
-    }
-    /// (x1 − xg)/xg for base motion entering through k3 (and k5).
-    fn tool_rel_per_base(&self) -> C {
-        let s2 = self.s * self.s;
-        let zm2 = self.p.m2_kg * s2 + self.z1() + self.z4() + self.k5 + self.k2;
-        let x3_per_f3 = 1.0 / (self.p.m3_kg * s2 + self.k3 + self.k2 - self.k2 * self.k2 / zm2);
-        // Force on m3 from the base is k3·xg; on m2 k5·xg (zero by default, kept general).
-        let x3 = x3_per_f3 * self.k3;
-        let x2_from_m3 = self.k2 * x3 / zm2;
-        let x2_from_k5 =
-            self.k5 / (zm2 - self.k2 * self.k2 / (self.p.m3_kg * s2 + self.k3 + self.k2));
-        (x2_from_m3 + x2_from_k5) * self.tool_over_m2() - 1.0
-    }
-}
 
 fn freqs() -> Vec<f64> {
     (0..60).map(|i| 10f64.powf(0.5 + i as f64 * 0.08)).collect() // 3 Hz … 170 kHz
@@ -97,21 +33,31 @@ fn mechanics_match_impedance_transfer_functions() {
     ] {
         let mech = mechanics(&p);
         for f in freqs() {
-            let imp = Imp::new(p, f);
+            let imp = Imp::new(&p, f);
             let g = mech.freq_response(2.0 * PI * f).unwrap();
             // motor force → x2 − xg (the sensor gap) and → x1
-            close(g[(1, 0)], imp.x2_per_motor_force(), "F_motor→gap", f);
+            close(
+                g[(1, 0)],
+                imp.x2_per_motor_force(C::new(0.0, 0.0)),
+                "F_motor→gap",
+                f,
+            );
             close(
                 g[(3, 0)],
-                imp.x2_per_motor_force() * imp.tool_over_m2(),
+                imp.x2_per_motor_force(C::new(0.0, 0.0)) * imp.tool_over_m2(),
                 "F_motor→x1",
                 f,
             );
             // cutting force → true tool position
-            close(g[(0, 1)], imp.x1_per_cut_force(), "F_cut→tool", f);
+            close(
+                g[(0, 1)],
+                imp.x1_per_cut_force(C::new(0.0, 0.0)),
+                "F_cut→tool",
+                f,
+            );
             // base displacement (with its velocity ẋg = s·xg) → true tool position
             close(
-                g[(0, 2)] + imp.s * g[(0, 3)],
+                g[(0, 2)] + imp.s() * g[(0, 3)],
                 imp.tool_rel_per_base(),
                 "xg→tool",
                 f,
@@ -126,15 +72,15 @@ fn full_model_composes_actuator_sensor_and_noise_filters() {
     let model = PlantModel::new(&params).unwrap();
     let (a, capa, n) = (params.actuator, params.capa, params.noise);
     for f in freqs() {
-        let imp = Imp::new(params.stage, f);
-        let s = imp.s;
+        let imp = Imp::new(&params.stage, f);
+        let s = imp.s();
         let wi = 2.0 * PI * a.current_bandwidth_hz;
         let h_i =
             a.current_gain_a_per_v * wi * wi / (s * s + 2.0 * a.current_damping * wi * s + wi * wi);
         let wc = 2.0 * PI * capa.bandwidth_hz;
         let h_capa = capa.sensitivity_v_per_m * wc * wc / (s * s + 2f64.sqrt() * wc * s + wc * wc);
         let g = model.sys.freq_response(2.0 * PI * f).unwrap();
-        let want = h_i * a.kt_n_per_a * imp.x2_per_motor_force() * h_capa;
+        let want = h_i * a.kt_n_per_a * imp.x2_per_motor_force(C::new(0.0, 0.0)) * h_capa;
         close(
             g[(output::SENSOR_V, input::COMMAND_V)],
             want,
@@ -143,7 +89,7 @@ fn full_model_composes_actuator_sensor_and_noise_filters() {
         );
         close(
             g[(output::TOOL_M, input::CUTTING_FORCE_N)],
-            imp.x1_per_cut_force(),
+            imp.x1_per_cut_force(C::new(0.0, 0.0)),
             "F_cut→tool",
             f,
         );

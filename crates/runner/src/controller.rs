@@ -83,6 +83,8 @@ pub struct Controller {
     pub limit_v: f64,
     /// Human-readable description for the summary.
     pub description: String,
+    /// The position PID actually used (after Kg scaling), for analysis.
+    pub pid: PidConfig,
 }
 
 /// `x⁺ = A x + B y`, `u = C x + D y` with `y = [gap_v, accel_v]` and zero reference.
@@ -209,6 +211,7 @@ impl Controller {
                 linear: pid_linear,
                 limit_v: c.limit_v,
                 description: format!("PID ({gains})"),
+                pid: pid_cfg,
             },
             ControllerKind::Accel => {
                 let ha = if c.accel_filter_hz > 0.0 {
@@ -235,6 +238,7 @@ impl Controller {
                     kind: Kind::Accel(cascade),
                     linear: parallel(pid_linear, accel_linear),
                     limit_v: c.limit_v,
+                    pid: pid_cfg,
                     description: format!(
                         "PID ({gains}) + acceleration feedback Ka {}{description}",
                         c.ka
@@ -264,6 +268,7 @@ impl Controller {
                     kind: Kind::Ss(tick),
                     linear,
                     limit_v: c.limit_v,
+                    pid: pid_cfg,
                     description: format!("state space, {n} states ({})", path.display()),
                 }
             }

@@ -21,5 +21,6 @@ pub mod controller;
 pub mod frf;
 pub mod report;
 pub mod run;
+pub mod stiffness;
 pub mod summary;
 pub mod sweep;
