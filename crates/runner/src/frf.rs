@@ -142,6 +142,87 @@ pub fn model_curve(
         .collect()
 }
 
+/// Measures the loop of `cfg` with an exponential chirp from `from_hz` to `to_hz` (amplitude
+/// `amplitude_v`, `duration_s` long, repeated `repeats` times after one settling pass) and a
+/// Welch H1 estimate with coherence; returns the bins between the two frequencies.
+pub fn chirp(
+    cfg: &Loaded,
+    which: FrfLoop,
+    (from_hz, to_hz): (f64, f64),
+    amplitude_v: f64,
+    duration_s: f64,
+    repeats: usize,
+) -> Result<Vec<FrfPoint>, RunError> {
+    use design::spectral::{h1_welch, WelchConfig, Window};
+    let c = &cfg.config;
+    c.validate(cfg)?;
+    let mut sim = Simulator::new(&c.plant, c.run.seed, &Default::default())
+        .map_err(|e| plant_error(e, cfg))?;
+    let mut ctrl = Controller::build(cfg)?;
+    let model = model_of(cfg, which, &sim, &ctrl)?;
+    let (fs, sens) = (
+        c.plant.timing.servo_rate_hz,
+        c.plant.capa.sensitivity_v_per_m,
+    );
+    let chirp_cfg = servo_core::ChirpConfig {
+        amplitude: amplitude_v,
+        f_start_hz: from_hz,
+        f_end_hz: to_hz,
+        duration_s,
+        sweep: servo_core::Sweep::Exponential,
+    };
+    let per = (duration_s * fs).round() as usize;
+    let (mut u_rec, mut y_rec) = (
+        Vec::with_capacity(per * repeats),
+        Vec::with_capacity(per * repeats),
+    );
+    let mut sample = SensorSample::default();
+    for pass in 0..=repeats {
+        let mut gen = chirp_cfg
+            .try_build(1.0 / fs)
+            .map_err(|e| cfg.invalid("chirp", e, &format!("(0, {}) Hz", fs / 2.0)))?;
+        for _ in 0..per {
+            let d = gen.update(()).position;
+            let u = match which {
+                FrfLoop::Open => 0.0,
+                FrfLoop::Closed => ctrl.update(-sample.gap_v, sample.accel_v),
+            } + d;
+            if pass > 0 {
+                u_rec.push(d);
+                y_rec.push(sample.gap_v / sens);
+            }
+            sample = sim.step(u).0;
+        }
+    }
+    // One segment per chirp (a periodic excitation): rectangular window, no leakage.
+    let welch = WelchConfig {
+        segment_len: per,
+        overlap: 0.0,
+        window: Window::Rectangular,
+    };
+    let frf = h1_welch(&u_rec, &y_rec, fs, &welch).map_err(|e| RunError::Plant(e.to_string()))?;
+    let mut out = Vec::new();
+    for k in 0..frf.freq_hz.len() {
+        let f = frf.freq_hz[k];
+        if f < from_hz || f > to_hz {
+            continue;
+        }
+        let m = model
+            .response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f)
+            .map_err(|e| RunError::Plant(e.to_string()))?;
+        out.push(FrfPoint {
+            freq_hz: f,
+            magnitude: frf.h[k].norm(),
+            phase_deg: frf.h[k].arg().to_degrees(),
+            coherence: frf.coherence[k],
+            model_magnitude: m.norm(),
+            model_phase_deg: m.arg().to_degrees(),
+            clipped: false,
+        });
+    }
+    Ok(out)
+}
+
 /// Measures the loop of `cfg` at `freqs_hz`; `progress` gets (done, total).
 pub fn stepped_sine(
     cfg: &Loaded,

@@ -187,3 +187,35 @@ fn compliance_analytic_matches_sampled_loop() {
     );
     {}
 }
+
+/// The chirp + Welch H1 path: closed loop, the model within 0.5 dB and 3° wherever coherence
+/// exceeds 0.99 (most bins between 20 Hz and 5 kHz).
+#[test]
+fn chirp_frf_matches_the_model() {
+    use runner::frf::{chirp, FrfLoop};
+    let pts = chirp(
+        &Loaded::default(),
+        FrfLoop::Closed,
+        (20.0, 5000.0),
+        0.2,
+        0.2,
+        16,
+    )
+    .unwrap();
+    let good: Vec<_> = pts.iter().filter(|p| p.coherence > 0.99).collect();
+    assert!(
+        good.len() * 10 >= pts.len() * 8,
+        "{} of {} bins coherent",
+        good.len(),
+        pts.len()
+    );
+    for p in good {
+        assert!(
+            p.error_db().abs() < 0.5 && p.error_deg().abs() < 3.0,
+            "{} Hz: {:.3} dB {:.2}°",
+            p.freq_hz,
+            p.error_db(),
+            p.error_deg()
+        );
+    }
+}
