@@ -98,26 +98,84 @@ impl FrfSettings {
     }
 }
 
-/// The model of the loop for [`stepped_sine`], built once.
-fn model_of(
-    cfg: &Loaded,
+/// Simulator, controller and model of one measurement, and the drive tick.
+struct Rig {
+    sim: Simulator,
+    ctrl: Controller,
+    model: ClosedLoop,
     which: FrfLoop,
-    sim: &Simulator,
-    ctrl: &Controller,
-) -> Result<ClosedLoop, RunError> {
-    let linear = sim
-        .linear_tick()
-        .ok_or_else(|| RunError::Plant("frf needs the ideal current-loop model".into()))?;
-    let model_ctrl = match which {
-        FrfLoop::Open => LinearController::none(),
-        FrfLoop::Closed => ctrl.linear.clone(),
-    };
-    Ok(ClosedLoop::new(
-        &linear,
-        &model_ctrl,
-        cfg.config.plant.capa.sensitivity_v_per_m,
-        sim.period_s(),
-    ))
+    sample: SensorSample,
+    sensitivity: f64,
+}
+
+impl Rig {
+    fn new(cfg: &Loaded, which: FrfLoop) -> Result<Self, RunError> {
+        let c = &cfg.config;
+        c.validate(cfg)?;
+        let sim = Simulator::new(&c.plant, c.run.seed, &Default::default())
+            .map_err(|e| plant_error(e, cfg))?;
+        let ctrl = Controller::build(cfg)?;
+        let linear = sim
+            .linear_tick()
+            .ok_or_else(|| RunError::Plant("frf needs the ideal current-loop model".into()))?;
+        let model_ctrl = match which {
+            FrfLoop::Open => LinearController::none(),
+            FrfLoop::Closed => ctrl.linear.clone(),
+        };
+        let sensitivity = c.plant.capa.sensitivity_v_per_m;
+        let model = ClosedLoop::new(&linear, &model_ctrl, sensitivity, sim.period_s());
+        Ok(Rig {
+            sim,
+            ctrl,
+            model,
+            which,
+            sample: SensorSample::default(),
+            sensitivity,
+        })
+    }
+
+    /// One tick with injection `d` (V) added to the controller output (or alone, open loop);
+    /// returns the measured position (m) the tick started from, paired with `d` as the model
+    /// pairs them.
+    #[inline]
+    fn tick(&mut self, d: f64) -> f64 {
+        let u = match self.which {
+            FrfLoop::Open => 0.0,
+            FrfLoop::Closed => self.ctrl.update(-self.sample.gap_v, self.sample.accel_v),
+        } + d;
+        let measured = self.sample.gap_v / self.sensitivity;
+        self.sample = self.sim.step(u).0;
+        measured
+    }
+
+    fn clipped(&self) -> bool {
+        self.sample.flags & plant_sim::sim::flags::GAP_CLIPPED != 0
+    }
+
+    fn model_at(&self, f_hz: f64) -> Result<Complex64, RunError> {
+        self.model
+            .response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f_hz)
+            .map_err(|e| RunError::Plant(e.to_string()))
+    }
+
+    fn point(
+        &self,
+        f_hz: f64,
+        h: Complex64,
+        coherence: f64,
+        clipped: bool,
+    ) -> Result<FrfPoint, RunError> {
+        let m = self.model_at(f_hz)?;
+        Ok(FrfPoint {
+            freq_hz: f_hz,
+            magnitude: h.norm(),
+            phase_deg: h.arg().to_degrees(),
+            coherence,
+            model_magnitude: m.norm(),
+            model_phase_deg: m.arg().to_degrees(),
+            clipped,
+        })
+    }
 }
 
 /// The model's response (m/V) on `n` log-spaced frequencies from `from_hz` to `to_hz`.
@@ -128,16 +186,11 @@ pub fn model_curve(
     to_hz: f64,
     n: usize,
 ) -> Result<Vec<(f64, Complex64)>, RunError> {
-    let sim = Simulator::new(&cfg.config.plant, 0, &Default::default())
-        .map_err(|e| plant_error(e, cfg))?;
-    let model = model_of(cfg, which, &sim, &Controller::build(cfg)?)?;
+    let rig = Rig::new(cfg, which)?;
     (0..n)
         .map(|i| {
             let f = from_hz * (to_hz / from_hz).powf(i as f64 / (n - 1).max(1) as f64);
-            let h = model
-                .response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f)
-                .map_err(|e| RunError::Plant(e.to_string()))?;
-            Ok((f, h))
+            Ok((f, rig.model_at(f)?))
         })
         .collect()
 }
@@ -154,16 +207,8 @@ pub fn chirp(
     repeats: usize,
 ) -> Result<Vec<FrfPoint>, RunError> {
     use design::spectral::{h1_welch, WelchConfig, Window};
-    let c = &cfg.config;
-    c.validate(cfg)?;
-    let mut sim = Simulator::new(&c.plant, c.run.seed, &Default::default())
-        .map_err(|e| plant_error(e, cfg))?;
-    let mut ctrl = Controller::build(cfg)?;
-    let model = model_of(cfg, which, &sim, &ctrl)?;
-    let (fs, sens) = (
-        c.plant.timing.servo_rate_hz,
-        c.plant.capa.sensitivity_v_per_m,
-    );
+    let mut rig = Rig::new(cfg, which)?;
+    let fs = cfg.config.plant.timing.servo_rate_hz;
     let chirp_cfg = servo_core::ChirpConfig {
         amplitude: amplitude_v,
         f_start_hz: from_hz,
@@ -176,22 +221,19 @@ pub fn chirp(
         Vec::with_capacity(per * repeats),
         Vec::with_capacity(per * repeats),
     );
-    let mut sample = SensorSample::default();
+    let mut clipped = false;
     for pass in 0..=repeats {
         let mut gen = chirp_cfg
             .try_build(1.0 / fs)
             .map_err(|e| cfg.invalid("chirp", e, &format!("(0, {}) Hz", fs / 2.0)))?;
         for _ in 0..per {
             let d = gen.update(()).position;
-            let u = match which {
-                FrfLoop::Open => 0.0,
-                FrfLoop::Closed => ctrl.update(-sample.gap_v, sample.accel_v),
-            } + d;
+            let y = rig.tick(d);
             if pass > 0 {
                 u_rec.push(d);
-                y_rec.push(sample.gap_v / sens);
+                y_rec.push(y);
+                clipped |= rig.clipped();
             }
-            sample = sim.step(u).0;
         }
     }
     // One segment per chirp (a periodic excitation): rectangular window, no leakage.
@@ -201,29 +243,13 @@ pub fn chirp(
         window: Window::Rectangular,
     };
     let frf = h1_welch(&u_rec, &y_rec, fs, &welch).map_err(|e| RunError::Plant(e.to_string()))?;
-    let mut out = Vec::new();
-    for k in 0..frf.freq_hz.len() {
-        let f = frf.freq_hz[k];
-        if f < from_hz || f > to_hz {
-            continue;
-        }
-        let m = model
-            .response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f)
-            .map_err(|e| RunError::Plant(e.to_string()))?;
-        out.push(FrfPoint {
-            freq_hz: f,
-            magnitude: frf.h[k].norm(),
-            phase_deg: frf.h[k].arg().to_degrees(),
-            coherence: frf.coherence[k],
-            model_magnitude: m.norm(),
-            model_phase_deg: m.arg().to_degrees(),
-            clipped: false,
-        });
-    }
-    Ok(out)
+    (0..frf.freq_hz.len())
+        .filter(|&k| (from_hz..=to_hz).contains(&frf.freq_hz[k]))
+        .map(|k| rig.point(frf.freq_hz[k], frf.h[k], frf.coherence[k], clipped))
+        .collect()
 }
 
-/// Measures the loop of `cfg` at `freqs_hz`; `progress` gets (done, total).
+/// Measures the loop of `cfg` at `freqs_hz` by stepped sine; `progress` gets (done, total).
 pub fn stepped_sine(
     cfg: &Loaded,
     which: FrfLoop,
@@ -231,22 +257,8 @@ pub fn stepped_sine(
     s: &FrfSettings,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<FrfPoint>, RunError> {
-    let c = &cfg.config;
-    c.validate(cfg)?;
-    let mut sim = Simulator::new(&c.plant, c.run.seed, &Default::default())
-        .map_err(|e| plant_error(e, cfg))?;
-    let mut ctrl = Controller::build(cfg)?;
-    let linear = sim
-        .linear_tick()
-        .ok_or_else(|| RunError::Plant("frf needs the ideal current-loop model".into()))?;
-    let model_ctrl = match which {
-        FrfLoop::Open => LinearController::none(),
-        FrfLoop::Closed => ctrl.linear.clone(),
-    };
-    let sens = c.plant.capa.sensitivity_v_per_m;
-    let model = ClosedLoop::new(&linear, &model_ctrl, sens, sim.period_s());
-    let fs = c.plant.timing.servo_rate_hz;
-    let mut sample = SensorSample::default();
+    let mut rig = Rig::new(cfg, which)?;
+    let fs = cfg.config.plant.timing.servo_rate_hz;
     let mut out = Vec::new();
     for (i, &f) in freqs_hz.iter().enumerate() {
         progress(i, freqs_hz.len());
@@ -270,35 +282,15 @@ pub fn stepped_sine(
         let mut clipped = false;
         for k in 0..seg.end() {
             let d = gen.update(()).position;
-            let u = match which {
-                FrfLoop::Open => 0.0,
-                FrfLoop::Closed => ctrl.update(-sample.gap_v, sample.accel_v),
-            } + d;
+            let y = rig.tick(d);
             if k >= seg.measure_start {
                 u_rec.push(d);
-                y_rec.push(sample.gap_v / sens);
-                clipped |= sample.flags & plant_sim::sim::flags::GAP_CLIPPED != 0;
+                y_rec.push(y);
+                clipped |= rig.clipped();
             }
-            sample = sim.step(u).0;
         }
-        let cycles = periods_per_block as usize;
-        let (h, coherence) = h1_at_bin(&u_rec, &y_rec, cycles, s.blocks);
-        let m: Complex64 = model
-            .response(
-                output::MEASURED_M,
-                input::CONTROL_DISTURBANCE_V,
-                seg.frequency_hz,
-            )
-            .map_err(|e| RunError::Plant(e.to_string()))?;
-        out.push(FrfPoint {
-            freq_hz: seg.frequency_hz,
-            magnitude: h.norm(),
-            phase_deg: h.arg().to_degrees(),
-            coherence,
-            model_magnitude: m.norm(),
-            model_phase_deg: m.arg().to_degrees(),
-            clipped,
-        });
+        let (h, coherence) = h1_at_bin(&u_rec, &y_rec, periods_per_block as usize, s.blocks);
+        out.push(rig.point(seg.frequency_hz, h, coherence, clipped)?);
     }
     progress(freqs_hz.len(), freqs_hz.len());
     Ok(out)

@@ -29,6 +29,27 @@ fn write_file(path: PathBuf, text: &str) -> Result<PathBuf, ReportError> {
     Ok(path)
 }
 
+/// Creates `dir` and writes the data files `<stem>.csv` and `<stem>.json`.
+fn data<T: serde::Serialize + ?Sized>(
+    dir: &Path,
+    stem: &str,
+    csv: &str,
+    json: &T,
+) -> Result<Written, ReportError> {
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    let json = serde_json::to_string_pretty(json).expect("analysis results serialise");
+    Ok(Written {
+        files: vec![
+            write_file(dir.join(format!("{stem}.csv")), csv)?,
+            write_file(dir.join(format!("{stem}.json")), &json)?,
+        ],
+        note: None,
+    })
+}
+
 /// Writes the plots, or returns the reason they were skipped (no font) as a note.
 fn plots(figs: &[(Figure, &str)], dir: &Path, written: &mut Vec<PathBuf>) -> Option<String> {
     for (fig, stem) in figs {
@@ -52,10 +73,6 @@ pub struct Written {
 
 /// `budget.csv`, `budget.json`, `budget_psd.{png,svg}`, `budget_cas.{png,svg}`.
 pub fn budget(b: &Budget, title: &str, dir: &Path) -> Result<Written, ReportError> {
-    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
     let mut csv = String::from("freq_hz");
     for (name, _) in SOURCES {
         let n = name.replace(' ', "_");
@@ -74,12 +91,7 @@ pub fn budget(b: &Budget, title: &str, dir: &Path) -> Result<Written, ReportErro
         }
         writeln!(csv, ",{:.6e},{:.6e}", b.following_cas[i], b.true_cas[i]).unwrap();
     }
-    let mut out = Written::default();
-    out.files.push(write_file(dir.join("budget.csv"), &csv)?);
-    out.files.push(write_file(
-        dir.join("budget.json"),
-        &serde_json::to_string_pretty(b).expect("serialises"),
-    )?);
+    let mut out = data(dir, "budget", &csv, b)?;
     let nm2 = |v: &Vec<f64>| v.iter().map(|x| x * 1e18).collect::<Vec<f64>>();
     let total = |psd: &Vec<Vec<f64>>| {
         (0..b.freq_hz.len())
@@ -150,10 +162,6 @@ pub fn budget(b: &Budget, title: &str, dir: &Path) -> Result<Written, ReportErro
 
 /// `sweep.csv`, `sweep.json`, `sweep.{png,svg}` (thesis Fig 5-14).
 pub fn sweeps(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
-    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
     let mut csv = String::from("label,target_hz,bandwidth_hz,gain_scale,predicted_following_m,predicted_true_m,simulated_following_m,simulated_true_m\n");
     for s in sweeps {
         for p in &s.points {
@@ -173,12 +181,7 @@ pub fn sweeps(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
             .unwrap();
         }
     }
-    let mut out = Written::default();
-    out.files.push(write_file(dir.join("sweep.csv"), &csv)?);
-    out.files.push(write_file(
-        dir.join("sweep.json"),
-        &serde_json::to_string_pretty(sweeps).expect("serialises"),
-    )?);
+    let mut out = data(dir, "sweep", &csv, sweeps)?;
     let mut series = Vec::new();
     for s in sweeps {
         let bw: Vec<f64> = s.points.iter().map(|p| p.bandwidth_hz).collect();
@@ -234,10 +237,6 @@ pub fn frf(
     title: &str,
     dir: &Path,
 ) -> Result<Written, ReportError> {
-    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
     let mut csv = String::from("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped\n");
     for p in points {
         writeln!(
@@ -253,12 +252,7 @@ pub fn frf(
         )
         .unwrap();
     }
-    let mut out = Written::default();
-    out.files.push(write_file(dir.join("frf.csv"), &csv)?);
-    out.files.push(write_file(
-        dir.join("frf.json"),
-        &serde_json::to_string_pretty(points).expect("serialises"),
-    )?);
+    let mut out = data(dir, "frf", &csv, points)?;
     let f: Vec<f64> = points.iter().map(|p| p.freq_hz).collect();
     let mf: Vec<f64> = model.iter().map(|m| m.0).collect();
     let model_series = |y: Vec<f64>| Series {
@@ -331,10 +325,6 @@ pub fn stiffness(
     curves: &[crate::stiffness::ComplianceCurve],
     dir: &Path,
 ) -> Result<Written, ReportError> {
-    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
     let mut csv = String::from(
         "ka,pid_scale,stable,freq_hz,analytic_m_per_n,sampled_m_per_n,sampled_m2_m_per_n\n",
     );
@@ -354,12 +344,7 @@ pub fn stiffness(
             .unwrap();
         }
     }
-    let mut out = Written::default();
-    out.files.push(write_file(dir.join("stiffness.csv"), &csv)?);
-    out.files.push(write_file(
-        dir.join("stiffness.json"),
-        &serde_json::to_string_pretty(curves).expect("serialises"),
-    )?);
+    let mut out = data(dir, "stiffness", &csv, curves)?;
     let mut series = Vec::new();
     for c in curves.iter().filter(|c| c.stable()) {
         let um = |v: &Vec<f64>| v.iter().map(|x| x * 1e6).collect::<Vec<f64>>();
