@@ -7,4 +7,5 @@ pub mod interconnect;
 pub mod loops;
 pub mod lti;
 pub mod plot;
+pub mod riccati;
 pub mod spectral;
