@@ -3,6 +3,7 @@
 //! Offline design and analysis for fts-servo: continuous LTI models, frequency responses,
 //! exact (delayed) zero-order-hold discretisation, and spectral estimation.
 
+pub mod h2;
 pub mod interconnect;
 pub mod loops;
 pub mod lti;

@@ -1,0 +1,295 @@
+//! Discrete-time H2-optimal output feedback (the SLICOT SB10ED problem) on a generalized plant
+//!
+//! ```text
+//! x⁺ = A x + B1 w + B2 u
+//! z  = C1 x          + D12 u        (D11 = 0)
+//! y  = C2 x + D21 w                 (D22 = 0: a strictly proper plant from u to y)
+//! ```
+//!
+//! Control DARE `X` (Q = C1ᵀC1, R = D12ᵀD12, S = C1ᵀD12) and filter DARE `Y` (the dual, with
+//! B1B1ᵀ, D21D21ᵀ, B1D21ᵀ) give `F`, `L`, and the feed-through terms `F0`, `L0` of the optimal
+//! controller that uses the current measurement (Zhou, Doyle & Glover, ch. 21):
+//! `A_K = A + B2F + LC2 − B2L0C2`, `B_K = −(L − B2L0)`, `C_K = F − L0C2`, `D_K = L0`.
+
+use crate::lti::{dlyap, StateSpace};
+use crate::riccati::{dare, RiccatiError};
+use nalgebra::DMatrix;
+
+/// A generalized plant for H2 synthesis.
+#[derive(Debug, Clone)]
+pub struct GeneralizedPlant {
+    /// n × n.
+    pub a: DMatrix<f64>,
+    /// Disturbance input, n × nw.
+    pub b1: DMatrix<f64>,
+    /// Control input, n × nu.
+    pub b2: DMatrix<f64>,
+    /// Performance output, nz × n.
+    pub c1: DMatrix<f64>,
+    /// Measurement, ny × n.
+    pub c2: DMatrix<f64>,
+    /// nz × nu, full column rank.
+    pub d12: DMatrix<f64>,
+    /// ny × nw, full row rank.
+    pub d21: DMatrix<f64>,
+}
+
+/// Synthesis errors, naming the condition that failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum H2Error {
+    /// Shapes do not fit.
+    #[error("shape mismatch: {0}")]
+    Shape(&'static str),
+    /// D12 must have full column rank (every control input is penalised).
+    #[error("D12ᵀD12 is singular: every control input must appear in z (full column rank)")]
+    D12Rank,
+    /// D21 must have full row rank (every measurement is noisy).
+    #[error("D21D21ᵀ is singular: every measurement needs noise (full row rank)")]
+    D21Rank,
+    /// The control Riccati equation failed ((A, B2) not stabilisable, or an uncontrollable
+    /// mode of the penalty on the unit circle).
+    #[error("control Riccati equation: {0}")]
+    Control(RiccatiError),
+    /// The filter Riccati equation failed ((C2, A) not detectable, or a noise-free mode on the
+    /// unit circle).
+    #[error("filter Riccati equation: {0}")]
+    Filter(RiccatiError),
+}
+
+/// The synthesized controller and what it achieves.
+#[derive(Debug, Clone)]
+pub struct H2Controller {
+    /// The controller `u = K(y)` as a discrete state space (same sample period as the plant).
+    pub k: StateSpace,
+    /// Closed-loop H2 norm from w to z (per sample: `√trace(C Wc Cᵀ + D Dᵀ)`).
+    pub h2_norm: f64,
+    /// Closed-loop spectral radius.
+    pub spectral_radius: f64,
+}
+
+impl GeneralizedPlant {
+    fn check(&self) -> Result<(usize, usize, usize, usize, usize), H2Error> {
+        let n = self.a.nrows();
+        let (nw, nu, nz, ny) = (
+            self.b1.ncols(),
+            self.b2.ncols(),
+            self.c1.nrows(),
+            self.c2.nrows(),
+        );
+        let ok = self.a.shape() == (n, n)
+            && self.b1.nrows() == n
+            && self.b2.nrows() == n
+            && self.c1.ncols() == n
+            && self.c2.ncols() == n
+            && self.d12.shape() == (nz, nu)
+            && self.d21.shape() == (ny, nw);
+        if ok {
+            Ok((n, nw, nu, nz, ny))
+        } else {
+            Err(H2Error::Shape(
+                "A n×n, B1 n×nw, B2 n×nu, C1 nz×n, C2 ny×n, D12 nz×nu, D21 ny×nw",
+            ))
+        }
+    }
+
+    /// The closed loop of this plant with controller `k`: `(A, B, C, D)` from w to z.
+    pub fn close(&self, k: &StateSpace) -> StateSpace {
+        let (n, nk) = (self.a.nrows(), k.nx());
+        let mut a = DMatrix::zeros(n + nk, n + nk);
+        a.view_mut((0, 0), (n, n))
+            .copy_from(&(&self.a + &self.b2 * &k.d * &self.c2));
+        a.view_mut((0, n), (n, nk)).copy_from(&(&self.b2 * &k.c));
+        a.view_mut((n, 0), (nk, n)).copy_from(&(&k.b * &self.c2));
+        a.view_mut((n, n), (nk, nk)).copy_from(&k.a);
+        let mut b = DMatrix::zeros(n + nk, self.b1.ncols());
+        b.view_mut((0, 0), (n, b.ncols()))
+            .copy_from(&(&self.b1 + &self.b2 * &k.d * &self.d21));
+        b.view_mut((n, 0), (nk, b.ncols()))
+            .copy_from(&(&k.b * &self.d21));
+        let mut c = DMatrix::zeros(self.c1.nrows(), n + nk);
+        c.view_mut((0, 0), (c.nrows(), n))
+            .copy_from(&(&self.c1 + &self.d12 * &k.d * &self.c2));
+        c.view_mut((0, n), (c.nrows(), nk))
+            .copy_from(&(&self.d12 * &k.c));
+        let d = &self.d12 * &k.d * &self.d21;
+        StateSpace { a, b, c, d }
+    }
+}
+
+/// H2 norm of a stable discrete system from its controllability gramian.
+pub fn h2_norm_discrete(sys: &StateSpace) -> Option<f64> {
+    let (wc, _) = dlyap(&sys.a, &(&sys.b * sys.b.transpose())).ok()?;
+    Some(((&sys.c * wc * sys.c.transpose()).trace() + (&sys.d * sys.d.transpose()).trace()).sqrt())
+}
+
+/// Synthesizes the discrete H2-optimal controller for `p`.
+pub fn h2syn_discrete(p: &GeneralizedPlant) -> Result<H2Controller, H2Error> {
+    p.check()?;
+    let r1 = p.d12.transpose() * &p.d12;
+    let r2 = &p.d21 * p.d21.transpose();
+    if r1.clone().cholesky().is_none() {
+        return Err(H2Error::D12Rank);
+    }
+    if r2.clone().cholesky().is_none() {
+        return Err(H2Error::D21Rank);
+    }
+    let x = dare(
+        &p.a,
+        &p.b2,
+        &(p.c1.transpose() * &p.c1),
+        &r1,
+        Some(&(p.c1.transpose() * &p.d12)),
+    )
+    .map_err(H2Error::Control)?;
+    let y = dare(
+        &p.a.transpose(),
+        &p.c2.transpose(),
+        &(&p.b1 * p.b1.transpose()),
+        &r2,
+        Some(&(&p.b1 * p.d21.transpose())),
+    )
+    .map_err(H2Error::Filter)?;
+    let (xm, ym) = (&x.x, &y.x);
+    let f = -&x.k; // u = F x
+    let l = -y.k.transpose(); // x̂⁺ = … + L(C2 x̂ − y)
+    let rx = (&r1 + p.b2.transpose() * xm * &p.b2)
+        .try_inverse()
+        .ok_or(H2Error::D12Rank)?;
+    let ry = (&r2 + &p.c2 * ym * p.c2.transpose())
+        .try_inverse()
+        .ok_or(H2Error::D21Rank)?;
+    let f0 = -&rx * p.b2.transpose() * xm * &p.b1;
+    let l0 = (&f * ym * p.c2.transpose() + &f0 * p.d21.transpose()) * &ry;
+    let k = StateSpace {
+        a: &p.a + &p.b2 * &f + &l * &p.c2 - &p.b2 * &l0 * &p.c2,
+        b: -(&l - &p.b2 * &l0),
+        c: &f - &l0 * &p.c2,
+        d: l0,
+    };
+    let cl = p.close(&k);
+    let radius = cl.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
+    let h2 = h2_norm_discrete(&cl).unwrap_or(f64::INFINITY);
+    Ok(H2Controller {
+        k,
+        h2_norm: h2,
+        spectral_radius: radius,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m(r: usize, c: usize, v: &[f64]) -> DMatrix<f64> {
+        DMatrix::from_row_slice(r, c, v)
+    }
+
+    /// A sampled double integrator (T = 0.1) with force and sensor noise, position and effort
+    /// penalised: a textbook discrete LQG problem.
+    fn double_integrator() -> GeneralizedPlant {
+        let t = 0.1;
+        GeneralizedPlant {
+            a: m(2, 2, &[1.0, t, 0.0, 1.0]),
+            b1: m(2, 2, &[t * t / 2.0, 0.0, t, 0.0]),
+            b2: m(2, 1, &[t * t / 2.0, t]),
+            c1: m(2, 2, &[1.0, 0.0, 0.0, 0.0]),
+            c2: m(1, 2, &[1.0, 0.0]),
+            d12: m(2, 1, &[0.0, 0.3]),
+            d21: m(1, 2, &[0.0, 0.05]),
+        }
+    }
+
+    #[test]
+    fn stabilises_and_norms_agree() {
+        let p = double_integrator();
+        let c = h2syn_discrete(&p).unwrap();
+        assert!(c.spectral_radius < 1.0);
+        // The H2 norm from the observability gramian equals the controllability one.
+        let cl = p.close(&c.k);
+        let (wo, _) = dlyap(&cl.a.transpose(), &(cl.c.transpose() * &cl.c)).unwrap();
+        let via_wo =
+            ((cl.b.transpose() * wo * &cl.b).trace() + (&cl.d.transpose() * &cl.d).trace()).sqrt();
+        assert!(
+            (via_wo / c.h2_norm - 1.0).abs() < 1e-10,
+            "{via_wo} vs {}",
+            c.h2_norm
+        );
+        // And from the frequency response: ‖T‖² = (1/2π)∫|T(e^{jθ})|²_F dθ (fine midpoint rule).
+        let n = 20_000;
+        let mut acc = 0.0;
+        for i in 0..n {
+            let f = (i as f64 + 0.5) / n as f64 * 0.5; // cycles per sample, 0 … ½
+            let h = cl.freq_response_discrete(f, 1.0).unwrap();
+            acc += h.iter().map(|x| x.norm_sqr()).sum::<f64>() / n as f64;
+        }
+        assert!((acc.sqrt() / c.h2_norm - 1.0).abs() < 1e-4);
+    }
+
+    /// Optimality: random perturbations of the controller never lower the closed-loop H2 norm.
+    #[test]
+    fn perturbations_do_not_improve_it() {
+        let p = double_integrator();
+        let c = h2syn_discrete(&p).unwrap();
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for _ in 0..200 {
+            let e = 1e-3;
+            let mut k = c.k.clone();
+            k.a.iter_mut().for_each(|x| *x += e * rnd());
+            k.b.iter_mut().for_each(|x| *x += e * rnd());
+            k.c.iter_mut().for_each(|x| *x += e * rnd());
+            k.d.iter_mut().for_each(|x| *x += e * rnd());
+            let cl = p.close(&k);
+            if cl.poles().iter().all(|z| z.norm() < 1.0) {
+                let n = h2_norm_discrete(&cl).unwrap();
+                assert!(
+                    n >= c.h2_norm * (1.0 - 1e-9),
+                    "perturbed {n} < optimal {}",
+                    c.h2_norm
+                );
+            }
+        }
+    }
+
+    /// With (nearly) perfect state measurement the output-feedback cost approaches the LQR
+    /// (full information) cost √trace(B1ᵀXB1) from above.
+    #[test]
+    fn approaches_the_full_information_optimum() {
+        let mut p = double_integrator();
+        p.c2 = DMatrix::identity(2, 2);
+        p.b1 = m(2, 4, &[0.005, 0.0, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0]);
+        p.d21 = m(2, 4, &[0.0, 0.0, 1e-6, 0.0, 0.0, 0.0, 0.0, 1e-6]);
+        let c = h2syn_discrete(&p).unwrap();
+        let x = dare(
+            &p.a,
+            &p.b2,
+            &(p.c1.transpose() * &p.c1),
+            &(p.d12.transpose() * &p.d12),
+            None,
+        )
+        .unwrap();
+        let full_info = (p.b1.transpose() * &x.x * &p.b1).trace().sqrt();
+        assert!(c.h2_norm >= full_info * (1.0 - 1e-9));
+        assert!(
+            (c.h2_norm / full_info - 1.0) < 1e-4,
+            "{} vs {full_info}",
+            c.h2_norm
+        );
+    }
+
+    #[test]
+    fn rank_conditions_are_named() {
+        let mut p = double_integrator();
+        p.d12 = m(2, 1, &[0.0, 0.0]);
+        assert_eq!(h2syn_discrete(&p).unwrap_err(), H2Error::D12Rank);
+        let mut p = double_integrator();
+        p.d21 = m(1, 2, &[0.0, 0.0]);
+        assert_eq!(h2syn_discrete(&p).unwrap_err(), H2Error::D21Rank);
+    }
+}
