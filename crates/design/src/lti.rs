@@ -240,9 +240,9 @@ impl StateSpace {
         Ok(self.c.map(|x| Complex64::new(x, 0.0)) * x + self.d.map(|x| Complex64::new(x, 0.0)))
     }
 
-    /// Poles: eigenvalues of `A` (s-plane for continuous, z-plane for discrete models).
+    /// Poles: [`eigenvalues`] of `A` (s-plane for continuous, z-plane for discrete models).
     pub fn poles(&self) -> Vec<Complex64> {
-        self.a.complex_eigenvalues().iter().copied().collect()
+        eigenvalues(&self.a)
     }
 
     /// The single entry `(output, input)` of [`StateSpace::freq_response`] at `f_hz`.
@@ -253,6 +253,26 @@ impl StateSpace {
         input: usize,
     ) -> Result<Complex64, LtiError> {
         Ok(self.freq_response(2.0 * std::f64::consts::PI * f_hz)?[(output, input)])
+    }
+}
+
+/// Eigenvalues of a real square matrix: Parlett–Reinsch balancing (an exact similarity), then
+/// faer's Hessenberg–QR eigensolver. Balancing is essential for sampled closed loops whose
+/// entries span 60 decades (volts, metres and controller states side by side): unbalanced, both
+/// faer and nalgebra returned |z| ≈ 2 for a loop that runs stably (regression test below).
+pub fn eigenvalues(a: &DMatrix<f64>) -> Vec<Complex64> {
+    let n = a.nrows();
+    let no_io = StateSpace {
+        a: a.clone(),
+        b: DMatrix::zeros(n, 0),
+        c: DMatrix::zeros(0, n),
+        d: DMatrix::zeros(0, 0),
+    };
+    let a = no_io.balanced().a;
+    let m = faer::Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
+    match m.eigenvalues() {
+        Ok(v) => v.into_iter().map(|z| Complex64::new(z.re, z.im)).collect(),
+        Err(_) => vec![Complex64::new(f64::NAN, f64::NAN); n],
     }
 }
 
@@ -650,6 +670,22 @@ mod tests {
                 let got = d.freq_response_discrete(f0, t).unwrap()[(0, 0)];
                 assert!((got - exact).norm() < 1e-10 * exact.norm());
             }
+        }
+    }
+
+    /// A stable matrix whose entries span 1e-40 … 1e13 through a diagonal similarity: the
+    /// eigenvalues are those of the well-scaled original.
+    #[test]
+    fn eigenvalues_of_a_badly_scaled_matrix() {
+        let base = DMatrix::from_row_slice(3, 3, &[0.5, 0.3, 0.0, -0.2, 0.6, 0.1, 0.0, 0.4, -0.3]);
+        let d = [1e-20, 1.0, 1e13];
+        let scaled = DMatrix::from_fn(3, 3, |i, j| base[(i, j)] * d[i] / d[j]);
+        let mut want: Vec<f64> = eigenvalues(&base).iter().map(|z| z.norm()).collect();
+        let mut got: Vec<f64> = eigenvalues(&scaled).iter().map(|z| z.norm()).collect();
+        want.sort_by(f64::total_cmp);
+        got.sort_by(f64::total_cmp);
+        for (g, w) in got.iter().zip(&want) {
+            assert!((g - w).abs() < 1e-12, "{got:?} vs {want:?}");
         }
     }
 

@@ -154,8 +154,7 @@ pub fn dare(
         - &x;
     let residual = residual_m.norm() / x.norm().max(1e-300);
     let closed = a - b * &k;
-    let radius = closed
-        .complex_eigenvalues()
+    let radius = crate::lti::eigenvalues(&closed)
         .iter()
         .map(|l| l.norm())
         .fold(0.0, f64::max);
@@ -241,8 +240,7 @@ pub fn care(
     let residual_m = a.transpose() * &x + &x * a - (&x * b + cross.transpose()) * &k + q;
     let residual = residual_m.norm() / x.norm().max(1e-300);
     let closed = a - b * &k;
-    let abscissa = closed
-        .complex_eigenvalues()
+    let abscissa = crate::lti::eigenvalues(&closed)
         .iter()
         .map(|l| l.re)
         .fold(f64::NEG_INFINITY, f64::max);

@@ -105,6 +105,9 @@ pub struct LinearTick {
     pub t_x: DMatrix<f64>,
     /// Truth rows from the inputs (7 × 6).
     pub t_in: DMatrix<f64>,
+    /// Truth rows at the tick start from the state at the tick start (7 × n, the continuous
+    /// model's output rows; their feed-through from the held inputs is zero for positions).
+    pub t_start: DMatrix<f64>,
     /// Variance per tick of each held white input (`fs/2`), or 0 for a source that is off:
     /// `[current, base, accelerometer]`.
     pub white_variance: [f64; 3],
@@ -417,6 +420,8 @@ pub struct Simulator {
     out: Vec<f64>,
     oversampling: usize,
     mech: std::ops::Range<usize>,
+    /// Truth rows of the continuous model at the tick start (for [`Simulator::linear_tick`]).
+    truth_start: DMatrix<f64>,
     /// Balancing scale of the mechanics states (state = scale · stored value).
     mech_scale: [f64; 8],
     u_prev: f64,
@@ -517,6 +522,7 @@ impl Simulator {
             tick_matrix,
             oversampling: adc.oversampling as usize,
             mech: model.mechanics,
+            truth_start: pick(c, &TRUTH_ROWS),
             mech_scale,
             u_prev: 0.0,
             coil,
@@ -575,6 +581,7 @@ impl Simulator {
             y_in: DMatrix::from_fn(2, inputs, |ch, j| avg(ch, n + j)),
             t_x: DMatrix::from_fn(TRUTH_ROWS.len(), n, &truth),
             t_in: DMatrix::from_fn(TRUTH_ROWS.len(), inputs, |r, j| truth(r, n + j)),
+            t_start: self.truth_start.clone(),
             white_variance: [
                 var(self.noise_on[0]),
                 var(self.noise_on[1]),

@@ -24,3 +24,4 @@ pub mod run;
 pub mod stiffness;
 pub mod summary;
 pub mod sweep;
+pub mod synth;
