@@ -127,6 +127,24 @@ enum Command {
         #[arg(long, default_value = "stiffness")]
         out_dir: PathBuf,
     },
+    /// Design a controller. `h2`: the H2-optimal controller on the simulator's exact discrete
+    /// model at the configured servo rate (thesis Ch. 6): minimises the true tool error given the
+    /// sensor, current, base and converter noise, knowing the loop delay; writes a controller
+    /// file for `servo run --controller ss --ss-file FILE`.
+    /// Example: servo synth h2 --rate 20000 --mass heavy --out h2.toml
+    Synth {
+        /// Method (only `h2` so far).
+        #[arg(value_enum)]
+        method: SynthMethod,
+        #[command(flatten)]
+        settings: Settings,
+        /// Weight of 1 V of command against 1 nm of tool error (ρ, nm/V): larger = gentler.
+        #[arg(long, default_value_t = 1.0)]
+        effort_weight: f64,
+        /// Controller file to write.
+        #[arg(short, long, default_value = "h2.toml")]
+        out: PathBuf,
+    },
     /// Show the fully resolved configuration (every number) after the file and the flags.
     /// Example: servo config --dump --mass heavy
     Config {
@@ -169,6 +187,12 @@ enum FrfMethod {
     Stepped,
     /// 16 periods of a 0.2 s exponential chirp, H1 and coherence per bin.
     Chirp,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SynthMethod {
+    /// H2-optimal output feedback (discrete, exact model).
+    H2,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -593,6 +617,41 @@ fn stiffness(s: &Settings, kas: &[f64], to: f64, dir: &Path) -> Result<(), RunEr
     Ok(())
 }
 
+fn synth(s: &Settings, effort: f64, out: &Path) -> Result<(), RunError> {
+    let cfg = s.resolve()?;
+    let design = runner::synth::h2_design(&cfg, effort)?;
+    std::fs::write(out, design.to_toml())
+        .map_err(|e| RunError::Plant(format!("cannot write {}: {e}", out.display())))?;
+    // Predict what it does with the budget of the loop it closes.
+    let mut with = cfg.clone();
+    with.config.controller.kind = ControllerKind::Ss;
+    with.config.controller.ss_file = Some(std::fs::canonicalize(out).unwrap_or(out.to_owned()));
+    let (cl, _) = closed_loop(&with)?;
+    let b = Budget::new(&cl, 400).map_err(|e| RunError::Plant(e.to_string()))?;
+    println!(
+        "H2 controller: {} states at {:.0} Hz (thesis §6.4.1: 27)",
+        design.controller.nx(),
+        design.sample_rate_hz
+    );
+    println!(
+        "  closed loop: spectral radius {:.6}, bandwidth {:.0} Hz",
+        cl.spectral_radius(),
+        b.bandwidth_hz
+    );
+    println!(
+        "  predicted RMS: following {:.3} nm, true {:.3} nm",
+        b.following_rms_m * 1e9,
+        b.true_rms_m * 1e9
+    );
+    println!(
+        "  wrote {} — run it: servo run --controller ss --ss-file {} --rate {}",
+        out.display(),
+        out.display(),
+        design.sample_rate_hz
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
@@ -690,6 +749,16 @@ fn main() -> ExitCode {
             to,
             out_dir,
         } => match stiffness(&settings, &kas, to, &out_dir) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e @ RunError::Config(_)) => fail(e, 2),
+            Err(e) => fail(e, 1),
+        },
+        Command::Synth {
+            method: SynthMethod::H2,
+            settings,
+            effort_weight,
+            out,
+        } => match synth(&settings, effort_weight, &out) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e @ RunError::Config(_)) => fail(e, 2),
             Err(e) => fail(e, 1),

@@ -85,6 +85,7 @@ fn inspect_equals_the_live_summary() {
         "true_error_m",
         "control_v",
         "saturated_ticks",
+        "adc_clipped_ticks",
     ] {
         assert_eq!(live[key], read[key], "{key}");
     }

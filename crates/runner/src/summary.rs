@@ -70,6 +70,7 @@ pub struct SummaryBuilder {
     truth: Acc,
     control: Acc,
     saturated: u64,
+    adc_clipped: u64,
 }
 
 impl SummaryBuilder {
@@ -92,8 +93,13 @@ impl SummaryBuilder {
         self.following.add(f.telemetry.following_error_m);
         self.truth.add(f.truth.true_error_m);
         self.control.add(f.telemetry.control_v);
-        if (f.telemetry.flags as u32) & SATURATED != 0 {
+        let flags = f.telemetry.flags as u32;
+        if flags & SATURATED != 0 {
             self.saturated += 1;
+        }
+        if flags & (plant_sim::sim::flags::GAP_CLIPPED | plant_sim::sim::flags::ACCEL_CLIPPED) != 0
+        {
+            self.adc_clipped += 1;
         }
     }
 
@@ -107,6 +113,7 @@ impl SummaryBuilder {
             true_error_m: self.truth.stats(),
             control_v: self.control.stats(),
             saturated_ticks: self.saturated,
+            adc_clipped_ticks: self.adc_clipped,
             meta,
         }
     }
@@ -154,6 +161,9 @@ pub struct Summary {
     pub control_v: Stats,
     /// Ticks with the command at its limit or the DAC clipping.
     pub saturated_ticks: u64,
+    /// Ticks where an ADC channel (gap or accelerometer) clipped — a limit cycle or a stroke
+    /// beyond the sensor range.
+    pub adc_clipped_ticks: u64,
     /// Run facts.
     pub meta: RunMeta,
 }
@@ -198,6 +208,9 @@ impl fmt::Display for Summary {
             "  control output            RMS {:>8.4} V    saturated {} ticks",
             self.control_v.rms, self.saturated_ticks
         )?;
+        if self.adc_clipped_ticks > 0 {
+            writeln!(f, "  WARNING                   an ADC clipped on {} ticks (limit cycle or over-range)", self.adc_clipped_ticks)?;
+        }
         if let Some(r) = m.spectral_radius {
             writeln!(
                 f,
