@@ -141,6 +141,10 @@ enum Command {
         /// Weight of 1 V of command against 1 nm of tool error (ρ, nm/V): larger = gentler.
         #[arg(long, default_value_t = 1.0)]
         effort_weight: f64,
+        /// Reduce the controller to this many states by balanced truncation (thesis Table 6-1:
+        /// 8, 13; default: full order).
+        #[arg(long)]
+        order: Option<usize>,
         /// Controller file to write.
         #[arg(short, long, default_value = "h2.toml")]
         out: PathBuf,
@@ -617,9 +621,20 @@ fn stiffness(s: &Settings, kas: &[f64], to: f64, dir: &Path) -> Result<(), RunEr
     Ok(())
 }
 
-fn synth(s: &Settings, effort: f64, out: &Path) -> Result<(), RunError> {
+fn synth(s: &Settings, effort: f64, order: Option<usize>, out: &Path) -> Result<(), RunError> {
     let cfg = s.resolve()?;
-    let design = runner::synth::h2_design(&cfg, effort)?;
+    let mut design = runner::synth::h2_design(&cfg, effort)?;
+    if let Some(n) = order {
+        let (reduced, hankel, bound) = design.reduced(n)?;
+        let shown: Vec<String> = hankel.iter().take(16).map(|h| format!("{h:.2e}")).collect();
+        println!(
+            "Hankel singular values of the {}-state controller: {} …",
+            design.controller.nx(),
+            shown.join(" ")
+        );
+        println!("  kept {n} states; H∞ error bound of the controller {bound:.3e}");
+        design = reduced;
+    }
     std::fs::write(out, design.to_toml())
         .map_err(|e| RunError::Plant(format!("cannot write {}: {e}", out.display())))?;
     // Predict what it does with the budget of the loop it closes.
@@ -757,8 +772,9 @@ fn main() -> ExitCode {
             method: SynthMethod::H2,
             settings,
             effort_weight,
+            order,
             out,
-        } => match synth(&settings, effort_weight, &out) {
+        } => match synth(&settings, effort_weight, order, &out) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e @ RunError::Config(_)) => fail(e, 2),
             Err(e) => fail(e, 1),

@@ -8,5 +8,6 @@ pub mod interconnect;
 pub mod loops;
 pub mod lti;
 pub mod plot;
+pub mod reduce;
 pub mod riccati;
 pub mod spectral;

@@ -61,6 +61,19 @@ impl Design {
     }
 }
 
+impl Design {
+    /// The same controller reduced to `order` states by balanced truncation (thesis Table 6-1
+    /// sizes: 8, 13, full); returns the Hankel singular values and the H∞ error bound too.
+    /// The controller itself must be stable.
+    pub fn reduced(&self, order: usize) -> Result<(Design, Vec<f64>, f64), RunError> {
+        let r = design::reduce::balanced_truncation(&self.controller, order)
+            .map_err(|e| RunError::Plant(format!("reduction needs a stable controller: {e}")))?;
+        let mut d = self.clone();
+        d.controller = r.sys;
+        Ok((d, r.hankel, r.error_bound))
+    }
+}
+
 /// Designs the H2 controller for the plant of `cfg` at its servo rate; `effort_nm_per_v` is ρ,
 /// the weight of one volt of command against one nanometre of tool error.
 pub fn h2_design(cfg: &Loaded, effort_nm_per_v: f64) -> Result<Design, RunError> {

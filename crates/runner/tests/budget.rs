@@ -277,4 +277,21 @@ fn h2_at_20_khz_beats_the_pid() {
         pid_run.true_error_m.rms * 1e9
     );
     assert!(h2_run.true_error_m.rms < pid_run.true_error_m.rms);
+    // Table 6-1 orders: the balanced-truncated 13- and 8-state controllers still stabilise the
+    // loop and lose less than 5 % of the predicted true RMS error.
+    let full_true = runner::analysis::Budget::new(&cl, 64).unwrap().true_rms_m;
+    for order in [13, 8] {
+        let (reduced, _, _) = design.reduced(order).unwrap();
+        let f = dir.join(format!("h2_{order}.toml"));
+        std::fs::write(&f, reduced.to_toml()).unwrap();
+        let mut r = h2.clone();
+        r.config.controller.ss_file = Some(f);
+        let (rcl, _) = closed_loop(&r).unwrap();
+        assert!(rcl.spectral_radius() < 1.0, "order {order} destabilises");
+        let t = runner::analysis::Budget::new(&rcl, 64).unwrap().true_rms_m;
+        assert!(
+            t / full_true - 1.0 < 0.05,
+            "order {order}: {t:e} vs {full_true:e}"
+        );
+    }
 }
