@@ -71,6 +71,18 @@ def recorder():
     print(f"| 199 600 frames, 399 200 messages, zstd-1 | {mcap / 1e6:.0f} ms | {1e9 / mcap:.1f}x | {raw / 1e6:.0f} ms |")
 
 
+def synthesis():
+    h2 = mean_ns("synthesis", "h2_27_states")
+    if not h2:
+        return
+    dare = mean_ns("synthesis", "dare_baseline")
+    print()
+    print("| synthesis | time | vs one DARE of the same plant (same run) |")
+    print("|---|---|---|")
+    print(f"| H2, 27 states at 20 kHz (model, 2 DAREs, closed-loop norm) | {h2 / 1e6:.2f} ms | {h2 / dare:.1f}x ({dare / 1e6:.2f} ms) |")
+
+
 if __name__ == "__main__":
     main()
     recorder()
+    synthesis()
