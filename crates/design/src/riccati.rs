@@ -93,6 +93,36 @@ fn without_cross(
     }
 }
 
+/// The data both Riccati solvers start from: shapes checked, `R⁻¹`, cross term removed.
+struct Prepared {
+    n: usize,
+    r_inv: DMatrix<f64>,
+    a0: DMatrix<f64>,
+    q0: DMatrix<f64>,
+}
+
+fn prepare(
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &DMatrix<f64>,
+    s: Option<&DMatrix<f64>>,
+) -> Result<Prepared, RiccatiError> {
+    check_shapes(a, b, q, r, s)?;
+    let r_inv = r
+        .clone()
+        .cholesky()
+        .ok_or(RiccatiError::SingularR)?
+        .inverse();
+    let (a0, q0) = without_cross(a, b, q, &r_inv, s);
+    Ok(Prepared {
+        n: a.nrows(),
+        r_inv,
+        a0,
+        q0,
+    })
+}
+
 /// Discrete algebraic Riccati equation (optional cross term `S`).
 pub fn dare(
     a: &DMatrix<f64>,
@@ -101,14 +131,7 @@ pub fn dare(
     r: &DMatrix<f64>,
     s: Option<&DMatrix<f64>>,
 ) -> Result<Riccati, RiccatiError> {
-    check_shapes(a, b, q, r, s)?;
-    let n = a.nrows();
-    let r_inv = r
-        .clone()
-        .cholesky()
-        .ok_or(RiccatiError::SingularR)?
-        .inverse();
-    let (a0, q0) = without_cross(a, b, q, &r_inv, s);
+    let Prepared { n, r_inv, a0, q0 } = prepare(a, b, q, r, s)?;
     let id = DMatrix::<f64>::identity(n, n);
     let (mut ak, mut gk, mut hk) = (a0.clone(), b * &r_inv * b.transpose(), q0.clone());
     let mut converged = false;
@@ -203,14 +226,7 @@ pub fn care(
     r: &DMatrix<f64>,
     s: Option<&DMatrix<f64>>,
 ) -> Result<Riccati, RiccatiError> {
-    check_shapes(a, b, q, r, s)?;
-    let n = a.nrows();
-    let r_inv = r
-        .clone()
-        .cholesky()
-        .ok_or(RiccatiError::SingularR)?
-        .inverse();
-    let (a0, q0) = without_cross(a, b, q, &r_inv, s);
+    let Prepared { n, r_inv, a0, q0 } = prepare(a, b, q, r, s)?;
     let g = b * &r_inv * b.transpose();
     let mut h = DMatrix::zeros(2 * n, 2 * n);
     h.view_mut((0, 0), (n, n)).copy_from(&a0);

@@ -2,22 +2,15 @@
 //! when unsaturated, slew-limited by the bus voltage on large steps, clamped at peak current.
 
 use plant_sim::cutting::CuttingProfile;
-use plant_sim::params::{CurrentLoopModel, NoiseParams, PlantParams};
+mod common;
+
+use plant_sim::params::{CurrentLoopModel, PlantParams};
 use plant_sim::Simulator;
 use std::f64::consts::PI;
 
 fn coil_plant() -> PlantParams {
-    let mut p = PlantParams::heavy();
+    let mut p = common::quiet_ideal(PlantParams::heavy());
     p.actuator.model = CurrentLoopModel::Coil;
-    p.noise = NoiseParams {
-        sensor: false,
-        current: false,
-        base: false,
-        accel: false,
-        ..p.noise
-    };
-    p.adc.bits = 0;
-    p.dac.bits = 0;
     p
 }
 

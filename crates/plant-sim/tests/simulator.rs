@@ -2,25 +2,17 @@
 //! response of the continuous model with a delayed hold, the analytic current-loop step, and
 //! determinism.
 
+mod common;
+
 use num_complex::Complex64 as C;
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::model::{input, output};
-use plant_sim::params::{NoiseParams, PlantParams};
+use plant_sim::params::PlantParams;
 use plant_sim::{PlantModel, Simulator};
 use std::f64::consts::PI;
 
 fn quiet_ideal() -> PlantParams {
-    let mut p = PlantParams::default();
-    p.noise = NoiseParams {
-        sensor: false,
-        current: false,
-        base: false,
-        accel: false,
-        ..p.noise
-    };
-    p.adc.bits = 0;
-    p.dac.bits = 0;
-    p
+    common::quiet_ideal(PlantParams::default())
 }
 
 /// Discrete response from the command sequence u[k] to the averaged ADC sample closing tick k:
