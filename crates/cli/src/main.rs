@@ -390,6 +390,25 @@ fn print_summary(s: &runner::summary::Summary, json: bool) {
     }
 }
 
+fn print_margins(cfg: &runner::config::Loaded) {
+    match runner::run::loop_margins(cfg) {
+        Ok(m) => {
+            let f = |v: Option<f64>, unit: &str| {
+                v.map_or("–".to_string(), |x| format!("{x:.1} {unit}"))
+            };
+            println!(
+                "  margins (loop broken at the DAC): phase {} at {}, gain {} at {}, lower gain {}",
+                f(m.phase_margin_deg, "°"),
+                f(m.gain_crossover_hz, "Hz"),
+                f(m.gain_margin_db, "dB"),
+                f(m.phase_crossover_hz, "Hz"),
+                f(m.lower_gain_margin_db, "dB")
+            );
+        }
+        Err(e) => println!("  margins: {e}"),
+    }
+}
+
 fn print_written(w: &runner::report::Written) {
     let names: Vec<String> = w.files.iter().map(|p| p.display().to_string()).collect();
     println!("  wrote {}", names.join(", "));
@@ -416,6 +435,7 @@ fn budget(
         "  closed-loop bandwidth {:.1} Hz; RMS in nm, sources independent (powers add)",
         b.bandwidth_hz
     );
+    print_margins(&cfg);
     println!("  {:<14} {:>10} {:>10}", "source", "following", "true");
     for c in &b.contributions {
         println!(
@@ -653,6 +673,7 @@ fn synth(s: &Settings, effort: f64, order: Option<usize>, out: &Path) -> Result<
         cl.spectral_radius(),
         b.bandwidth_hz
     );
+    print_margins(&with);
     println!(
         "  predicted RMS: following {:.3} nm, true {:.3} nm",
         b.following_rms_m * 1e9,
@@ -668,6 +689,8 @@ fn synth(s: &Settings, effort: f64, order: Option<usize>, out: &Path) -> Result<
 }
 
 fn main() -> ExitCode {
+    // `servo … | head` must end quietly, not panic on a closed pipe.
+    sigpipe::reset();
     let cli = Cli::parse();
     match cli.command {
         Command::Run {

@@ -29,23 +29,28 @@ impl ClosedLoopFunctions {
     }
 }
 
-/// Stability margins of a loop gain `L`.
+/// Stability margins of a loop gain `L` (negative feedback, `1 + L`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Margins {
-    /// Lowest frequency where `|L| = 1`, Hz.
+    /// Frequency of the gain crossover with the smallest phase margin, Hz.
     pub gain_crossover_hz: Option<f64>,
-    /// `180° + ∠L` there, degrees.
+    /// Smallest `180° + ∠L` over all gain crossovers (`|L| = 1`), degrees in (−180, 180].
     pub phase_margin_deg: Option<f64>,
-    /// Lowest frequency where `∠L = −180°`, Hz.
+    /// Frequency of the −180° crossing that sets the (upper) gain margin, Hz.
     pub phase_crossover_hz: Option<f64>,
-    /// `−20·log10|L|` there, dB.
+    /// Gain increase to instability: the smallest `−20·log10|L|` over −180° crossings with
+    /// `|L| < 1`, dB.
     pub gain_margin_db: Option<f64>,
+    /// Gain *reduction* to instability for conditionally stable loops: the largest
+    /// `−20·log10|L|` (negative) over −180° crossings with `|L| > 1`, dB.
+    pub lower_gain_margin_db: Option<f64>,
 }
 
-/// First root of `g` on a log grid between `f_lo` and `f_hi` (sign change), refined by bisection.
-fn first_root(g: &impl Fn(f64) -> f64, f_lo: f64, f_hi: f64) -> Option<f64> {
+/// All roots of `g` on a log grid between `f_lo` and `f_hi` (sign changes), refined by bisection.
+fn roots(g: &impl Fn(f64) -> f64, f_lo: f64, f_hi: f64) -> Vec<f64> {
     let n = 4000;
     let ratio = (f_hi / f_lo).powf(1.0 / n as f64);
+    let mut out = Vec::new();
     let mut a = f_lo;
     let mut ga = g(a);
     for _ in 0..n {
@@ -62,42 +67,52 @@ fn first_root(g: &impl Fn(f64) -> f64, f_lo: f64, f_hi: f64) -> Option<f64> {
                     hi = mid;
                 }
             }
-            return Some((lo * hi).sqrt());
+            out.push((lo * hi).sqrt());
         }
         (a, ga) = (b, gb);
     }
-    None
+    out
 }
 
-/// Margins of `loop_gain(f_hz)` searched between `f_lo` and `f_hi` Hz. The phase is unwrapped
-/// along the grid, so a phase crossover is where the unwrapped phase passes −180°.
+/// Margins of `loop_gain(f_hz)` between `f_lo` and `f_hi` Hz: every gain crossover and every
+/// −180° crossing (`L` real and negative) is found, so resonances and conditionally stable
+/// loops are handled.
 pub fn margins(loop_gain: impl Fn(f64) -> C, f_lo: f64, f_hi: f64) -> Margins {
-    let gain_cross = first_root(&|f| loop_gain(f).norm().ln(), f_lo, f_hi);
-    // Unwrapped phase: follow the grid from f_lo, correcting 2π jumps against the last value.
-    let unwrapped = |f: f64| {
-        let n = 400;
-        let ratio = (f / f_lo).powf(1.0 / n as f64);
-        let mut prev = loop_gain(f_lo).arg();
-        let mut x = f_lo;
-        for _ in 0..n {
-            x *= ratio;
-            let mut p = loop_gain(x).arg();
-            while p - prev > std::f64::consts::PI {
-                p -= 2.0 * std::f64::consts::PI;
-            }
-            while prev - p > std::f64::consts::PI {
-                p += 2.0 * std::f64::consts::PI;
-            }
-            prev = p;
+    let db = |f: f64| -20.0 * loop_gain(f).norm().log10();
+    let pm = |f: f64| 180.0 + loop_gain(f).arg().to_degrees();
+    let pm_wrapped = |f: f64| {
+        let p = pm(f);
+        if p > 180.0 {
+            p - 360.0
+        } else {
+            p
         }
-        prev
     };
-    let phase_cross = first_root(&|f| unwrapped(f) + std::f64::consts::PI, f_lo, f_hi);
+    let gain_cross = roots(&|f| loop_gain(f).norm().ln(), f_lo, f_hi);
+    let worst_pm = gain_cross
+        .iter()
+        .map(|&f| (f, pm_wrapped(f)))
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    let phase_cross: Vec<f64> = roots(&|f| loop_gain(f).im, f_lo, f_hi)
+        .into_iter()
+        .filter(|&f| loop_gain(f).re < 0.0)
+        .collect();
+    let upper = phase_cross
+        .iter()
+        .map(|&f| (f, db(f)))
+        .filter(|x| x.1 > 0.0)
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    let lower = phase_cross
+        .iter()
+        .map(|&f| db(f))
+        .filter(|x| *x < 0.0)
+        .max_by(f64::total_cmp);
     Margins {
-        gain_crossover_hz: gain_cross,
-        phase_margin_deg: gain_cross.map(|f| 180.0 + unwrapped(f).to_degrees()),
-        phase_crossover_hz: phase_cross,
-        gain_margin_db: phase_cross.map(|f| -20.0 * loop_gain(f).norm().log10()),
+        gain_crossover_hz: worst_pm.map(|x| x.0),
+        phase_margin_deg: worst_pm.map(|x| x.1),
+        phase_crossover_hz: upper.map(|x| x.0),
+        gain_margin_db: upper.map(|x| x.1),
+        lower_gain_margin_db: lower,
     }
 }
 

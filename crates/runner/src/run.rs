@@ -161,6 +161,50 @@ fn closed_loop_of(
     ))
 }
 
+/// Gain and phase margins of the loop of `cfg` broken at the actuator input (the sampled
+/// plant from DAC command to gap reading, times the controller's gap channel), searched from
+/// 1 Hz to Nyquist. Acceleration feedback's inner loop is not part of this break.
+pub fn loop_margins(cfg: &Loaded) -> Result<design::loops::Margins, RunError> {
+    cfg.config.validate(cfg)?;
+    let sim = Simulator::new(&cfg.config.plant, 0, &Default::default())
+        .map_err(|e| plant_error(e, cfg))?;
+    let ctrl = Controller::build(cfg)?;
+    let linear = sim
+        .linear_tick()
+        .ok_or_else(|| RunError::Plant("margins need the ideal current-loop model".into()))?;
+    let s = cfg.config.plant.capa.sensitivity_v_per_m;
+    let period = sim.period_s();
+    let open = ClosedLoop::new(
+        &linear,
+        &crate::controller::LinearController::none(),
+        s,
+        period,
+    );
+    let k = &ctrl.linear;
+    let k_gap = design::lti::StateSpace {
+        a: k.a.clone(),
+        b: k.b.columns(0, 1).into_owned(),
+        c: k.c.clone(),
+        d: k.d.columns(0, 1).into_owned(),
+    };
+    let loop_gain = |f: f64| {
+        let p = open
+            .response(
+                crate::analysis::output::MEASURED_M,
+                crate::analysis::input::CONTROL_DISTURBANCE_V,
+                f,
+            )
+            .unwrap_or_default()
+            * s;
+        let kk = k_gap
+            .freq_response_discrete(f, period)
+            .map(|m| m[(0, 0)])
+            .unwrap_or_default();
+        -(kk * p)
+    };
+    Ok(design::loops::margins(loop_gain, 1.0, 0.499 / period))
+}
+
 /// The sampled closed loop a run of `cfg` would have, and the controller's description.
 pub fn closed_loop(cfg: &Loaded) -> Result<(ClosedLoop, String), RunError> {
     cfg.config.validate(cfg)?;

@@ -295,3 +295,41 @@ fn h2_at_20_khz_beats_the_pid() {
         );
     }
 }
+
+/// The gain margins of the sampled loop predict the eigenvalues: the PID scaled to 98 % of its
+/// (upper) gain margin is stable, to 102 % unstable; the loop is conditionally stable (the
+/// −180° crossing at the suspension resonance), and its lower margin is exact the same way.
+#[test]
+fn gain_margin_predicts_the_stability_limit() {
+    let cfg = Loaded::default();
+    let m = runner::run::loop_margins(&cfg).unwrap();
+    let gm = m.gain_margin_db.expect("a phase crossover below Nyquist");
+    let pm = m.phase_margin_deg.expect("a gain crossover");
+    let lower = m
+        .lower_gain_margin_db
+        .expect("conditionally stable: the suspension resonance");
+    println!(
+        "Ch7 PID, light stage: crossover {:.0} Hz, PM {pm:.1}°, GM {gm:.2} dB at {:.0} Hz, lower GM {lower:.2} dB",
+        m.gain_crossover_hz.unwrap(),
+        m.phase_crossover_hz.unwrap()
+    );
+    assert!(pm > 0.0 && gm > 0.0 && lower < 0.0);
+    let (up, down) = (10f64.powf(gm / 20.0), 10f64.powf(lower / 20.0));
+    for (k, stable) in [
+        (0.98 * up, true),
+        (1.02 * up, false),
+        (1.02 * down, true),
+        (0.98 * down, false),
+    ] {
+        let mut c = cfg.clone();
+        let p = &mut c.config.controller.pid;
+        (p.kp, p.ki, p.kd) = (p.kp * k, p.ki * k, p.kd * k);
+        let (cl, _) = closed_loop(&c).unwrap();
+        assert_eq!(
+            cl.spectral_radius() < 1.0,
+            stable,
+            "×{k:.3}: radius {}",
+            cl.spectral_radius()
+        );
+    }
+}
