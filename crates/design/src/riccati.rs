@@ -181,18 +181,33 @@ pub fn dare(
         .iter()
         .map(|l| l.norm())
         .fold(0.0, f64::max);
-    if radius >= 1.0 {
-        return Err(RiccatiError::NotStabilising {
-            measure: "spectral radius",
-            value: radius,
-        });
-    }
-    Ok(Riccati {
-        condition: x.norm() * den_inv.norm(),
+    let condition = x.norm() * den_inv.norm();
+    solution(
         x,
         k,
         residual,
-        closed_loop: radius,
+        condition,
+        ("spectral radius", radius, radius < 1.0),
+    )
+}
+
+/// The result if the closed loop is stable (`measure`, its value, and whether it is).
+fn solution(
+    x: DMatrix<f64>,
+    k: DMatrix<f64>,
+    residual: f64,
+    condition: f64,
+    (measure, value, stable): (&'static str, f64, bool),
+) -> Result<Riccati, RiccatiError> {
+    if !stable {
+        return Err(RiccatiError::NotStabilising { measure, value });
+    }
+    Ok(Riccati {
+        x,
+        k,
+        residual,
+        closed_loop: value,
+        condition,
     })
 }
 
@@ -260,19 +275,14 @@ pub fn care(
         .iter()
         .map(|l| l.re)
         .fold(f64::NEG_INFINITY, f64::max);
-    if abscissa >= 0.0 {
-        return Err(RiccatiError::NotStabilising {
-            measure: "spectral abscissa",
-            value: abscissa,
-        });
-    }
-    Ok(Riccati {
-        condition: x.norm() * r_inv.norm(),
+    let condition = x.norm() * r_inv.norm();
+    solution(
         x,
         k,
         residual,
-        closed_loop: abscissa,
-    })
+        condition,
+        ("spectral abscissa", abscissa, abscissa < 0.0),
+    )
 }
 
 /// Continuous Lyapunov `A X + X Aᵀ + Q = 0` for Hurwitz `A`: the Cayley transform

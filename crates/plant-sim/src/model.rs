@@ -77,7 +77,7 @@ pub enum ModelError {
         /// Offending value.
         value: f64,
         /// Allowed range, human-readable.
-        range: &'static str,
+        range: String,
     },
     /// Interconnection failure (a bug if it happens).
     #[error(transparent)]
@@ -209,17 +209,21 @@ fn with_derivatives(sys: StateSpace) -> StateSpace {
     StateSpace { c, d, ..sys }
 }
 
-fn check(
+pub(crate) fn check(
     key: &'static str,
     value: f64,
     lo: f64,
     hi: f64,
-    range: &'static str,
+    range: &str,
 ) -> Result<(), ModelError> {
     if value.is_finite() && value >= lo && value <= hi {
         Ok(())
     } else {
-        Err(ModelError::Parameter { key, value, range })
+        Err(ModelError::Parameter {
+            key,
+            value,
+            range: range.to_owned(),
+        })
     }
 }
 

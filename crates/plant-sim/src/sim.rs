@@ -146,16 +146,6 @@ pub enum SimError {
     /// Cutting profile.
     #[error(transparent)]
     Cutting(#[from] CuttingError),
-    /// Timing parameters.
-    #[error("`{key}` = {value} is outside the allowed range {range}")]
-    Timing {
-        /// Key.
-        key: &'static str,
-        /// Value.
-        value: f64,
-        /// Allowed range.
-        range: String,
-    },
 }
 
 /// Held inputs of a tick besides the command: cutting force and the three white noises.
@@ -447,15 +437,7 @@ impl Simulator {
     ) -> Result<Self, SimError> {
         let t = &params.timing;
         let timing = |key, value: f64, lo: f64, hi: f64| {
-            if value.is_finite() && value >= lo && value <= hi {
-                Ok(())
-            } else {
-                Err(SimError::Timing {
-                    key,
-                    value,
-                    range: format!("[{lo}, {hi}]"),
-                })
-            }
+            crate::model::check(key, value, lo, hi, &format!("[{lo}, {hi}]"))
         };
         timing("timing.servo_rate_hz", t.servo_rate_hz, 1.0, 10e6)?;
         let period = 1.0 / t.servo_rate_hz;

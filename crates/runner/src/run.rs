@@ -125,9 +125,6 @@ fn scenario_name(s: &Scenario) -> &'static str {
 pub(crate) fn plant_error(e: SimError, at: &Loaded) -> RunError {
     match e {
         SimError::Model(ModelError::Parameter { key, value, range }) => {
-            at.invalid(&format!("plant.{key}"), value, range).into()
-        }
-        SimError::Timing { key, value, range } => {
             at.invalid(&format!("plant.{key}"), value, &range).into()
         }
         other => RunError::Plant(other.to_string()),
@@ -287,7 +284,7 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
             }
         }
     }
-    (opts.progress)(summary_ticks(&summary, total, interrupted), total);
+    (opts.progress)(summary.ticks(), total);
     let wall = start.elapsed().as_secs_f64();
     let stats = match recorder {
         Some(r) => Some(r.finish()?),
@@ -305,14 +302,6 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
         dropped_frames: stats.map(|s| s.dropped_frames),
         spectral_radius: Some(radius),
     }))
-}
-
-fn summary_ticks(_s: &SummaryBuilder, total: u64, interrupted: bool) -> u64 {
-    if interrupted {
-        0
-    } else {
-        total
-    }
 }
 
 /// Metadata written into the recording.

@@ -82,6 +82,11 @@ impl SummaryBuilder {
         }
     }
 
+    /// Frames added so far.
+    pub fn ticks(&self) -> u64 {
+        self.ticks
+    }
+
     /// Adds one frame.
     #[inline]
     pub fn add(&mut self, f: &Frame) {
