@@ -124,16 +124,16 @@ impl LinearTick {
     /// Input columns.
     pub const INPUTS: [&'static str; 6] =
         ["u_prev", "u_now", "f_cut", "w_current", "w_base", "w_accel"];
-    /// Truth rows.
-    pub const TRUTH: [&'static str; 7] = [
-        "tool_m",
-        "gap_m",
-        "motor_force_n",
-        "coil_current_a",
-        "current_noise_a",
-        "base_m",
-        "accel_m2_m_s2",
-    ];
+    /// Truth rows: the model's output names (`model::output::NAMES`) of the truth signals.
+    pub const TRUTH: [&'static str; TRUTH_ROWS.len()] = {
+        let mut names = [""; TRUTH_ROWS.len()];
+        let mut i = 0;
+        while i < names.len() {
+            names[i] = output::NAMES[TRUTH_ROWS[i]];
+            i += 1;
+        }
+        names
+    };
 }
 
 /// Simulator construction errors.
