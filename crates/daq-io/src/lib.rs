@@ -1,1 +1,25 @@
-//! fts-servo `daq-io` (filled by its own issue).
+//! fts-servo `daq-io`: the sample contract between plant, controller and recorder, and its
+//! transports.
+//!
+//! - [`contract`]: the `#[repr(C)]` messages (sensor, command, telemetry, truth, control,
+//!   health) with sequence numbers and status flags.
+//! - [`Daq`] (controller side) and [`Backend`] (plant side, simulator or hardware); [`InProcess`]
+//!   joins them in one thread — what `servo run` uses.
+//! - [`ipc`]: the same contract over iceoryx2 shared memory under a per-run prefix; [`serve`]
+//!   runs the plant side (lockstep or real time, overruns, lost-peer safe state).
+//!
+//! Embedding in a DAQ daemon: implement [`Backend`] for the ADC/DAC hardware and call
+//! [`serve::serve`]; see `examples/daq_daemon.rs`.
+
+pub mod contract;
+mod daq;
+mod histogram;
+pub mod ipc;
+pub mod serve;
+
+pub use contract::{
+    flags, Command, Control, Health, Latency, Sensor, Telemetry, TelemetryBlock, Truth, TruthBlock,
+    BLOCK_TICKS,
+};
+pub use daq::{Backend, Daq, DaqError, InProcess};
+pub use histogram::LatencyHistogram;

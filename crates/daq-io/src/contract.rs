@@ -1,0 +1,250 @@
+//! The sample contract: the `#[repr(C)]` messages plant, controller and recorder exchange.
+//!
+//! Every message carries the tick index `seq` it belongs to. Layouts are fixed (C layout, no
+//! implicit padding) so other languages can map them: `examples/python/tap_telemetry.py` reads
+//! [`TelemetryBlock`] with `ctypes`. The iceoryx2 type names (`fts_servo::…`) are part of the
+//! contract; change a layout and its name together.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+/// Bits of the `flags` words. Bits 0–15 are the plant's own (plant-sim's `sim::flags`: ADC
+/// and DAC clipping, non-finite command); bits 16 and up are the transport's.
+pub mod flags {
+    /// The plant has no more ticks: this sample closes the run (no command expected).
+    pub const END: u32 = 1 << 16;
+    /// The plant lost its controller and drives zero current (safe state).
+    pub const FAULT_PEER_LOST: u32 = 1 << 17;
+    /// The command of the previous tick came late: the DAC held its last value (real time).
+    pub const OVERRUN: u32 = 1 << 18;
+    /// The controller refused a non-finite command or latched a fault; the command is 0 V.
+    pub const FAULT_CONTROLLER: u32 = 1 << 19;
+}
+
+/// Plant → controller, once per tick: the sensor readings at the start of tick `seq`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("fts_servo::Sensor")]
+pub struct Sensor {
+    /// Tick index (0 for the reading before the first command).
+    pub seq: u64,
+    /// Time of the reading in s.
+    pub time_s: f64,
+    /// Gap (capacitive sensor) reading in V.
+    pub gap_v: f64,
+    /// Accelerometer reading in V.
+    pub accel_v: f64,
+    /// Spindle encoder count (pulses since the start; 0 without a spindle).
+    pub encoder_count: u64,
+    /// [`flags`] bits.
+    pub flags: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+}
+
+/// Controller → plant, once per tick: the DAC command for tick `seq`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("fts_servo::Command")]
+pub struct Command {
+    /// The tick this command answers (the echoed [`Sensor::seq`]).
+    pub seq: u64,
+    /// DAC output in V.
+    pub dac_v: f64,
+    /// [`flags`] bits.
+    pub flags: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+}
+
+/// What the controller saw and did over one tick (recorded on `/telemetry`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("fts_servo::Telemetry")]
+pub struct Telemetry {
+    /// Tick index.
+    pub seq: u64,
+    /// Time at the end of the tick in s.
+    pub time_s: f64,
+    /// Reference position in m.
+    pub reference_m: f64,
+    /// Measured position (gap reading / sensitivity) in m.
+    pub measured_m: f64,
+    /// Following error `reference − measured` in m.
+    pub following_error_m: f64,
+    /// Command output in V.
+    pub control_v: f64,
+    /// Accelerometer reading in m/s².
+    pub accel_m_s2: f64,
+    /// Sensor flags plus the controller's (saturation, faults).
+    pub flags: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+}
+
+/// What really happened in the plant over one tick (simulator only; recorded on `/truth`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("fts_servo::Truth")]
+pub struct Truth {
+    /// Tick index.
+    pub seq: u64,
+    /// Time at the end of the tick in s.
+    pub time_s: f64,
+    /// True tool position relative to the frame in m.
+    pub tool_m: f64,
+    /// Gap the sensor measures in m.
+    pub gap_m: f64,
+    /// Motor force in N.
+    pub motor_force_n: f64,
+    /// Cutting force in N.
+    pub cutting_force_n: f64,
+    /// Coil current in A.
+    pub coil_current_a: f64,
+    /// Current noise in A.
+    pub current_noise_a: f64,
+    /// Base displacement in m.
+    pub base_m: f64,
+    /// Sensor noise in V.
+    pub sensor_noise_v: f64,
+    /// DAC output applied in V.
+    pub dac_v: f64,
+    /// [`flags`] bits (the plant's view: overrun, fault).
+    pub flags: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+}
+
+/// Ticks per [`TelemetryBlock`] / [`TruthBlock`]: recorder traffic is batched so the servo
+/// path publishes one message per 64 ticks (0.32 ms at 199.6 kHz).
+pub const BLOCK_TICKS: usize = 64;
+
+/// Up to [`BLOCK_TICKS`] consecutive [`Telemetry`] records.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("fts_servo::TelemetryBlock")]
+pub struct TelemetryBlock {
+    /// Block index (consecutive; a gap means blocks were dropped).
+    pub block: u64,
+    /// Valid entries in `ticks`.
+    pub count: u32,
+    /// [`flags::END`] on the last block of a run.
+    pub flags: u32,
+    /// The records, `ticks[..count]`.
+    pub ticks: [Telemetry; BLOCK_TICKS],
+}
+
+/// Up to [`BLOCK_TICKS`] consecutive [`Truth`] records.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("fts_servo::TruthBlock")]
+pub struct TruthBlock {
+    /// Block index (consecutive; a gap means blocks were dropped).
+    pub block: u64,
+    /// Valid entries in `ticks`.
+    pub count: u32,
+    /// [`flags::END`] on the last block of a run.
+    pub flags: u32,
+    /// The records, `ticks[..count]`.
+    pub ticks: [Truth; BLOCK_TICKS],
+}
+
+macro_rules! empty_block {
+    ($t:ty) => {
+        impl Default for $t {
+            fn default() -> Self {
+                Self {
+                    block: 0,
+                    count: 0,
+                    flags: 0,
+                    ticks: [Default::default(); BLOCK_TICKS],
+                }
+            }
+        }
+    };
+}
+empty_block!(TelemetryBlock);
+empty_block!(TruthBlock);
+
+/// Control-plane commands ([`Control::command`]).
+pub mod command {
+    /// Stop at the next tick boundary (the plant ends the run as if its duration were over).
+    pub const STOP: u32 = 1;
+    /// Multiply the controller output (all gains of a linear controller) by `value`
+    /// (dimensionless, 0.1..=10).
+    pub const SET_GAIN_SCALE: u32 = 2;
+}
+
+/// A control-plane message (anyone → plant and controller).
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("fts_servo::Control")]
+pub struct Control {
+    /// One of [`command`].
+    pub command: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+    /// Argument (unit per command).
+    pub value: f64,
+}
+
+/// Which process a [`Health`] report comes from.
+pub mod role {
+    /// The plant (simulator or DAQ daemon).
+    pub const PLANT: u32 = 1;
+    /// The controller.
+    pub const CONTROLLER: u32 = 2;
+}
+
+/// Process states in a [`Health`] report.
+pub mod state {
+    /// Waiting for its peers.
+    pub const WAITING: u32 = 1;
+    /// Running ticks.
+    pub const RUNNING: u32 = 2;
+    /// Finished normally.
+    pub const DONE: u32 = 3;
+    /// Stopped by a fault (see the flags).
+    pub const FAULTED: u32 = 4;
+}
+
+/// Round-trip latency statistics in ns (sensor published → command received, plant side).
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, serde::Serialize)]
+#[repr(C)]
+#[type_name("fts_servo::Latency")]
+pub struct Latency {
+    /// Exchanges measured.
+    pub count: u64,
+    /// Minimum in ns.
+    pub min_ns: u64,
+    /// Median in ns.
+    pub p50_ns: u64,
+    /// 99th percentile in ns.
+    pub p99_ns: u64,
+    /// 99.9th percentile in ns.
+    pub p999_ns: u64,
+    /// Maximum in ns.
+    pub max_ns: u64,
+}
+
+/// A process's periodic status (every ~10 ms and once at the end).
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("fts_servo::Health")]
+pub struct Health {
+    /// One of [`role`].
+    pub role: u32,
+    /// One of [`state`].
+    pub state: u32,
+    /// Ticks done.
+    pub ticks: u64,
+    /// Late commands (real time: the DAC held its value).
+    pub overruns: u64,
+    /// Sticky [`flags`] fault bits.
+    pub faults: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+    /// Wall time since the first tick in s.
+    pub wall_s: f64,
+    /// Round-trip latency so far.
+    pub latency: Latency,
+}

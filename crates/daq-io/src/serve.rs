@@ -1,0 +1,253 @@
+//! The plant side of a run over iceoryx2: serves a [`Backend`] (the simulator, or a DAQ
+//! daemon's hardware) to a controller process, in lockstep or paced to the wall clock.
+//!
+//! Guarantees:
+//! - Lockstep: tick k's command is awaited (busy poll) up to `peer_timeout`; nothing is ever
+//!   held or skipped, so a run is bit-identical to the in-process one.
+//! - Real time: tick k starts at `t0 + k·T`; a command not in by the start of tick k+1 is an
+//!   overrun: the DAC holds its last value (as hardware does) and the count goes up.
+//! - Lost controller: no command for `peer_timeout` → the DAC is driven to 0 V (zero current),
+//!   [`flags::FAULT_PEER_LOST`] is raised, the plant runs `safe_ticks` more ticks in the safe
+//!   state (recorded, so the current's decay is visible) and ends the run.
+
+use crate::contract::{
+    command, flags, role, state, Command, Control, Health, Sensor, TruthBlock,
+};
+use crate::ipc::{leaf, poll_until, take, BlockWriter, Endpoint, IpcError};
+use crate::{Backend, LatencyHistogram};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// How ticks are paced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// As fast as the controller answers; every command awaited.
+    Lockstep,
+    /// One tick per servo period of wall-clock time; late commands are overruns.
+    RealTime,
+}
+
+/// What [`serve`] runs.
+#[derive(Debug, Clone)]
+pub struct ServeOptions {
+    /// Ticks (commands) in the run.
+    pub ticks: u64,
+    /// Servo period in s.
+    pub period_s: f64,
+    /// Lockstep or real time.
+    pub pacing: Pacing,
+    /// Controller silence that counts as lost: lockstep default 200 ms, real time 0.5 ms.
+    pub peer_timeout: Duration,
+    /// How long to wait for the controller (and recorder) to subscribe.
+    pub startup_timeout: Duration,
+    /// Also wait for a truth subscriber (the recorder) before the first tick.
+    pub wait_for_recorder: bool,
+    /// Ticks run in the safe state after a fault.
+    pub safe_ticks: u64,
+    /// After the last tick, how long to wait for truth subscribers to take the final blocks
+    /// and leave (samples of a publisher that is gone cannot be received).
+    pub linger: Duration,
+}
+
+impl ServeOptions {
+    /// Defaults for `ticks` at `period_s` with `pacing`: peer timeout 200 ms (lockstep) or
+    /// 0.5 ms (real time; the DAC is at 0 V within 1 ms of the last command), 1 ms of safe state.
+    pub fn new(ticks: u64, period_s: f64, pacing: Pacing) -> Self {
+        ServeOptions {
+            ticks,
+            period_s,
+            pacing,
+            peer_timeout: match pacing {
+                Pacing::Lockstep => Duration::from_millis(200),
+                Pacing::RealTime => Duration::from_micros(500),
+            },
+            startup_timeout: Duration::from_secs(30),
+            wait_for_recorder: true,
+            safe_ticks: (1e-3 / period_s).ceil() as u64,
+            linger: Duration::from_secs(5),
+        }
+    }
+}
+
+/// How a served run went.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ServeReport {
+    /// Ticks run (including the safe-state ticks after a fault).
+    pub ticks: u64,
+    /// Late commands (real time).
+    pub overruns: u64,
+    /// Sticky fault bits ([`flags::FAULT_PEER_LOST`]).
+    pub faults: u32,
+    /// Tick at which the controller was declared lost.
+    pub fault_tick: Option<u64>,
+    /// Stopped early by a control-plane STOP or the stop flag.
+    pub stopped: bool,
+    /// Round trip sensor → command, plant side.
+    pub latency: crate::Latency,
+    /// Wall time from the first tick in s.
+    pub wall_s: f64,
+    /// Truth blocks the transport refused.
+    pub truth_refused: u64,
+}
+
+/// Plant-side errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ServeError {
+    /// Transport.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// No controller (or recorder) subscribed within the startup timeout.
+    #[error("no {0} joined run {1} within {2:?}: start `servo controller` with the same --prefix")]
+    NoPeer(&'static str, String, Duration),
+}
+
+/// Serves `backend` to the controller of run `ep` until `opts.ticks` commands, a STOP, `stop`,
+/// or a lost controller. Health is published every 2048 ticks and at the end.
+pub fn serve<B: Backend>(
+    ep: &Endpoint,
+    backend: &mut B,
+    opts: &ServeOptions,
+    stop: &AtomicBool,
+) -> Result<ServeReport, ServeError> {
+    let sensor_service = ep.service::<Sensor>(leaf::SENSOR)?;
+    let truth_service = ep.service::<TruthBlock>(leaf::TRUTH)?;
+    let sensor_pub = ep.publisher::<Sensor>(leaf::SENSOR)?;
+    let truth_pub = ep.publisher::<TruthBlock>(leaf::TRUTH)?;
+    let command_sub = ep.subscriber::<Command>(leaf::COMMAND)?;
+    let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
+    let health_pub = ep.publisher::<Health>(leaf::HEALTH)?;
+    let mut health = Health {
+        role: role::PLANT,
+        state: state::WAITING,
+        ..Default::default()
+    };
+
+    use iceoryx2::prelude::PortFactory;
+    let waiting = Instant::now();
+    loop {
+        let controller = sensor_service.dynamic_config().number_of_subscribers() > 0;
+        let recorder =
+            !opts.wait_for_recorder || truth_service.dynamic_config().number_of_subscribers() > 0;
+        if controller && recorder {
+            break;
+        }
+        if waiting.elapsed() > opts.startup_timeout || stop.load(Ordering::Relaxed) {
+            let who = if controller { "recorder" } else { "controller" };
+            return Err(ServeError::NoPeer(who, ep.prefix().into(), opts.startup_timeout));
+        }
+        crate::ipc::send(&health_pub, health);
+        std::thread::sleep(Duration::from_millis(5));
+    }
+
+    let period = Duration::from_secs_f64(opts.period_s);
+    let mut latency = LatencyHistogram::new();
+    let mut truth = BlockWriter::<TruthBlock>::default();
+    let mut report = ServeReport::default();
+    let mut sample = Sensor {
+        seq: 0,
+        ..backend.initial()
+    };
+    let mut dac_v = 0.0;
+    let mut missed = 0u64;
+    let mut end_tick = opts.ticks;
+    health.state = state::RUNNING;
+    let t0 = Instant::now();
+    let mut k = 0u64;
+    while k < end_tick {
+        let tick_start = t0 + period.mul_f64(k as f64);
+        if opts.pacing == Pacing::RealTime {
+            while Instant::now() < tick_start {
+                std::hint::spin_loop();
+            }
+        }
+        crate::ipc::send(&sensor_pub, sample);
+        let published = Instant::now();
+        let mut tick_flags = 0;
+        if report.fault_tick.is_none() {
+            let deadline = match opts.pacing {
+                Pacing::Lockstep => published + opts.peer_timeout,
+                Pacing::RealTime => tick_start + period,
+            };
+            match poll_until(&command_sub, deadline, |c| c.seq == k) {
+                Some(c) => {
+                    latency.record(published.elapsed().as_nanos() as u64);
+                    dac_v = c.dac_v;
+                    missed = 0;
+                }
+                None => {
+                    missed += 1;
+                    report.overruns += (opts.pacing == Pacing::RealTime) as u64;
+                    tick_flags |= flags::OVERRUN;
+                    let silent = match opts.pacing {
+                        Pacing::Lockstep => true,
+                        Pacing::RealTime => period.mul_f64(missed as f64) >= opts.peer_timeout,
+                    };
+                    if silent {
+                        report.fault_tick = Some(k);
+                        report.faults |= flags::FAULT_PEER_LOST;
+                        end_tick = k + opts.safe_ticks;
+                    }
+                }
+            }
+        }
+        if report.fault_tick.is_some() {
+            dac_v = 0.0;
+        }
+        tick_flags |= report.faults;
+        let s = backend.step(dac_v);
+        sample = Sensor {
+            seq: k + 1,
+            flags: s.flags | tick_flags,
+            ..s
+        };
+        if let Some(mut t) = backend.truth() {
+            t.seq = k;
+            t.flags |= tick_flags;
+            truth.push(&truth_pub, t);
+        }
+        k += 1;
+        if k % 2048 == 0 {
+            while let Some(c) = take(&control_sub) {
+                if c.command == command::STOP {
+                    end_tick = end_tick.min(k);
+                    report.stopped = true;
+                }
+            }
+            if stop.load(Ordering::Relaxed) {
+                end_tick = end_tick.min(k);
+                report.stopped = true;
+            }
+            health.ticks = k;
+            health.overruns = report.overruns;
+            health.faults = report.faults;
+            health.wall_s = t0.elapsed().as_secs_f64();
+            health.latency = latency.summary();
+            crate::ipc::send(&health_pub, health);
+        }
+    }
+    sample.flags |= flags::END | report.faults;
+    crate::ipc::send(&sensor_pub, sample);
+    truth.flush(&truth_pub, flags::END | report.faults);
+    report.ticks = k;
+    report.latency = latency.summary();
+    report.wall_s = t0.elapsed().as_secs_f64();
+    report.truth_refused = truth.refused();
+    health.state = if report.faults != 0 {
+        state::FAULTED
+    } else {
+        state::DONE
+    };
+    health.ticks = k;
+    health.overruns = report.overruns;
+    health.faults = report.faults;
+    health.wall_s = report.wall_s;
+    health.latency = report.latency;
+    crate::ipc::send(&health_pub, health);
+    let leaving = Instant::now();
+    while truth_service.dynamic_config().number_of_subscribers() > 0 && leaving.elapsed() < opts.linger
+    {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    Ok(report)
+}

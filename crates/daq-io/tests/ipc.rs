@@ -1,0 +1,134 @@
+//! The iceoryx2 transport against the in-process one: the same backend and the same controller
+//! law give bit-identical sequences; a silent controller puts the plant in the safe state.
+
+use daq_io::ipc::{ControllerLink, Endpoint, Tap};
+use daq_io::serve::{serve, Pacing, ServeOptions};
+use daq_io::{flags, Backend, Command, Daq, InProcess, Sensor, Truth};
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+/// A first-order plant y⁺ = 0.9 y + 0.1 u with a deterministic pseudo-noise term.
+#[derive(Default)]
+struct Lag {
+    y: f64,
+    k: u64,
+    last_u: f64,
+}
+
+impl Backend for Lag {
+    fn step(&mut self, dac_v: f64) -> Sensor {
+        self.k += 1;
+        self.last_u = dac_v;
+        self.y = 0.9 * self.y + 0.1 * dac_v + 1e-3 * ((self.k * 2654435761) % 1000) as f64;
+        Sensor {
+            time_s: self.k as f64 * 1e-5,
+            gap_v: self.y,
+            ..Default::default()
+        }
+    }
+    fn truth(&self) -> Option<Truth> {
+        Some(Truth {
+            dac_v: self.last_u,
+            tool_m: self.y,
+            ..Default::default()
+        })
+    }
+}
+
+/// A PI law on the gap reading; returns the commands it sent.
+fn control(daq: &mut impl Daq) -> Vec<f64> {
+    let (mut integral, mut out) = (0.0, Vec::new());
+    loop {
+        let s = daq.read().expect("sample");
+        if s.flags & flags::END != 0 {
+            return out;
+        }
+        let e = 1.0 - s.gap_v;
+        integral += 0.05 * e;
+        let u = 0.8 * e + integral;
+        out.push(u);
+        daq.write(Command {
+            seq: s.seq,
+            dac_v: u,
+            ..Default::default()
+        })
+        .unwrap();
+    }
+}
+
+fn prefix(tag: &str) -> String {
+    format!("test-{tag}-{}", std::process::id())
+}
+
+#[test]
+fn lockstep_over_shared_memory_equals_in_process() {
+    let ticks = 20_000;
+    let expected = control(&mut InProcess::new(Lag::default(), ticks));
+    let p = prefix("lockstep");
+    let p2 = p.clone();
+    let plant = std::thread::spawn(move || {
+        let ep = Endpoint::open(&p2, "plant").unwrap();
+        let mut opts = ServeOptions::new(ticks, 1e-5, Pacing::Lockstep);
+        opts.wait_for_recorder = false;
+        serve(&ep, &mut Lag::default(), &opts, &AtomicBool::new(false)).unwrap()
+    });
+    let ep = Endpoint::open(&p, "controller").unwrap();
+    let mut link =
+        ControllerLink::new(&ep, Duration::from_secs(10), Duration::from_secs(1)).unwrap();
+    let got = control(&mut link);
+    let report = plant.join().unwrap();
+    assert_eq!(got.len(), expected.len());
+    assert!(got.iter().zip(&expected).all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert_eq!((report.ticks, report.overruns, report.faults), (ticks, 0, 0));
+    assert_eq!(report.latency.count, ticks);
+}
+
+#[test]
+fn silent_controller_drives_zero_and_flags_the_fault() {
+    let p = prefix("silent");
+    let p2 = p.clone();
+    let ep = Endpoint::open(&p, "recorder").unwrap();
+    let tap = Tap::new(&ep).unwrap();
+    let plant = std::thread::spawn(move || {
+        let ep = Endpoint::open(&p2, "plant").unwrap();
+        let mut opts = ServeOptions::new(1_000_000, 1e-5, Pacing::Lockstep);
+        opts.peer_timeout = Duration::from_millis(20);
+        opts.safe_ticks = 50;
+        serve(&ep, &mut Lag::default(), &opts, &AtomicBool::new(false)).unwrap()
+    });
+    // A controller that answers 100 ticks with 2 V, then goes silent.
+    let cep = Endpoint::open(&p, "controller").unwrap();
+    let mut link =
+        ControllerLink::new(&cep, Duration::from_secs(10), Duration::from_secs(1)).unwrap();
+    for _ in 0..100 {
+        let s = link.read().unwrap();
+        link.write(Command {
+            seq: s.seq,
+            dac_v: 2.0,
+            ..Default::default()
+        })
+        .unwrap();
+    }
+    let mut truth = Vec::new();
+    loop {
+        match daq_io::ipc::take(&tap.truth) {
+            Some(b) => {
+                truth.extend_from_slice(&b.ticks[..b.count as usize]);
+                if b.flags & flags::END != 0 {
+                    break;
+                }
+            }
+            None => std::thread::sleep(Duration::from_millis(1)),
+        }
+    }
+    drop(tap);
+    let report = plant.join().unwrap();
+    assert_eq!(report.fault_tick, Some(100));
+    assert_eq!(report.faults, flags::FAULT_PEER_LOST);
+    assert_eq!(report.ticks, 150);
+    assert_eq!(truth.len(), 150);
+    assert!(truth[..100].iter().all(|t| t.dac_v == 2.0 && t.flags == 0));
+    assert!(truth[100..]
+        .iter()
+        .all(|t| t.dac_v == 0.0 && t.flags & flags::FAULT_PEER_LOST != 0));
+}
