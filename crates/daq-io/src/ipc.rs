@@ -225,7 +225,7 @@ pub fn poll_until<T: Debug + ZeroCopySend + Copy>(
             }
         }
         spins = spins.wrapping_add(1);
-        if spins % 64 == 0 {
+        if spins.is_multiple_of(64) {
             let now = Instant::now();
             if now >= deadline {
                 return None;
@@ -251,8 +251,8 @@ pub trait Block: Copy + Default + Debug + ZeroCopySend {
     type Record: Copy;
     /// Appends a record; returns true when the block is full.
     fn push(&mut self, r: Self::Record) -> bool;
-    /// Records held.
-    fn len(&self) -> usize;
+    /// No records held.
+    fn is_empty(&self) -> bool;
     /// Sets the block index and flags before sending.
     fn seal(&mut self, index: u64, flags: u32);
     /// Empties the block after sending.
@@ -269,8 +269,8 @@ macro_rules! block_impl {
                 self.count += 1;
                 self.count as usize == BLOCK_TICKS
             }
-            fn len(&self) -> usize {
-                self.count as usize
+            fn is_empty(&self) -> bool {
+                self.count == 0
             }
             fn seal(&mut self, index: u64, flags: u32) {
                 self.block = index;
@@ -307,7 +307,7 @@ impl<B: Block> BlockWriter<B> {
     /// Publishes the block so far with `flags` (e.g. [`crate::flags::END`]; an empty block
     /// is sent only when it carries flags).
     pub fn flush(&mut self, p: &Publisher<ipc::Service, B, ()>, flags: u32) {
-        if self.block.len() == 0 && flags == 0 {
+        if self.block.is_empty() && flags == 0 {
             return;
         }
         self.block.seal(self.sent, flags);

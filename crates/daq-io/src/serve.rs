@@ -207,7 +207,7 @@ pub fn serve<B: Backend>(
             truth.push(&truth_pub, t);
         }
         k += 1;
-        if k % 2048 == 0 {
+        if k.is_multiple_of(2048) {
             while let Some(c) = take(&control_sub) {
                 if c.command == command::STOP {
                     end_tick = end_tick.min(k);
