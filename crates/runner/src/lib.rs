@@ -21,6 +21,7 @@ pub mod controller;
 pub mod frf;
 pub mod report;
 pub mod run;
+pub mod servo_loop;
 pub mod stiffness;
 pub mod summary;
 pub mod sweep;

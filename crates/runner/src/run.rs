@@ -4,14 +4,14 @@
 use crate::analysis::ClosedLoop;
 use crate::config::{ConfigError, Loaded, Scenario};
 use crate::controller::Controller;
-use crate::summary::{RunMeta, Summary, SummaryBuilder, SATURATED};
+use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use plant_sim::model::ModelError;
 use plant_sim::params::CurrentLoopModel;
-use plant_sim::sim::flags;
+use crate::servo_loop::{frame, ServoLoop, SimBackend};
+use daq_io::{Backend, Daq, InProcess};
 use plant_sim::sim::SimError;
-use plant_sim::{SensorSample, Simulator};
-use recorder::{Frame, RecordError, Recorder, Telemetry, Truth, WhenFull};
-use servo_core::{Block, ChirpConfig, SineConfig, StepConfig, Sweep};
+use plant_sim::Simulator;
+use recorder::{RecordError, Recorder, WhenFull};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -54,61 +54,6 @@ pub struct RunOptions<'a> {
     pub stop: &'a AtomicBool,
     /// Called every few thousand ticks with (done, total).
     pub progress: &'a mut dyn FnMut(u64, u64),
-}
-
-/// The reference trajectory in m, one sample per tick.
-enum Reference {
-    Zero,
-    Gen(Box<dyn Block<Input = (), Output = servo_core::Setpoint> + Send>),
-}
-
-impl Reference {
-    fn new(s: &Scenario, period: f64, duration: f64) -> Result<Self, servo_core::Error> {
-        Ok(match *s {
-            Scenario::Hold | Scenario::IntermittentCut { .. } => Reference::Zero,
-            Scenario::Sine {
-                amplitude_m,
-                frequency_hz,
-            } => Reference::Gen(Box::new(
-                SineConfig {
-                    amplitude: amplitude_m,
-                    frequency_hz,
-                    phase_rad: 0.0,
-                    offset: 0.0,
-                }
-                .try_build(period)?,
-            )),
-            Scenario::Step { amplitude_m, at_s } => Reference::Gen(Box::new(
-                StepConfig {
-                    amplitude: amplitude_m,
-                    delay_s: at_s,
-                }
-                .try_build(period)?,
-            )),
-            Scenario::Chirp {
-                amplitude_m,
-                f_start_hz,
-                f_end_hz,
-            } => Reference::Gen(Box::new(
-                ChirpConfig {
-                    amplitude: amplitude_m,
-                    f_start_hz,
-                    f_end_hz,
-                    duration_s: duration,
-                    sweep: Sweep::Exponential,
-                }
-                .try_build(period)?,
-            )),
-        })
-    }
-
-    #[inline]
-    fn next(&mut self) -> f64 {
-        match self {
-            Reference::Zero => 0.0,
-            Reference::Gen(g) => g.update(()).position,
-        }
-    }
 }
 
 fn scenario_name(s: &Scenario) -> &'static str {
@@ -215,74 +160,52 @@ pub fn closed_loop(cfg: &Loaded) -> Result<(ClosedLoop, String), RunError> {
 pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
     let c = &cfg.config;
     c.validate(cfg)?;
-    let mut sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
+    let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
         .map_err(|e| plant_error(e, cfg))?;
-    let mut ctrl = Controller::build(cfg)?;
-    let radius = closed_loop_of(cfg, &sim, &ctrl)?.spectral_radius();
+    let mut servo = ServoLoop::new(cfg)?;
+    let ctrl = &servo.controller;
+    let radius = closed_loop_of(cfg, &sim, ctrl)?.spectral_radius();
     if radius >= 1.0 {
         return Err(RunError::Unstable {
             radius,
             controller: ctrl.description.clone(),
         });
     }
-    let period = sim.period_s();
-    let mut reference = Reference::new(&c.scenario, period, c.run.duration_s)
-        .map_err(|e| cfg.invalid("scenario", e, "see the message"))?;
+    let description = ctrl.description.clone();
     let mut recorder = match &opts.out {
         Some(path) => Some(Recorder::create(path, metadata(cfg), WhenFull::Wait)?),
         None => None,
     };
-    let sensitivity = c.plant.capa.sensitivity_v_per_m;
-    let accel_scale = 1.0 / c.plant.accel.sensitivity_v_per_m_s2;
     let total = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
     let mut summary = SummaryBuilder::new(c.run.settle());
     let start = Instant::now();
-    let mut sample = SensorSample::default();
-    let mut r = reference.next();
+    let mut daq = InProcess::new(SimBackend::new(sim), total);
+    let mut truth = daq_io::Truth::default();
     let mut interrupted = false;
-    for k in 0..total {
-        if k % 8192 == 0 {
-            (opts.progress)(k, total);
-            if opts.stop.load(Ordering::Relaxed) {
+    loop {
+        let s = daq.read().expect("in-process reads cannot fail");
+        if s.seq % 8192 == 0 {
+            (opts.progress)(s.seq, total);
+            if opts.stop.load(Ordering::Relaxed) && s.flags & daq_io::flags::END == 0 {
                 interrupted = true;
-                break;
+                daq.stop();
+                continue;
             }
         }
-        let u = ctrl.update(r * sensitivity - sample.gap_v, sample.accel_v);
-        let (s, t) = sim.step(u);
-        sample = s;
-        r = reference.next();
-        let saturated = u.abs() >= ctrl.limit_v || s.flags & flags::DAC_CLIPPED != 0;
-        let measured = s.gap_v / sensitivity;
-        let frame = Frame {
-            time_ns: (s.time_s * 1e9).round() as u64,
-            telemetry: Telemetry {
-                reference_m: r as f32,
-                measured_m: measured as f32,
-                following_error_m: (r - measured) as f32,
-                control_v: u as f32,
-                accel_m_s2: (s.accel_v * accel_scale) as f32,
-                flags: (s.flags | if saturated { SATURATED } else { 0 }) as f32,
-            },
-            truth: Truth {
-                tool_m: t.tool_m as f32,
-                true_error_m: (t.tool_m - r) as f32,
-                gap_m: t.gap_m as f32,
-                motor_force_n: t.motor_force_n as f32,
-                cutting_force_n: t.cutting_force_n as f32,
-                coil_current_a: t.coil_current_a as f32,
-                current_noise_a: t.current_noise_a as f32,
-                base_m: t.base_m as f32,
-                sensor_noise_v: t.sensor_noise_v as f32,
-            },
-        };
-        summary.add(&frame);
-        if let Some(rec) = &mut recorder {
-            if rec.push(frame).is_err() {
-                // The writer thread failed (disk full…): its error comes out of finish().
-                break;
+        let (command, telemetry) = servo.tick(&s);
+        if let Some(t) = telemetry {
+            let frame = frame(&t, &truth);
+            summary.add(&frame);
+            if let Some(rec) = &mut recorder {
+                if rec.push(frame).is_err() {
+                    // The writer thread failed (disk full…): its error comes out of finish().
+                    break;
+                }
             }
         }
+        let Some(command) = command else { break };
+        daq.write(command).expect("in-process writes cannot fail");
+        truth = daq.backend().truth().unwrap_or_default();
     }
     (opts.progress)(summary.ticks(), total);
     let wall = start.elapsed().as_secs_f64();
@@ -294,7 +217,7 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
         servo_rate_hz: c.plant.timing.servo_rate_hz,
         seed: c.run.seed,
         settle_s: c.run.settle(),
-        controller: ctrl.description.clone(),
+        controller: description,
         scenario: scenario_name(&c.scenario).into(),
         wall_s: Some(wall),
         interrupted,
