@@ -12,6 +12,8 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+mod hil;
+
 #[derive(Parser)]
 #[command(
     name = "servo",
@@ -21,6 +23,43 @@ use std::sync::Arc;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+/// Options of the HIL processes.
+#[derive(Args, Clone)]
+struct HilArgs {
+    /// Run prefix of the iceoryx2 services (`fts-servo/<prefix>/…`): runs with different
+    /// prefixes never interfere. `servo run --hil` picks `run-<pid>`.
+    #[arg(long)]
+    prefix: Option<String>,
+    /// Pace ticks to the wall clock at the servo rate (late commands are overruns; the DAC
+    /// holds its last value). Default: lockstep, as fast as possible, bit-identical to `servo run`.
+    #[arg(long, conflicts_with = "lockstep")]
+    realtime: bool,
+    /// Lockstep pacing (the default).
+    #[arg(long)]
+    lockstep: bool,
+}
+
+impl HilArgs {
+    fn prefix(&self) -> Result<String, ExitCode> {
+        self.prefix.clone().ok_or_else(|| {
+            eprintln!("error: --prefix is required (the run's service prefix, e.g. --prefix bench)");
+            ExitCode::from(2)
+        })
+    }
+}
+
+/// `servo ctl` messages.
+#[derive(Subcommand, Clone, Copy)]
+enum CtlAction {
+    /// End the run at the next tick boundary (the recording is finished normally).
+    Stop,
+    /// Multiply the controller output (all gains) by SCALE (0.1..=10).
+    Gain {
+        /// Scale factor.
+        scale: f64,
+    },
 }
 
 #[derive(Subcommand)]
@@ -45,6 +84,62 @@ enum Command {
         /// No progress bar.
         #[arg(short, long)]
         quiet: bool,
+        /// Run plant, controller and recorder as three processes over iceoryx2 shared memory
+        /// (`servo plant`, `servo controller`, `servo record`); same summary.
+        #[arg(long)]
+        hil: bool,
+        #[command(flatten)]
+        hil_args: HilArgs,
+    },
+    /// HIL: serve the simulated stage to a controller process (lockstep or real time). A lost
+    /// controller (no command for 200 ms lockstep / 0.5 ms real time) → zero current, exit 3.
+    /// Example: servo plant --prefix bench --realtime
+    Plant {
+        #[command(flatten)]
+        settings: Settings,
+        #[command(flatten)]
+        hil_args: HilArgs,
+        /// Start without waiting for `servo record`.
+        #[arg(long)]
+        no_recorder: bool,
+    },
+    /// HIL: run the controller against a plant process (simulator or DAQ daemon) of the run.
+    /// Example: servo controller --prefix bench --mass heavy
+    Controller {
+        #[command(flatten)]
+        settings: Settings,
+        #[command(flatten)]
+        hil_args: HilArgs,
+    },
+    /// HIL: record a run's telemetry and truth to MCAP and print its summary.
+    /// Example: servo record --prefix bench --out bench.mcap
+    Record {
+        #[command(flatten)]
+        settings: Settings,
+        #[command(flatten)]
+        hil_args: HilArgs,
+        /// Output MCAP file.
+        #[arg(short, long, default_value = "run.mcap")]
+        out: PathBuf,
+        /// Do not write a file (summary only).
+        #[arg(long)]
+        no_record: bool,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+    },
+    /// HIL control plane: stop a run, or scale the controller's gains while it runs.
+    /// Example: servo ctl --prefix bench gain 1.2
+    Ctl {
+        /// Run prefix.
+        #[arg(long)]
+        prefix: String,
+        /// What to send.
+        #[command(subcommand)]
+        action: CtlAction,
     },
     /// Recompute and print the summary of a recording. Example: servo inspect run.mcap
     Inspect {
@@ -365,6 +460,23 @@ fn noise_from(list: &str, mut n: NoiseParams) -> Result<NoiseParams, String> {
 }
 
 /// Prints the error with its chain of causes (`error: writing x: I/O error: No space left…`).
+/// A progress bar labelled `what` (hidden with `quiet`).
+fn progress_bar(quiet: bool, what: &str) -> ProgressBar {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(0)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(&format!(
+            "{{spinner}} {what} [{{bar:40}}] {{percent:>3}}% {{elapsed_precise}} ETA {{eta}}"
+        ))
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
 fn fail(e: impl std::error::Error, code: u8) -> ExitCode {
     let mut msg = e.to_string();
     let mut cause = e.source();
@@ -699,27 +811,38 @@ fn main() -> ExitCode {
             no_record,
             json,
             quiet,
+            hil,
+            hil_args,
         } => {
             let cfg = match settings.resolve() {
                 Ok(c) => c,
                 Err(e) => return fail(e, 2),
             };
+            if hil {
+                let out = (!no_record).then_some(out);
+                return match hil::run(&cfg, hil_args.prefix, hil_args.realtime, out.clone(), quiet) {
+                    Ok((summary, codes)) => {
+                        print_summary(&summary, json);
+                        if let (Some(o), false) = (&out, json) {
+                            println!("  wrote {} (open it in Foxglove: topics /telemetry and /truth)", o.display());
+                        }
+                        match codes.iter().find(|(_, c)| *c != 0) {
+                            Some((name, c)) => {
+                                eprintln!("servo {name} exited with {c}");
+                                ExitCode::from(*c as u8)
+                            }
+                            None => ExitCode::SUCCESS,
+                        }
+                    }
+                    Err(e @ (RunError::Config(_) | RunError::Unstable { .. })) => fail(e, 2),
+                    Err(e) => fail(e, 1),
+                };
+            }
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
             // A second Ctrl-C while the file is being finished is ignored on purpose.
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-            let bar = if quiet {
-                ProgressBar::hidden()
-            } else {
-                ProgressBar::new(0)
-            };
-            bar.set_style(
-                ProgressStyle::with_template(
-                    "{spinner} simulating [{bar:40}] {percent:>3}% {elapsed_precise} ETA {eta}",
-                )
-                .expect("valid template")
-                .progress_chars("=> "),
-            );
+            let bar = progress_bar(quiet, "simulating");
             let mut progress = |done: u64, total: u64| {
                 bar.set_length(total);
                 bar.set_position(done);
@@ -802,6 +925,48 @@ fn main() -> ExitCode {
             Err(e @ RunError::Config(_)) => fail(e, 2),
             Err(e) => fail(e, 1),
         },
+        Command::Plant {
+            settings,
+            hil_args,
+            no_recorder,
+        } => match (settings.resolve(), hil_args.prefix()) {
+            (Ok(cfg), Ok(p)) => hil::plant(&cfg, &p, hil_args.realtime, !no_recorder),
+            (Err(e), _) => fail(e, 2),
+            (_, Err(code)) => code,
+        },
+        Command::Controller { settings, hil_args } => {
+            match (settings.resolve(), hil_args.prefix()) {
+                (Ok(cfg), Ok(p)) => hil::controller(&cfg, &p),
+                (Err(e), _) => fail(e, 2),
+                (_, Err(code)) => code,
+            }
+        }
+        Command::Record {
+            settings,
+            hil_args,
+            out,
+            no_record,
+            json,
+            quiet,
+        } => match (settings.resolve(), hil_args.prefix()) {
+            (Ok(cfg), Ok(p)) => hil::record(
+                &cfg,
+                &p,
+                (!no_record).then_some(out),
+                hil_args.realtime,
+                json,
+                quiet,
+            ),
+            (Err(e), _) => fail(e, 2),
+            (_, Err(code)) => code,
+        },
+        Command::Ctl { prefix, action } => hil::ctl(
+            &prefix,
+            match action {
+                CtlAction::Stop => hil::stop_message(),
+                CtlAction::Gain { scale } => hil::gain_message(scale),
+            },
+        ),
         Command::Inspect { file, json } => match inspect(&file) {
             Ok(s) => {
                 print_summary(&s, json);

@@ -208,7 +208,9 @@ pub mod state {
 }
 
 /// Round-trip latency statistics in ns (sensor published → command received, plant side).
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, serde::Serialize, serde::Deserialize,
+)]
 #[repr(C)]
 #[type_name("fts_servo::Latency")]
 pub struct Latency {

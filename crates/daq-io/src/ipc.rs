@@ -8,12 +8,17 @@
 use crate::contract::{
     Command, Control, Health, Sensor, TelemetryBlock, TruthBlock, BLOCK_TICKS,
 };
-use iceoryx2::port::publisher::Publisher;
-use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use std::fmt::Debug;
 use std::time::{Duration, Instant};
+
+/// A publisher of `T` on a run service.
+pub type Publisher<T> = iceoryx2::port::publisher::Publisher<ipc::Service, T, ()>;
+/// A subscriber of `T` on a run service.
+pub type Subscriber<T> = iceoryx2::port::subscriber::Subscriber<ipc::Service, T, ()>;
+/// A run service carrying `T`.
+pub type Service<T> = PubSubFactory<ipc::Service, T, ()>;
 
 /// Transport errors, naming the service and what failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -139,7 +144,7 @@ impl Endpoint {
     pub fn service<T: Debug + ZeroCopySend>(
         &self,
         leaf: &str,
-    ) -> Result<PubSubFactory<ipc::Service, T, ()>, IpcError> {
+    ) -> Result<Service<T>, IpcError> {
         let full = self.service_name(leaf);
         let name: ServiceName = full
             .as_str()
@@ -175,7 +180,7 @@ impl Endpoint {
     pub fn publisher<T: Debug + ZeroCopySend>(
         &self,
         leaf: &str,
-    ) -> Result<Publisher<ipc::Service, T, ()>, IpcError> {
+    ) -> Result<Publisher<T>, IpcError> {
         self.service::<T>(leaf)?
             .publisher_builder()
             .create()
@@ -186,7 +191,7 @@ impl Endpoint {
     pub fn subscriber<T: Debug + ZeroCopySend>(
         &self,
         leaf: &str,
-    ) -> Result<Subscriber<ipc::Service, T, ()>, IpcError> {
+    ) -> Result<Subscriber<T>, IpcError> {
         self.service::<T>(leaf)?
             .subscriber_builder()
             .create()
@@ -194,16 +199,25 @@ impl Endpoint {
     }
 }
 
+/// Waits up to `timeout` for the subscribers of `service` to leave (they take the last
+/// samples first: samples of a publisher that is gone cannot be received).
+pub fn linger<T: Debug + ZeroCopySend>(service: &Service<T>, timeout: Duration) {
+    let start = Instant::now();
+    while service.dynamic_config().number_of_subscribers() > 0 && start.elapsed() < timeout {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
 /// Sends `value` (copied into a loaned shared-memory sample). Returns false when the
 /// transport refused (the caller counts it; the servo path never blocks on it).
 #[inline]
-pub fn send<T: Debug + ZeroCopySend + Copy>(p: &Publisher<ipc::Service, T, ()>, value: T) -> bool {
+pub fn send<T: Debug + ZeroCopySend + Copy>(p: &Publisher<T>, value: T) -> bool {
     p.send_copy(value).is_ok()
 }
 
 /// Takes the next sample, if any.
 #[inline]
-pub fn take<T: Debug + ZeroCopySend + Copy>(s: &Subscriber<ipc::Service, T, ()>) -> Option<T> {
+pub fn take<T: Debug + ZeroCopySend + Copy>(s: &Subscriber<T>) -> Option<T> {
     s.receive().ok().flatten().map(|sample| *sample)
 }
 
@@ -212,7 +226,7 @@ pub fn take<T: Debug + ZeroCopySend + Copy>(s: &Subscriber<ipc::Service, T, ()>)
 /// processes sharing a core still progress.
 #[inline]
 pub fn poll_until<T: Debug + ZeroCopySend + Copy>(
-    s: &Subscriber<ipc::Service, T, ()>,
+    s: &Subscriber<T>,
     deadline: Instant,
     mut accept: impl FnMut(&T) -> bool,
 ) -> Option<T> {
@@ -298,7 +312,7 @@ impl<B: Block> Default for BlockWriter<B> {
 impl<B: Block> BlockWriter<B> {
     /// Adds a record; publishes the block when it is full.
     #[inline]
-    pub fn push(&mut self, p: &Publisher<ipc::Service, B, ()>, r: B::Record) {
+    pub fn push(&mut self, p: &Publisher<B>, r: B::Record) {
         if self.block.push(r) {
             self.flush(p, 0);
         }
@@ -306,7 +320,7 @@ impl<B: Block> BlockWriter<B> {
 
     /// Publishes the block so far with `flags` (e.g. [`crate::flags::END`]; an empty block
     /// is sent only when it carries flags).
-    pub fn flush(&mut self, p: &Publisher<ipc::Service, B, ()>, flags: u32) {
+    pub fn flush(&mut self, p: &Publisher<B>, flags: u32) {
         if self.block.is_empty() && flags == 0 {
             return;
         }
@@ -326,8 +340,8 @@ impl<B: Block> BlockWriter<B> {
 
 /// The controller's [`crate::Daq`] over iceoryx2.
 pub struct ControllerLink {
-    sensor: Subscriber<ipc::Service, Sensor, ()>,
-    command: Publisher<ipc::Service, Command, ()>,
+    sensor: Subscriber<Sensor>,
+    command: Publisher<Command>,
     next_seq: u64,
     /// How long to wait for the first sample (the plant may start later), then per sample.
     timeouts: (Duration, Duration),
@@ -387,11 +401,11 @@ impl crate::Daq for ControllerLink {
 /// Everything a process other than plant and controller reads: telemetry, truth, health.
 pub struct Tap {
     /// Controller telemetry blocks.
-    pub telemetry: Subscriber<ipc::Service, TelemetryBlock, ()>,
+    pub telemetry: Subscriber<TelemetryBlock>,
     /// Plant truth blocks.
-    pub truth: Subscriber<ipc::Service, TruthBlock, ()>,
+    pub truth: Subscriber<TruthBlock>,
     /// Health reports.
-    pub health: Subscriber<ipc::Service, Health, ()>,
+    pub health: Subscriber<Health>,
 }
 
 impl Tap {
@@ -407,7 +421,7 @@ impl Tap {
 
 /// Sends control-plane messages to a run.
 pub struct ControlSender {
-    publisher: Publisher<ipc::Service, Control, ()>,
+    publisher: Publisher<Control>,
 }
 
 impl ControlSender {

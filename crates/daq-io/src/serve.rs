@@ -244,10 +244,6 @@ pub fn serve<B: Backend>(
     health.wall_s = report.wall_s;
     health.latency = report.latency;
     crate::ipc::send(&health_pub, health);
-    let leaving = Instant::now();
-    while truth_service.dynamic_config().number_of_subscribers() > 0 && leaving.elapsed() < opts.linger
-    {
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    crate::ipc::linger(&truth_service, opts.linger);
     Ok(report)
 }

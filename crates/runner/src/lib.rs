@@ -19,6 +19,7 @@ pub mod analysis;
 pub mod config;
 pub mod controller;
 pub mod frf;
+pub mod hil;
 pub mod report;
 pub mod run;
 pub mod servo_loop;

@@ -41,6 +41,12 @@ pub enum RunError {
     /// Reading a recording.
     #[error(transparent)]
     Read(#[from] recorder::ReadError),
+    /// The multi-process transport failed.
+    #[error("transport: {0}")]
+    Transport(String),
+    /// The controller lost its plant.
+    #[error("{0}; the controller stopped")]
+    PlantLost(String),
     /// A recording without the metadata `servo run` writes.
     #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
     NotARun(PathBuf),
@@ -56,7 +62,7 @@ pub struct RunOptions<'a> {
     pub progress: &'a mut dyn FnMut(u64, u64),
 }
 
-fn scenario_name(s: &Scenario) -> &'static str {
+pub(crate) fn scenario_name(s: &Scenario) -> &'static str {
     match s {
         Scenario::Hold => "hold",
         Scenario::Sine { .. } => "sine",
@@ -224,11 +230,12 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
         recorded_messages: stats.map(|s| s.messages),
         dropped_frames: stats.map(|s| s.dropped_frames),
         spectral_radius: Some(radius),
+        hil: None,
     }))
 }
 
 /// Metadata written into the recording.
-fn metadata(cfg: &Loaded) -> BTreeMap<String, String> {
+pub(crate) fn metadata(cfg: &Loaded) -> BTreeMap<String, String> {
     let c = &cfg.config;
     BTreeMap::from([
         ("config".to_string(), c.to_toml()),
@@ -274,5 +281,6 @@ pub fn inspect(path: &Path) -> Result<Summary, RunError> {
         recorded_messages: Some(rec.messages),
         dropped_frames: None,
         spectral_radius: None,
+        hil: None,
     }))
 }

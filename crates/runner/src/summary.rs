@@ -2,14 +2,14 @@
 //! (so `servo inspect` recomputes exactly the same numbers from the file).
 
 use recorder::Frame;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::fmt;
 
 /// Telemetry flag set by the runner when the command was at its limit or the DAC clipped.
 pub const SATURATED: u32 = 1 << 8;
 
 /// RMS, peak-to-valley and mean of a signal.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Stats {
     /// Root mean square.
     pub rms: f64,
@@ -125,7 +125,7 @@ impl SummaryBuilder {
 }
 
 /// Facts about the run besides the statistics.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunMeta {
     /// Loop rate in Hz.
     pub servo_rate_hz: f64,
@@ -147,10 +147,12 @@ pub struct RunMeta {
     pub dropped_frames: Option<u64>,
     /// Closed-loop spectral radius checked before the run.
     pub spectral_radius: Option<f64>,
+    /// Multi-process (HIL) facts: overruns, latency, faults.
+    pub hil: Option<crate::hil::HilMeta>,
 }
 
 /// The summary of a run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     /// Ticks run.
     pub ticks: u64,
@@ -237,6 +239,27 @@ impl fmt::Display for Summary {
             )?,
             (Some(n), None) => writeln!(f, "  recording                 {n} messages")?,
             _ => {}
+        }
+        if let Some(h) = &m.hil {
+            let l = &h.latency;
+            writeln!(
+                f,
+                "  HIL ({})            {} overruns; round trip min {:.2} / median {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.1} µs",
+                if h.realtime { "real time" } else { "lockstep " },
+                h.overruns,
+                l.min_ns as f64 * 1e-3,
+                l.p50_ns as f64 * 1e-3,
+                l.p99_ns as f64 * 1e-3,
+                l.p999_ns as f64 * 1e-3,
+                l.max_ns as f64 * 1e-3
+            )?;
+            if h.faults & daq_io::flags::FAULT_PEER_LOST != 0 {
+                writeln!(
+                    f,
+                    "  FAULT                     controller lost: the plant drove zero current ({} ticks recorded from the plant alone)",
+                    h.truth_only_ticks
+                )?;
+            }
         }
         Ok(())
     }

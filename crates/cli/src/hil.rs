@@ -1,0 +1,245 @@
+//! The multi-process (HIL) subcommands: `servo plant`, `servo controller`, `servo record`,
+//! `servo ctl`, and `servo run --hil`, which starts the three processes and prints the summary.
+
+use crate::{fail, print_summary, progress_bar};
+use daq_io::contract::{command, role};
+use daq_io::ipc::{leaf, take, ControlSender, Endpoint};
+use daq_io::serve::Pacing;
+use daq_io::{Control, Health};
+use runner::config::Loaded;
+use runner::run::RunError;
+use runner::summary::Summary;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ExitCode, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Exit code of a plant that lost its controller (it drove zero current and ended the run).
+pub const EXIT_FAULT: u8 = 3;
+
+/// A stop flag raised by Ctrl-C / SIGTERM.
+pub fn stop_flag() -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    stop
+}
+
+fn exit_for(e: RunError) -> ExitCode {
+    match e {
+        e @ (RunError::Config(_) | RunError::Unstable { .. }) => fail(e, 2),
+        e => fail(e, 1),
+    }
+}
+
+/// `servo plant`.
+pub fn plant(cfg: &Loaded, prefix: &str, realtime: bool, wait_for_recorder: bool) -> ExitCode {
+    let stop = stop_flag();
+    let pacing = if realtime {
+        Pacing::RealTime
+    } else {
+        Pacing::Lockstep
+    };
+    match runner::hil::plant(cfg, prefix, pacing, wait_for_recorder, &stop) {
+        Ok(r) if r.faults != 0 => {
+            eprintln!(
+                "servo plant: FAULT — controller lost at tick {} (no command for {:?}); drove zero current for {} ticks and ended the run",
+                r.fault_tick.unwrap_or(0),
+                daq_io::serve::ServeOptions::new(1, 1.0, pacing).peer_timeout,
+                r.ticks - r.fault_tick.unwrap_or(0)
+            );
+            ExitCode::from(EXIT_FAULT)
+        }
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => exit_for(e),
+    }
+}
+
+/// `servo controller`.
+pub fn controller(cfg: &Loaded, prefix: &str) -> ExitCode {
+    let stop = stop_flag();
+    match runner::hil::controller(cfg, prefix, &stop) {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => exit_for(e),
+    }
+}
+
+/// `servo record`.
+pub fn record(
+    cfg: &Loaded,
+    prefix: &str,
+    out: Option<PathBuf>,
+    realtime: bool,
+    json: bool,
+    quiet: bool,
+) -> ExitCode {
+    // The recorder finishes the file whatever happens: Ctrl-C reaches the plant, which ends
+    // the run; the recorder sees the end (or the silence) and closes the file.
+    let _stop = stop_flag();
+    let bar = progress_bar(quiet, "recording");
+    let mut progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let result = runner::hil::record(cfg, prefix, out.clone(), realtime, &mut progress);
+    bar.finish_and_clear();
+    match result {
+        Ok(s) => {
+            print_summary(&s, json);
+            if let (Some(p), false) = (out, json) {
+                println!("  wrote {}", p.display());
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => exit_for(e),
+    }
+}
+
+/// `servo ctl`: one control-plane message to a running run.
+pub fn ctl(prefix: &str, message: Control) -> ExitCode {
+    let sent = Endpoint::open(prefix, &format!("ctl-{}", std::process::id()))
+        .and_then(|ep| ControlSender::new(&ep).and_then(|c| c.send(message)));
+    match sent {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => fail(e, 1),
+    }
+}
+
+/// The control message for `servo ctl stop` / `servo ctl gain X`.
+pub fn stop_message() -> Control {
+    Control {
+        command: command::STOP,
+        ..Default::default()
+    }
+}
+
+/// See [`stop_message`].
+pub fn gain_message(scale: f64) -> Control {
+    Control {
+        command: command::SET_GAIN_SCALE,
+        value: scale,
+        ..Default::default()
+    }
+}
+
+/// Writes `cfg` resolved (controller file made absolute) for the child processes.
+fn write_resolved(cfg: &Loaded, dir: &Path) -> Result<PathBuf, RunError> {
+    let mut c = cfg.config.clone();
+    if let Some(p) = &c.controller.ss_file {
+        c.controller.ss_file = Some(std::fs::canonicalize(p).unwrap_or(p.clone()));
+    }
+    let path = dir.join("config.toml");
+    std::fs::create_dir_all(dir)
+        .and_then(|_| std::fs::write(&path, c.to_toml()))
+        .map_err(|e| RunError::Transport(format!("cannot write {}: {e}", path.display())))?;
+    Ok(path)
+}
+
+fn spawn(args: &[&str], stdout: Stdio) -> Result<Child, RunError> {
+    let exe = std::env::current_exe()
+        .map_err(|e| RunError::Transport(format!("cannot find the servo binary: {e}")))?;
+    std::process::Command::new(exe)
+        .args(args)
+        .stdout(stdout)
+        .stdin(Stdio::null())
+        .spawn()
+        .map_err(|e| RunError::Transport(format!("cannot start `servo {}`: {e}", args[0])))
+}
+
+/// `servo run --hil`: checks the loop, starts recorder, controller and plant as processes,
+/// shows the plant's progress, and returns the recorder's summary with the children's exits.
+pub fn run(
+    cfg: &Loaded,
+    prefix: Option<String>,
+    realtime: bool,
+    out: Option<PathBuf>,
+    quiet: bool,
+) -> Result<(Summary, Vec<(String, i32)>), RunError> {
+    cfg.config.validate(cfg)?;
+    let (cl, description) = runner::run::closed_loop(cfg)?;
+    let radius = cl.spectral_radius();
+    if radius >= 1.0 {
+        return Err(RunError::Unstable {
+            radius,
+            controller: description,
+        });
+    }
+    let prefix = prefix.unwrap_or_else(|| format!("run-{}", std::process::id()));
+    daq_io::ipc::check_prefix(&prefix).map_err(RunError::Transport)?;
+    let dir = std::env::temp_dir().join(format!("fts-servo-{prefix}"));
+    let config = write_resolved(cfg, &dir)?;
+    let config = config.to_str().expect("temp paths are UTF-8");
+    let mode = if realtime { "--realtime" } else { "--lockstep" };
+    let out_arg = out.as_ref().map(|p| p.display().to_string());
+    let mut record_args = vec![
+        "record", "--config", config, "--prefix", &prefix, "--json", "--quiet", mode,
+    ];
+    match &out_arg {
+        Some(o) => record_args.extend(["--out", o]),
+        None => record_args.push("--no-record"),
+    }
+    let stop = stop_flag();
+    let recorder = spawn(&record_args, Stdio::piped())?;
+    let controller = spawn(
+        &["controller", "--config", config, "--prefix", &prefix],
+        Stdio::inherit(),
+    )?;
+    let plant = spawn(
+        &["plant", "--config", config, "--prefix", &prefix, mode],
+        Stdio::inherit(),
+    )?;
+    let mut children = [("plant", plant), ("controller", controller), ("record", recorder)];
+
+    let bar = progress_bar(quiet, if realtime { "real time" } else { "lockstep" });
+    let total = (cfg.config.run.duration_s * cfg.config.plant.timing.servo_rate_hz).round() as u64;
+    bar.set_length(total);
+    let ep = Endpoint::open(&prefix, "run").map_err(|e| RunError::Transport(e.to_string()))?;
+    let health = ep
+        .subscriber::<Health>(leaf::HEALTH)
+        .map_err(|e| RunError::Transport(e.to_string()))?;
+    let mut codes: Vec<(String, i32)> = Vec::new();
+    let mut stopped_at: Option<Instant> = None;
+    while codes.len() < children.len() {
+        while let Some(h) = take(&health) {
+            if h.role == role::PLANT {
+                bar.set_position(h.ticks);
+            }
+        }
+        for (name, child) in children.iter_mut() {
+            if codes.iter().any(|(n, _)| n == name) {
+                continue;
+            }
+            if let Ok(Some(status)) = child.try_wait() {
+                codes.push((name.to_string(), status.code().unwrap_or(-1)));
+            }
+        }
+        // Ctrl-C reaches every child; if one hangs afterwards, end it.
+        if stop.load(Ordering::Relaxed) && stopped_at.is_none() {
+            stopped_at = Some(Instant::now());
+        }
+        if stopped_at.is_some_and(|t| t.elapsed() > Duration::from_secs(10)) {
+            children.iter_mut().for_each(|(_, c)| drop(c.kill()));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    bar.finish_and_clear();
+    let (_, recorder) = children.into_iter().last().expect("three children");
+    let mut text = String::new();
+    use std::io::Read;
+    if let Some(mut o) = recorder.stdout {
+        let _ = o.read_to_string(&mut text);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    let summary: Summary = serde_json::from_str(&text).map_err(|_| {
+        RunError::Transport(format!(
+            "the recorder gave no summary (exit codes: {})",
+            codes
+                .iter()
+                .map(|(n, c)| format!("{n} {c}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))
+    })?;
+    Ok((summary, codes))
+}

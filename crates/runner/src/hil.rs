@@ -1,0 +1,298 @@
+//! Hardware-in-the-loop: plant, controller and recorder as separate processes over daq-io's
+//! iceoryx2 transport. Each function here is the body of one `servo` subcommand.
+//!
+//! Guarantees: lockstep runs are bit-identical to [`crate::run::run`] with the same config
+//! (same [`SimBackend`], same [`ServoLoop`], same frames); the recorder never blocks the loop
+//! (1024 blocks = 65 536 ticks of queue per stream; a full queue overwrites the oldest block
+//! and the gap is counted as dropped frames); a lost controller puts the plant in the safe
+//! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
+
+use crate::config::Loaded;
+use crate::run::{metadata, plant_error, scenario_name, RunError};
+use crate::servo_loop::{frame, ServoLoop, SimBackend};
+use crate::summary::{RunMeta, Summary, SummaryBuilder};
+use daq_io::contract::{command, role, state};
+use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
+use daq_io::serve::{serve, Pacing, ServeOptions};
+use daq_io::{flags, Control, Daq, Health, Latency, Telemetry, TelemetryBlock, Truth};
+use plant_sim::Simulator;
+use recorder::{Recorder, WhenFull};
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// How long a process waits for its peers to appear.
+pub const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
+/// Silence after which the controller declares the plant lost (a loaded 2-core machine can
+/// deschedule a process for tens of ms; 1 s is far beyond that).
+pub const PLANT_TIMEOUT: Duration = Duration::from_secs(1);
+/// Silence after which the recorder stops waiting for the end of a run.
+pub const RECORDER_TIMEOUT: Duration = Duration::from_secs(3);
+
+/// What the plant and controller reported about a HIL run (in the summary).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HilMeta {
+    /// `lockstep` or `real-time`.
+    pub realtime: bool,
+    /// Late commands (real time: the DAC held its value).
+    pub overruns: u64,
+    /// Round trip sensor → command as the plant measured it, ns.
+    pub latency: Latency,
+    /// Fault bits ([`daq_io::flags`]) the plant raised.
+    pub faults: u32,
+    /// Ticks recorded from the plant's truth alone (no telemetry: controller lost).
+    pub truth_only_ticks: u64,
+}
+
+fn ipc(e: daq_io::ipc::IpcError) -> RunError {
+    RunError::Transport(e.to_string())
+}
+
+/// `servo plant`: serves the simulated stage of `cfg` to the run `prefix` until its duration,
+/// a STOP, `stop`, or a lost controller.
+pub fn plant(
+    cfg: &Loaded,
+    prefix: &str,
+    pacing: Pacing,
+    wait_for_recorder: bool,
+    stop: &AtomicBool,
+) -> Result<daq_io::serve::ServeReport, RunError> {
+    let c = &cfg.config;
+    c.validate(cfg)?;
+    let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
+        .map_err(|e| plant_error(e, cfg))?;
+    let ticks = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
+    let mut opts = ServeOptions::new(ticks, c.plant.period_s(), pacing);
+    opts.wait_for_recorder = wait_for_recorder;
+    opts.startup_timeout = STARTUP_TIMEOUT;
+    let ep = Endpoint::open(prefix, "plant").map_err(ipc)?;
+    serve(&ep, &mut SimBackend::new(sim), &opts, stop).map_err(|e| match e {
+        daq_io::serve::ServeError::Ipc(e) => ipc(e),
+        other => RunError::Transport(other.to_string()),
+    })
+}
+
+/// `servo controller`: runs the controller of `cfg` against the plant of run `prefix` until
+/// the plant closes the run. `stop` (Ctrl-C) asks the plant to stop. Returns the ticks run.
+pub fn controller(cfg: &Loaded, prefix: &str, stop: &AtomicBool) -> Result<u64, RunError> {
+    cfg.config.validate(cfg)?;
+    let mut servo = ServoLoop::new(cfg)?;
+    let ep = Endpoint::open(prefix, "controller").map_err(ipc)?;
+    let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT).map_err(ipc)?;
+    let telemetry_pub = ep.publisher::<TelemetryBlock>(leaf::TELEMETRY).map_err(ipc)?;
+    let control_sub = ep.subscriber::<Control>(leaf::CONTROL).map_err(ipc)?;
+    let health_pub = ep.publisher::<Health>(leaf::HEALTH).map_err(ipc)?;
+    let stopper = ControlSender::new(&ep).map_err(ipc)?;
+    let mut telemetry = BlockWriter::<TelemetryBlock>::default();
+    let mut health = Health {
+        role: role::CONTROLLER,
+        state: state::RUNNING,
+        ..Default::default()
+    };
+    let mut stop_sent = false;
+    let start = Instant::now();
+    let result = loop {
+        let s = match link.read() {
+            Ok(s) => s,
+            Err(e) => break Err(RunError::PlantLost(e.to_string())),
+        };
+        let (cmd, t) = servo.tick(&s);
+        if let Some(t) = t {
+            telemetry.push(&telemetry_pub, t);
+        }
+        let Some(cmd) = cmd else { break Ok(s.seq) };
+        if let Err(e) = link.write(cmd) {
+            break Err(RunError::Transport(e.to_string()));
+        }
+        if s.seq.is_multiple_of(2048) {
+            while let Some(c) = take(&control_sub) {
+                if c.command == command::SET_GAIN_SCALE && (0.1..=10.0).contains(&c.value) {
+                    servo.set_gain_scale(c.value);
+                }
+            }
+            if stop.load(Ordering::Relaxed) && !stop_sent {
+                stop_sent = stopper
+                    .send(Control {
+                        command: command::STOP,
+                        ..Default::default()
+                    })
+                    .is_ok();
+            }
+            health.ticks = s.seq;
+            health.wall_s = start.elapsed().as_secs_f64();
+            daq_io::ipc::send(&health_pub, health);
+        }
+    };
+    let end = match result {
+        Ok(_) => flags::END,
+        Err(_) => flags::END | flags::FAULT_PEER_LOST,
+    };
+    telemetry.flush(&telemetry_pub, end);
+    health.state = if result.is_ok() {
+        state::DONE
+    } else {
+        state::FAULTED
+    };
+    daq_io::ipc::send(&health_pub, health);
+    let service = ep.service::<TelemetryBlock>(leaf::TELEMETRY).map_err(ipc)?;
+    daq_io::ipc::linger(&service, Duration::from_secs(5));
+    result
+}
+
+/// Joins the two record streams tick by tick.
+#[derive(Default)]
+struct Joiner {
+    telemetry: VecDeque<Telemetry>,
+    truth: VecDeque<Truth>,
+    next_telemetry: u64,
+    next_truth: u64,
+    dropped: u64,
+    truth_only: u64,
+}
+
+impl Joiner {
+    fn telemetry(&mut self, t: &[Telemetry]) {
+        for r in t {
+            self.dropped += r.seq.saturating_sub(self.next_telemetry);
+            self.next_telemetry = r.seq + 1;
+            self.telemetry.push_back(*r);
+        }
+    }
+
+    fn truth(&mut self, t: &[Truth]) {
+        for r in t {
+            self.dropped += r.seq.saturating_sub(self.next_truth);
+            self.next_truth = r.seq + 1;
+            self.truth.push_back(*r);
+        }
+    }
+
+    /// Frames complete so far; with `finished`, also the plant's ticks that have no
+    /// telemetry (the controller was lost): recorded from the truth alone.
+    fn drain(&mut self, finished: bool, mut out: impl FnMut(recorder::Frame)) {
+        loop {
+            match (self.telemetry.front(), self.truth.front()) {
+                (Some(a), Some(b)) if a.seq == b.seq => {
+                    out(frame(a, b));
+                    self.telemetry.pop_front();
+                    self.truth.pop_front();
+                }
+                (Some(a), Some(b)) if a.seq < b.seq => {
+                    self.telemetry.pop_front();
+                }
+                (_, Some(b)) if finished || self.telemetry.front().is_some() => {
+                    let t = Telemetry {
+                        seq: b.seq,
+                        time_s: b.time_s,
+                        ..Default::default()
+                    };
+                    out(frame(&t, b));
+                    self.truth_only += 1;
+                    self.truth.pop_front();
+                }
+                _ => return,
+            }
+        }
+    }
+}
+
+/// `servo record`: records run `prefix` (telemetry joined with truth, tick by tick) to `out`
+/// and returns the run's summary, with the plant's overruns, latency and faults.
+pub fn record(
+    cfg: &Loaded,
+    prefix: &str,
+    out: Option<PathBuf>,
+    realtime: bool,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Summary, RunError> {
+    let c = &cfg.config;
+    c.validate(cfg)?;
+    let description = crate::controller::Controller::build(cfg)?.description;
+    let ep = Endpoint::open(prefix, "recorder").map_err(ipc)?;
+    let tap = Tap::new(&ep).map_err(ipc)?;
+    let mut rec = match &out {
+        Some(path) => Some(Recorder::create(path, metadata(cfg), WhenFull::Wait)?),
+        None => None,
+    };
+    let total = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
+    let mut summary = SummaryBuilder::new(c.run.settle());
+    let mut join = Joiner::default();
+    let mut plant_health = Health::default();
+    let (mut telemetry_end, mut truth_end, mut plant_fault) = (false, false, false);
+    let mut last_data: Option<Instant> = None;
+    let waiting = Instant::now();
+    let mut push = |f: recorder::Frame| {
+        summary.add(&f);
+        if let Some(r) = &mut rec {
+            // A writer failure comes out of finish() below.
+            let _ = r.push(f);
+        }
+    };
+    loop {
+        let mut got = false;
+        while let Some(b) = take(&tap.telemetry) {
+            got = true;
+            join.telemetry(&b.ticks[..b.count as usize]);
+            telemetry_end |= b.flags & flags::END != 0;
+        }
+        while let Some(b) = take(&tap.truth) {
+            got = true;
+            join.truth(&b.ticks[..b.count as usize]);
+            truth_end |= b.flags & flags::END != 0;
+            plant_fault |= b.flags & flags::FAULT_PEER_LOST != 0;
+        }
+        while let Some(h) = take(&tap.health) {
+            if h.role == role::PLANT {
+                plant_health = h;
+            }
+        }
+        let silent = match last_data {
+            Some(t) => !got && t.elapsed() > RECORDER_TIMEOUT,
+            None => waiting.elapsed() > STARTUP_TIMEOUT,
+        };
+        // A plant that lost its controller ends the run alone; a lost plant ends it by silence.
+        let finished = (truth_end && (telemetry_end || plant_fault)) || silent;
+        join.drain(finished, &mut push);
+        if finished {
+            break;
+        }
+        if got {
+            last_data = Some(Instant::now());
+            progress(join.next_truth, total);
+        } else {
+            std::thread::sleep(Duration::from_micros(200));
+        }
+    }
+    drop(tap);
+    if last_data.is_none() {
+        return Err(RunError::Transport(format!(
+            "no plant or controller joined run {prefix} within {STARTUP_TIMEOUT:?}"
+        )));
+    }
+    let stats = match rec {
+        Some(r) => Some(r.finish()?),
+        None => None,
+    };
+    let ticks = summary.ticks();
+    Ok(summary.finish(RunMeta {
+        servo_rate_hz: c.plant.timing.servo_rate_hz,
+        seed: c.run.seed,
+        settle_s: c.run.settle(),
+        controller: description,
+        scenario: scenario_name(&c.scenario).into(),
+        wall_s: Some(plant_health.wall_s),
+        interrupted: ticks < total,
+        recorded_messages: stats.map(|s| s.messages),
+        dropped_frames: Some(join.dropped + stats.map_or(0, |s| s.dropped_frames)),
+        spectral_radius: None,
+        hil: Some(HilMeta {
+            realtime,
+            overruns: plant_health.overruns,
+            latency: plant_health.latency,
+            faults: plant_health.faults,
+            truth_only_ticks: join.truth_only,
+        }),
+    }))
+}
