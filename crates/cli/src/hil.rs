@@ -34,19 +34,25 @@ fn exit_for(e: RunError) -> ExitCode {
 }
 
 /// `servo plant`.
-pub fn plant(cfg: &Loaded, prefix: &str, realtime: bool, wait_for_recorder: bool) -> ExitCode {
+pub fn plant(
+    cfg: &Loaded,
+    prefix: &str,
+    realtime: bool,
+    wait_for_recorder: bool,
+    peer_timeout: Option<Duration>,
+) -> ExitCode {
     let stop = stop_flag();
     let pacing = if realtime {
         Pacing::RealTime
     } else {
         Pacing::Lockstep
     };
-    match runner::hil::plant(cfg, prefix, pacing, wait_for_recorder, &stop) {
+    match runner::hil::plant(cfg, prefix, pacing, wait_for_recorder, peer_timeout, &stop) {
         Ok(r) if r.faults != 0 => {
             eprintln!(
                 "servo plant: FAULT — controller lost at tick {} (no command for {:?}); drove zero current for {} ticks and ended the run",
                 r.fault_tick.unwrap_or(0),
-                daq_io::serve::ServeOptions::new(1, 1.0, pacing).peer_timeout,
+                r.peer_timeout,
                 r.ticks - r.fault_tick.unwrap_or(0)
             );
             ExitCode::from(EXIT_FAULT)
@@ -153,6 +159,7 @@ pub fn run(
     cfg: &Loaded,
     prefix: Option<String>,
     realtime: bool,
+    peer_timeout_ms: Option<f64>,
     out: Option<PathBuf>,
     quiet: bool,
 ) -> Result<(Summary, Vec<(String, i32)>), RunError> {
@@ -179,25 +186,33 @@ pub fn run(
         Some(o) => record_args.extend(["--out", o]),
         None => record_args.push("--no-record"),
     }
+    // Subscribe before the children start: a subscriber joining mid-run makes the publishers
+    // set up a connection inside a send, a sub-millisecond stall a real-time loop would feel.
+    let ep = Endpoint::open(&prefix, "run").map_err(|e| RunError::Transport(e.to_string()))?;
+    let health = ep
+        .subscriber::<Health>(leaf::HEALTH)
+        .map_err(|e| RunError::Transport(e.to_string()))?;
     let stop = stop_flag();
     let recorder = spawn(&record_args, Stdio::piped())?;
     let controller = spawn(
         &["controller", "--config", config, "--prefix", &prefix],
         Stdio::inherit(),
     )?;
-    let plant = spawn(
-        &["plant", "--config", config, "--prefix", &prefix, mode],
-        Stdio::inherit(),
-    )?;
-    let mut children = [("plant", plant), ("controller", controller), ("record", recorder)];
+    let timeout = peer_timeout_ms.map(|t| t.to_string());
+    let mut plant_args = vec!["plant", "--config", config, "--prefix", &prefix, mode];
+    if let Some(t) = &timeout {
+        plant_args.extend(["--peer-timeout-ms", t]);
+    }
+    let plant = spawn(&plant_args, Stdio::inherit())?;
+    let mut children = [
+        ("plant", plant),
+        ("controller", controller),
+        ("record", recorder),
+    ];
 
     let bar = progress_bar(quiet, if realtime { "real time" } else { "lockstep" });
     let total = (cfg.config.run.duration_s * cfg.config.plant.timing.servo_rate_hz).round() as u64;
     bar.set_length(total);
-    let ep = Endpoint::open(&prefix, "run").map_err(|e| RunError::Transport(e.to_string()))?;
-    let health = ep
-        .subscriber::<Health>(leaf::HEALTH)
-        .map_err(|e| RunError::Transport(e.to_string()))?;
     let mut codes: Vec<(String, i32)> = Vec::new();
     let mut stopped_at: Option<Instant> = None;
     while codes.len() < children.len() {

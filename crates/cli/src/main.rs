@@ -39,12 +39,28 @@ struct HilArgs {
     /// Lockstep pacing (the default).
     #[arg(long)]
     lockstep: bool,
+    /// Controller silence after which the plant declares it lost and drives zero current, ms
+    /// (default 200 lockstep, 0.5 real time; > 0).
+    #[arg(long)]
+    peer_timeout_ms: Option<f64>,
 }
 
 impl HilArgs {
+    fn peer_timeout(&self) -> Result<Option<std::time::Duration>, ExitCode> {
+        match self.peer_timeout_ms {
+            Some(t) if !(t > 0.0 && t < 1e7) => {
+                eprintln!("error: --peer-timeout-ms = {t}: allowed 0 < t < 1e7 ms");
+                Err(ExitCode::from(2))
+            }
+            t => Ok(t.map(|t| std::time::Duration::from_secs_f64(t * 1e-3))),
+        }
+    }
+
     fn prefix(&self) -> Result<String, ExitCode> {
         self.prefix.clone().ok_or_else(|| {
-            eprintln!("error: --prefix is required (the run's service prefix, e.g. --prefix bench)");
+            eprintln!(
+                "error: --prefix is required (the run's service prefix, e.g. --prefix bench)"
+            );
             ExitCode::from(2)
         })
     }
@@ -820,11 +836,21 @@ fn main() -> ExitCode {
             };
             if hil {
                 let out = (!no_record).then_some(out);
-                return match hil::run(&cfg, hil_args.prefix, hil_args.realtime, out.clone(), quiet) {
+                return match hil::run(
+                    &cfg,
+                    hil_args.prefix,
+                    hil_args.realtime,
+                    hil_args.peer_timeout_ms,
+                    out.clone(),
+                    quiet,
+                ) {
                     Ok((summary, codes)) => {
                         print_summary(&summary, json);
                         if let (Some(o), false) = (&out, json) {
-                            println!("  wrote {} (open it in Foxglove: topics /telemetry and /truth)", o.display());
+                            println!(
+                                "  wrote {} (open it in Foxglove: topics /telemetry and /truth)",
+                                o.display()
+                            );
                         }
                         match codes.iter().find(|(_, c)| *c != 0) {
                             Some((name, c)) => {
@@ -929,10 +955,14 @@ fn main() -> ExitCode {
             settings,
             hil_args,
             no_recorder,
-        } => match (settings.resolve(), hil_args.prefix()) {
-            (Ok(cfg), Ok(p)) => hil::plant(&cfg, &p, hil_args.realtime, !no_recorder),
-            (Err(e), _) => fail(e, 2),
-            (_, Err(code)) => code,
+        } => match (
+            settings.resolve(),
+            hil_args.prefix(),
+            hil_args.peer_timeout(),
+        ) {
+            (Ok(cfg), Ok(p), Ok(t)) => hil::plant(&cfg, &p, hil_args.realtime, !no_recorder, t),
+            (Err(e), _, _) => fail(e, 2),
+            (_, Err(code), _) | (_, _, Err(code)) => code,
         },
         Command::Controller { settings, hil_args } => {
             match (settings.resolve(), hil_args.prefix()) {

@@ -5,9 +5,7 @@
 //! opens every service with the same settings ([`ServiceSettings`]); opening cleans up the
 //! resources of dead nodes first, so a run after a `kill -9` starts cleanly.
 
-use crate::contract::{
-    Command, Control, Health, Sensor, TelemetryBlock, TruthBlock, BLOCK_TICKS,
-};
+use crate::contract::{Command, Control, Health, Sensor, TelemetryBlock, TruthBlock, BLOCK_TICKS};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use std::fmt::Debug;
@@ -141,10 +139,7 @@ impl Endpoint {
     }
 
     /// Opens (or creates) publish-subscribe service `leaf` carrying `T`.
-    pub fn service<T: Debug + ZeroCopySend>(
-        &self,
-        leaf: &str,
-    ) -> Result<Service<T>, IpcError> {
+    pub fn service<T: Debug + ZeroCopySend>(&self, leaf: &str) -> Result<Service<T>, IpcError> {
         let full = self.service_name(leaf);
         let name: ServiceName = full
             .as_str()
@@ -177,10 +172,7 @@ impl Endpoint {
     }
 
     /// A publisher on `leaf`.
-    pub fn publisher<T: Debug + ZeroCopySend>(
-        &self,
-        leaf: &str,
-    ) -> Result<Publisher<T>, IpcError> {
+    pub fn publisher<T: Debug + ZeroCopySend>(&self, leaf: &str) -> Result<Publisher<T>, IpcError> {
         self.service::<T>(leaf)?
             .publisher_builder()
             .create()
@@ -206,6 +198,13 @@ pub fn linger<T: Debug + ZeroCopySend>(service: &Service<T>, timeout: Duration) 
     while service.dynamic_config().number_of_subscribers() > 0 && start.elapsed() < timeout {
         std::thread::sleep(Duration::from_millis(1));
     }
+}
+
+/// Sets up `p`'s connections to the subscribers present now, so the first send after it does
+/// not pay for it (a sub-millisecond stall a real-time loop would feel).
+pub fn connect<T: Debug + ZeroCopySend>(p: &Publisher<T>) {
+    use iceoryx2::port::update_connections::UpdateConnections;
+    let _ = p.update_connections();
 }
 
 /// Sends `value` (copied into a loaned shared-memory sample). Returns false when the

@@ -10,9 +10,7 @@
 //!   [`flags::FAULT_PEER_LOST`] is raised, the plant runs `safe_ticks` more ticks in the safe
 //!   state (recorded, so the current's decay is visible) and ends the run.
 
-use crate::contract::{
-    command, flags, role, state, Command, Control, Health, Sensor, TruthBlock,
-};
+use crate::contract::{command, flags, role, state, Command, Control, Health, Sensor, TruthBlock};
 use crate::ipc::{leaf, poll_until, take, BlockWriter, Endpoint, IpcError};
 use crate::{Backend, LatencyHistogram};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -51,7 +49,7 @@ pub struct ServeOptions {
 
 impl ServeOptions {
     /// Defaults for `ticks` at `period_s` with `pacing`: peer timeout 200 ms (lockstep) or
-    /// 0.5 ms (real time; the DAC is at 0 V within 1 ms of the last command), 1 ms of safe state.
+    /// 0.5 ms (real time; the DAC is at 0 V within 1 ms of the last command), 2 ms of safe state.
     pub fn new(ticks: u64, period_s: f64, pacing: Pacing) -> Self {
         ServeOptions {
             ticks,
@@ -63,7 +61,7 @@ impl ServeOptions {
             },
             startup_timeout: Duration::from_secs(30),
             wait_for_recorder: true,
-            safe_ticks: (1e-3 / period_s).ceil() as u64,
+            safe_ticks: (2e-3 / period_s).ceil() as u64,
             linger: Duration::from_secs(5),
         }
     }
@@ -88,6 +86,8 @@ pub struct ServeReport {
     pub wall_s: f64,
     /// Truth blocks the transport refused.
     pub truth_refused: u64,
+    /// The controller silence that counted as lost.
+    pub peer_timeout: Duration,
 }
 
 /// Plant-side errors.
@@ -134,12 +134,21 @@ pub fn serve<B: Backend>(
         }
         if waiting.elapsed() > opts.startup_timeout || stop.load(Ordering::Relaxed) {
             let who = if controller { "recorder" } else { "controller" };
-            return Err(ServeError::NoPeer(who, ep.prefix().into(), opts.startup_timeout));
+            return Err(ServeError::NoPeer(
+                who,
+                ep.prefix().into(),
+                opts.startup_timeout,
+            ));
         }
         crate::ipc::send(&health_pub, health);
         std::thread::sleep(Duration::from_millis(5));
     }
 
+    // Pay every connection set-up now, not inside the timed ticks.
+    crate::ipc::connect(&sensor_pub);
+    crate::ipc::connect(&truth_pub);
+    crate::ipc::connect(&health_pub);
+    while take(&control_sub).is_some() {}
     let period = Duration::from_secs_f64(opts.period_s);
     let mut latency = LatencyHistogram::new();
     let mut truth = BlockWriter::<TruthBlock>::default();
@@ -149,12 +158,15 @@ pub fn serve<B: Backend>(
         ..backend.initial()
     };
     let mut dac_v = 0.0;
-    let mut missed = 0u64;
+    let mut last_command = Instant::now();
     let mut end_tick = opts.ticks;
     health.state = state::RUNNING;
-    let t0 = Instant::now();
+    let mut t0 = Instant::now();
     let mut k = 0u64;
     while k < end_tick {
+        if k == 1 {
+            t0 = Instant::now() - period;
+        }
         let tick_start = t0 + period.mul_f64(k as f64);
         if opts.pacing == Pacing::RealTime {
             while Instant::now() < tick_start {
@@ -165,25 +177,25 @@ pub fn serve<B: Backend>(
         let published = Instant::now();
         let mut tick_flags = 0;
         if report.fault_tick.is_none() {
+            // Tick 0 is untimed: its exchange sets up the shared-memory connections (the
+            // first receive maps the peer's segment); the wall-clock time base starts after it.
             let deadline = match opts.pacing {
+                _ if k == 0 => published + opts.startup_timeout,
                 Pacing::Lockstep => published + opts.peer_timeout,
                 Pacing::RealTime => tick_start + period,
             };
             match poll_until(&command_sub, deadline, |c| c.seq == k) {
                 Some(c) => {
-                    latency.record(published.elapsed().as_nanos() as u64);
+                    last_command = Instant::now();
+                    latency.record((last_command - published).as_nanos() as u64);
                     dac_v = c.dac_v;
-                    missed = 0;
                 }
                 None => {
-                    missed += 1;
                     report.overruns += (opts.pacing == Pacing::RealTime) as u64;
                     tick_flags |= flags::OVERRUN;
-                    let silent = match opts.pacing {
-                        Pacing::Lockstep => true,
-                        Pacing::RealTime => period.mul_f64(missed as f64) >= opts.peer_timeout,
-                    };
-                    if silent {
+                    // Silence is wall time since the last command: a plant that was itself
+                    // descheduled finds the controller's answers waiting and is not fooled.
+                    if last_command.elapsed() >= opts.peer_timeout {
                         report.fault_tick = Some(k);
                         report.faults |= flags::FAULT_PEER_LOST;
                         end_tick = k + opts.safe_ticks;
@@ -233,6 +245,7 @@ pub fn serve<B: Backend>(
     report.latency = latency.summary();
     report.wall_s = t0.elapsed().as_secs_f64();
     report.truth_refused = truth.refused();
+    report.peer_timeout = opts.peer_timeout;
     health.state = if report.faults != 0 {
         state::FAULTED
     } else {

@@ -3,37 +3,12 @@
 
 use daq_io::ipc::{ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
-use daq_io::{flags, Backend, Command, Daq, InProcess, Sensor, Truth};
+use daq_io::{flags, Command, Daq, InProcess};
+
+mod common;
+use common::{prefix, Lag};
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
-
-/// A first-order plant y⁺ = 0.9 y + 0.1 u with a deterministic pseudo-noise term.
-#[derive(Default)]
-struct Lag {
-    y: f64,
-    k: u64,
-    last_u: f64,
-}
-
-impl Backend for Lag {
-    fn step(&mut self, dac_v: f64) -> Sensor {
-        self.k += 1;
-        self.last_u = dac_v;
-        self.y = 0.9 * self.y + 0.1 * dac_v + 1e-3 * ((self.k * 2654435761) % 1000) as f64;
-        Sensor {
-            time_s: self.k as f64 * 1e-5,
-            gap_v: self.y,
-            ..Default::default()
-        }
-    }
-    fn truth(&self) -> Option<Truth> {
-        Some(Truth {
-            dac_v: self.last_u,
-            tool_m: self.y,
-            ..Default::default()
-        })
-    }
-}
 
 /// A PI law on the gap reading; returns the commands it sent.
 fn control(daq: &mut impl Daq) -> Vec<f64> {
@@ -56,10 +31,6 @@ fn control(daq: &mut impl Daq) -> Vec<f64> {
     }
 }
 
-fn prefix(tag: &str) -> String {
-    format!("test-{tag}-{}", std::process::id())
-}
-
 #[test]
 fn lockstep_over_shared_memory_equals_in_process() {
     let ticks = 20_000;
@@ -78,8 +49,14 @@ fn lockstep_over_shared_memory_equals_in_process() {
     let got = control(&mut link);
     let report = plant.join().unwrap();
     assert_eq!(got.len(), expected.len());
-    assert!(got.iter().zip(&expected).all(|(a, b)| a.to_bits() == b.to_bits()));
-    assert_eq!((report.ticks, report.overruns, report.faults), (ticks, 0, 0));
+    assert!(got
+        .iter()
+        .zip(&expected)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert_eq!(
+        (report.ticks, report.overruns, report.faults),
+        (ticks, 0, 0)
+    );
     assert_eq!(report.latency.count, ticks);
 }
 

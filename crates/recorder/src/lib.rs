@@ -11,4 +11,4 @@ pub mod writer;
 
 pub use frame::{Frame, Telemetry, Truth};
 pub use reader::{read, ReadError, Recording};
-pub use writer::{RecordError, RecordStats, Recorder, WhenFull};
+pub use writer::{Chunks, RecordError, RecordStats, Recorder, WhenFull};

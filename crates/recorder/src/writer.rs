@@ -74,13 +74,33 @@ pub struct Recorder {
 /// Frames the ring holds (≈ 0.1 s at 199.6 kHz; 20 k × 136 B ≈ 2.7 MB).
 pub const RING_FRAMES: usize = 1 << 15;
 
+/// How chunks are stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Chunks {
+    /// zstd level 1 (≈ 6× smaller; 0.2–0.3 s of one core per simulated second at 199.6 kHz).
+    Zstd,
+    /// Uncompressed (≈ 25 MB per simulated second; ≈ 10× cheaper to write): for a recorder
+    /// that shares the cores with a real-time loop.
+    Raw,
+}
+
 impl Recorder {
     /// Creates `path` (failing now, before any run, if it cannot be written), writes the
-    /// metadata record `run` with `metadata`, and starts the writer thread.
+    /// metadata record `run` with `metadata`, and starts the writer thread. zstd chunks.
     pub fn create(
         path: &Path,
         metadata: BTreeMap<String, String>,
         when_full: WhenFull,
+    ) -> Result<Self, RecordError> {
+        Self::create_with(path, metadata, when_full, Chunks::Zstd)
+    }
+
+    /// [`Recorder::create`] with the chunk storage chosen.
+    pub fn create_with(
+        path: &Path,
+        metadata: BTreeMap<String, String>,
+        when_full: WhenFull,
+        chunks: Chunks,
     ) -> Result<Self, RecordError> {
         let io = |source| RecordError::Io {
             path: path.to_owned(),
@@ -92,7 +112,10 @@ impl Recorder {
         };
         let file = File::create(path).map_err(io)?;
         let options = WriteOptions::new()
-            .compression(Some(Compression::Zstd))
+            .compression(match chunks {
+                Chunks::Zstd => Some(Compression::Zstd),
+                Chunks::Raw => None,
+            })
             .compression_level(1)
             .compression_threads(0)
             .chunk_size(Some(4 << 20))

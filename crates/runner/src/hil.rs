@@ -3,7 +3,8 @@
 //!
 //! Guarantees: lockstep runs are bit-identical to [`crate::run::run`] with the same config
 //! (same [`SimBackend`], same [`ServoLoop`], same frames); the recorder never blocks the loop
-//! (1024 blocks = 65 536 ticks of queue per stream; a full queue overwrites the oldest block
+//! (it writes uncompressed MCAP chunks to stay cheap, and has 1024 blocks = 65 536 ticks of
+//! queue per stream; a full queue overwrites the oldest block
 //! and the gap is counted as dropped frames); a lost controller puts the plant in the safe
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
@@ -16,7 +17,7 @@ use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoi
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Control, Daq, Health, Latency, Telemetry, TelemetryBlock, Truth};
 use plant_sim::Simulator;
-use recorder::{Recorder, WhenFull};
+use recorder::{Chunks, Recorder, WhenFull};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::path::PathBuf;
@@ -51,12 +52,14 @@ fn ipc(e: daq_io::ipc::IpcError) -> RunError {
 }
 
 /// `servo plant`: serves the simulated stage of `cfg` to the run `prefix` until its duration,
-/// a STOP, `stop`, or a lost controller.
+/// a STOP, `stop`, or a lost controller (silent for `peer_timeout`, default per
+/// [`ServeOptions::new`]).
 pub fn plant(
     cfg: &Loaded,
     prefix: &str,
     pacing: Pacing,
     wait_for_recorder: bool,
+    peer_timeout: Option<Duration>,
     stop: &AtomicBool,
 ) -> Result<daq_io::serve::ServeReport, RunError> {
     let c = &cfg.config;
@@ -67,6 +70,9 @@ pub fn plant(
     let mut opts = ServeOptions::new(ticks, c.plant.period_s(), pacing);
     opts.wait_for_recorder = wait_for_recorder;
     opts.startup_timeout = STARTUP_TIMEOUT;
+    if let Some(t) = peer_timeout {
+        opts.peer_timeout = t;
+    }
     let ep = Endpoint::open(prefix, "plant").map_err(ipc)?;
     serve(&ep, &mut SimBackend::new(sim), &opts, stop).map_err(|e| match e {
         daq_io::serve::ServeError::Ipc(e) => ipc(e),
@@ -81,7 +87,9 @@ pub fn controller(cfg: &Loaded, prefix: &str, stop: &AtomicBool) -> Result<u64, 
     let mut servo = ServoLoop::new(cfg)?;
     let ep = Endpoint::open(prefix, "controller").map_err(ipc)?;
     let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT).map_err(ipc)?;
-    let telemetry_pub = ep.publisher::<TelemetryBlock>(leaf::TELEMETRY).map_err(ipc)?;
+    let telemetry_pub = ep
+        .publisher::<TelemetryBlock>(leaf::TELEMETRY)
+        .map_err(ipc)?;
     let control_sub = ep.subscriber::<Control>(leaf::CONTROL).map_err(ipc)?;
     let health_pub = ep.publisher::<Health>(leaf::HEALTH).map_err(ipc)?;
     let stopper = ControlSender::new(&ep).map_err(ipc)?;
@@ -98,6 +106,12 @@ pub fn controller(cfg: &Loaded, prefix: &str, stop: &AtomicBool) -> Result<u64, 
             Ok(s) => s,
             Err(e) => break Err(RunError::PlantLost(e.to_string())),
         };
+        if s.seq == 0 {
+            // Tick 0 is untimed (see daq_io::serve): set up every connection now.
+            daq_io::ipc::connect(&telemetry_pub);
+            daq_io::ipc::send(&health_pub, health);
+            while take(&control_sub).is_some() {}
+        }
         let (cmd, t) = servo.tick(&s);
         if let Some(t) = t {
             telemetry.push(&telemetry_pub, t);
@@ -213,7 +227,13 @@ pub fn record(
     let ep = Endpoint::open(prefix, "recorder").map_err(ipc)?;
     let tap = Tap::new(&ep).map_err(ipc)?;
     let mut rec = match &out {
-        Some(path) => Some(Recorder::create(path, metadata(cfg), WhenFull::Wait)?),
+        // Uncompressed: this process shares the cores with two busy-polling ones.
+        Some(path) => Some(Recorder::create_with(
+            path,
+            metadata(cfg),
+            WhenFull::Wait,
+            Chunks::Raw,
+        )?),
         None => None,
     };
     let total = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
@@ -262,7 +282,7 @@ pub fn record(
             last_data = Some(Instant::now());
             progress(join.next_truth, total);
         } else {
-            std::thread::sleep(Duration::from_micros(200));
+            std::thread::sleep(Duration::from_millis(5));
         }
     }
     drop(tap);

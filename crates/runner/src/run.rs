@@ -4,11 +4,11 @@
 use crate::analysis::ClosedLoop;
 use crate::config::{ConfigError, Loaded, Scenario};
 use crate::controller::Controller;
+use crate::servo_loop::{frame, ServoLoop, SimBackend};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
+use daq_io::{Backend, Daq, InProcess};
 use plant_sim::model::ModelError;
 use plant_sim::params::CurrentLoopModel;
-use crate::servo_loop::{frame, ServoLoop, SimBackend};
-use daq_io::{Backend, Daq, InProcess};
 use plant_sim::sim::SimError;
 use plant_sim::Simulator;
 use recorder::{RecordError, Recorder, WhenFull};
@@ -190,7 +190,7 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
     let mut interrupted = false;
     loop {
         let s = daq.read().expect("in-process reads cannot fail");
-        if s.seq % 8192 == 0 {
+        if s.seq.is_multiple_of(8192) {
             (opts.progress)(s.seq, total);
             if opts.stop.load(Ordering::Relaxed) && s.flags & daq_io::flags::END == 0 {
                 interrupted = true;

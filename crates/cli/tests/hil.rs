@@ -1,0 +1,246 @@
+//! HIL: plant, controller and recorder as separate processes over iceoryx2, as a user runs
+//! them. Each test uses its own run prefix (with the test process id) so tests run in parallel.
+
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn servo() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_servo"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("fts-hil-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn prefix(tag: &str) -> String {
+    format!("t-{tag}-{}", std::process::id())
+}
+
+fn run_ok(args: &[&str]) -> serde_json::Value {
+    let out = servo().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "servo {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON summary")
+}
+
+/// In-process and lockstep HIL recordings of the same config: frame by frame identical.
+fn assert_same_recording(a: &PathBuf, b: &PathBuf) {
+    let (a, b) = (recorder::read(a).unwrap(), recorder::read(b).unwrap());
+    assert_eq!(a.frames.len(), b.frames.len());
+    let first_diff = a.frames.iter().zip(&b.frames).position(|(x, y)| x != y);
+    assert_eq!(first_diff, None, "frames differ");
+}
+
+#[test]
+fn lockstep_hil_equals_the_in_process_run_bit_for_bit() {
+    let (a, b) = (tmp("inproc.mcap"), tmp("hil.mcap"));
+    let common = [
+        "--duration",
+        "0.3",
+        "--scenario",
+        "sine",
+        "--seed",
+        "5",
+        "-q",
+        "--json",
+    ];
+    let inproc = run_ok(&[&["run", "--out", a.to_str().unwrap()][..], &common].concat());
+    let p = prefix("bits");
+    let hil = run_ok(
+        &[
+            &["run", "--hil", "--prefix", &p, "--out", b.to_str().unwrap()][..],
+            &common,
+        ]
+        .concat(),
+    );
+    assert_same_recording(&a, &b);
+    for key in ["following_error_m", "true_error_m", "control_v"] {
+        assert_eq!(inproc[key], hil[key], "{key}");
+    }
+    assert_eq!(hil["meta"]["dropped_frames"], 0);
+    assert_eq!(hil["meta"]["hil"]["faults"], 0);
+    assert_eq!(hil["ticks"], (0.3f64 * 199_600.0).round() as u64);
+}
+
+#[test]
+fn two_concurrent_runs_with_different_prefixes_do_not_interfere() {
+    let runs: Vec<(PathBuf, PathBuf, Child)> = [("a", "1", "heavy"), ("b", "2", "light")]
+        .iter()
+        .map(|(tag, seed, mass)| {
+            let (solo, hil) = (
+                tmp(&format!("solo-{tag}.mcap")),
+                tmp(&format!("par-{tag}.mcap")),
+            );
+            let common = [
+                "--duration",
+                "0.2",
+                "--seed",
+                seed,
+                "--mass",
+                mass,
+                "-q",
+                "--json",
+            ];
+            run_ok(&[&["run", "--out", solo.to_str().unwrap()][..], &common].concat());
+            let child = servo()
+                .args(["run", "--hil", "--prefix", &prefix(tag), "--out"])
+                .arg(&hil)
+                .args(common)
+                .stdout(Stdio::null())
+                .spawn()
+                .unwrap();
+            (solo, hil, child)
+        })
+        .collect();
+    for (solo, hil, mut child) in runs {
+        assert!(child.wait().unwrap().success());
+        assert_same_recording(&solo, &hil);
+    }
+}
+
+fn spawn(args: &[&str]) -> Child {
+    servo()
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// Waits (at most 30 s) until the plant of run `prefix` reports `ticks` done on the health
+/// service of the control plane.
+fn wait_for_ticks(prefix: &str, ticks: u64) {
+    let ep = daq_io::ipc::Endpoint::open(prefix, "test-watch").unwrap();
+    let health = ep
+        .subscriber::<daq_io::Health>(daq_io::ipc::leaf::HEALTH)
+        .unwrap();
+    let start = Instant::now();
+    loop {
+        while let Some(h) = daq_io::ipc::take(&health) {
+            if h.role == daq_io::contract::role::PLANT && h.ticks >= ticks {
+                return;
+            }
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "run did not start"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// Lockstep: the plant waits 200 ms for each command, so the first unanswered tick is the
+/// fault tick and the DAC is at 0 V from it; the current must be gone within 1 ms of
+/// simulated time. (Real-time detection, 0.5 ms of wall time, is tested in daq-io.)
+#[test]
+fn killing_the_controller_puts_the_coil_current_to_zero_within_1_ms() {
+    let p = prefix("kill");
+    let out = tmp("kill.mcap");
+    // A 200 Hz, 2 µm sine needs real current; noise off so "zero" means zero.
+    let cfg = [
+        "--duration",
+        "20",
+        "--scenario",
+        "sine",
+        "--amplitude",
+        "2e-6",
+        "--frequency",
+        "200",
+        "--noise",
+        "none",
+        "--prefix",
+        &p,
+    ];
+    let mut record = spawn(
+        &[
+            &["record", "--json", "-q", "--out", out.to_str().unwrap()][..],
+            &cfg,
+        ]
+        .concat(),
+    );
+    let mut controller = spawn(&[&["controller"][..], &cfg].concat());
+    let plant = spawn(&[&["plant"][..], &cfg].concat());
+    wait_for_ticks(&p, 100_000);
+    controller.kill().unwrap(); // SIGKILL
+    controller.wait().unwrap();
+    let plant = plant.wait_with_output().unwrap();
+    assert_eq!(
+        plant.status.code(),
+        Some(3),
+        "plant exit: {}",
+        String::from_utf8_lossy(&plant.stderr)
+    );
+    assert!(String::from_utf8_lossy(&plant.stderr).contains("controller lost"));
+    assert!(record.wait().unwrap().success());
+
+    let frames = recorder::read(&out).unwrap().frames;
+    let flag = |f: &recorder::Frame, bit: u32| (f.telemetry.flags as u32) & bit != 0;
+    let fault = frames
+        .iter()
+        .position(|f| flag(f, daq_io::flags::FAULT_PEER_LOST))
+        .expect("fault flagged in the recording");
+    // The last tick with a command: before the run of overruns that ended in the fault.
+    let last_command = (0..fault)
+        .rev()
+        .find(|&k| !flag(&frames[k], daq_io::flags::OVERRUN))
+        .unwrap();
+    let period: f64 = 1.0 / 199_600.0;
+    assert_eq!(
+        fault,
+        last_command + 1,
+        "lockstep: the first unanswered tick is the fault"
+    );
+    let before: f64 = frames[last_command - 2000..last_command]
+        .iter()
+        .map(|f| f.truth.coil_current_a.abs() as f64)
+        .fold(0.0, f64::max);
+    assert!(before > 1e-3, "the sine drives {before} A");
+    let within = last_command + (1e-3 / period).ceil() as usize;
+    let after = frames[within..]
+        .iter()
+        .map(|f| f.truth.coil_current_a.abs() as f64)
+        .fold(0.0, f64::max);
+    assert!(
+        after < 1e-3 * before,
+        "current {after} A 1 ms after the last command"
+    );
+    assert!(frames.len() > within + 100, "safe-state ticks recorded");
+}
+
+#[test]
+fn a_run_after_kill_9_of_every_process_starts_cleanly() {
+    let p = prefix("k9");
+    let out = tmp("k9.mcap");
+    let cfg = ["--duration", "30", "--prefix", &p];
+    let mut children = [
+        spawn(&[&["record", "-q", "--out", out.to_str().unwrap()][..], &cfg].concat()),
+        spawn(&[&["controller"][..], &cfg].concat()),
+        spawn(&[&["plant"][..], &cfg].concat()),
+    ];
+    wait_for_ticks(&p, 50_000);
+    for c in children.iter_mut() {
+        c.kill().unwrap();
+        c.wait().unwrap();
+    }
+    let v = run_ok(&[
+        "run",
+        "--hil",
+        "--prefix",
+        &p,
+        "--duration",
+        "0.2",
+        "-q",
+        "--json",
+        "--no-record",
+    ]);
+    assert_eq!(v["ticks"], (0.2f64 * 199_600.0).round() as u64);
+    assert_eq!(v["meta"]["hil"]["faults"], 0);
+    let f = v["following_error_m"]["rms"].as_f64().unwrap();
+    assert!(f > 0.3e-9 && f < 1.2e-9, "following error {f}");
+}

@@ -1,0 +1,36 @@
+//! Shared by the transport tests.
+
+use daq_io::{Backend, Sensor, Truth};
+
+/// A first-order plant y⁺ = 0.9 y + 0.1 u with a deterministic pseudo-noise term.
+#[derive(Default)]
+pub struct Lag {
+    y: f64,
+    k: u64,
+    last_u: f64,
+}
+
+impl Backend for Lag {
+    fn step(&mut self, dac_v: f64) -> Sensor {
+        self.k += 1;
+        self.last_u = dac_v;
+        self.y = 0.9 * self.y + 0.1 * dac_v + 1e-3 * ((self.k * 2654435761) % 1000) as f64;
+        Sensor {
+            time_s: self.k as f64 * 1e-5,
+            gap_v: self.y,
+            ..Default::default()
+        }
+    }
+    fn truth(&self) -> Option<Truth> {
+        Some(Truth {
+            dac_v: self.last_u,
+            tool_m: self.y,
+            ..Default::default()
+        })
+    }
+}
+
+/// A run prefix unique to this test process.
+pub fn prefix(tag: &str) -> String {
+    format!("test-{tag}-{}", std::process::id())
+}

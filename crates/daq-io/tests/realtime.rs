@@ -1,0 +1,69 @@
+//! Real-time pacing (own test binary: only the plant and controller threads spin here, as
+//! in a real deployment; the other transport tests would compete for the two cores).
+
+use daq_io::ipc::{ControllerLink, Endpoint, Tap};
+use daq_io::serve::{serve, Pacing, ServeOptions};
+use daq_io::{flags, Command, Daq};
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+mod common;
+use common::{prefix, Lag};
+
+#[test]
+fn real_time_plant_drives_zero_within_half_a_millisecond_of_the_last_command() {
+    let p = prefix("rt-silent");
+    let p2 = p.clone();
+    let period = 1e-5;
+    let ep = Endpoint::open(&p, "recorder").unwrap();
+    let tap = Tap::new(&ep).unwrap();
+    let plant = std::thread::spawn(move || {
+        let ep = Endpoint::open(&p2, "plant").unwrap();
+        let opts = ServeOptions::new(1_000_000, period, Pacing::RealTime);
+        serve(&ep, &mut Lag::default(), &opts, &AtomicBool::new(false)).unwrap()
+    });
+    // Answers the first 1000 samples with 2 V, then goes silent (as if killed).
+    let cep = Endpoint::open(&p, "controller").unwrap();
+    let mut link =
+        ControllerLink::new(&cep, Duration::from_secs(10), Duration::from_secs(1)).unwrap();
+    let mut last = 0;
+    while last < 999 {
+        let s = link.read().unwrap();
+        last = s.seq;
+        link.write(Command {
+            seq: s.seq,
+            dac_v: 2.0,
+            ..Default::default()
+        })
+        .unwrap();
+    }
+    let mut truth = Vec::new();
+    loop {
+        match daq_io::ipc::take(&tap.truth) {
+            Some(b) => {
+                truth.extend_from_slice(&b.ticks[..b.count as usize]);
+                if b.flags & flags::END != 0 {
+                    break;
+                }
+            }
+            None => std::thread::sleep(Duration::from_millis(1)),
+        }
+    }
+    drop(tap);
+    let report = plant.join().unwrap();
+    let fault = report.fault_tick.expect("controller declared lost");
+    // The last tick that got its command (the DAC held 2 V); the silence starts after it.
+    let answered = truth
+        .iter()
+        .rposition(|t| t.flags & flags::OVERRUN == 0 && t.dac_v == 2.0)
+        .unwrap() as u64;
+    let silent_s = (fault - answered) as f64 * period;
+    assert!(
+        silent_s <= 0.5e-3 + 3.0 * period,
+        "declared lost {silent_s} s after the last command"
+    );
+    assert!(truth[fault as usize..]
+        .iter()
+        .all(|t| t.dac_v == 0.0 && t.flags & flags::FAULT_PEER_LOST != 0));
+    assert_eq!(report.ticks, fault + (2e-3 / period) as u64);
+}
