@@ -78,9 +78,9 @@ pub fn settings(leaf: &str) -> ServiceSettings {
             subscribers: 4,
         },
         _ => ServiceSettings {
-            buffer: 8,
+            buffer: 4,
             publishers: 1,
-            subscribers: 3,
+            subscribers: 2,
         },
     }
 }
