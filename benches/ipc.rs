@@ -158,7 +158,10 @@ fn lockstep_rate() -> ((u64, f64), (u64, f64)) {
         },
     )
     .unwrap();
-    ((r.ticks, r.wall_s), (s.ticks, start.elapsed().as_secs_f64()))
+    (
+        (r.ticks, r.wall_s),
+        (s.ticks, start.elapsed().as_secs_f64()),
+    )
 }
 
 fn row(name: &str, h: &LatencyHistogram) -> serde_json::Value {
@@ -193,8 +196,14 @@ fn main() {
     println!("Round trip plant → controller → plant, two processes, µs:\n");
     println!("| transport | exchanges | min | median | p99 | p99.9 | max |");
     println!("|---|---|---|---|---|---|---|");
-    let ice = row("iceoryx2 0.10 publish-subscribe, busy polling", &round_trip_iceoryx2());
-    let sock = row("Unix stream socket, blocking reads (baseline)", &round_trip_socket());
+    let ice = row(
+        "iceoryx2 0.10 publish-subscribe, busy polling",
+        &round_trip_iceoryx2(),
+    );
+    let sock = row(
+        "Unix stream socket, blocking reads (baseline)",
+        &round_trip_socket(),
+    );
     let ((ticks, wall), (in_ticks, in_wall)) = lockstep_rate();
     let (hil_khz, in_khz) = (ticks as f64 / wall / 1e3, in_ticks as f64 / in_wall / 1e3);
     println!("\nLockstep, full loop (simulated stage + Ch. 7 PID), {LOCKSTEP_S} s simulated:\n");

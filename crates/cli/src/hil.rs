@@ -104,8 +104,14 @@ pub fn record(
 
 /// `servo ctl`: one control-plane message to a running run.
 pub fn ctl(prefix: &str, message: Control) -> ExitCode {
-    let sent = Endpoint::open(prefix, &format!("ctl-{}", std::process::id()))
-        .and_then(|ep| ControlSender::new(&ep).and_then(|c| c.send(message)));
+    let sent = Endpoint::open(prefix, &format!("ctl-{}", std::process::id())).and_then(|ep| {
+        let sender = ControlSender::new(&ep)?;
+        sender.send(message)?;
+        // Samples of a publisher that is gone cannot be received: stay until the plant and
+        // controller have polled (every 2048 ticks, ≈ 10 ms in real time).
+        std::thread::sleep(Duration::from_millis(100));
+        Ok(())
+    });
     match sent {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(e, 1),

@@ -244,3 +244,74 @@ fn a_run_after_kill_9_of_every_process_starts_cleanly() {
     let f = v["following_error_m"]["rms"].as_f64().unwrap();
     assert!(f > 0.3e-9 && f < 1.2e-9, "following error {f}");
 }
+
+/// The control plane: `servo ctl gain` scales the controller output from the next health
+/// boundary on (states identical until then, so the first changed command is exactly 1.5×
+/// the unscaled one); `servo ctl stop` ends the run early with a finished recording.
+#[test]
+fn control_plane_changes_gains_and_stops_a_running_loop() {
+    let (a, b) = (tmp("ctl-ref.mcap"), tmp("ctl.mcap"));
+    let common = [
+        "--duration",
+        "20",
+        "--scenario",
+        "sine",
+        "--amplitude",
+        "1e-6",
+        "--frequency",
+        "100",
+        "-q",
+    ];
+    let p = prefix("ctl");
+    let run = servo()
+        .args(["run", "--hil", "--json", "--prefix", &p, "--out"])
+        .arg(&b)
+        .args(common)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_ticks(&p, 20_000);
+    assert!(servo()
+        .args(["ctl", "--prefix", &p, "gain", "1.5"])
+        .status()
+        .unwrap()
+        .success());
+    wait_for_ticks(&p, 60_000);
+    assert!(servo()
+        .args(["ctl", "--prefix", &p, "stop"])
+        .status()
+        .unwrap()
+        .success());
+    let out = run.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["meta"]["interrupted"], true);
+    let changed = recorder::read(&b).unwrap().frames;
+    assert!(changed.len() < 20 * 199_600 && changed.len() >= 60_000);
+    // The same run, in process, without the change, as long as the changed one.
+    let secs = format!("{}", changed.len() as f64 / 199_600.0 + 1e-3);
+    let mut args = common.to_vec();
+    args[1] = &secs;
+    run_ok(&[&["run", "--json", "--out", a.to_str().unwrap()][..], &args].concat());
+    let reference = recorder::read(&a).unwrap().frames;
+    let j = changed
+        .iter()
+        .zip(&reference)
+        .position(|(x, y)| x != y)
+        .expect("the gain change shows");
+    assert!(
+        j >= 20_000,
+        "changed at tick {j}, before the command was sent"
+    );
+    assert_eq!(
+        j % 2048,
+        1,
+        "applied after the health boundary at tick {}",
+        j - 1
+    );
+    let ratio = changed[j].telemetry.control_v / reference[j].telemetry.control_v;
+    assert!(
+        (ratio - 1.5).abs() < 1e-5,
+        "first scaled command ratio {ratio}"
+    );
+}

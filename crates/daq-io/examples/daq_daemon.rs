@@ -153,8 +153,13 @@ fn main() {
             "; start a controller with the same --prefix"
         }
     );
-    let report = serve(&ep, &mut FakeHardware::new(), &opts, &AtomicBool::new(false))
-        .unwrap_or_else(|e| panic!("daq daemon: {e}"));
+    let report = serve(
+        &ep,
+        &mut FakeHardware::new(),
+        &opts,
+        &AtomicBool::new(false),
+    )
+    .unwrap_or_else(|e| panic!("daq daemon: {e}"));
     let l = report.latency;
     println!(
         "  {} ticks in {:.3} s, {} overruns, faults {:#x}; round trip median {:.2} µs, p99.9 {:.2} µs",
@@ -167,7 +172,13 @@ fn main() {
     );
     if let Some(c) = controller {
         let (x_m, ticks) = c.join().expect("demo controller");
-        println!("  demo controller: {ticks} ticks, stage at {:.4} µm (set point 1 µm)", x_m * 1e6);
-        assert!((x_m - 1e-6).abs() < 1e-9, "the demo loop holds 1 µm within 1 nm");
+        println!(
+            "  demo controller: {ticks} ticks, stage at {:.4} µm (set point 1 µm)",
+            x_m * 1e6
+        );
+        assert!(
+            (x_m - 1e-6).abs() < 1e-9,
+            "the demo loop holds 1 µm within 1 nm"
+        );
     }
 }
