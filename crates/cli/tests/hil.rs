@@ -1,7 +1,7 @@
 //! HIL: plant, controller and recorder as separate processes over iceoryx2, as a user runs
 //! them. Each test uses its own run prefix (with the test process id) so tests run in parallel.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -30,7 +30,7 @@ fn run_ok(args: &[&str]) -> serde_json::Value {
 }
 
 /// In-process and lockstep HIL recordings of the same config: frame by frame identical.
-fn assert_same_recording(a: &PathBuf, b: &PathBuf) {
+fn assert_same_recording(a: &Path, b: &Path) {
     let (a, b) = (recorder::read(a).unwrap(), recorder::read(b).unwrap());
     assert_eq!(a.frames.len(), b.frames.len());
     let first_diff = a.frames.iter().zip(&b.frames).position(|(x, y)| x != y);
