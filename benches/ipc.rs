@@ -138,15 +138,13 @@ fn lockstep_rate() -> ((u64, f64), (u64, f64)) {
     let prefix = format!("bench-ls-{}", std::process::id());
     let mut child = peer("controller", &prefix);
     let stop = AtomicBool::new(false);
-    let r = runner::hil::plant(
-        &cfg,
-        &prefix,
-        daq_io::serve::Pacing::Lockstep,
-        false,
-        None,
-        &stop,
-    )
-    .unwrap();
+    let options = runner::hil::PlantOptions {
+        pacing: daq_io::serve::Pacing::Lockstep,
+        wait_for_recorder: false,
+        wait_for_start: false,
+        peer_timeout: None,
+    };
+    let r = runner::hil::plant(&cfg, &prefix, &options, &stop).unwrap();
     child.wait().unwrap();
     let start = Instant::now();
     let s = runner::run::run(

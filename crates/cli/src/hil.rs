@@ -4,7 +4,6 @@
 use crate::{fail, print_summary, progress_bar};
 use daq_io::contract::{command, role};
 use daq_io::ipc::{leaf, take, ControlSender, Endpoint};
-use daq_io::serve::Pacing;
 use daq_io::{Control, Health};
 use runner::config::Loaded;
 use runner::run::RunError;
@@ -34,20 +33,9 @@ fn exit_for(e: RunError) -> ExitCode {
 }
 
 /// `servo plant`.
-pub fn plant(
-    cfg: &Loaded,
-    prefix: &str,
-    realtime: bool,
-    wait_for_recorder: bool,
-    peer_timeout: Option<Duration>,
-) -> ExitCode {
+pub fn plant(cfg: &Loaded, prefix: &str, options: &runner::hil::PlantOptions) -> ExitCode {
     let stop = stop_flag();
-    let pacing = if realtime {
-        Pacing::RealTime
-    } else {
-        Pacing::Lockstep
-    };
-    match runner::hil::plant(cfg, prefix, pacing, wait_for_recorder, peer_timeout, &stop) {
+    match runner::hil::plant(cfg, prefix, options, &stop) {
         Ok(r) if r.faults != 0 => {
             eprintln!(
                 "servo plant: FAULT — controller lost at tick {} (no command for {:?}); drove zero current for {} ticks and ended the run",
@@ -122,6 +110,14 @@ pub fn ctl(prefix: &str, message: Control) -> ExitCode {
 pub fn stop_message() -> Control {
     Control {
         command: command::STOP,
+        ..Default::default()
+    }
+}
+
+/// The control message for `servo ctl start`.
+pub fn start_message() -> Control {
+    Control {
+        command: command::START,
         ..Default::default()
     }
 }

@@ -46,6 +46,14 @@ struct HilArgs {
 }
 
 impl HilArgs {
+    fn pacing(&self) -> daq_io::serve::Pacing {
+        if self.realtime {
+            daq_io::serve::Pacing::RealTime
+        } else {
+            daq_io::serve::Pacing::Lockstep
+        }
+    }
+
     fn peer_timeout(&self) -> Result<Option<std::time::Duration>, ExitCode> {
         match self.peer_timeout_ms {
             Some(t) if !(t > 0.0 && t < 1e7) => {
@@ -69,6 +77,8 @@ impl HilArgs {
 /// `servo ctl` messages.
 #[derive(Subcommand, Clone, Copy)]
 enum CtlAction {
+    /// Start a plant waiting for it (`servo plant --wait-start`).
+    Start,
     /// End the run at the next tick boundary (the recording is finished normally).
     Stop,
     /// Multiply the controller output (all gains) by SCALE (0.1..=10).
@@ -118,6 +128,9 @@ enum Command {
         /// Start without waiting for `servo record`.
         #[arg(long)]
         no_recorder: bool,
+        /// After the peers are there, wait for `servo ctl start`.
+        #[arg(long)]
+        wait_start: bool,
     },
     /// HIL: run the controller against a plant process (simulator or DAQ daemon) of the run.
     /// Example: servo controller --prefix bench --mass heavy
@@ -147,7 +160,8 @@ enum Command {
         #[arg(short, long)]
         quiet: bool,
     },
-    /// HIL control plane: stop a run, or scale the controller's gains while it runs.
+    /// HIL control plane: start a waiting plant, stop a run, or scale the controller's gains
+    /// while it runs.
     /// Example: servo ctl --prefix bench gain 1.2
     Ctl {
         /// Run prefix.
@@ -955,12 +969,22 @@ fn main() -> ExitCode {
             settings,
             hil_args,
             no_recorder,
+            wait_start,
         } => match (
             settings.resolve(),
             hil_args.prefix(),
             hil_args.peer_timeout(),
         ) {
-            (Ok(cfg), Ok(p), Ok(t)) => hil::plant(&cfg, &p, hil_args.realtime, !no_recorder, t),
+            (Ok(cfg), Ok(p), Ok(t)) => hil::plant(
+                &cfg,
+                &p,
+                &runner::hil::PlantOptions {
+                    pacing: hil_args.pacing(),
+                    wait_for_recorder: !no_recorder,
+                    wait_for_start: wait_start,
+                    peer_timeout: t,
+                },
+            ),
             (Err(e), _, _) => fail(e, 2),
             (_, Err(code), _) | (_, _, Err(code)) => code,
         },
@@ -993,6 +1017,7 @@ fn main() -> ExitCode {
         Command::Ctl { prefix, action } => hil::ctl(
             &prefix,
             match action {
+                CtlAction::Start => hil::start_message(),
                 CtlAction::Stop => hil::stop_message(),
                 CtlAction::Gain { scale } => hil::gain_message(scale),
             },

@@ -167,6 +167,8 @@ empty_block!(TruthBlock);
 
 /// Control-plane commands ([`Control::command`]).
 pub mod command {
+    /// Start a plant waiting for it (`wait_for_start`).
+    pub const START: u32 = 3;
     /// Stop at the next tick boundary (the plant ends the run as if its duration were over).
     pub const STOP: u32 = 1;
     /// Multiply the controller output (all gains of a linear controller) by `value`

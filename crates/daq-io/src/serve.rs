@@ -40,6 +40,8 @@ pub struct ServeOptions {
     pub startup_timeout: Duration,
     /// Also wait for a truth subscriber (the recorder) before the first tick.
     pub wait_for_recorder: bool,
+    /// After the peers are there, also wait for a control-plane START (`servo ctl start`).
+    pub wait_for_start: bool,
     /// Ticks run in the safe state after a fault.
     pub safe_ticks: u64,
     /// After the last tick, how long to wait for truth subscribers to take the final blocks
@@ -61,6 +63,7 @@ impl ServeOptions {
             },
             startup_timeout: Duration::from_secs(30),
             wait_for_recorder: true,
+            wait_for_start: false,
             safe_ticks: (2e-3 / period_s).ceil() as u64,
             linger: Duration::from_secs(5),
         }
@@ -97,8 +100,8 @@ pub enum ServeError {
     /// Transport.
     #[error(transparent)]
     Ipc(#[from] IpcError),
-    /// No controller (or recorder) subscribed within the startup timeout.
-    #[error("no {0} joined run {1} within {2:?}: start `servo controller` with the same --prefix")]
+    /// No controller or recorder subscribed, or no START came, within the startup timeout.
+    #[error("no {0} in run {1} within {2:?}: start it with the same --prefix")]
     NoPeer(&'static str, String, Duration),
 }
 
@@ -125,15 +128,23 @@ pub fn serve<B: Backend>(
 
     use iceoryx2::prelude::PortFactory;
     let waiting = Instant::now();
+    let mut started = !opts.wait_for_start;
     loop {
         let controller = sensor_service.dynamic_config().number_of_subscribers() > 0;
         let recorder =
             !opts.wait_for_recorder || truth_service.dynamic_config().number_of_subscribers() > 0;
-        if controller && recorder {
+        while let Some(c) = take(&control_sub) {
+            started |= c.command == command::START;
+        }
+        if controller && recorder && started {
             break;
         }
         if waiting.elapsed() > opts.startup_timeout || stop.load(Ordering::Relaxed) {
-            let who = if controller { "recorder" } else { "controller" };
+            let who = match (controller, recorder) {
+                (false, _) => "controller",
+                (_, false) => "recorder",
+                _ => "START (servo ctl start)",
+            };
             return Err(ServeError::NoPeer(
                 who,
                 ep.prefix().into(),

@@ -109,3 +109,34 @@ fn silent_controller_drives_zero_and_flags_the_fault() {
         .iter()
         .all(|t| t.dac_v == 0.0 && t.flags & flags::FAULT_PEER_LOST != 0));
 }
+
+#[test]
+fn a_plant_told_to_wait_starts_on_the_control_plane_start() {
+    let ticks = 1000;
+    let p = prefix("start");
+    let p2 = p.clone();
+    let plant = std::thread::spawn(move || {
+        let ep = Endpoint::open(&p2, "plant").unwrap();
+        let mut opts = ServeOptions::new(ticks, 1e-5, Pacing::Lockstep);
+        opts.wait_for_recorder = false;
+        opts.wait_for_start = true;
+        serve(&ep, &mut Lag::default(), &opts, &AtomicBool::new(false)).unwrap()
+    });
+    let ep = Endpoint::open(&p, "controller").unwrap();
+    let mut link =
+        ControllerLink::new(&ep, Duration::from_millis(200), Duration::from_secs(1)).unwrap();
+    assert!(
+        matches!(link.read(), Err(daq_io::DaqError::PlantLost { seq: 0, .. })),
+        "no tick before START"
+    );
+    // The sender lives on: samples of a publisher that is gone are not delivered.
+    let sender = daq_io::ipc::ControlSender::new(&ep).unwrap();
+    sender
+        .send(daq_io::Control {
+            command: daq_io::contract::command::START,
+            ..Default::default()
+        })
+        .unwrap();
+    assert_eq!(control(&mut link).len() as u64, ticks);
+    assert_eq!(plant.join().unwrap().ticks, ticks);
+}

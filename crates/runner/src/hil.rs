@@ -51,15 +51,25 @@ fn ipc(e: daq_io::ipc::IpcError) -> RunError {
     RunError::Transport(e.to_string())
 }
 
+/// How `servo plant` runs (the rest of [`ServeOptions`] follows from the config).
+#[derive(Debug, Clone, Copy)]
+pub struct PlantOptions {
+    /// Lockstep or real time.
+    pub pacing: Pacing,
+    /// Wait for the recorder's subscription before the first tick.
+    pub wait_for_recorder: bool,
+    /// Wait for a control-plane START after the peers are there.
+    pub wait_for_start: bool,
+    /// Controller silence that counts as lost (default per [`ServeOptions::new`]).
+    pub peer_timeout: Option<Duration>,
+}
+
 /// `servo plant`: serves the simulated stage of `cfg` to the run `prefix` until its duration,
-/// a STOP, `stop`, or a lost controller (silent for `peer_timeout`, default per
-/// [`ServeOptions::new`]).
+/// a STOP, `stop`, or a lost controller.
 pub fn plant(
     cfg: &Loaded,
     prefix: &str,
-    pacing: Pacing,
-    wait_for_recorder: bool,
-    peer_timeout: Option<Duration>,
+    p: &PlantOptions,
     stop: &AtomicBool,
 ) -> Result<daq_io::serve::ServeReport, RunError> {
     let c = &cfg.config;
@@ -67,10 +77,11 @@ pub fn plant(
     let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
         .map_err(|e| plant_error(e, cfg))?;
     let ticks = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
-    let mut opts = ServeOptions::new(ticks, c.plant.period_s(), pacing);
-    opts.wait_for_recorder = wait_for_recorder;
+    let mut opts = ServeOptions::new(ticks, c.plant.period_s(), p.pacing);
+    opts.wait_for_recorder = p.wait_for_recorder;
+    opts.wait_for_start = p.wait_for_start;
     opts.startup_timeout = STARTUP_TIMEOUT;
-    if let Some(t) = peer_timeout {
+    if let Some(t) = p.peer_timeout {
         opts.peer_timeout = t;
     }
     let ep = Endpoint::open(prefix, "plant").map_err(ipc)?;
