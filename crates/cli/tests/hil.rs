@@ -315,3 +315,27 @@ fn control_plane_changes_gains_and_stops_a_running_loop() {
         "first scaled command ratio {ratio}"
     );
 }
+
+#[test]
+fn killing_the_plant_stops_the_controller_with_a_clear_message() {
+    let p = prefix("plantkill");
+    let cfg = ["--duration", "30", "--prefix", &p];
+    let controller = spawn(&[&["controller"][..], &cfg].concat());
+    let mut plant = spawn(&[&["plant", "--no-recorder"][..], &cfg].concat());
+    wait_for_ticks(&p, 20_000);
+    plant.kill().unwrap();
+    plant.wait().unwrap();
+    let killed = Instant::now();
+    let out = controller.wait_with_output().unwrap();
+    let waited = killed.elapsed();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("plant lost: no sensor sample for tick"),
+        "{err}"
+    );
+    assert!(
+        waited < Duration::from_secs(5),
+        "controller stopped after {waited:?}"
+    );
+}
