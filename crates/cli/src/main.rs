@@ -117,6 +117,29 @@ enum Command {
         #[command(flatten)]
         hil_args: HilArgs,
     },
+    /// Tune the PID (eq 7-8) on the simulator's exact sampled plant: the largest integral gain
+    /// (best low-frequency disturbance rejection) with |S| ≤ Ms and |T| ≤ Mt everywhere and
+    /// |T| ≥ −3 dB at the bandwidth, by convex-concave programming (clarabel LPs); compared with the
+    /// configured (thesis Ch. 7) gains. Example: servo tune --bandwidth-hz 1000 --ms 1.5
+    Tune {
+        #[command(flatten)]
+        settings: Settings,
+        /// Closed-loop bandwidth to reach (|T| ≥ −3 dB there), Hz.
+        #[arg(long, default_value_t = 1000.0)]
+        bandwidth_hz: f64,
+        /// Sensitivity peak bound Ms (1 < Ms < 10).
+        #[arg(long, default_value_t = 1.5)]
+        ms: f64,
+        /// Complementary sensitivity peak bound Mt (1 < Mt < 10).
+        #[arg(long, default_value_t = 1.3)]
+        mt: f64,
+        /// Run-config fragment with the tuned gains (`servo run -c FILE`).
+        #[arg(short, long, default_value = "pid.toml")]
+        out: PathBuf,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// HIL: serve the simulated stage to a controller process (lockstep or real time). A lost
     /// controller (no command for 200 ms lockstep / 0.5 ms real time) → zero current, exit 3.
     /// Example: servo plant --prefix bench --realtime
@@ -830,6 +853,53 @@ fn synth(s: &Settings, effort: f64, order: Option<usize>, out: &Path) -> Result<
     Ok(())
 }
 
+fn tune(
+    s: &Settings,
+    bandwidth_hz: f64,
+    (ms, mt): (f64, f64),
+    out: &Path,
+    json: bool,
+) -> Result<(), RunError> {
+    let cfg = s.resolve()?;
+    let r = runner::tune::tune(&cfg, bandwidth_hz, ms, mt)?;
+    std::fs::write(out, r.to_toml())
+        .map_err(|e| RunError::Plant(format!("cannot write {}: {e}", out.display())))?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&r).expect("report serialises"));
+        return Ok(());
+    }
+    println!(
+        "PID tuned for max ki with |S| ≤ {ms}, |T| ≤ {mt}, |T| ≥ −3 dB at {bandwidth_hz:.0} Hz ({} LPs), on the exact sampled plant:",
+        r.iterations
+    );
+    println!(
+        "  {:<10} {:>8} {:>9} {:>10} {:>7} {:>7} {:>9} {:>9} {:>11} {:>9}",
+        "", "kp", "ki 1/s", "kd s", "max|S|", "max|T|", "cross Hz", "T bw Hz", "follow nm", "true nm"
+    );
+    for (name, p) in [("configured", &r.reference), ("tuned", &r.tuned)] {
+        println!(
+            "  {:<10} {:>8.4} {:>9.1} {:>10.3e} {:>7.3} {:>7.3} {:>9.0} {:>9.0} {:>11.3} {:>9.3}",
+            name,
+            p.kp,
+            p.ki,
+            p.kd,
+            p.max_sensitivity,
+            p.max_complementary,
+            p.crossover_hz,
+            p.bandwidth_hz,
+            p.following_rms_m * 1e9,
+            p.true_rms_m * 1e9
+        );
+    }
+    println!(
+        "  integral gain {:.2}× the configured one; wrote {} — run it: servo run -c {}",
+        r.tuned.ki / r.reference.ki,
+        out.display(),
+        out.display()
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     // `servo … | head` must end quietly, not panic on a closed pipe.
     sigpipe::reset();
@@ -961,6 +1031,18 @@ fn main() -> ExitCode {
             order,
             out,
         } => match synth(&settings, effort_weight, order, &out) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e @ RunError::Config(_)) => fail(e, 2),
+            Err(e) => fail(e, 1),
+        },
+        Command::Tune {
+            settings,
+            bandwidth_hz,
+            ms,
+            mt,
+            out,
+            json,
+        } => match tune(&settings, bandwidth_hz, (ms, mt), &out, json) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e @ RunError::Config(_)) => fail(e, 2),
             Err(e) => fail(e, 1),

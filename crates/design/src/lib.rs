@@ -11,3 +11,4 @@ pub mod plot;
 pub mod reduce;
 pub mod riccati;
 pub mod spectral;
+pub mod tune;

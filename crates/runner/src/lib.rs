@@ -27,3 +27,4 @@ pub mod stiffness;
 pub mod summary;
 pub mod sweep;
 pub mod synth;
+pub mod tune;

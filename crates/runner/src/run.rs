@@ -41,6 +41,9 @@ pub enum RunError {
     /// Reading a recording.
     #[error(transparent)]
     Read(#[from] recorder::ReadError),
+    /// A design step (tuning, synthesis) found no solution.
+    #[error(transparent)]
+    Tune(#[from] design::tune::TuneError),
     /// The multi-process transport failed.
     #[error("transport: {0}")]
     Transport(String),
