@@ -865,7 +865,10 @@ fn tune(
     std::fs::write(out, r.to_toml())
         .map_err(|e| RunError::Plant(format!("cannot write {}: {e}", out.display())))?;
     if json {
-        println!("{}", serde_json::to_string_pretty(&r).expect("report serialises"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&r).expect("report serialises")
+        );
         return Ok(());
     }
     println!(
@@ -874,7 +877,16 @@ fn tune(
     );
     println!(
         "  {:<10} {:>8} {:>9} {:>10} {:>7} {:>7} {:>9} {:>9} {:>11} {:>9}",
-        "", "kp", "ki 1/s", "kd s", "max|S|", "max|T|", "cross Hz", "T bw Hz", "follow nm", "true nm"
+        "",
+        "kp",
+        "ki 1/s",
+        "kd s",
+        "max|S|",
+        "max|T|",
+        "cross Hz",
+        "T bw Hz",
+        "follow nm",
+        "true nm"
     );
     for (name, p) in [("configured", &r.reference), ("tuned", &r.tuned)] {
         println!(

@@ -101,7 +101,11 @@ impl PidTuning {
             max_t = max_t.max(l.norm() / one_l);
         }
         let l = self.loop_gain(self.bandwidth_index(), k);
-        (max_s, max_t, l.norm() / (Complex64::new(1.0, 0.0) + l).norm())
+        (
+            max_s,
+            max_t,
+            l.norm() / (Complex64::new(1.0, 0.0) + l).norm(),
+        )
     }
 
     fn check(&self) -> Result<(), TuneError> {

@@ -66,7 +66,9 @@ fn best_ki(p: &PidTuning, kp: f64, kd: f64) -> f64 {
         let (s, t, tb) = p.evaluate(&[kp, ki, kd]);
         s <= p.ms && t <= p.mt && tb >= std::f64::consts::FRAC_1_SQRT_2 && stable(&[kp, ki, kd])
     };
-    let grid: Vec<f64> = (0..=120).map(|i| 10f64.powf(-3.0 + 4.0 * i as f64 / 120.0)).collect();
+    let grid: Vec<f64> = (0..=120)
+        .map(|i| 10f64.powf(-3.0 + 4.0 * i as f64 / 120.0))
+        .collect();
     let Some(i) = (0..grid.len()).rev().find(|&i| ok(grid[i])) else {
         return 0.0;
     };

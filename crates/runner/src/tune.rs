@@ -236,9 +236,7 @@ pub fn tune(cfg: &Loaded, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRep
         })?;
     let PidTuned {
         gains, iterations, ..
-    } = coarse
-        .solve(start, 200)
-        ?;
+    } = coarse.solve(start, 200)?;
     let tuned = report(cfg, gains, &fine)?;
     let reference = report(cfg, thesis, &fine)?;
     Ok(TuneReport {
