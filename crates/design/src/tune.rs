@@ -117,7 +117,8 @@ impl PidTuning {
                 self.basis.len()
             )));
         }
-        if !(self.ms > 1.0) || !(self.mt > 1.0) || !(self.bandwidth_hz > 0.0) {
+        let valid = self.ms > 1.0 && self.mt > 1.0 && self.bandwidth_hz > 0.0;
+        if !valid {
             return Err(TuneError::Invalid(format!(
                 "Ms = {}, Mt = {} (allowed > 1), bandwidth {} Hz (allowed > 0)",
                 self.ms, self.mt, self.bandwidth_hz
