@@ -4,6 +4,7 @@
 //! exact (delayed) zero-order-hold discretisation, and spectral estimation.
 
 pub mod h2;
+pub mod identify;
 pub mod interconnect;
 pub mod loops;
 pub mod lti;
