@@ -140,6 +140,19 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Identify the Table 5-2 stage parameters (m1 + m2, k2, c2, m4, k4, c4; thesis §5.5.3)
+    /// from an open-loop FRF CSV (as `servo frf --loop open` writes), with the simulator's exact
+    /// sampled model as the grey box, starting from the configured stage.
+    /// Example: servo frf --loop open --points 80 && servo identify frf/frf.csv
+    Identify {
+        /// FRF CSV with columns freq_hz, magnitude_m_per_v, phase_deg (clipped rows skipped).
+        file: PathBuf,
+        #[command(flatten)]
+        settings: Settings,
+        /// Print the result as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// HIL: serve the simulated stage to a controller process (lockstep or real time). A lost
     /// controller (no command for 200 ms lockstep / 0.5 ms real time) → zero current, exit 3.
     /// Example: servo plant --prefix bench --realtime
@@ -853,6 +866,41 @@ fn synth(s: &Settings, effort: f64, order: Option<usize>, out: &Path) -> Result<
     Ok(())
 }
 
+fn identify(s: &Settings, file: &Path, json: bool) -> Result<(), RunError> {
+    let cfg = s.resolve()?;
+    let (f, g) = runner::identify::read_frf_csv(file)?;
+    let id = runner::identify::identify(&cfg, &f, &g)?;
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&id).expect("result serialises")
+        );
+        return Ok(());
+    }
+    println!(
+        "Grey-box fit to {} ({} points, {} iterations): fit {:.2} % (thesis §5.5.3: 97.7 %), {:.2} % on relative errors",
+        file.display(),
+        id.points,
+        id.iterations,
+        id.fit_percent,
+        id.weighted_fit_percent
+    );
+    println!(
+        "  {:<12} {:>13} {:>9} {:>13}",
+        "Table 5-2", "fitted", "1σ", "start"
+    );
+    for i in 0..id.names.len() {
+        println!(
+            "  {:<12} {:>13.5e} {:>8.2}% {:>13.5e}",
+            id.names[i],
+            id.fitted[i],
+            100.0 * id.rel_std[i],
+            id.start[i]
+        );
+    }
+    Ok(())
+}
+
 fn tune(
     s: &Settings,
     bandwidth_hz: f64,
@@ -1055,6 +1103,15 @@ fn main() -> ExitCode {
             out,
             json,
         } => match tune(&settings, bandwidth_hz, (ms, mt), &out, json) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e @ RunError::Config(_)) => fail(e, 2),
+            Err(e) => fail(e, 1),
+        },
+        Command::Identify {
+            file,
+            settings,
+            json,
+        } => match identify(&settings, &file, json) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e @ RunError::Config(_)) => fail(e, 2),
             Err(e) => fail(e, 1),

@@ -115,7 +115,11 @@ fn step(
     }
     // clarabel reads the upper triangle of P.
     let upper: Vec<Vec<f64>> = (0..n)
-        .map(|a| (0..n).map(|b| if b >= a { jtj[(a, b)] } else { 0.0 }).collect())
+        .map(|a| {
+            (0..n)
+                .map(|b| if b >= a { jtj[(a, b)] } else { 0.0 })
+                .collect()
+        })
         .collect();
     let p = CscMatrix::from(&upper);
     let q: Vec<f64> = (j.transpose() * r).iter().copied().collect();
@@ -218,8 +222,7 @@ pub fn fit(
             .sum::<f64>()
             .sqrt()
     };
-    let fit_percent = 100.0
-        * (1.0 - norm(&|i| measured[i] - g[i]) / norm(&|i| measured[i] - mean));
+    let fit_percent = 100.0 * (1.0 - norm(&|i| measured[i] - g[i]) / norm(&|i| measured[i] - mean));
     let mean_w = measured.iter().map(|g| g / g.norm()).sum::<Complex64>() / measured.len() as f64;
     let weighted_fit_percent = 100.0
         * (1.0

@@ -37,7 +37,11 @@ fn recovers_mass_damping_and_stiffness_from_a_noisy_frf() {
     let f = fit(&mut model, &measured, &start, &lower, &upper, 100).unwrap();
     for i in 0..3 {
         let err = f.params[i] / TRUTH[i] - 1.0;
-        assert!(err.abs() < 0.01, "parameter {i}: {} ({err:+.2e})", f.params[i]);
+        assert!(
+            err.abs() < 0.01,
+            "parameter {i}: {} ({err:+.2e})",
+            f.params[i]
+        );
         assert!(
             err.abs() < 4.0 * f.rel_std[i],
             "parameter {i}: error {err:.2e} vs 1σ {:.2e}",
@@ -58,6 +62,18 @@ fn a_bound_holds_the_estimate() {
     let upper = [1.0, 10.0, 20000.0];
     let lower = [0.01, 0.1, 1000.0];
     let mut model = |p: &[f64]| Ok(response(p, &freq_hz));
-    let f = fit(&mut model, &measured, &[0.1, 1.0, 10000.0], &lower, &upper, 100).unwrap();
-    assert!(f.params[2] <= 20000.0 * (1.0 + 1e-6) && f.params[2] > 19000.0, "{:?}", f.params);
+    let f = fit(
+        &mut model,
+        &measured,
+        &[0.1, 1.0, 10000.0],
+        &lower,
+        &upper,
+        100,
+    )
+    .unwrap();
+    assert!(
+        f.params[2] <= 20000.0 * (1.0 + 1e-6) && f.params[2] > 19000.0,
+        "{:?}",
+        f.params
+    );
 }

@@ -20,6 +20,7 @@ pub mod config;
 pub mod controller;
 pub mod frf;
 pub mod hil;
+pub mod identify;
 pub mod report;
 pub mod run;
 pub mod servo_loop;
