@@ -35,13 +35,13 @@ fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
         "fit {:.2} % ({:.2} % weighted), {} iterations",
         id.fit_percent, id.weighted_fit_percent, id.iterations
     );
-    for i in 0..6 {
-        let err = id.fitted[i] / truth[i] - 1.0;
+    for (i, t) in truth.iter().enumerate() {
+        let err = id.fitted[i] / t - 1.0;
         println!(
             "{:>12} {:>12.5e} truth {:>12.5e} ({:+.3} %, 1σ {:.3} %)",
             id.names[i],
             id.fitted[i],
-            truth[i],
+            t,
             100.0 * err,
             100.0 * id.rel_std[i]
         );
