@@ -35,8 +35,8 @@ fn recovers_mass_damping_and_stiffness_from_a_noisy_frf() {
     let upper = TRUTH.map(|v| v * 10.0);
     let mut model = |p: &[f64]| Ok(response(p, &freq_hz));
     let f = fit(&mut model, &measured, &start, &lower, &upper, 100).unwrap();
-    for i in 0..3 {
-        let err = f.params[i] / TRUTH[i] - 1.0;
+    for (i, truth) in TRUTH.iter().enumerate() {
+        let err = f.params[i] / truth - 1.0;
         assert!(
             err.abs() < 0.01,
             "parameter {i}: {} ({err:+.2e})",
