@@ -10,9 +10,12 @@
 //! B1B1ᵀ, D21D21ᵀ, B1D21ᵀ) give `F`, `L`, and the feed-through terms `F0`, `L0` of the optimal
 //! controller that uses the current measurement (Zhou, Doyle & Glover, ch. 21):
 //! `A_K = A + B2F + LC2 − B2L0C2`, `B_K = −(L − B2L0)`, `C_K = F − L0C2`, `D_K = L0`.
+//!
+//! The continuous problem (SLICOT SB10HD, [`h2syn_continuous`]) is the same with CAREs and a
+//! strictly proper controller: `A_K = A + B2F + LC2`, `B_K = −L`, `C_K = F`.
 
 use crate::lti::{dlyap, StateSpace};
-use crate::riccati::{dare, RiccatiError};
+use crate::riccati::{care, dare, lyap, RiccatiError};
 use nalgebra::DMatrix;
 
 /// A generalized plant for H2 synthesis.
@@ -121,6 +124,78 @@ impl GeneralizedPlant {
 pub fn h2_norm_discrete(sys: &StateSpace) -> Option<f64> {
     let (wc, _) = dlyap(&sys.a, &(&sys.b * sys.b.transpose())).ok()?;
     Some(((&sys.c * wc * sys.c.transpose()).trace() + (&sys.d * sys.d.transpose()).trace()).sqrt())
+}
+
+/// A continuous H2-optimal controller and what it achieves.
+#[derive(Debug, Clone)]
+pub struct H2ContinuousController {
+    /// The controller `u = K(y)` (strictly proper).
+    pub k: StateSpace,
+    /// Closed-loop H2 norm from w to z: `√trace(C Wc Cᵀ)`, `A Wc + Wc Aᵀ + B Bᵀ = 0`.
+    pub h2_norm: f64,
+    /// Closed-loop spectral abscissa (largest real part of a pole; < 0: stable).
+    pub spectral_abscissa: f64,
+}
+
+/// H2 norm of a stable, strictly proper continuous system from its controllability gramian
+/// (None if it is not stable or has feed-through, where the norm is infinite).
+pub fn h2_norm_continuous(sys: &StateSpace) -> Option<f64> {
+    if sys.d.iter().any(|v| *v != 0.0) {
+        return None;
+    }
+    let (wc, _) = lyap(&sys.a, &(&sys.b * sys.b.transpose())).ok()?;
+    Some((&sys.c * wc * sys.c.transpose()).trace().max(0.0).sqrt())
+}
+
+/// Synthesizes the continuous H2-optimal controller for `p` (SB10HD-equivalent): control CARE
+/// `X` (C1ᵀC1, D12ᵀD12, cross C1ᵀD12), filter CARE `Y` (B1B1ᵀ, D21D21ᵀ, cross B1D21ᵀ),
+/// `F = −(D12ᵀD12)⁻¹(B2ᵀX + D12ᵀC1)`, `L = −(Y C2ᵀ + B1D21ᵀ)(D21D21ᵀ)⁻¹`.
+pub fn h2syn_continuous(p: &GeneralizedPlant) -> Result<H2ContinuousController, H2Error> {
+    p.check()?;
+    let r1 = p.d12.transpose() * &p.d12;
+    let r2 = &p.d21 * p.d21.transpose();
+    if r1.clone().cholesky().is_none() {
+        return Err(H2Error::D12Rank);
+    }
+    if r2.clone().cholesky().is_none() {
+        return Err(H2Error::D21Rank);
+    }
+    let x = care(
+        &p.a,
+        &p.b2,
+        &(p.c1.transpose() * &p.c1),
+        &r1,
+        Some(&(p.c1.transpose() * &p.d12)),
+    )
+    .map_err(H2Error::Control)?;
+    let y = care(
+        &p.a.transpose(),
+        &p.c2.transpose(),
+        &(&p.b1 * p.b1.transpose()),
+        &r2,
+        Some(&(&p.b1 * p.d21.transpose())),
+    )
+    .map_err(H2Error::Filter)?;
+    let f = -&x.k;
+    let l = -y.k.transpose();
+    let k = StateSpace {
+        a: &p.a + &p.b2 * &f + &l * &p.c2,
+        b: -&l,
+        c: f,
+        d: DMatrix::zeros(p.b2.ncols(), p.c2.nrows()),
+    };
+    let cl = p.close(&k);
+    let abscissa = cl
+        .poles()
+        .iter()
+        .map(|z| z.re)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let h2 = h2_norm_continuous(&cl).unwrap_or(f64::INFINITY);
+    Ok(H2ContinuousController {
+        k,
+        h2_norm: h2,
+        spectral_abscissa: abscissa,
+    })
 }
 
 /// Synthesizes the discrete H2-optimal controller for `p`.
