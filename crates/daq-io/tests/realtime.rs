@@ -10,9 +10,10 @@ use std::time::Duration;
 mod common;
 use common::{prefix, Lag};
 
-#[test]
-fn real_time_plant_drives_zero_within_half_a_millisecond_of_the_last_command() {
-    let p = prefix("rt-silent");
+/// One attempt; `None` when the machine stalled the controller thread past the peer timeout
+/// before it meant to go silent (a correct fault, but not the scenario under test).
+fn attempt(n: u32) -> Option<()> {
+    let p = prefix(&format!("rt-silent-{n}"));
     let p2 = p.clone();
     let period = 1e-5;
     let ep = Endpoint::open(&p, "recorder").unwrap();
@@ -28,7 +29,14 @@ fn real_time_plant_drives_zero_within_half_a_millisecond_of_the_last_command() {
         ControllerLink::new(&cep, Duration::from_secs(10), Duration::from_secs(1)).unwrap();
     let mut last = 0;
     while last < 999 {
-        let s = link.read().unwrap();
+        let s = link.read().ok()?;
+        if s.flags & flags::END != 0 {
+            // Declared lost early: let the plant finish, then report the stall.
+            drop(tap);
+            let report = plant.join().unwrap();
+            assert!(report.fault_tick.is_some_and(|k| k <= 1000));
+            return None;
+        }
         last = s.seq;
         link.write(Command {
             seq: s.seq,
@@ -66,4 +74,13 @@ fn real_time_plant_drives_zero_within_half_a_millisecond_of_the_last_command() {
         .iter()
         .all(|t| t.dac_v == 0.0 && t.flags & flags::FAULT_PEER_LOST != 0));
     assert_eq!(report.ticks, fault + (2e-3 / period) as u64);
+    Some(())
+}
+
+/// A shared 2-core machine can deschedule the controller thread for more than 0.5 ms (a
+/// correct lost-controller fault); such attempts are repeated, up to twenty.
+#[test]
+fn real_time_plant_drives_zero_within_half_a_millisecond_of_the_last_command() {
+    let clean = (0..20).find_map(attempt);
+    assert!(clean.is_some(), "twenty attempts, each stalled past 0.5 ms");
 }
