@@ -96,6 +96,35 @@ impl GeneralizedPlant {
         }
     }
 
+    /// The same plant in diagonally balanced state coordinates (Parlett–Reinsch on the whole
+    /// system matrix).
+    pub fn balanced(&self) -> GeneralizedPlant {
+        let (n, nw) = (self.a.nrows(), self.b1.ncols());
+        let (nz, nu, ny) = (self.c1.nrows(), self.b2.ncols(), self.c2.nrows());
+        let mut b = DMatrix::zeros(n, nw + nu);
+        b.view_mut((0, 0), (n, nw)).copy_from(&self.b1);
+        b.view_mut((0, nw), (n, nu)).copy_from(&self.b2);
+        let mut c = DMatrix::zeros(nz + ny, n);
+        c.view_mut((0, 0), (nz, n)).copy_from(&self.c1);
+        c.view_mut((nz, 0), (ny, n)).copy_from(&self.c2);
+        let sys = StateSpace {
+            a: self.a.clone(),
+            b,
+            c,
+            d: DMatrix::zeros(nz + ny, nw + nu),
+        }
+        .balanced();
+        GeneralizedPlant {
+            a: sys.a,
+            b1: sys.b.columns(0, nw).into_owned(),
+            b2: sys.b.columns(nw, nu).into_owned(),
+            c1: sys.c.rows(0, nz).into_owned(),
+            c2: sys.c.rows(nz, ny).into_owned(),
+            d12: self.d12.clone(),
+            d21: self.d21.clone(),
+        }
+    }
+
     /// The closed loop of this plant with controller `k`: `(A, B, C, D)` from w to z.
     pub fn close(&self, k: &StateSpace) -> StateSpace {
         let (n, nk) = (self.a.nrows(), k.nx());
@@ -150,8 +179,21 @@ pub fn h2_norm_continuous(sys: &StateSpace) -> Option<f64> {
 /// Synthesizes the continuous H2-optimal controller for `p` (SB10HD-equivalent): control CARE
 /// `X` (C1ᵀC1, D12ᵀD12, cross C1ᵀD12), filter CARE `Y` (B1B1ᵀ, D21D21ᵀ, cross B1D21ᵀ),
 /// `F = −(D12ᵀD12)⁻¹(B2ᵀX + D12ᵀC1)`, `L = −(Y C2ᵀ + B1D21ᵀ)(D21D21ᵀ)⁻¹`.
-pub fn h2syn_continuous(p: &GeneralizedPlant) -> Result<H2ContinuousController, H2Error> {
-    p.check()?;
+pub fn h2syn_continuous(original: &GeneralizedPlant) -> Result<H2ContinuousController, H2Error> {
+    original.check()?;
+    // Solve in diagonally balanced state coordinates (the controller's input-output map does
+    // not depend on them): a plant whose poles span decades otherwise stalls the sign iteration.
+    let mut scaled = original.balanced();
+    // Normalise the noise (‖D21‖ = 1) and the penalty (‖D12‖ = 1): the gains F and L do not
+    // change, and the two Riccati equations are no longer "cheap" by accident of units.
+    let (sw, sz) = (scaled.d21.norm(), scaled.d12.norm());
+    if sw > 0.0 && sz > 0.0 {
+        scaled.b1 /= sw;
+        scaled.d21 /= sw;
+        scaled.c1 /= sz;
+        scaled.d12 /= sz;
+    }
+    let p = &scaled;
     let r1 = p.d12.transpose() * &p.d12;
     let r2 = &p.d21 * p.d21.transpose();
     if r1.clone().cholesky().is_none() {
@@ -184,7 +226,7 @@ pub fn h2syn_continuous(p: &GeneralizedPlant) -> Result<H2ContinuousController, 
         c: f,
         d: DMatrix::zeros(p.b2.ncols(), p.c2.nrows()),
     };
-    let cl = p.close(&k);
+    let cl = original.close(&k);
     let abscissa = cl
         .poles()
         .iter()
