@@ -300,12 +300,20 @@ enum Command {
         #[command(flatten)]
         settings: Settings,
         /// Weight of 1 V of command against 1 nm of tool error (ρ, nm/V): larger = gentler.
-        #[arg(long, default_value_t = 1.0)]
-        effort_weight: f64,
+        /// Default 1 (exact); with `--weights thesis` it weighs a volt above the Wu corner,
+        /// default 1000 (loop-gain crossover ≈ 1 kHz on the heavy stage; thesis: 870 Hz).
+        #[arg(long)]
+        effort_weight: Option<f64>,
         /// Reduce the controller to this many states by balanced truncation (thesis Table 6-1:
         /// 8, 13; default: full order).
         #[arg(long)]
         order: Option<usize>,
+        /// Design problem: `exact` — the simulator's exact discrete model and noise, true tool
+        /// error (nm) and ρ·u penalised; `thesis` — §6.3 / Fig 6-3: the continuous model with
+        /// We (eq 6-3, Ms of eq 6-4 at ξ = 0.707), ρ·Wu (eq 6-5), Ws, Wi, Wg, Wfc, discretised
+        /// with the loop delay.
+        #[arg(long, value_enum, default_value = "exact")]
+        weights: Weights,
         /// Controller file to write.
         #[arg(short, long, default_value = "h2.toml")]
         out: PathBuf,
@@ -819,9 +827,29 @@ fn stiffness(s: &Settings, kas: &[f64], to: f64, dir: &Path) -> Result<(), RunEr
     Ok(())
 }
 
-fn synth(s: &Settings, effort: f64, order: Option<usize>, out: &Path) -> Result<(), RunError> {
+/// `servo synth h2 --weights`.
+#[derive(Clone, Copy, ValueEnum)]
+enum Weights {
+    Exact,
+    Thesis,
+}
+
+fn synth(
+    s: &Settings,
+    effort: Option<f64>,
+    order: Option<usize>,
+    weights: Weights,
+    out: &Path,
+) -> Result<(), RunError> {
     let cfg = s.resolve()?;
-    let mut design = runner::synth::h2_design(&cfg, effort)?;
+    let mut design = match weights {
+        Weights::Exact => runner::synth::h2_design(&cfg, effort.unwrap_or(1.0))?,
+        Weights::Thesis => runner::synth::thesis_design(
+            &cfg,
+            &runner::synth::ThesisWeights::default(),
+            effort.unwrap_or(1000.0),
+        )?,
+    };
     if let Some(n) = order {
         let (reduced, hankel, bound) = design.reduced(n)?;
         let shown: Vec<String> = hankel.iter().take(16).map(|h| format!("{h:.2e}")).collect();
@@ -1089,8 +1117,9 @@ fn main() -> ExitCode {
             settings,
             effort_weight,
             order,
+            weights,
             out,
-        } => match synth(&settings, effort_weight, order, &out) {
+        } => match synth(&settings, effort_weight, order, weights, &out) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e @ RunError::Config(_)) => fail(e, 2),
             Err(e) => fail(e, 1),

@@ -145,3 +145,141 @@ pub fn h2_design(cfg: &Loaded, effort_nm_per_v: f64) -> Result<Design, RunError>
         spectral_radius: k.spectral_radius,
     })
 }
+
+/// `Ms` of thesis eq 6-4 for a closed loop of damping ratio `xi`:
+/// `α = √(0.5 + 0.5√(1 + 8ξ²))`, `Ms = α√(α² + 4ξ²) / √((1 − α²)² + 4ξ²α²)`.
+pub fn ms_for_damping(xi: f64) -> f64 {
+    let alpha = (0.5 + 0.5 * (1.0 + 8.0 * xi * xi).sqrt()).sqrt();
+    let a2 = alpha * alpha;
+    alpha * (a2 + 4.0 * xi * xi).sqrt() / ((1.0 - a2).powi(2) + 4.0 * xi * xi * a2).sqrt()
+}
+
+/// The thesis §6.3 weights (Fig 6-3), SI units.
+#[derive(Debug, Clone, Copy)]
+pub struct ThesisWeights {
+    /// We (eq 6-3) peak bound (eq 6-4 with ξ = 0.707: 1.2721).
+    pub ms: f64,
+    /// We corner ω_b in rad/s (thesis: 1, for zero static error).
+    pub omega_b: f64,
+    /// We ε (thesis: 1e-7, a near-integrator; 1 here — a pole at ω_b·ε = 1 rad/s — since a
+    /// mode 5e-8 inside the unit circle per tick stalls the filter Riccati iteration).
+    pub epsilon: f64,
+    /// Wu (eq 6-5) M_u (thesis: 1e8).
+    pub mu: f64,
+    /// Wu ω_bu in rad/s (thesis: 1e8).
+    pub omega_bu: f64,
+    /// Wu ε₁ (not given in the thesis; 1e3 puts the Wu corner at 1e5 rad/s). Wu is used as
+    /// ε₁·Wu so that ρ weighs a volt above the corner.
+    pub epsilon1: f64,
+    /// Cutting-force weight Wfc in N per unit white input.
+    pub wfc_n: f64,
+}
+
+impl Default for ThesisWeights {
+    fn default() -> Self {
+        ThesisWeights {
+            ms: ms_for_damping(0.707),
+            omega_b: 1.0,
+            epsilon: 1.0,
+            mu: 1e8,
+            omega_bu: 1e8,
+            epsilon1: 1e3,
+            wfc_n: 1e-3,
+        }
+    }
+}
+
+/// The thesis §6.3 design (Fig 6-3): plant-sim's continuous model (mechanics, current loop,
+/// sensor, and the Wi, Wg noise filters it already contains), the sensor noise Ws at the
+/// measurement, the cutting force through Wfc, the tool error (nm) weighted by We (eq 6-3) and
+/// the command by ρ·ε₁·Wu (eq 6-5); discretised at the servo rate with the loop's transport
+/// delay (exact switching inside the tick; the thesis designed in continuous time without it),
+/// noise held per tick with the variance of white noise of one-sided PSD 1/Hz up to fs/2, and
+/// solved by discrete H2 synthesis (SB10ED) in balanced coordinates.
+pub fn thesis_design(cfg: &Loaded, w: &ThesisWeights, effort: f64) -> Result<Design, RunError> {
+    use plant_sim::model::{input, output, PlantModel};
+    let c = &cfg.config;
+    c.validate(cfg)?;
+    let mut params = c.plant;
+    params.actuator.model = plant_sim::params::CurrentLoopModel::Ideal;
+    let g = PlantModel::new(&params)
+        .map_err(|e| RunError::Plant(e.to_string()))?
+        .sys;
+    let n = g.nx();
+    let (iwe, iwu, size) = (n, n + 1, n + 2);
+    let tool = g.c.row(output::TOOL_M) * 1e9;
+    let sensor = g.c.row(output::SENSOR_V);
+    let ws = c.plant.noise.sensor_v_per_rt_hz;
+    let (we_a, we_c, we_d) = (
+        -w.omega_b * w.epsilon,
+        w.omega_b - w.omega_b * w.epsilon / w.ms,
+        1.0 / w.ms,
+    );
+    let p = w.omega_bu / w.epsilon1;
+    let (wu_a, wu_c, wu_d) = (-p, w.omega_bu / w.mu - p, 1.0);
+    let nw = 4;
+    let mut a = DMatrix::zeros(size, size);
+    a.view_mut((0, 0), (n, n)).copy_from(&g.a);
+    a.view_mut((iwe, 0), (1, n)).copy_from(&tool);
+    a[(iwe, iwe)] = we_a;
+    a[(iwu, iwu)] = wu_a;
+    let mut b1 = DMatrix::zeros(size, nw);
+    b1.view_mut((0, 0), (n, 1))
+        .copy_from(&g.b.column(input::CURRENT_WHITE));
+    b1.view_mut((0, 1), (n, 1))
+        .copy_from(&g.b.column(input::BASE_WHITE));
+    b1.view_mut((0, 3), (n, 1))
+        .copy_from(&(g.b.column(input::CUTTING_FORCE_N) * w.wfc_n));
+    let mut b2 = DMatrix::zeros(size, 1);
+    b2.view_mut((0, 0), (n, 1))
+        .copy_from(&g.b.column(input::COMMAND_V));
+    b2[(iwu, 0)] = 1.0;
+    let mut c1 = DMatrix::zeros(2, size);
+    c1.view_mut((0, 0), (1, n)).copy_from(&(&tool * we_d));
+    c1[(0, iwe)] = we_c;
+    c1[(1, iwu)] = effort * wu_c;
+    let d12 = DMatrix::from_column_slice(2, 1, &[0.0, effort * wu_d]);
+    let mut c2 = DMatrix::zeros(1, size);
+    c2.view_mut((0, 0), (1, n)).copy_from(&(-sensor));
+    let mut d21 = DMatrix::zeros(1, nw);
+    d21[(0, 2)] = -ws;
+    let period = c.plant.period_s();
+    let fs = c.plant.timing.servo_rate_hz;
+    let delayed = design::lti::DelayedZoh::new(&a, &b2, period, c.plant.timing.delay_s)
+        .map_err(|e| RunError::Plant(format!("discretisation: {e}")))?;
+    let (_, gw) = design::lti::zoh(&a, &b1, period);
+    let sigma = (fs / 2.0).sqrt();
+    let m = size + 1;
+    let mut ad = DMatrix::zeros(m, m);
+    ad.view_mut((0, 0), (size, size)).copy_from(&delayed.phi);
+    ad.view_mut((0, size), (size, 1))
+        .copy_from(&delayed.gamma_prev);
+    let mut b2d = DMatrix::zeros(m, 1);
+    b2d.view_mut((0, 0), (size, 1))
+        .copy_from(&delayed.gamma_now);
+    b2d[(size, 0)] = 1.0;
+    let mut b1d = DMatrix::zeros(m, nw);
+    b1d.view_mut((0, 0), (size, nw)).copy_from(&(gw * sigma));
+    let widen = |c: &DMatrix<f64>| {
+        let mut w = DMatrix::zeros(c.nrows(), m);
+        w.view_mut((0, 0), (c.nrows(), size)).copy_from(c);
+        w
+    };
+    let plant = GeneralizedPlant {
+        a: ad,
+        b1: b1d,
+        b2: b2d,
+        c1: widen(&c1),
+        c2: widen(&c2),
+        d12,
+        d21: d21 * sigma,
+    };
+    let k = h2syn_discrete(&plant.balanced())
+        .map_err(|e| RunError::Plant(format!("H2 synthesis (thesis weights): {e}")))?;
+    Ok(Design {
+        controller: k.k,
+        sample_rate_hz: fs,
+        h2_norm: k.h2_norm,
+        spectral_radius: k.spectral_radius,
+    })
+}

@@ -333,3 +333,43 @@ fn gain_margin_predicts_the_stability_limit() {
         );
     }
 }
+
+/// Thesis eq 6-4: Ms = 1.2721 for ξ = 0.707 (§6.3.1).
+#[test]
+fn ms_of_eq_6_4_is_the_thesis_value() {
+    let ms = runner::synth::ms_for_damping(0.707);
+    assert!((ms - 1.2721).abs() < 5e-5, "Ms {ms}"); // thesis: 1.2721
+}
+
+/// The thesis §6.3 weighting (We, Wu, Ws, Wi, Wg, Wfc) at 20 kHz on the heavy stage: the design
+/// stabilises the exact sampled loop (delay, hold, ADC averaging) it runs in, with a
+/// loop-gain crossover near the thesis's 870 Hz (§6.3.2), and gentler effort weights give lower
+/// bandwidth.
+#[test]
+fn thesis_weighted_h2_stabilises_the_exact_loop() {
+    let mut cfg = heavy_468();
+    cfg.config.plant.timing.servo_rate_hz = 20_000.0;
+    let dir = std::env::temp_dir().join(format!("fts-thesis-h2-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut bandwidths = Vec::new();
+    for effort in [1e3, 1e4] {
+        let d = runner::synth::thesis_design(&cfg, &Default::default(), effort).unwrap();
+        let f = dir.join(format!("thesis_{effort}.toml"));
+        std::fs::write(&f, d.to_toml()).unwrap();
+        let mut run_cfg = cfg.clone();
+        run_cfg.config.controller.kind = runner::config::ControllerKind::Ss;
+        run_cfg.config.controller.ss_file = Some(f);
+        let (cl, _) = closed_loop(&run_cfg).unwrap();
+        assert!(cl.spectral_radius() < 1.0, "ρ {effort}: unstable");
+        let m = runner::run::loop_margins(&run_cfg).unwrap();
+        bandwidths.push(Budget::new(&cl, 64).unwrap().bandwidth_hz);
+        if effort == 1e3 {
+            let crossover = m.gain_crossover_hz.unwrap_or(f64::NAN);
+            assert!(
+                (500.0..2000.0).contains(&crossover),
+                "crossover {crossover} Hz (thesis 870 Hz)"
+            );
+        }
+    }
+    assert!(bandwidths[1] < bandwidths[0], "{bandwidths:?}");
+}
