@@ -244,8 +244,8 @@ impl fmt::Display for Summary {
             let l = &h.latency;
             writeln!(
                 f,
-                "  HIL ({})            {} overruns; round trip min {:.2} / median {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.1} µs",
-                if h.realtime { "real time" } else { "lockstep " },
+                "  {:<26}{} overruns; round trip min {:.2} / median {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.1} µs",
+                if h.realtime { "HIL, real time" } else { "HIL, lockstep" },
                 h.overruns,
                 l.min_ns as f64 * 1e-3,
                 l.p50_ns as f64 * 1e-3,
