@@ -33,11 +33,15 @@ pub struct SsFile {
 /// servo-core block of that order).
 trait SsTick: Send {
     fn tick(&mut self, e: f64) -> f64;
+    fn faulted(&self) -> bool;
 }
 
 impl<const N: usize> SsTick for StateSpace<N, 1, 1> {
     fn tick(&mut self, e: f64) -> f64 {
         self.update([e])[0]
+    }
+    fn faulted(&self) -> bool {
+        Block::faulted(self)
     }
 }
 
@@ -273,6 +277,16 @@ impl Controller {
                 }
             }
         })
+    }
+
+    /// The controller latched a fault (a non-finite input or state): its output is 0 V until
+    /// it is rebuilt.
+    pub fn faulted(&self) -> bool {
+        match &self.kind {
+            Kind::Pid(p) => p.faulted(),
+            Kind::Accel(a) => a.faulted(),
+            Kind::Ss(s) => s.faulted(),
+        }
     }
 
     /// One tick: position error and accelerometer reading in V → command in V.

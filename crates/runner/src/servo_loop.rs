@@ -117,7 +117,8 @@ impl Reference {
 }
 
 /// The controller's half of a tick: reads tick k's sample, returns tick k's command and the
-/// telemetry of tick k−1 (what the sample at its end showed).
+/// telemetry of tick k−1 (what the sample at its end showed). A non-finite reading latches the
+/// controller's fault: 0 V out and [`flags::FAULT_CONTROLLER`] on the command and telemetry.
 pub struct ServoLoop {
     /// The controller.
     pub controller: Controller,
@@ -170,7 +171,13 @@ impl ServoLoop {
                 following_error_m: self.r - measured,
                 control_v: self.last_u,
                 accel_m_s2: s.accel_v * self.accel_scale,
-                flags: (s.flags & !flags::END) | if saturated { SATURATED } else { 0 },
+                flags: (s.flags & !flags::END)
+                    | if saturated { SATURATED } else { 0 }
+                    | if self.controller.faulted() {
+                        flags::FAULT_CONTROLLER
+                    } else {
+                        0
+                    },
                 reserved: 0,
             }
         });
@@ -187,7 +194,11 @@ impl ServoLoop {
         let command = Command {
             seq: s.seq,
             dac_v: u,
-            flags: 0,
+            flags: if self.controller.faulted() {
+                flags::FAULT_CONTROLLER
+            } else {
+                0
+            },
             reserved: 0,
         };
         (Some(command), telemetry)
