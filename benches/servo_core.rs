@@ -90,11 +90,55 @@ fn biquad(c: &mut Criterion) {
     });
 }
 
+/// Per-tick depth command (§8.5.3, §8.5.4): encoder count → angle → surface depth, with the
+/// radius feeding 5 µm per revolution; baseline in the same run: the angle alone.
+fn surface(c: &mut Criterion) {
+    use servo_core::surface::{BeamIntegrator, Encoder, SinusoidalGrid, Surface};
+    let enc = Encoder {
+        pulses_per_rev: 80_000,
+    };
+    let grid = SinusoidalGrid {
+        ax_m: 5e-6,
+        ay_m: 5e-6,
+        lambda_x_m: 1e-3,
+        lambda_y_m: 1e-3,
+    };
+    let beam = BeamIntegrator {
+        radius_m: 0.1,
+        pitch_m: 2e-3,
+    };
+    let tick = |count: &mut u64| {
+        *count += 40; // 60 rpm at 199.6 kHz ≈ 0.4 pulses per tick; 40 keeps θ moving
+        let r = 0.025 - 5e-6 * (*count / 80_000) as f64;
+        (r, enc.angle_rad(*count))
+    };
+    let mut count = 0u64;
+    c.bench_function("surface/sinusoidal_grid", |b| {
+        b.iter(|| {
+            let (r, th) = tick(&mut count);
+            grid.depth_m(black_box(r), black_box(th))
+        })
+    });
+    c.bench_function("surface/beam_integrator", |b| {
+        b.iter(|| {
+            let (r, th) = tick(&mut count);
+            beam.depth_m(black_box(r), black_box(th))
+        })
+    });
+    c.bench_function("surface/angle_baseline", |b| {
+        b.iter(|| {
+            let (r, th) = tick(&mut count);
+            black_box(r) + black_box(th)
+        })
+    });
+}
+
 criterion_group!(
     benches,
     pid,
     cascade,
     biquad,
+    surface,
     state_space::<8>,
     state_space::<13>,
     state_space::<27>

@@ -41,6 +41,7 @@ mod oversample;
 mod pid;
 pub mod setpoint;
 mod state_space;
+pub mod surface;
 
 pub use block::Block;
 pub use cascade::{
