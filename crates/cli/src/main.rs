@@ -117,7 +117,9 @@ enum Command {
         #[command(flatten)]
         hil_args: HilArgs,
     },
-    /// Tune the PID (eq 7-8) on the simulator's exact sampled plant: the largest integral gain
+    /// Tune the PID (eq 7-8) for the largest integral gain under Ms, Mt and a bandwidth.
+    ///
+    /// On the simulator's exact sampled plant: the largest integral gain
     /// (best low-frequency disturbance rejection) with |S| ≤ Ms and |T| ≤ Mt everywhere and
     /// |T| ≥ −3 dB at the bandwidth, by convex-concave programming (clarabel LPs); compared with the
     /// configured (thesis Ch. 7) gains. Example: servo tune --bandwidth-hz 1000 --ms 1.5
@@ -140,7 +142,9 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Identify the Table 5-2 stage parameters (m1 + m2, k2, c2, m4, k4, c4; thesis §5.5.3)
+    /// Identify the Table 5-2 stage parameters from an open-loop FRF (thesis §5.5.3).
+    ///
+    /// Fits m1 + m2, k2, c2, m4, k4, c4
     /// from an open-loop FRF CSV (as `servo frf --loop open` writes), with the simulator's exact
     /// sampled model as the grey box, starting from the configured stage.
     /// Example: servo frf --loop open --points 80 && servo identify frf/frf.csv
@@ -153,7 +157,9 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// HIL: serve the simulated stage to a controller process (lockstep or real time). A lost
+    /// HIL: serve the simulated stage to a controller process.
+    ///
+    /// Lockstep or real time. A lost
     /// controller (no command for 200 ms lockstep / 0.5 ms real time) → zero current, exit 3.
     /// Example: servo plant --prefix bench --realtime
     Plant {
@@ -168,7 +174,8 @@ enum Command {
         #[arg(long)]
         wait_start: bool,
     },
-    /// HIL: run the controller against a plant process (simulator or DAQ daemon) of the run.
+    /// HIL: run the controller against a plant process (simulator or DAQ daemon).
+    ///
     /// Example: servo controller --prefix bench --mass heavy
     Controller {
         #[command(flatten)]
@@ -177,6 +184,7 @@ enum Command {
         hil_args: HilArgs,
     },
     /// HIL: record a run's telemetry and truth to MCAP and print its summary.
+    ///
     /// Example: servo record --prefix bench --out bench.mcap
     Record {
         #[command(flatten)]
@@ -196,8 +204,8 @@ enum Command {
         #[arg(short, long)]
         quiet: bool,
     },
-    /// HIL control plane: start a waiting plant, stop a run, or scale the controller's gains
-    /// while it runs.
+    /// HIL control plane: start a waiting plant, stop a run, or scale the controller's gains.
+    ///
     /// Example: servo ctl --prefix bench gain 1.2
     Ctl {
         /// Run prefix.
@@ -215,7 +223,9 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Error budget of the loop (thesis §5.7.2, eq 5-13..5-17): each noise source's RMS and PSD
+    /// Error budget of the loop: per-source RMS and PSD, CAS, bandwidth sweep (thesis §5.7.2).
+    ///
+    /// Eq 5-13..5-17: each noise source's RMS and PSD
     /// in the following error (what the sensor reports) and the true tool error, their CAS; with
     /// --sweep the RMS errors against closed-loop bandwidth for both stage masses (Fig 5-14).
     /// Example: servo budget --mass heavy --sweep --validate 1
@@ -242,7 +252,9 @@ enum Command {
         #[arg(long, default_value_t = 2000)]
         points: usize,
     },
-    /// Measure a frequency response on the running simulator by stepped sine (§5.5.1: ramp,
+    /// Measure a frequency response on the running simulator and compare it with the model.
+    ///
+    /// Stepped sine (§5.5.1: ramp,
     /// settle, integer periods, exact-bin DFT) and compare it with the model: open loop (DAC
     /// command → measured position) or closed loop (injection at the controller output, §5.7.5).
     /// Example: servo frf --loop closed --from 10 --to 20000 --points 40
@@ -272,7 +284,9 @@ enum Command {
         #[arg(long, default_value = "frf")]
         out_dir: PathBuf,
     },
-    /// Dynamic compliance X/dF at the tool with acceleration feedback (thesis eq 7-9, Table
+    /// Dynamic compliance X/dF at the tool with acceleration feedback (eq 7-9).
+    ///
+    /// Thesis eq 7-9, Table
     /// 7-1): analytic and from the simulator's sampled loop, for a list of Ka, PID gains fixed or
     /// scaled by 1/Kg (§7.4.1). Example: servo stiffness --kas 0,0.5,1,4 --kg-scaling --mass heavy
     Stiffness {
@@ -288,7 +302,9 @@ enum Command {
         #[arg(long, default_value = "stiffness")]
         out_dir: PathBuf,
     },
-    /// Design a controller. `h2`: the H2-optimal controller on the simulator's exact discrete
+    /// Design an H2-optimal controller and write a controller file (thesis Ch. 6).
+    ///
+    /// `h2`: the H2-optimal controller on the simulator's exact discrete
     /// model at the configured servo rate (thesis Ch. 6): minimises the true tool error given the
     /// sensor, current, base and converter noise, knowing the loop delay; writes a controller
     /// file for `servo run --controller ss --ss-file FILE`.
