@@ -96,8 +96,9 @@ pub fn ctl(prefix: &str, message: Control) -> ExitCode {
         let sender = ControlSender::new(&ep)?;
         sender.send(message)?;
         // Samples of a publisher that is gone cannot be received: stay until the plant and
-        // controller have polled (every 2048 ticks, ≈ 10 ms in real time).
-        std::thread::sleep(Duration::from_millis(100));
+        // controller have polled (every 2048 ticks: ≈ 10 ms in real time, longer in a lockstep
+        // run on a loaded machine).
+        std::thread::sleep(Duration::from_secs(1));
         Ok(())
     });
     match sent {
