@@ -15,7 +15,7 @@
 //! strictly proper controller: `A_K = A + B2F + LC2`, `B_K = −L`, `C_K = F`.
 
 use crate::lti::{dlyap, StateSpace};
-use crate::riccati::{care, dare, lyap, RiccatiError};
+use crate::riccati::{care, dare, lyap, Riccati, RiccatiError};
 use nalgebra::DMatrix;
 
 /// A generalized plant for H2 synthesis.
@@ -149,6 +149,49 @@ impl GeneralizedPlant {
     }
 }
 
+/// A Riccati solver: [`care`] or [`dare`] (same arguments: A, B, Q, R, cross term S).
+type RiccatiSolver = fn(
+    &DMatrix<f64>,
+    &DMatrix<f64>,
+    &DMatrix<f64>,
+    &DMatrix<f64>,
+    Option<&DMatrix<f64>>,
+) -> Result<Riccati, RiccatiError>;
+
+/// The rank checks both syntheses need, then the control equation `X` (C1ᵀC1, R1 = D12ᵀD12,
+/// C1ᵀD12) and the filter equation `Y` (the dual: B1B1ᵀ, R2 = D21D21ᵀ, B1D21ᵀ) by `riccati`.
+/// Returns `(R1, R2, X, Y)`.
+fn riccati_pair(
+    p: &GeneralizedPlant,
+    riccati: RiccatiSolver,
+) -> Result<(DMatrix<f64>, DMatrix<f64>, Riccati, Riccati), H2Error> {
+    let r1 = p.d12.transpose() * &p.d12;
+    let r2 = &p.d21 * p.d21.transpose();
+    if r1.clone().cholesky().is_none() {
+        return Err(H2Error::D12Rank);
+    }
+    if r2.clone().cholesky().is_none() {
+        return Err(H2Error::D21Rank);
+    }
+    let x = riccati(
+        &p.a,
+        &p.b2,
+        &(p.c1.transpose() * &p.c1),
+        &r1,
+        Some(&(p.c1.transpose() * &p.d12)),
+    )
+    .map_err(H2Error::Control)?;
+    let y = riccati(
+        &p.a.transpose(),
+        &p.c2.transpose(),
+        &(&p.b1 * p.b1.transpose()),
+        &r2,
+        Some(&(&p.b1 * p.d21.transpose())),
+    )
+    .map_err(H2Error::Filter)?;
+    Ok((r1, r2, x, y))
+}
+
 /// H2 norm of a stable discrete system from its controllability gramian.
 pub fn h2_norm_discrete(sys: &StateSpace) -> Option<f64> {
     let (wc, _) = dlyap(&sys.a, &(&sys.b * sys.b.transpose())).ok()?;
@@ -194,30 +237,7 @@ pub fn h2syn_continuous(original: &GeneralizedPlant) -> Result<H2ContinuousContr
         scaled.d12 /= sz;
     }
     let p = &scaled;
-    let r1 = p.d12.transpose() * &p.d12;
-    let r2 = &p.d21 * p.d21.transpose();
-    if r1.clone().cholesky().is_none() {
-        return Err(H2Error::D12Rank);
-    }
-    if r2.clone().cholesky().is_none() {
-        return Err(H2Error::D21Rank);
-    }
-    let x = care(
-        &p.a,
-        &p.b2,
-        &(p.c1.transpose() * &p.c1),
-        &r1,
-        Some(&(p.c1.transpose() * &p.d12)),
-    )
-    .map_err(H2Error::Control)?;
-    let y = care(
-        &p.a.transpose(),
-        &p.c2.transpose(),
-        &(&p.b1 * p.b1.transpose()),
-        &r2,
-        Some(&(&p.b1 * p.d21.transpose())),
-    )
-    .map_err(H2Error::Filter)?;
+    let (_, _, x, y) = riccati_pair(p, care)?;
     let f = -&x.k;
     let l = -y.k.transpose();
     let k = StateSpace {
@@ -243,30 +263,7 @@ pub fn h2syn_continuous(original: &GeneralizedPlant) -> Result<H2ContinuousContr
 /// Synthesizes the discrete H2-optimal controller for `p`.
 pub fn h2syn_discrete(p: &GeneralizedPlant) -> Result<H2Controller, H2Error> {
     p.check()?;
-    let r1 = p.d12.transpose() * &p.d12;
-    let r2 = &p.d21 * p.d21.transpose();
-    if r1.clone().cholesky().is_none() {
-        return Err(H2Error::D12Rank);
-    }
-    if r2.clone().cholesky().is_none() {
-        return Err(H2Error::D21Rank);
-    }
-    let x = dare(
-        &p.a,
-        &p.b2,
-        &(p.c1.transpose() * &p.c1),
-        &r1,
-        Some(&(p.c1.transpose() * &p.d12)),
-    )
-    .map_err(H2Error::Control)?;
-    let y = dare(
-        &p.a.transpose(),
-        &p.c2.transpose(),
-        &(&p.b1 * p.b1.transpose()),
-        &r2,
-        Some(&(&p.b1 * p.d21.transpose())),
-    )
-    .map_err(H2Error::Filter)?;
+    let (r1, r2, x, y) = riccati_pair(p, dare)?;
     let (xm, ym) = (&x.x, &y.x);
     let f = -&x.k; // u = F x
     let l = -y.k.transpose(); // x̂⁺ = … + L(C2 x̂ − y)

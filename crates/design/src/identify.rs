@@ -8,10 +8,6 @@
 //! is fitted everywhere, not only where it is large. Uncertainties: `σ² (JᵀJ)⁻¹` at the optimum
 //! (`σ²` from the residual), reported as relative 1σ of each parameter.
 
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
-};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
@@ -121,7 +117,6 @@ fn step(
                 .collect()
         })
         .collect();
-    let p = CscMatrix::from(&upper);
     let q: Vec<f64> = (j.transpose() * r).iter().copied().collect();
     let mut rows: Vec<Vec<f64>> = Vec::with_capacity(2 * n);
     let mut b = Vec::with_capacity(2 * n);
@@ -134,19 +129,7 @@ fn step(
         rows.push(e);
         b.push(-lo[i]);
     }
-    let a = CscMatrix::from(&rows);
-    let settings = DefaultSettingsBuilder::default()
-        .verbose(false)
-        .build()
-        .expect("valid clarabel settings");
-    let cones = [NonnegativeConeT(2 * n)];
-    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
-        .map_err(|e| IdentifyError::Solver(iteration, format!("{e:?}")))?;
-    solver.solve();
-    match solver.solution.status {
-        SolverStatus::Solved | SolverStatus::AlmostSolved => Ok(solver.solution.x.clone()),
-        s => Err(IdentifyError::Solver(iteration, format!("{s:?}"))),
-    }
+    crate::lp::solve(Some(&upper), &q, &rows, &b).map_err(|e| IdentifyError::Solver(iteration, e))
 }
 
 /// Fits `model` to `measured` from `start` within `[lower, upper]` (all > 0).

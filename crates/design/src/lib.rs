@@ -7,6 +7,7 @@ pub mod h2;
 pub mod identify;
 pub mod interconnect;
 pub mod loops;
+mod lp;
 pub mod lti;
 pub mod plot;
 pub mod reduce;

@@ -89,6 +89,19 @@ impl Psd {
     }
 }
 
+/// `n` log-spaced frequencies from `from_hz` to `to_hz` inclusive (`n ≥ 2`; one point at
+/// `from_hz` if `n < 2`).
+///
+/// ```
+/// let f = design::spectral::log_space(10.0, 1000.0, 3);
+/// assert_eq!(f, vec![10.0, 100.0, 1000.0]);
+/// ```
+pub fn log_space(from_hz: f64, to_hz: f64, n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| from_hz * (to_hz / from_hz).powf(i as f64 / (n - 1).max(1) as f64))
+        .collect()
+}
+
 /// Cumulative amplitude spectrum (thesis eq 5-16): `CAS(f_i) = √(Σ_{k≤i} PSD_k·Δf_k)`, the RMS
 /// content from DC up to each frequency (trapezoidal weights on a possibly uneven grid, the
 /// first point weighted by its half interval). By Parseval (eq 5-17) `CAS(f_max)` is the RMS.

@@ -20,10 +20,6 @@
 //! so a start below the bandwidth still gives a feasible program; a bandwidth the peak bounds
 //! forbid ends in [`TuneError::Unreachable`] with the best `|T(f_b)|` found.
 
-use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
-};
 use num_complex::Complex64;
 
 /// One PID tuning problem on a frequency grid.
@@ -177,27 +173,12 @@ impl PidTuning {
                     b.push(1.0);
                 }
             }
-            let m = rows.len();
-            let a = CscMatrix::from(&rows);
-            let p = CscMatrix::<f64>::zeros((4, 4));
             let q = [0.0, -1.0, 0.0, penalty];
-            let settings = DefaultSettingsBuilder::default()
-                .verbose(false)
-                .build()
-                .expect("valid clarabel settings");
-            let cones = [NonnegativeConeT(m)];
-            let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
-                .map_err(|e| TuneError::Solver(it, format!("{e:?}")))?;
-            solver.solve();
-            let status = solver.solution.status;
-            if !matches!(status, SolverStatus::Solved | SolverStatus::AlmostSolved) {
-                return Err(TuneError::Solver(it, format!("{status:?}")));
-            }
-            let x = &solver.solution.x;
+            let x = crate::lp::solve(None, &q, &rows, &b).map_err(|e| TuneError::Solver(it, e))?;
             // x ≥ 0 holds to the solver's tolerance; gains are non-negative exactly.
             k = [0, 1, 2].map(|j| (x[j] * scale[j]).max(0.0));
             // The objective never increases (each program contains the previous solution).
-            let objective = solver.solution.obj_val;
+            let objective: f64 = q.iter().zip(&x).map(|(q, x)| q * x).sum();
             if last_objective - objective <= 1e-9 * objective.abs().max(1e-3) {
                 break;
             }
