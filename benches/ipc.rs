@@ -147,15 +147,7 @@ fn lockstep_rate() -> ((u64, f64), (u64, f64)) {
     let r = runner::hil::plant(&cfg, &prefix, &options, &stop).unwrap();
     child.wait().unwrap();
     let start = Instant::now();
-    let s = runner::run::run(
-        &cfg,
-        runner::run::RunOptions {
-            out: None,
-            stop: &stop,
-            progress: &mut |_, _| {},
-        },
-    )
-    .unwrap();
+    let s = runner::run::run_to_end(&cfg).unwrap();
     (
         (r.ticks, r.wall_s),
         (s.ticks, start.elapsed().as_secs_f64()),

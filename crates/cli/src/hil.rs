@@ -166,15 +166,7 @@ pub fn run(
     out: Option<PathBuf>,
     quiet: bool,
 ) -> Result<(Summary, Vec<(String, i32)>), RunError> {
-    cfg.config.validate(cfg)?;
-    let (cl, description) = runner::run::closed_loop(cfg)?;
-    let radius = cl.spectral_radius();
-    if radius >= 1.0 {
-        return Err(RunError::Unstable {
-            radius,
-            controller: description,
-        });
-    }
+    runner::run::check_stable(cfg)?;
     let prefix = prefix.unwrap_or_else(|| format!("run-{}", std::process::id()));
     daq_io::ipc::check_prefix(&prefix).map_err(RunError::Transport)?;
     let dir = std::env::temp_dir().join(format!("fts-servo-{prefix}"));
@@ -214,7 +206,7 @@ pub fn run(
     ];
 
     let bar = progress_bar(quiet, if realtime { "real time" } else { "lockstep" });
-    let total = (cfg.config.run.duration_s * cfg.config.plant.timing.servo_rate_hz).round() as u64;
+    let total = cfg.config.ticks();
     bar.set_length(total);
     let mut codes: Vec<(String, i32)> = Vec::new();
     let mut stopped_at: Option<Instant> = None;

@@ -734,9 +734,7 @@ fn frf(
         settings.amplitude_v = a;
     }
     let n = n.max(2);
-    let freqs: Vec<f64> = (0..n)
-        .map(|i| from * (to / from).powf(i as f64 / (n - 1) as f64))
-        .collect();
+    let freqs = design::spectral::log_space(from, to, n);
     let bar = ProgressBar::new(n as u64);
     bar.set_style(
         ProgressStyle::with_template(
@@ -795,9 +793,7 @@ fn frf(
 
 fn stiffness(s: &Settings, kas: &[f64], to: f64, dir: &Path) -> Result<(), RunError> {
     let cfg = s.resolve()?;
-    let freqs: Vec<f64> = (0..200)
-        .map(|i| 10.0 * (to / 10.0).powf(i as f64 / 199.0))
-        .collect();
+    let freqs = design::spectral::log_space(10.0, to, 200);
     let curves = runner::stiffness::compliance(&cfg, kas, s.kg_scaling, &freqs)?;
     println!(
         "Dynamic compliance at the tool (eq 7-9), {} PID gains:",

@@ -277,9 +277,7 @@ impl Budget {
     pub fn new(cl: &ClosedLoop, points: usize) -> Result<Self, LtiError> {
         let fs = 1.0 / cl.period_s;
         let nyquist = fs / 2.0;
-        let freq_hz: Vec<f64> = (0..points)
-            .map(|i| nyquist.powf(i as f64 / (points - 1) as f64))
-            .collect();
+        let freq_hz = design::spectral::log_space(1.0, nyquist, points);
         let mut contributions = Vec::new();
         let (mut following_psd, mut true_psd) = (Vec::new(), Vec::new());
         let responses: Vec<DMatrix<num_complex::Complex64>> = freq_hz

@@ -283,6 +283,11 @@ pub fn line_of(text: &str, key: &str) -> Option<usize> {
 }
 
 impl RunConfig {
+    /// Servo ticks in the run: duration × servo rate.
+    pub fn ticks(&self) -> u64 {
+        (self.run.duration_s * self.plant.timing.servo_rate_hz).round() as u64
+    }
+
     /// The resolved configuration as TOML.
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("the configuration always serialises")

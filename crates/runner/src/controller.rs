@@ -116,7 +116,8 @@ impl LinearController {
     }
 }
 
-fn dm<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> DMatrix<f64> {
+/// A fixed-size servo-core matrix as a dynamic one.
+pub(crate) fn dm<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> DMatrix<f64> {
     DMatrix::from_fn(R, C, |i, j| m[(i, j)])
 }
 

@@ -187,11 +187,9 @@ pub fn model_curve(
     n: usize,
 ) -> Result<Vec<(f64, Complex64)>, RunError> {
     let rig = Rig::new(cfg, which)?;
-    (0..n)
-        .map(|i| {
-            let f = from_hz * (to_hz / from_hz).powf(i as f64 / (n - 1).max(1) as f64);
-            Ok((f, rig.model_at(f)?))
-        })
+    design::spectral::log_space(from_hz, to_hz, n)
+        .into_iter()
+        .map(|f| Ok((f, rig.model_at(f)?)))
         .collect()
 }
 

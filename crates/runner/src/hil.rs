@@ -9,7 +9,7 @@
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
 use crate::config::Loaded;
-use crate::run::{metadata, plant_error, scenario_name, RunError};
+use crate::run::{meta, metadata, plant_error, RunError};
 use crate::servo_loop::{frame, ServoLoop, SimBackend};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use daq_io::contract::{command, role, state};
@@ -76,8 +76,7 @@ pub fn plant(
     c.validate(cfg)?;
     let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
         .map_err(|e| plant_error(e, cfg))?;
-    let ticks = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
-    let mut opts = ServeOptions::new(ticks, c.plant.period_s(), p.pacing);
+    let mut opts = ServeOptions::new(c.ticks(), c.plant.period_s(), p.pacing);
     opts.wait_for_recorder = p.wait_for_recorder;
     opts.wait_for_start = p.wait_for_start;
     opts.startup_timeout = STARTUP_TIMEOUT;
@@ -247,7 +246,7 @@ pub fn record(
         )?),
         None => None,
     };
-    let total = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
+    let total = c.ticks();
     let mut summary = SummaryBuilder::new(c.run.settle());
     let mut join = Joiner::default();
     let mut plant_health = Health::default();
@@ -308,16 +307,10 @@ pub fn record(
     };
     let ticks = summary.ticks();
     Ok(summary.finish(RunMeta {
-        servo_rate_hz: c.plant.timing.servo_rate_hz,
-        seed: c.run.seed,
-        settle_s: c.run.settle(),
-        controller: description,
-        scenario: scenario_name(&c.scenario).into(),
         wall_s: Some(plant_health.wall_s),
         interrupted: ticks < total,
         recorded_messages: stats.map(|s| s.messages),
         dropped_frames: Some(join.dropped + stats.map_or(0, |s| s.dropped_frames)),
-        spectral_radius: None,
         hil: Some(HilMeta {
             realtime,
             overruns: plant_health.overruns,
@@ -325,5 +318,6 @@ pub fn record(
             faults: plant_health.faults,
             truth_only_ticks: join.truth_only,
         }),
+        ..meta(c, description)
     }))
 }

@@ -2,7 +2,7 @@
 //! recorded to MCAP (recorder) off the tick, summarised; and the same summary from a file.
 
 use crate::analysis::ClosedLoop;
-use crate::config::{ConfigError, Loaded, Scenario};
+use crate::config::{ConfigError, Loaded, RunConfig, Scenario};
 use crate::controller::Controller;
 use crate::servo_loop::{frame, ServoLoop, SimBackend};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
@@ -65,7 +65,25 @@ pub struct RunOptions<'a> {
     pub progress: &'a mut dyn FnMut(u64, u64),
 }
 
-pub(crate) fn scenario_name(s: &Scenario) -> &'static str {
+/// The facts every summary of a run of `c` shares; the live ones (wall time, recording, HIL)
+/// unset.
+pub(crate) fn meta(c: &RunConfig, controller: String) -> RunMeta {
+    RunMeta {
+        servo_rate_hz: c.plant.timing.servo_rate_hz,
+        seed: c.run.seed,
+        settle_s: c.run.settle(),
+        controller,
+        scenario: scenario_name(&c.scenario).into(),
+        wall_s: None,
+        interrupted: false,
+        recorded_messages: None,
+        dropped_frames: None,
+        spectral_radius: None,
+        hil: None,
+    }
+}
+
+fn scenario_name(s: &Scenario) -> &'static str {
     match s {
         Scenario::Hold => "hold",
         Scenario::Sine { .. } => "sine",
@@ -165,6 +183,25 @@ pub fn closed_loop(cfg: &Loaded) -> Result<(ClosedLoop, String), RunError> {
     Ok((closed_loop_of(cfg, &sim, &ctrl)?, ctrl.description))
 }
 
+/// The spectral radius of `cl`, or [`RunError::Unstable`] when it is ≥ 1.
+fn stable(cl: &ClosedLoop, controller: &str) -> Result<f64, RunError> {
+    let radius = cl.spectral_radius();
+    if radius >= 1.0 {
+        return Err(RunError::Unstable {
+            radius,
+            controller: controller.to_owned(),
+        });
+    }
+    Ok(radius)
+}
+
+/// The pre-run check of [`run`] alone: the spectral radius of the sampled loop of `cfg`, or
+/// [`RunError::Unstable`].
+pub fn check_stable(cfg: &Loaded) -> Result<f64, RunError> {
+    let (cl, controller) = closed_loop(cfg)?;
+    stable(&cl, &controller)
+}
+
 /// Runs `cfg`: builds everything, checks closed-loop stability, runs, records, summarises.
 pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
     let c = &cfg.config;
@@ -172,20 +209,13 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
     let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
         .map_err(|e| plant_error(e, cfg))?;
     let mut servo = ServoLoop::new(cfg)?;
-    let ctrl = &servo.controller;
-    let radius = closed_loop_of(cfg, &sim, ctrl)?.spectral_radius();
-    if radius >= 1.0 {
-        return Err(RunError::Unstable {
-            radius,
-            controller: ctrl.description.clone(),
-        });
-    }
-    let description = ctrl.description.clone();
+    let description = servo.controller.description.clone();
+    let radius = stable(&closed_loop_of(cfg, &sim, &servo.controller)?, &description)?;
     let mut recorder = match &opts.out {
         Some(path) => Some(Recorder::create(path, metadata(cfg), WhenFull::Wait)?),
         None => None,
     };
-    let total = (c.run.duration_s * c.plant.timing.servo_rate_hz).round() as u64;
+    let total = c.ticks();
     let mut summary = SummaryBuilder::new(c.run.settle());
     let start = Instant::now();
     let mut daq = InProcess::new(SimBackend::new(sim), total);
@@ -223,18 +253,27 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
         None => None,
     };
     Ok(summary.finish(RunMeta {
-        servo_rate_hz: c.plant.timing.servo_rate_hz,
-        seed: c.run.seed,
-        settle_s: c.run.settle(),
-        controller: description,
-        scenario: scenario_name(&c.scenario).into(),
         wall_s: Some(wall),
         interrupted,
         recorded_messages: stats.map(|s| s.messages),
         dropped_frames: stats.map(|s| s.dropped_frames),
         spectral_radius: Some(radius),
-        hil: None,
+        ..meta(c, description)
     }))
+}
+
+/// [`run`] to the end of `cfg`'s duration: no recording, no progress, no stop flag (sweeps,
+/// tests, benches).
+pub fn run_to_end(cfg: &Loaded) -> Result<Summary, RunError> {
+    let stop = AtomicBool::new(false);
+    run(
+        cfg,
+        RunOptions {
+            out: None,
+            stop: &stop,
+            progress: &mut |_, _| {},
+        },
+    )
 }
 
 /// Metadata written into the recording.
@@ -259,7 +298,7 @@ pub fn inspect(path: &Path) -> Result<Summary, RunError> {
         .metadata
         .get("config")
         .ok_or_else(|| RunError::NotARun(path.to_owned()))?;
-    let cfg: crate::config::RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+    let cfg: RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
         path: path.to_owned(),
         message: e.to_string(),
     })?;
@@ -272,18 +311,10 @@ pub fn inspect(path: &Path) -> Result<Summary, RunError> {
     let controller = Controller::build(&loaded)
         .map(|c| c.description)
         .unwrap_or_else(|_| format!("{:?}", cfg.controller.kind));
-    let expected = (cfg.run.duration_s * cfg.plant.timing.servo_rate_hz).round() as u64;
+    let expected = cfg.ticks();
     Ok(b.finish(RunMeta {
-        servo_rate_hz: cfg.plant.timing.servo_rate_hz,
-        seed: cfg.run.seed,
-        settle_s: cfg.run.settle(),
-        controller,
-        scenario: scenario_name(&cfg.scenario).into(),
-        wall_s: None,
         interrupted: (rec.frames.len() as u64) < expected,
         recorded_messages: Some(rec.messages),
-        dropped_frames: None,
-        spectral_radius: None,
-        hil: None,
+        ..meta(&cfg, controller)
     }))
 }

@@ -4,9 +4,8 @@
 
 use crate::analysis::Budget;
 use crate::config::Loaded;
-use crate::run::{closed_loop, run, RunError, RunOptions};
+use crate::run::{closed_loop, run_to_end, RunError};
 use serde::Serialize;
-use std::sync::atomic::AtomicBool;
 
 /// One bandwidth of the sweep.
 #[derive(Debug, Clone, Serialize)]
@@ -105,15 +104,7 @@ pub fn sweep(
         if let Some(d) = simulate_s {
             let mut run_cfg = at.clone();
             run_cfg.config.run.duration_s = d;
-            let stop = AtomicBool::new(false);
-            let s = run(
-                &run_cfg,
-                RunOptions {
-                    out: None,
-                    stop: &stop,
-                    progress: &mut |_, _| {},
-                },
-            )?;
+            let s = run_to_end(&run_cfg)?;
             (sf, st) = (Some(s.following_error_m.rms), Some(s.true_error_m.rms));
         }
         points.push(SweepPoint {

@@ -210,19 +210,22 @@ pub fn thesis_design(cfg: &Loaded, w: &ThesisWeights, effort: f64) -> Result<Des
     let tool = g.c.row(output::TOOL_M) * 1e9;
     let sensor = g.c.row(output::SENSOR_V);
     let ws = c.plant.noise.sensor_v_per_rt_hz;
-    let (we_a, we_c, we_d) = (
-        -w.omega_b * w.epsilon,
-        w.omega_b - w.omega_b * w.epsilon / w.ms,
-        1.0 / w.ms,
-    );
-    let p = w.omega_bu / w.epsilon1;
-    let (wu_a, wu_c, wu_d) = (-p, w.omega_bu / w.mu - p, 1.0);
+    let first_order = |num: &[f64], den: &[f64]| {
+        StateSpace::from_tf(num, den).map_err(|e| RunError::Plant(format!("weight: {e}")))
+    };
+    // We = (s/Ms + ω_b)/(s + ω_b ε);  ε₁·Wu = ε₁(s + ω_bu/M_u)/(ε₁ s + ω_bu).
+    let we = first_order(&[1.0 / w.ms, w.omega_b], &[1.0, w.omega_b * w.epsilon])?;
+    let wu = first_order(
+        &[w.epsilon1, w.epsilon1 * w.omega_bu / w.mu],
+        &[w.epsilon1, w.omega_bu],
+    )?;
     let nw = 4;
     let mut a = DMatrix::zeros(size, size);
     a.view_mut((0, 0), (n, n)).copy_from(&g.a);
-    a.view_mut((iwe, 0), (1, n)).copy_from(&tool);
-    a[(iwe, iwe)] = we_a;
-    a[(iwu, iwu)] = wu_a;
+    a.view_mut((iwe, 0), (1, n))
+        .copy_from(&(&tool * we.b[(0, 0)]));
+    a[(iwe, iwe)] = we.a[(0, 0)];
+    a[(iwu, iwu)] = wu.a[(0, 0)];
     let mut b1 = DMatrix::zeros(size, nw);
     b1.view_mut((0, 0), (n, 1))
         .copy_from(&g.b.column(input::CURRENT_WHITE));
@@ -233,12 +236,13 @@ pub fn thesis_design(cfg: &Loaded, w: &ThesisWeights, effort: f64) -> Result<Des
     let mut b2 = DMatrix::zeros(size, 1);
     b2.view_mut((0, 0), (n, 1))
         .copy_from(&g.b.column(input::COMMAND_V));
-    b2[(iwu, 0)] = 1.0;
+    b2[(iwu, 0)] = wu.b[(0, 0)];
     let mut c1 = DMatrix::zeros(2, size);
-    c1.view_mut((0, 0), (1, n)).copy_from(&(&tool * we_d));
-    c1[(0, iwe)] = we_c;
-    c1[(1, iwu)] = effort * wu_c;
-    let d12 = DMatrix::from_column_slice(2, 1, &[0.0, effort * wu_d]);
+    c1.view_mut((0, 0), (1, n))
+        .copy_from(&(&tool * we.d[(0, 0)]));
+    c1[(0, iwe)] = we.c[(0, 0)];
+    c1[(1, iwu)] = effort * wu.c[(0, 0)];
+    let d12 = DMatrix::from_column_slice(2, 1, &[0.0, effort * wu.d[(0, 0)]]);
     let mut c2 = DMatrix::zeros(1, size);
     c2.view_mut((0, 0), (1, n)).copy_from(&(-sensor));
     let mut d21 = DMatrix::zeros(1, nw);

@@ -5,7 +5,7 @@
 
 use crate::analysis::{input, output, Budget, ClosedLoop};
 use crate::config::{Loaded, PidGains};
-use crate::controller::LinearController;
+use crate::controller::{dm, LinearController};
 use crate::run::{closed_loop, plant_error, RunError};
 use design::lti::StateSpace;
 use design::tune::{PidTuned, PidTuning};
@@ -89,14 +89,6 @@ fn with_gains(cfg: &Loaded, k: [f64; 3]) -> Loaded {
     c
 }
 
-/// Log-spaced frequencies from 1 Hz to 0.499·fs.
-fn grid(points: usize, fs: f64) -> Vec<f64> {
-    let (lo, hi) = (1.0f64.ln(), (0.499 * fs).ln());
-    (0..points)
-        .map(|i| (lo + (hi - lo) * i as f64 / (points - 1) as f64).exp())
-        .collect()
-}
-
 /// The sampled plant: DAC command (V) → gap reading (V), at `freq_hz`.
 fn plant_response(cfg: &Loaded, freq_hz: &[f64]) -> Result<Vec<Complex64>, RunError> {
     let c = &cfg.config;
@@ -134,9 +126,9 @@ fn pid_basis(cfg: &Loaded, freq_hz: &[f64]) -> Result<Vec<[Complex64; 3]>, RunEr
         .map_err(|e| cfg.invalid("controller.pid.tf_s", e, "> 0 s"))?;
         let (a, b, cc, d) = pid.coeffs().realization();
         Ok(StateSpace {
-            a: DMatrix::from_column_slice(3, 3, a.as_slice()),
-            b: DMatrix::from_column_slice(3, 1, b.as_slice()),
-            c: DMatrix::from_column_slice(1, 3, cc.as_slice()),
+            a: dm(&a),
+            b: dm(&b),
+            c: dm(&cc),
             d: DMatrix::from_element(1, 1, d),
         })
     };
@@ -201,7 +193,7 @@ pub fn tune(cfg: &Loaded, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRep
             .into());
     }
     let problem = |points: usize| -> Result<PidTuning, RunError> {
-        let freq_hz = grid(points, fs);
+        let freq_hz = design::spectral::log_space(1.0, 0.499 * fs, points);
         let p = &cfg.config.controller.pid;
         Ok(PidTuning {
             plant: plant_response(cfg, &freq_hz)?,

@@ -2,8 +2,7 @@
 
 use runner::analysis::Budget;
 use runner::config::Loaded;
-use runner::run::{closed_loop, run, RunOptions};
-use std::sync::atomic::AtomicBool;
+use runner::run::{closed_loop, run_to_end};
 
 fn heavy_468() -> Loaded {
     let mut l = Loaded::default();
@@ -22,16 +21,7 @@ fn budget_predicts_the_simulated_errors() {
     let cfg = heavy_468();
     let (cl, _) = closed_loop(&cfg).unwrap();
     let b = Budget::new(&cl, 2000).unwrap();
-    let stop = AtomicBool::new(false);
-    let s = run(
-        &cfg,
-        RunOptions {
-            out: None,
-            stop: &stop,
-            progress: &mut |_, _| {},
-        },
-    )
-    .unwrap();
+    let s = run_to_end(&cfg).unwrap();
     let (pf, pt) = (b.following_rms_m * 1e9, b.true_rms_m * 1e9);
     let (sf, st) = (s.following_error_m.rms * 1e9, s.true_error_m.rms * 1e9);
     println!(
@@ -241,18 +231,7 @@ fn h2_at_20_khz_beats_the_pid() {
     h2.config.controller.ss_file = Some(file);
     let (cl, _) = closed_loop(&h2).unwrap();
     let bw = cl.bandwidth_hz().unwrap();
-    let stop = AtomicBool::new(false);
-    let run_it = |cfg: &Loaded| {
-        run(
-            cfg,
-            RunOptions {
-                out: None,
-                stop: &stop,
-                progress: &mut |_, _| {},
-            },
-        )
-        .unwrap()
-    };
+    let run_it = |cfg: &Loaded| run_to_end(cfg).unwrap();
     let h2_run = run_it(&h2);
     println!(
         "H2: bandwidth {bw:.0} Hz, true {:.3} nm, following {:.3} nm",

@@ -4,9 +4,8 @@
 //! integral gain (Chapter 7, §7.5.3: Kp 1.65, Ki 562 s⁻¹, Kd 9.5e-4 s).
 
 use runner::config::Loaded;
-use runner::run::{run, RunOptions};
+use runner::run::run_to_end;
 use runner::tune::tune;
-use std::sync::atomic::AtomicBool;
 
 fn heavy() -> Loaded {
     let mut l = Loaded::default();
@@ -40,16 +39,7 @@ fn tuned_pid_keeps_its_bounds_and_runs_as_predicted() {
     let mut with = cfg.clone();
     with.config.controller.pid = r.pid;
     with.config.run.duration_s = 2.0;
-    let stop = AtomicBool::new(false);
-    let s = run(
-        &with,
-        RunOptions {
-            out: None,
-            stop: &stop,
-            progress: &mut |_, _| {},
-        },
-    )
-    .unwrap();
+    let s = run_to_end(&with).unwrap();
     let ratio = s.following_error_m.rms / t.following_rms_m;
     assert!(
         (ratio - 1.0).abs() < 0.1,
