@@ -230,7 +230,7 @@ pub struct Latency {
     pub max_ns: u64,
 }
 
-/// A process's periodic status (every ~10 ms and once at the end).
+/// A process's periodic status (every 2048 ticks and once at the end).
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
 #[type_name("fts_servo::Health")]
@@ -249,6 +249,6 @@ pub struct Health {
     pub reserved: u32,
     /// Wall time since the first tick in s.
     pub wall_s: f64,
-    /// Round-trip latency so far.
+    /// Round-trip latency (plant, in its final report; zero before).
     pub latency: Latency,
 }

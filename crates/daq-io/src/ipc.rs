@@ -28,10 +28,9 @@ pub struct IpcError {
     pub detail: String,
 }
 
-fn ipc_err(what: impl Into<String>) -> impl FnOnce(&dyn Debug) -> IpcError {
-    let what = what.into();
-    move |e| IpcError {
-        what,
+fn ipc_err(what: impl Into<String>, e: impl Debug) -> IpcError {
+    IpcError {
+        what: what.into(),
         detail: format!("{e:?}"),
     }
 }
@@ -115,12 +114,12 @@ impl Endpoint {
         })?;
         iceoryx2::prelude::set_log_level(LogLevel::Error);
         let node_name = NodeName::new(&format!("fts-servo-{prefix}-{name}"))
-            .map_err(|e| ipc_err("node name")(&e))?;
+            .map_err(|e| ipc_err("node name", e))?;
         let node = NodeBuilder::new()
             .name(&node_name)
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
-            .map_err(|e| ipc_err("create node")(&e))?;
+            .map_err(|e| ipc_err("create node", e))?;
         node.try_cleanup_dead_nodes();
         Ok(Endpoint {
             node,
@@ -144,7 +143,7 @@ impl Endpoint {
         let name: ServiceName = full
             .as_str()
             .try_into()
-            .map_err(|e| ipc_err(format!("service name {full}"))(&e))?;
+            .map_err(|e| ipc_err(format!("service name {full}"), e))?;
         let s = settings(leaf);
         let mut last = None;
         // Creation races between processes starting together resolve within a few tries.
@@ -168,7 +167,7 @@ impl Endpoint {
                 }
             }
         }
-        Err(ipc_err(format!("open service {full}"))(&last))
+        Err(ipc_err(format!("open service {full}"), last))
     }
 
     /// A publisher on `leaf`.
@@ -176,7 +175,7 @@ impl Endpoint {
         self.service::<T>(leaf)?
             .publisher_builder()
             .create()
-            .map_err(|e| ipc_err(format!("publisher on {}", self.service_name(leaf)))(&e))
+            .map_err(|e| ipc_err(format!("publisher on {}", self.service_name(leaf)), e))
     }
 
     /// A subscriber on `leaf`.
@@ -187,7 +186,7 @@ impl Endpoint {
         self.service::<T>(leaf)?
             .subscriber_builder()
             .create()
-            .map_err(|e| ipc_err(format!("subscriber on {}", self.service_name(leaf)))(&e))
+            .map_err(|e| ipc_err(format!("subscriber on {}", self.service_name(leaf)), e))
     }
 }
 
@@ -436,6 +435,6 @@ impl ControlSender {
         self.publisher
             .send_copy(c)
             .map(|_| ())
-            .map_err(|e| ipc_err("send control")(&e))
+            .map_err(|e| ipc_err("send control", e))
     }
 }

@@ -105,6 +105,14 @@ pub enum ServeError {
     NoPeer(&'static str, String, Duration),
 }
 
+/// Fills the running counts of a health report.
+fn progress(health: &mut Health, ticks: u64, report: &ServeReport, t0: Instant) {
+    health.ticks = ticks;
+    health.overruns = report.overruns;
+    health.faults = report.faults;
+    health.wall_s = t0.elapsed().as_secs_f64();
+}
+
 /// Serves `backend` to the controller of run `ep` until `opts.ticks` commands, a STOP, `stop`,
 /// or a lost controller. Health is published every 2048 ticks and at the end.
 pub fn serve<B: Backend>(
@@ -241,11 +249,8 @@ pub fn serve<B: Backend>(
                 end_tick = end_tick.min(k);
                 report.stopped = true;
             }
-            health.ticks = k;
-            health.overruns = report.overruns;
-            health.faults = report.faults;
-            health.wall_s = t0.elapsed().as_secs_f64();
-            health.latency = latency.summary();
+            // The latency percentiles scan the histogram: only in the final report.
+            progress(&mut health, k, &report, t0);
             crate::ipc::send(&health_pub, health);
         }
     }
@@ -262,10 +267,7 @@ pub fn serve<B: Backend>(
     } else {
         state::DONE
     };
-    health.ticks = k;
-    health.overruns = report.overruns;
-    health.faults = report.faults;
-    health.wall_s = report.wall_s;
+    progress(&mut health, k, &report, t0);
     health.latency = report.latency;
     crate::ipc::send(&health_pub, health);
     crate::ipc::linger(&truth_service, opts.linger);

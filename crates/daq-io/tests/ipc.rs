@@ -6,7 +6,7 @@ use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Command, Daq, InProcess};
 
 mod common;
-use common::{prefix, Lag};
+use common::{prefix, truth_until_end, Lag};
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
@@ -86,19 +86,7 @@ fn silent_controller_drives_zero_and_flags_the_fault() {
         })
         .unwrap();
     }
-    let mut truth = Vec::new();
-    loop {
-        match daq_io::ipc::take(&tap.truth) {
-            Some(b) => {
-                truth.extend_from_slice(&b.ticks[..b.count as usize]);
-                if b.flags & flags::END != 0 {
-                    break;
-                }
-            }
-            None => std::thread::sleep(Duration::from_millis(1)),
-        }
-    }
-    drop(tap);
+    let truth = truth_until_end(tap);
     let report = plant.join().unwrap();
     assert_eq!(report.fault_tick, Some(100));
     assert_eq!(report.faults, flags::FAULT_PEER_LOST);

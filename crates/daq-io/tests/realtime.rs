@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 mod common;
-use common::{prefix, Lag};
+use common::{prefix, truth_until_end, Lag};
 
 /// One attempt; `None` when the machine stalled the controller thread past the peer timeout
 /// before it meant to go silent (a correct fault, but not the scenario under test).
@@ -45,19 +45,7 @@ fn attempt(n: u32) -> Option<()> {
         })
         .unwrap();
     }
-    let mut truth = Vec::new();
-    loop {
-        match daq_io::ipc::take(&tap.truth) {
-            Some(b) => {
-                truth.extend_from_slice(&b.ticks[..b.count as usize]);
-                if b.flags & flags::END != 0 {
-                    break;
-                }
-            }
-            None => std::thread::sleep(Duration::from_millis(1)),
-        }
-    }
-    drop(tap);
+    let truth = truth_until_end(tap);
     let report = plant.join().unwrap();
     let fault = report.fault_tick.expect("controller declared lost");
     // The last tick that got its command (the DAC held 2 V); the silence starts after it.

@@ -1,6 +1,8 @@
 //! Shared by the transport tests.
 
-use daq_io::{Backend, Sensor, Truth};
+use daq_io::ipc::Tap;
+use daq_io::{flags, Backend, Sensor, Truth};
+use std::time::Duration;
 
 /// A first-order plant y⁺ = 0.9 y + 0.1 u with a deterministic pseudo-noise term.
 #[derive(Default)]
@@ -33,4 +35,20 @@ impl Backend for Lag {
 /// A run prefix unique to this test process.
 pub fn prefix(tag: &str) -> String {
     format!("test-{tag}-{}", std::process::id())
+}
+
+/// Every truth record of the run up to its END block; then leaves (so the plant can finish).
+pub fn truth_until_end(tap: Tap) -> Vec<Truth> {
+    let mut truth = Vec::new();
+    loop {
+        match daq_io::ipc::take(&tap.truth) {
+            Some(b) => {
+                truth.extend_from_slice(&b.ticks[..b.count as usize]);
+                if b.flags & flags::END != 0 {
+                    return truth;
+                }
+            }
+            None => std::thread::sleep(Duration::from_millis(1)),
+        }
+    }
 }
