@@ -1,8 +1,8 @@
 //! The multi-process (HIL) subcommands: `servo plant`, `servo controller`, `servo record`,
 //! `servo ctl`, and `servo run --hil`, which starts the three processes and prints the summary.
 
-use crate::{fail, print_summary, progress_bar};
-use daq_io::contract::{command, role};
+use crate::{done, fail, print_summary, progress_bar, stop_flag, Recording};
+use daq_io::contract::role;
 use daq_io::ipc::{leaf, take, ControlSender, Endpoint};
 use daq_io::{Control, Health};
 use runner::config::Loaded;
@@ -10,27 +10,11 @@ use runner::run::RunError;
 use runner::summary::Summary;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ExitCode, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 /// Exit code of a plant that lost its controller (it drove zero current and ended the run).
 pub const EXIT_FAULT: u8 = 3;
-
-/// A stop flag raised by Ctrl-C / SIGTERM.
-pub fn stop_flag() -> Arc<AtomicBool> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-    stop
-}
-
-fn exit_for(e: RunError) -> ExitCode {
-    match e {
-        e @ (RunError::Config(_) | RunError::Unstable { .. }) => fail(e, 2),
-        e => fail(e, 1),
-    }
-}
 
 /// `servo plant`.
 pub fn plant(cfg: &Loaded, prefix: &str, options: &runner::hil::PlantOptions) -> ExitCode {
@@ -46,7 +30,7 @@ pub fn plant(cfg: &Loaded, prefix: &str, options: &runner::hil::PlantOptions) ->
             ExitCode::from(EXIT_FAULT)
         }
         Ok(_) => ExitCode::SUCCESS,
-        Err(e) => exit_for(e),
+        Err(e) => done(Err(e)),
     }
 }
 
@@ -55,23 +39,17 @@ pub fn controller(cfg: &Loaded, prefix: &str) -> ExitCode {
     let stop = stop_flag();
     match runner::hil::controller(cfg, prefix, &stop) {
         Ok(_) => ExitCode::SUCCESS,
-        Err(e) => exit_for(e),
+        Err(e) => done(Err(e)),
     }
 }
 
 /// `servo record`.
-pub fn record(
-    cfg: &Loaded,
-    prefix: &str,
-    out: Option<PathBuf>,
-    realtime: bool,
-    json: bool,
-    quiet: bool,
-) -> ExitCode {
+pub fn record(cfg: &Loaded, prefix: &str, rec: &Recording, realtime: bool) -> ExitCode {
+    let out = rec.out();
     // The recorder finishes the file whatever happens: Ctrl-C reaches the plant, which ends
     // the run; the recorder sees the end (or the silence) and closes the file.
     let _stop = stop_flag();
-    let bar = progress_bar(quiet, "recording");
+    let bar = progress_bar(rec.quiet, "recording");
     let mut progress = |done: u64, total: u64| {
         bar.set_length(total);
         bar.set_position(done);
@@ -80,13 +58,13 @@ pub fn record(
     bar.finish_and_clear();
     match result {
         Ok(s) => {
-            print_summary(&s, json);
-            if let (Some(p), false) = (out, json) {
+            print_summary(&s, rec.json);
+            if let (Some(p), false) = (out, rec.json) {
                 println!("  wrote {}", p.display());
             }
             ExitCode::SUCCESS
         }
-        Err(e) => exit_for(e),
+        Err(e) => done(Err(e)),
     }
 }
 
@@ -104,31 +82,6 @@ pub fn ctl(prefix: &str, message: Control) -> ExitCode {
     match sent {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(e, 1),
-    }
-}
-
-/// The control message for `servo ctl stop` / `servo ctl gain X`.
-pub fn stop_message() -> Control {
-    Control {
-        command: command::STOP,
-        ..Default::default()
-    }
-}
-
-/// The control message for `servo ctl start`.
-pub fn start_message() -> Control {
-    Control {
-        command: command::START,
-        ..Default::default()
-    }
-}
-
-/// See [`stop_message`].
-pub fn gain_message(scale: f64) -> Control {
-    Control {
-        command: command::SET_GAIN_SCALE,
-        value: scale,
-        ..Default::default()
     }
 }
 

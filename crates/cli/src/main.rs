@@ -25,6 +25,30 @@ struct Cli {
     command: Command,
 }
 
+/// Where a run's recording and summary go.
+#[derive(Args)]
+struct Recording {
+    /// Output MCAP file.
+    #[arg(short, long, default_value = "run.mcap")]
+    out: PathBuf,
+    /// Do not write a file (summary only).
+    #[arg(long)]
+    no_record: bool,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    json: bool,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+impl Recording {
+    /// The file to write, if any.
+    fn out(&self) -> Option<PathBuf> {
+        (!self.no_record).then(|| self.out.clone())
+    }
+}
+
 /// Options of the HIL processes.
 #[derive(Args, Clone)]
 struct HilArgs {
@@ -64,6 +88,13 @@ impl HilArgs {
         }
     }
 
+    /// The configuration and the run prefix a HIL process needs, or the exit code saying why
+    /// not.
+    fn resolve(&self, settings: &Settings) -> Result<(Loaded, String), ExitCode> {
+        let cfg = settings.resolve().map_err(|e| fail(e, 2))?;
+        Ok((cfg, self.prefix()?))
+    }
+
     fn prefix(&self) -> Result<String, ExitCode> {
         self.prefix.clone().ok_or_else(|| {
             eprintln!(
@@ -88,6 +119,23 @@ enum CtlAction {
     },
 }
 
+impl CtlAction {
+    /// The control-plane message.
+    fn message(self) -> daq_io::Control {
+        use daq_io::contract::command;
+        let (command, value) = match self {
+            CtlAction::Start => (command::START, 0.0),
+            CtlAction::Stop => (command::STOP, 0.0),
+            CtlAction::Gain { scale } => (command::SET_GAIN_SCALE, scale),
+        };
+        daq_io::Control {
+            command,
+            value,
+            ..Default::default()
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Run the closed loop against the simulated stage and record it to MCAP.
@@ -98,18 +146,8 @@ enum Command {
     Run {
         #[command(flatten)]
         settings: Settings,
-        /// Output MCAP file.
-        #[arg(short, long, default_value = "run.mcap")]
-        out: PathBuf,
-        /// Do not record.
-        #[arg(long)]
-        no_record: bool,
-        /// Print the summary as JSON.
-        #[arg(long)]
-        json: bool,
-        /// No progress bar.
-        #[arg(short, long)]
-        quiet: bool,
+        #[command(flatten)]
+        recording: Recording,
         /// Run plant, controller and recorder as three processes over iceoryx2 shared memory
         /// (`servo plant`, `servo controller`, `servo record`); same summary.
         #[arg(long)]
@@ -191,18 +229,8 @@ enum Command {
         settings: Settings,
         #[command(flatten)]
         hil_args: HilArgs,
-        /// Output MCAP file.
-        #[arg(short, long, default_value = "run.mcap")]
-        out: PathBuf,
-        /// Do not write a file (summary only).
-        #[arg(long)]
-        no_record: bool,
-        /// Print the summary as JSON.
-        #[arg(long)]
-        json: bool,
-        /// No progress bar.
-        #[arg(short, long)]
-        quiet: bool,
+        #[command(flatten)]
+        recording: Recording,
     },
     /// HIL control plane: start a waiting plant, stop a run, or scale the controller's gains.
     ///
@@ -565,6 +593,25 @@ fn progress_bar(quiet: bool, what: &str) -> ProgressBar {
         .progress_chars("=> "),
     );
     bar
+}
+
+/// The exit code of a command: 0, 2 for configuration problems (bad input, a controller that
+/// would make the loop unstable), 1 for run-time ones.
+fn done(result: Result<(), RunError>) -> ExitCode {
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e @ (RunError::Config(_) | RunError::Unstable { .. })) => fail(e, 2),
+        Err(e) => fail(e, 1),
+    }
+}
+
+/// A stop flag raised by Ctrl-C / SIGTERM (a second one is ignored: the file is being
+/// finished).
+fn stop_flag() -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    stop
 }
 
 fn fail(e: impl std::error::Error, code: u8) -> ExitCode {
@@ -1000,6 +1047,58 @@ fn tune(
     Ok(())
 }
 
+/// `servo run`, in process or (`hil`) as three processes: prints the summary; the exit code
+/// is the first failing HIL child's.
+fn run_command(cfg: &Loaded, rec: &Recording, hil: Option<&HilArgs>) -> Result<ExitCode, RunError> {
+    let out = rec.out();
+    let (summary, code) = match hil {
+        Some(h) => {
+            let (summary, codes) = hil::run(
+                cfg,
+                h.prefix.clone(),
+                h.realtime,
+                h.peer_timeout_ms,
+                out.clone(),
+                rec.quiet,
+            )?;
+            let code = match codes.iter().find(|(_, c)| *c != 0) {
+                Some((name, c)) => {
+                    eprintln!("servo {name} exited with {c}");
+                    ExitCode::from(*c as u8)
+                }
+                None => ExitCode::SUCCESS,
+            };
+            (summary, code)
+        }
+        None => {
+            let stop = stop_flag();
+            let bar = progress_bar(rec.quiet, "simulating");
+            let mut progress = |done: u64, total: u64| {
+                bar.set_length(total);
+                bar.set_position(done);
+            };
+            let result = run(
+                cfg,
+                RunOptions {
+                    out: out.clone(),
+                    stop: &stop,
+                    progress: &mut progress,
+                },
+            );
+            bar.finish_and_clear();
+            (result?, ExitCode::SUCCESS)
+        }
+    };
+    print_summary(&summary, rec.json);
+    if let (Some(o), false) = (&out, rec.json) {
+        println!(
+            "  wrote {} (open it in Foxglove: topics /telemetry and /truth)",
+            o.display()
+        );
+    }
+    Ok(code)
+}
+
 fn main() -> ExitCode {
     // `servo … | head` must end quietly, not panic on a closed pipe.
     sigpipe::reset();
@@ -1007,80 +1106,14 @@ fn main() -> ExitCode {
     match cli.command {
         Command::Run {
             settings,
-            out,
-            no_record,
-            json,
-            quiet,
+            recording,
             hil,
             hil_args,
-        } => {
-            let cfg = match settings.resolve() {
-                Ok(c) => c,
-                Err(e) => return fail(e, 2),
-            };
-            if hil {
-                let out = (!no_record).then_some(out);
-                return match hil::run(
-                    &cfg,
-                    hil_args.prefix,
-                    hil_args.realtime,
-                    hil_args.peer_timeout_ms,
-                    out.clone(),
-                    quiet,
-                ) {
-                    Ok((summary, codes)) => {
-                        print_summary(&summary, json);
-                        if let (Some(o), false) = (&out, json) {
-                            println!(
-                                "  wrote {} (open it in Foxglove: topics /telemetry and /truth)",
-                                o.display()
-                            );
-                        }
-                        match codes.iter().find(|(_, c)| *c != 0) {
-                            Some((name, c)) => {
-                                eprintln!("servo {name} exited with {c}");
-                                ExitCode::from(*c as u8)
-                            }
-                            None => ExitCode::SUCCESS,
-                        }
-                    }
-                    Err(e @ (RunError::Config(_) | RunError::Unstable { .. })) => fail(e, 2),
-                    Err(e) => fail(e, 1),
-                };
-            }
-            let stop = Arc::new(AtomicBool::new(false));
-            let flag = stop.clone();
-            // A second Ctrl-C while the file is being finished is ignored on purpose.
-            let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-            let bar = progress_bar(quiet, "simulating");
-            let mut progress = |done: u64, total: u64| {
-                bar.set_length(total);
-                bar.set_position(done);
-            };
-            let result = run(
-                &cfg,
-                RunOptions {
-                    out: (!no_record).then_some(out.clone()),
-                    stop: &stop,
-                    progress: &mut progress,
-                },
-            );
-            bar.finish_and_clear();
-            match result {
-                Ok(summary) => {
-                    print_summary(&summary, json);
-                    if !no_record && !json {
-                        println!(
-                            "  wrote {} (open it in Foxglove: topics /telemetry and /truth)",
-                            out.display()
-                        );
-                    }
-                    ExitCode::SUCCESS
-                }
-                Err(e @ (RunError::Config(_) | RunError::Unstable { .. })) => fail(e, 2),
-                Err(e) => fail(e, 1),
-            }
-        }
+        } => match settings.resolve() {
+            Ok(cfg) => run_command(&cfg, &recording, hil.then_some(&hil_args))
+                .unwrap_or_else(|e| done(Err(e))),
+            Err(e) => fail(e, 2),
+        },
         Command::Budget {
             settings,
             sweep,
@@ -1088,11 +1121,14 @@ fn main() -> ExitCode {
             validate,
             out_dir,
             points,
-        } => match budget(&settings, sweep, &bandwidths, validate, &out_dir, points) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e @ RunError::Config(_)) => fail(e, 2),
-            Err(e) => fail(e, 1),
-        },
+        } => done(budget(
+            &settings,
+            sweep,
+            &bandwidths,
+            validate,
+            &out_dir,
+            points,
+        )),
         Command::Frf {
             settings,
             which,
@@ -1102,28 +1138,20 @@ fn main() -> ExitCode {
             amplitude,
             method,
             out_dir,
-        } => match frf(
+        } => done(frf(
             &settings,
             which,
             (from, to, points),
             amplitude,
             method,
             &out_dir,
-        ) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e @ RunError::Config(_)) => fail(e, 2),
-            Err(e) => fail(e, 1),
-        },
+        )),
         Command::Stiffness {
             settings,
             kas,
             to,
             out_dir,
-        } => match stiffness(&settings, &kas, to, &out_dir) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e @ RunError::Config(_)) => fail(e, 2),
-            Err(e) => fail(e, 1),
-        },
+        } => done(stiffness(&settings, &kas, to, &out_dir)),
         Command::Synth {
             method: SynthMethod::H2,
             settings,
@@ -1131,11 +1159,7 @@ fn main() -> ExitCode {
             order,
             weights,
             out,
-        } => match synth(&settings, effort_weight, order, weights, &out) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e @ RunError::Config(_)) => fail(e, 2),
-            Err(e) => fail(e, 1),
-        },
+        } => done(synth(&settings, effort_weight, order, weights, &out)),
         Command::Tune {
             settings,
             bandwidth_hz,
@@ -1143,31 +1167,19 @@ fn main() -> ExitCode {
             mt,
             out,
             json,
-        } => match tune(&settings, bandwidth_hz, (ms, mt), &out, json) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e @ RunError::Config(_)) => fail(e, 2),
-            Err(e) => fail(e, 1),
-        },
+        } => done(tune(&settings, bandwidth_hz, (ms, mt), &out, json)),
         Command::Identify {
             file,
             settings,
             json,
-        } => match identify(&settings, &file, json) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e @ RunError::Config(_)) => fail(e, 2),
-            Err(e) => fail(e, 1),
-        },
+        } => done(identify(&settings, &file, json)),
         Command::Plant {
             settings,
             hil_args,
             no_recorder,
             wait_start,
-        } => match (
-            settings.resolve(),
-            hil_args.prefix(),
-            hil_args.peer_timeout(),
-        ) {
-            (Ok(cfg), Ok(p), Ok(t)) => hil::plant(
+        } => match (hil_args.resolve(&settings), hil_args.peer_timeout()) {
+            (Ok((cfg, p)), Ok(t)) => hil::plant(
                 &cfg,
                 &p,
                 &runner::hil::PlantOptions {
@@ -1177,43 +1189,21 @@ fn main() -> ExitCode {
                     peer_timeout: t,
                 },
             ),
-            (Err(e), _, _) => fail(e, 2),
-            (_, Err(code), _) | (_, _, Err(code)) => code,
+            (Err(code), _) | (_, Err(code)) => code,
         },
-        Command::Controller { settings, hil_args } => {
-            match (settings.resolve(), hil_args.prefix()) {
-                (Ok(cfg), Ok(p)) => hil::controller(&cfg, &p),
-                (Err(e), _) => fail(e, 2),
-                (_, Err(code)) => code,
-            }
-        }
+        Command::Controller { settings, hil_args } => match hil_args.resolve(&settings) {
+            Ok((cfg, p)) => hil::controller(&cfg, &p),
+            Err(code) => code,
+        },
         Command::Record {
             settings,
             hil_args,
-            out,
-            no_record,
-            json,
-            quiet,
-        } => match (settings.resolve(), hil_args.prefix()) {
-            (Ok(cfg), Ok(p)) => hil::record(
-                &cfg,
-                &p,
-                (!no_record).then_some(out),
-                hil_args.realtime,
-                json,
-                quiet,
-            ),
-            (Err(e), _) => fail(e, 2),
-            (_, Err(code)) => code,
+            recording,
+        } => match hil_args.resolve(&settings) {
+            Ok((cfg, p)) => hil::record(&cfg, &p, &recording, hil_args.realtime),
+            Err(code) => code,
         },
-        Command::Ctl { prefix, action } => hil::ctl(
-            &prefix,
-            match action {
-                CtlAction::Start => hil::start_message(),
-                CtlAction::Stop => hil::stop_message(),
-                CtlAction::Gain { scale } => hil::gain_message(scale),
-            },
-        ),
+        Command::Ctl { prefix, action } => hil::ctl(&prefix, action.message()),
         Command::Inspect { file, json } => match inspect(&file) {
             Ok(s) => {
                 print_summary(&s, json);

@@ -84,10 +84,8 @@ pub fn plant(
         opts.peer_timeout = t;
     }
     let ep = Endpoint::open(prefix, "plant").map_err(ipc)?;
-    serve(&ep, &mut SimBackend::new(sim), &opts, stop).map_err(|e| match e {
-        daq_io::serve::ServeError::Ipc(e) => ipc(e),
-        other => RunError::Transport(other.to_string()),
-    })
+    serve(&ep, &mut SimBackend::new(sim), &opts, stop)
+        .map_err(|e| RunError::Transport(e.to_string()))
 }
 
 /// `servo controller`: runs the controller of `cfg` against the plant of run `prefix` until
