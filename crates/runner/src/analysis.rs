@@ -173,6 +173,24 @@ impl ClosedLoop {
             .fold(0.0, f64::max)
     }
 
+    /// The plant of `sim` alone, no controller (the DAC command enters as
+    /// [`input::CONTROL_DISTURBANCE_V`]); None for the `coil` current-loop model, which has no
+    /// linear tick.
+    pub fn open(sim: &plant_sim::Simulator, sensitivity_v_per_m: f64) -> Option<ClosedLoop> {
+        Some(ClosedLoop::new(
+            &sim.linear_tick()?,
+            &LinearController::none(),
+            sensitivity_v_per_m,
+            sim.period_s(),
+        ))
+    }
+
+    /// Measured position (m) per volt added to the controller output, at `f_hz` (the plant
+    /// alone for [`ClosedLoop::open`]).
+    pub fn command_response(&self, f_hz: f64) -> Result<num_complex::Complex64, LtiError> {
+        self.response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f_hz)
+    }
+
     /// `H(e^{j2πfT})` from `input` to `output`.
     pub fn response(
         &self,

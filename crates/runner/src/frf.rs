@@ -3,7 +3,7 @@
 //! or closed loop (disturbance added to the controller output, §5.7.5), beside the model's
 //! response from the same sampled loop.
 
-use crate::analysis::{input, output, ClosedLoop};
+use crate::analysis::ClosedLoop;
 use crate::config::Loaded;
 use crate::controller::{Controller, LinearController};
 use crate::run::{plant_error, RunError};
@@ -154,7 +154,7 @@ impl Rig {
 
     fn model_at(&self, f_hz: f64) -> Result<Complex64, RunError> {
         self.model
-            .response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f_hz)
+            .command_response(f_hz)
             .map_err(|e| RunError::Plant(e.to_string()))
     }
 

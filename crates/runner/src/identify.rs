@@ -3,9 +3,8 @@
 //! `servo frf --loop open` writes it) with the simulator's exact sampled model as the grey box
 //! (delays, current loop, sensor filter known), by [`design::identify`].
 
-use crate::analysis::{input, output, ClosedLoop};
+use crate::analysis::ClosedLoop;
 use crate::config::{ConfigError, Loaded};
-use crate::controller::LinearController;
 use crate::run::{plant_error, RunError};
 use num_complex::Complex64;
 use plant_sim::params::StageParams;
@@ -134,15 +133,10 @@ fn open_loop(cfg: &Loaded, stage: StageParams, freq_hz: &[f64]) -> Result<Vec<Co
     plant.stage = stage;
     plant.actuator.model = plant_sim::params::CurrentLoopModel::Ideal;
     let sim = Simulator::new(&plant, 0, &Default::default()).map_err(|e| e.to_string())?;
-    let linear = sim.linear_tick().ok_or("no linear model")?;
-    let s = plant.capa.sensitivity_v_per_m;
-    let open = ClosedLoop::new(&linear, &LinearController::none(), s, sim.period_s());
+    let open = ClosedLoop::open(&sim, plant.capa.sensitivity_v_per_m).ok_or("no linear model")?;
     freq_hz
         .iter()
-        .map(|&f| {
-            open.response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f)
-                .map_err(|e| e.to_string())
-        })
+        .map(|&f| open.command_response(f).map_err(|e| e.to_string()))
         .collect()
 }
 

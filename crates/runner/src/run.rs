@@ -138,17 +138,10 @@ pub fn loop_margins(cfg: &Loaded) -> Result<design::loops::Margins, RunError> {
     let sim = Simulator::new(&cfg.config.plant, 0, &Default::default())
         .map_err(|e| plant_error(e, cfg))?;
     let ctrl = Controller::build(cfg)?;
-    let linear = sim
-        .linear_tick()
-        .ok_or_else(|| RunError::Plant("margins need the ideal current-loop model".into()))?;
     let s = cfg.config.plant.capa.sensitivity_v_per_m;
     let period = sim.period_s();
-    let open = ClosedLoop::new(
-        &linear,
-        &crate::controller::LinearController::none(),
-        s,
-        period,
-    );
+    let open = ClosedLoop::open(&sim, s)
+        .ok_or_else(|| RunError::Plant("margins need the ideal current-loop model".into()))?;
     let k = &ctrl.linear;
     let k_gap = design::lti::StateSpace {
         a: k.a.clone(),
@@ -157,14 +150,7 @@ pub fn loop_margins(cfg: &Loaded) -> Result<design::loops::Margins, RunError> {
         d: k.d.columns(0, 1).into_owned(),
     };
     let loop_gain = |f: f64| {
-        let p = open
-            .response(
-                crate::analysis::output::MEASURED_M,
-                crate::analysis::input::CONTROL_DISTURBANCE_V,
-                f,
-            )
-            .unwrap_or_default()
-            * s;
+        let p = open.command_response(f).unwrap_or_default() * s;
         let kk = k_gap
             .freq_response_discrete(f, period)
             .map(|m| m[(0, 0)])

@@ -3,9 +3,9 @@
 //! integral gain under sensitivity peaks `Ms`, `Mt` and a closed-loop bandwidth — and compared with
 //! the thesis Chapter 7 gains on the same plant.
 
-use crate::analysis::{input, output, Budget, ClosedLoop};
+use crate::analysis::{Budget, ClosedLoop};
 use crate::config::{Loaded, PidGains};
-use crate::controller::{dm, LinearController};
+use crate::controller::dm;
 use crate::run::{closed_loop, plant_error, RunError};
 use design::lti::StateSpace;
 use design::tune::{PidTuned, PidTuning};
@@ -93,18 +93,12 @@ fn with_gains(cfg: &Loaded, k: [f64; 3]) -> Loaded {
 fn plant_response(cfg: &Loaded, freq_hz: &[f64]) -> Result<Vec<Complex64>, RunError> {
     let c = &cfg.config;
     let sim = Simulator::new(&c.plant, 0, &Default::default()).map_err(|e| plant_error(e, cfg))?;
-    let linear = sim
-        .linear_tick()
-        .ok_or_else(|| RunError::Plant("tuning needs the ideal current-loop model".into()))?;
     let s = c.plant.capa.sensitivity_v_per_m;
-    let open = ClosedLoop::new(&linear, &LinearController::none(), s, sim.period_s());
+    let open = ClosedLoop::open(&sim, s)
+        .ok_or_else(|| RunError::Plant("tuning needs the ideal current-loop model".into()))?;
     Ok(freq_hz
         .iter()
-        .map(|&f| {
-            open.response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f)
-                .unwrap_or_default()
-                * s
-        })
+        .map(|&f| open.command_response(f).unwrap_or_default() * s)
         .collect())
 }
 
