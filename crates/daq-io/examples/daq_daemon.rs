@@ -4,7 +4,7 @@
 //! safety duties (pacing, overruns, zero current when the controller is lost).
 //!
 //! The hardware here is a fake so the example runs anywhere: a 16-bit ADC and an 18-bit DAC
-//! (±10 V) around an 800 Hz, ζ = 0.05 mass-spring stage read by a 1 V/µm gap sensor.
+//! (±10 V, plant-sim's converters) around an 800 Hz, ζ = 0.05 mass-spring stage read by a 1 V/µm gap sensor.
 //!
 //! ```text
 //! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --realtime
@@ -15,44 +15,17 @@
 use daq_io::ipc::{ControllerLink, Endpoint};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Backend, Command, Daq, Sensor};
+use plant_sim::convert::Quantizer;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 /// Servo rate of the daemon, Hz.
 const RATE_HZ: f64 = 199_600.0;
 
-/// An N-bit bipolar converter over ±10 V: volts → code → volts, clipping at full scale.
-struct Converter {
-    lsb: f64,
-    max_code: f64,
-}
-
-impl Converter {
-    fn new(bits: u32) -> Self {
-        let codes = (1u64 << bits) as f64;
-        Converter {
-            lsb: 20.0 / codes,
-            max_code: codes / 2.0 - 1.0,
-        }
-    }
-
-    /// The converted value and whether it clipped.
-    fn convert(&self, v: f64) -> (f64, bool) {
-        let code = (v / self.lsb).round();
-        let clipped = code.abs() > self.max_code || !v.is_finite();
-        let code = if v.is_finite() {
-            code.clamp(-self.max_code - 1.0, self.max_code)
-        } else {
-            0.0
-        };
-        (code * self.lsb, clipped)
-    }
-}
-
 /// The fake hardware: DAC → amplifier/motor (1 N/V) → stage → gap sensor → ADC.
 struct FakeHardware {
-    adc: Converter,
-    dac: Converter,
+    adc: Quantizer,
+    dac: Quantizer,
     x_m: f64,
     v_m_s: f64,
     t_s: f64,
@@ -66,8 +39,8 @@ impl FakeHardware {
 
     fn new() -> Self {
         FakeHardware {
-            adc: Converter::new(16),
-            dac: Converter::new(18),
+            adc: Quantizer::new(16, 10.0),
+            dac: Quantizer::new(18, 10.0),
             x_m: 0.0,
             v_m_s: 0.0,
             t_s: 0.0,
@@ -77,7 +50,7 @@ impl FakeHardware {
 
 impl Backend for FakeHardware {
     fn step(&mut self, dac_v: f64) -> Sensor {
-        let (out_v, dac_clipped) = self.dac.convert(dac_v);
+        let (out_v, _, dac_clipped) = self.dac.convert(dac_v);
         let w = 2.0 * std::f64::consts::PI * Self::F_N_HZ;
         let dt = 1.0 / RATE_HZ;
         // Semi-implicit Euler is plenty for a stand-in (w·dt = 0.025).
@@ -85,7 +58,7 @@ impl Backend for FakeHardware {
         self.v_m_s += a * dt;
         self.x_m += self.v_m_s * dt;
         self.t_s += dt;
-        let (gap_v, adc_clipped) = self.adc.convert(self.x_m * Self::SENSOR_V_PER_M);
+        let (gap_v, _, adc_clipped) = self.adc.convert(self.x_m * Self::SENSOR_V_PER_M);
         Sensor {
             time_s: self.t_s,
             gap_v,
