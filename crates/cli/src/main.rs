@@ -628,12 +628,17 @@ fn fail(e: impl std::error::Error, code: u8) -> ExitCode {
     ExitCode::from(code)
 }
 
+/// Prints any result as pretty JSON (everything printed serialises).
+fn print_json(value: &impl serde::Serialize) {
+    println!(
+        "{}",
+        serde_json::to_string_pretty(value).expect("results serialise")
+    );
+}
+
 fn print_summary(s: &runner::summary::Summary, json: bool) {
     if json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(s).expect("summary serialises")
-        );
+        print_json(s);
     } else {
         print!("{s}");
     }
@@ -958,10 +963,7 @@ fn identify(s: &Settings, file: &Path, json: bool) -> Result<(), RunError> {
     let (f, g) = runner::identify::read_frf_csv(file)?;
     let id = runner::identify::identify(&cfg, &f, &g)?;
     if json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&id).expect("result serialises")
-        );
+        print_json(&id);
         return Ok(());
     }
     println!(
@@ -1000,10 +1002,7 @@ fn tune(
     std::fs::write(out, r.to_toml())
         .map_err(|e| RunError::Plant(format!("cannot write {}: {e}", out.display())))?;
     if json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&r).expect("report serialises")
-        );
+        print_json(&r);
         return Ok(());
     }
     println!(
@@ -1221,10 +1220,7 @@ fn main() -> ExitCode {
                     return fail(e, 2);
                 }
                 if json {
-                    println!(
-                        "{}",
-                        serde_json::to_string_pretty(&l.config).expect("config serialises")
-                    );
+                    print_json(&l.config);
                 } else {
                     print!("{}", l.config.to_toml());
                 }
