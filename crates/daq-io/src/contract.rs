@@ -148,9 +148,23 @@ pub struct TruthBlock {
     pub ticks: [Truth; BLOCK_TICKS],
 }
 
-macro_rules! empty_block {
-    ($t:ty) => {
-        impl Default for $t {
+/// A block of records ([`TelemetryBlock`], [`TruthBlock`]) as a sender fills it.
+pub trait Block: Copy + Default + core::fmt::Debug + ZeroCopySend {
+    /// One record.
+    type Record: Copy;
+    /// Appends a record; returns true when the block is full.
+    fn push(&mut self, r: Self::Record) -> bool;
+    /// No records held.
+    fn is_empty(&self) -> bool;
+    /// Sets the block index and flags before sending.
+    fn seal(&mut self, index: u64, flags: u32);
+    /// Empties the block after sending.
+    fn clear(&mut self);
+}
+
+macro_rules! block {
+    ($b:ty, $r:ty) => {
+        impl Default for $b {
             fn default() -> Self {
                 Self {
                     block: 0,
@@ -160,10 +174,30 @@ macro_rules! empty_block {
                 }
             }
         }
+
+        impl Block for $b {
+            type Record = $r;
+            #[inline]
+            fn push(&mut self, r: $r) -> bool {
+                self.ticks[self.count as usize] = r;
+                self.count += 1;
+                self.count as usize == BLOCK_TICKS
+            }
+            fn is_empty(&self) -> bool {
+                self.count == 0
+            }
+            fn seal(&mut self, index: u64, flags: u32) {
+                self.block = index;
+                self.flags = flags;
+            }
+            fn clear(&mut self) {
+                self.count = 0;
+            }
+        }
     };
 }
-empty_block!(TelemetryBlock);
-empty_block!(TruthBlock);
+block!(TelemetryBlock, Telemetry);
+block!(TruthBlock, Truth);
 
 /// Control-plane commands ([`Control::command`]).
 pub mod command {

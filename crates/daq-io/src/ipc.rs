@@ -5,7 +5,7 @@
 //! opens every service with the same settings ([`ServiceSettings`]); opening cleans up the
 //! resources of dead nodes first, so a run after a `kill -9` starts cleanly.
 
-use crate::contract::{Command, Control, Health, Sensor, TelemetryBlock, TruthBlock, BLOCK_TICKS};
+use crate::contract::{Block, Command, Control, Health, Sensor, TelemetryBlock, TruthBlock};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use std::fmt::Debug;
@@ -250,52 +250,12 @@ pub fn poll_until<T: Debug + ZeroCopySend + Copy>(
     }
 }
 
-/// Accumulates per-tick records into blocks of [`BLOCK_TICKS`] and publishes full blocks.
+/// Accumulates per-tick records into blocks of [`crate::BLOCK_TICKS`] and publishes full blocks.
 pub struct BlockWriter<B> {
     block: B,
     sent: u64,
     refused: u64,
 }
-
-/// A block of records ([`TelemetryBlock`], [`TruthBlock`]).
-pub trait Block: Copy + Default + Debug + ZeroCopySend {
-    /// One record.
-    type Record: Copy;
-    /// Appends a record; returns true when the block is full.
-    fn push(&mut self, r: Self::Record) -> bool;
-    /// No records held.
-    fn is_empty(&self) -> bool;
-    /// Sets the block index and flags before sending.
-    fn seal(&mut self, index: u64, flags: u32);
-    /// Empties the block after sending.
-    fn clear(&mut self);
-}
-
-macro_rules! block_impl {
-    ($b:ty, $r:ty) => {
-        impl Block for $b {
-            type Record = $r;
-            #[inline]
-            fn push(&mut self, r: $r) -> bool {
-                self.ticks[self.count as usize] = r;
-                self.count += 1;
-                self.count as usize == BLOCK_TICKS
-            }
-            fn is_empty(&self) -> bool {
-                self.count == 0
-            }
-            fn seal(&mut self, index: u64, flags: u32) {
-                self.block = index;
-                self.flags = flags;
-            }
-            fn clear(&mut self) {
-                self.count = 0;
-            }
-        }
-    };
-}
-block_impl!(TelemetryBlock, crate::contract::Telemetry);
-block_impl!(TruthBlock, crate::contract::Truth);
 
 impl<B: Block> Default for BlockWriter<B> {
     fn default() -> Self {

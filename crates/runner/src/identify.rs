@@ -33,7 +33,7 @@ pub fn table_5_2(s: &StageParams) -> [f64; 6] {
     ]
 }
 
-/// `base` with the Table 5-2 values `p` (m1 kept; m2 = p[0] − m1).
+/// `base` with the Table 5-2 values `p` (m1 kept; m2 = `p[0]` − m1).
 pub fn with_table_5_2(base: &StageParams, p: &[f64]) -> StageParams {
     StageParams {
         m2_kg: p[0] - base.m1_kg,
