@@ -74,7 +74,8 @@ pub enum TuneError {
 }
 
 impl PidTuning {
-    fn loop_gain(&self, i: usize, k: &[f64; 3]) -> Complex64 {
+    /// The loop gain `L = P·C` at grid point `i` for gains `k = [kp, ki, kd]`.
+    pub fn loop_gain(&self, i: usize, k: &[f64; 3]) -> Complex64 {
         let b = &self.basis[i];
         self.plant[i] * (b[0] * k[0] + b[1] * k[1] + b[2] * k[2])
     }

@@ -35,7 +35,7 @@ pub const RECORDER_TIMEOUT: Duration = Duration::from_secs(3);
 /// What the plant and controller reported about a HIL run (in the summary).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct HilMeta {
-    /// `lockstep` or `real-time`.
+    /// Paced to the wall clock (false: lockstep).
     pub realtime: bool,
     /// Late commands (real time: the DAC held its value).
     pub overruns: u64,

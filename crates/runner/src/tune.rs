@@ -152,10 +152,7 @@ fn report(cfg: &Loaded, k: [f64; 3], fine: &PidTuning) -> Result<PidReport, RunE
         .iter()
         .enumerate()
         .rev()
-        .find(|&(i, _)| {
-            let b = &fine.basis[i];
-            (fine.plant[i] * (b[0] * k[0] + b[1] * k[1] + b[2] * k[2])).norm() >= 1.0
-        })
+        .find(|&(i, _)| fine.loop_gain(i, &k).norm() >= 1.0)
         .map_or(f64::NAN, |(_, &f)| f);
     Ok(PidReport {
         kp: k[0],
