@@ -93,7 +93,8 @@ fn biquad(c: &mut Criterion) {
 /// Per-tick depth command (§8.5.3, §8.5.4): encoder count → angle → surface depth, with the
 /// radius feeding 5 µm per revolution; baseline in the same run: the angle alone.
 fn surface(c: &mut Criterion) {
-    use servo_core::surface::{BeamIntegrator, Encoder, SinusoidalGrid, Surface};
+    use servo_core::surface::{BeamIntegrator, SinusoidalGrid, Surface};
+    use servo_core::Encoder;
     let enc = Encoder {
         pulses_per_rev: 80_000,
     };

@@ -14,3 +14,4 @@ pub mod reduce;
 pub mod riccati;
 pub mod spectral;
 pub mod tune;
+pub mod zpetc;

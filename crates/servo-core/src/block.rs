@@ -57,6 +57,12 @@ impl FaultLatch {
         self.check(probe)
     }
 
+    /// Latches unconditionally (a fault the block detected itself).
+    #[inline]
+    pub(crate) fn set(&mut self) {
+        self.0 = true;
+    }
+
     /// Whether the latch is set.
     #[inline]
     pub(crate) fn is_set(&self) -> bool {

@@ -1,9 +1,12 @@
-//! Model-inverse feedforward for a mass-spring-damper stage:
-//! `u = (m·r̈ + c·ṙ + k·r) / gain`, the force that moves the stage along the trajectory,
-//! converted to the controller's output unit (V) by the actuator gain `H_I·K_T` (N/V).
+//! Feedforward: the model inverse of a mass-spring-damper stage,
+//! `u = (m·r̈ + c·ṙ + k·r) / gain` — the force that moves the stage along the trajectory,
+//! converted to the controller's output unit (V) by the actuator gain `H_I·K_T` (N/V) — added
+//! to the controller output; and the zero-phase-error tracking controller ([`Zpetc`]) that
+//! reshapes the reference of the whole closed loop from a preview of the trajectory.
 
 use crate::block::{Block, FaultLatch};
 use crate::error::{check_range, Error};
+use crate::iir::{BiquadCascade, IirCoeffs};
 use crate::limits::Limits;
 use crate::setpoint::Setpoint;
 
@@ -84,5 +87,79 @@ impl Block for Feedforward {
 
     fn faulted(&self) -> bool {
         self.fault.is_set()
+    }
+}
+
+/// A zero-phase-error tracking controller (Tomizuka 1987) as designed by
+/// `design::zpetc`: `r'[k] = gain · sections(y_d[k + preview])`, so that the closed loop from
+/// the modified reference `r'` to the tool follows the desired trajectory `y_d` with zero phase
+/// error. Fed `preview` ticks ahead of the trajectory; padded sections are identities.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ZpetcConfig<const M: usize> {
+    /// Overall gain (dimensionless).
+    pub gain: f64,
+    /// Second-order sections with `a0 = 1`; each must be stable (the inverted zeros).
+    pub sections: [IirCoeffs<2>; M],
+    /// Ticks of preview the filter needs (its input leads its output by this many ticks).
+    pub preview: usize,
+}
+
+impl<const M: usize> ZpetcConfig<M> {
+    /// Validates the gain and that every section is finite and stable.
+    pub fn try_build(&self) -> Result<Zpetc<M>, Error> {
+        check_range("gain", self.gain, -1e12, 1e12)?;
+        check_range("preview", self.preview as f64, 0.0, 1e6)?;
+        for s in &self.sections {
+            s.validate()?;
+            // Schur–Cohn for 1 + a1 z⁻¹ + a2 z⁻²: |a2| < 1 and |a1| < 1 + a2.
+            let [a1, a2] = s.a;
+            check_range("section a2", a2, -1.0 + 1e-15, 1.0 - 1e-15)?;
+            check_range("section a1", a1, -(1.0 + a2) + 1e-15, 1.0 + a2 - 1e-15)?;
+        }
+        Ok(Zpetc {
+            gain: self.gain,
+            filter: BiquadCascade::new(self.sections),
+            preview: self.preview,
+        })
+    }
+}
+
+/// A built [`ZpetcConfig`].
+#[derive(Debug, Clone, Copy)]
+pub struct Zpetc<const M: usize> {
+    gain: f64,
+    filter: BiquadCascade<M>,
+    preview: usize,
+}
+
+impl<const M: usize> Zpetc<M> {
+    /// Ticks of preview: feed `y_d[k + preview]` at tick k.
+    pub fn preview(&self) -> usize {
+        self.preview
+    }
+
+    /// Gain at DC (1 for a design matched to its loop).
+    pub fn dc_gain(&self) -> f64 {
+        self.gain * self.filter.dc_gain()
+    }
+}
+
+impl<const M: usize> Block for Zpetc<M> {
+    /// The desired trajectory `preview` ticks ahead (m).
+    type Input = f64;
+    /// The modified reference for this tick (m).
+    type Output = f64;
+
+    #[inline]
+    fn update(&mut self, ahead: f64) -> f64 {
+        self.gain * self.filter.update(ahead)
+    }
+
+    fn reset(&mut self) {
+        self.filter.reset();
+    }
+
+    fn faulted(&self) -> bool {
+        self.filter.faulted()
     }
 }

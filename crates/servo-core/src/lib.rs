@@ -4,7 +4,8 @@
 //! (thesis eq 7-8), IIR/biquad filters, discrete state-space controllers of any order (the
 //! 27-state H2 controller of §6.4.1), cascade acceleration feedback (Fig 7-6), a disturbance
 //! observer (Fig 7-4), model-inverse feedforward, integer and fractional delay lines, an
-//! oversampling averager and setpoint generators.
+//! oversampling averager, setpoint generators, spindle synchronisation (encoder tracking, spiral
+//! path) and freeform surfaces evaluated per tick.
 //!
 //! Every block follows one contract, [`Block`]: a configuration in SI units is validated once
 //! by `try_build(sample_period_s)`; the tick (`update`) never allocates, never panics and
@@ -40,6 +41,7 @@ mod observer;
 mod oversample;
 mod pid;
 pub mod setpoint;
+mod spindle;
 mod state_space;
 pub mod surface;
 
@@ -50,7 +52,7 @@ pub use cascade::{
 };
 pub use delay::{IntegerDelay, ThiranDelay, TransportDelay};
 pub use error::{Error, ErrorKind};
-pub use feedforward::{Feedforward, FeedforwardConfig};
+pub use feedforward::{Feedforward, FeedforwardConfig, Zpetc, ZpetcConfig};
 pub use iir::{Biquad, BiquadCascade, BiquadDesign, Iir, IirCoeffs};
 pub use limits::Limits;
 pub use observer::{DisturbanceObserver, ObserverInput};
@@ -60,4 +62,5 @@ pub use setpoint::{
     Chirp, ChirpConfig, Setpoint, Sine, SineConfig, Step, StepConfig, SteppedSine,
     SteppedSineConfig, Sweep, SweepSegment,
 };
+pub use spindle::{Encoder, SpindleTracker, SpindleTrackerConfig, Spiral};
 pub use state_space::{StateSpace, StateSpaceConfig};

@@ -15,6 +15,10 @@ use core::f64::consts::TAU;
 pub trait Surface {
     /// Depth in m at radius `r_m` (m) and spindle angle `theta_rad` (rad).
     fn depth_m(&self, r_m: f64, theta_rad: f64) -> f64;
+
+    /// The highest point of the surface in m: the face of the blank it is cut from (the depth
+    /// of cut at a point is `peak_m − depth_m`).
+    fn peak_m(&self) -> f64;
 }
 
 /// Cartesian position of the tool on the part: `x = r cos θ`, `y = r sin θ` (§8.5.3).
@@ -43,6 +47,12 @@ impl Surface for BeamIntegrator {
         let (xl, yl) = (local(x), local(y));
         self.radius_m - libm::sqrt(self.radius_m * self.radius_m - (xl * xl + yl * yl))
     }
+
+    /// At the cell corners.
+    fn peak_m(&self) -> f64 {
+        let r = self.radius_m;
+        r - libm::sqrt(r * r - self.pitch_m * self.pitch_m / 2.0)
+    }
 }
 
 /// Sinusoidal grid (§8.5.4, Table 8-5): `z = Ax sin(2πx/λx) + Ay sin(2πy/λy)`.
@@ -65,6 +75,10 @@ impl Surface for SinusoidalGrid {
         self.ax_m * libm::sin(TAU * x / self.lambda_x_m)
             + self.ay_m * libm::sin(TAU * y / self.lambda_y_m)
     }
+
+    fn peak_m(&self) -> f64 {
+        libm::fabs(self.ax_m) + libm::fabs(self.ay_m)
+    }
 }
 
 /// Single-path micro-lenslets (§8.5.2, Table 8-3): the tool oscillates `n` times per spindle
@@ -81,6 +95,10 @@ impl Surface for MicroLenslet {
     #[inline]
     fn depth_m(&self, _r_m: f64, theta_rad: f64) -> f64 {
         self.amplitude_m * libm::sin(self.per_revolution * theta_rad)
+    }
+
+    fn peak_m(&self) -> f64 {
+        libm::fabs(self.amplitude_m)
     }
 }
 
@@ -116,20 +134,9 @@ impl Surface for HeightMap<'_> {
             None => 0.0,
         }
     }
-}
 
-/// A spindle encoder of `pulses_per_rev` (thesis: 80 000): count → angle in rad.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Encoder {
-    /// Pulses per revolution.
-    pub pulses_per_rev: u64,
-}
-
-impl Encoder {
-    /// Spindle angle in rad, in [0, 2π), of encoder count `count`.
-    #[inline]
-    pub fn angle_rad(&self, count: u64) -> f64 {
-        let n = self.pulses_per_rev.max(1);
-        (count % n) as f64 * (TAU / n as f64)
+    /// A white pixel (or 0 for a negative range).
+    fn peak_m(&self) -> f64 {
+        self.depth_range_m.max(0.0)
     }
 }

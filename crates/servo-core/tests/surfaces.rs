@@ -2,9 +2,8 @@
 //! here with std's functions) on a grid of spindle positions, and against the geometry the
 //! thesis reports (Tables 8-3 to 8-5).
 
-use servo_core::surface::{
-    BeamIntegrator, Encoder, HeightMap, MicroLenslet, SinusoidalGrid, Surface,
-};
+use servo_core::surface::{BeamIntegrator, HeightMap, MicroLenslet, SinusoidalGrid, Surface};
+use servo_core::{Block, Encoder, SpindleTrackerConfig, Spiral};
 use std::f64::consts::{PI, TAU};
 
 const BEAM: BeamIntegrator = BeamIntegrator {
@@ -135,4 +134,122 @@ fn encoder_angle() {
     assert_eq!(e.angle_rad(0), 0.0);
     assert!((e.angle_rad(20_000) - PI / 2.0).abs() < 1e-15);
     assert!((e.angle_rad(80_000 + 40_000) - PI).abs() < 1e-15);
+}
+
+#[test]
+fn blank_face_is_the_surface_peak() {
+    // Table 8-4: 10 µm deep lenslets (cell corners above the centres).
+    assert!((BEAM.peak_m() - 10.0e-6).abs() < 0.01e-6);
+    let grid = SinusoidalGrid {
+        ax_m: 5e-6,
+        ay_m: -5e-6,
+        lambda_x_m: 1e-3,
+        lambda_y_m: 1e-3,
+    };
+    assert_eq!(grid.peak_m(), 10e-6);
+}
+
+const RATE_HZ: f64 = 199_600.0;
+const PULSES: u64 = 80_000;
+
+/// The count of an ideal encoder at `t_s` for a spindle at `rpm` starting at angle 0.
+fn count_at(t_s: f64, rpm: f64) -> u64 {
+    (rpm / 60.0 * t_s * PULSES as f64).floor() as u64
+}
+
+#[test]
+fn tracker_interpolates_between_pulses() {
+    // 60 rpm (Table 8-5): 0.4 pulses per tick, so the raw count is a staircase of ±½ pulse.
+    let pulse = TAU / PULSES as f64;
+    let mut pll = SpindleTrackerConfig {
+        pulses_per_rev: PULSES,
+        speed_rpm: 60.0,
+        bandwidth_hz: 10.0,
+    }
+    .try_build(1.0 / RATE_HZ)
+    .unwrap();
+    let (mut worst, mut sum2, mut n) = (0.0f64, 0.0, 0.0);
+    for k in 0..(RATE_HZ as u64) {
+        let t = k as f64 / RATE_HZ;
+        let theta = pll.update(count_at(t, 60.0));
+        if t > 0.5 {
+            let e = (theta - TAU * t) / pulse;
+            worst = worst.max(e.abs());
+            sum2 += e * e;
+            n += 1.0;
+        }
+    }
+    let rms = (sum2 / n).sqrt();
+    // Interpolation must beat the count's own ±½-pulse quantisation (RMS 1/√12 = 0.29 pulse)
+    // by the loop's noise-bandwidth ratio, √(33 Hz / 99.8 kHz) ≈ 0.02.
+    assert!(rms < 0.29 * 0.02 * 3.0, "RMS {rms} pulses");
+    assert!(worst < 0.05, "worst {worst} pulses");
+    assert!((pll.rate_rad_s() - TAU).abs() < 1e-3 * TAU);
+}
+
+#[test]
+fn tracker_locks_onto_an_off_nominal_speed() {
+    // Spindle 1 % faster than configured: the type-2 loop removes the rate error.
+    let mut pll = SpindleTrackerConfig {
+        pulses_per_rev: PULSES,
+        speed_rpm: 60.0,
+        bandwidth_hz: 10.0,
+    }
+    .try_build(1.0 / RATE_HZ)
+    .unwrap();
+    let mut theta = 0.0;
+    for k in 0..(RATE_HZ as u64) {
+        theta = pll.update(count_at(k as f64 / RATE_HZ, 60.6));
+    }
+    let truth = TAU * 1.01 * (RATE_HZ - 1.0) / RATE_HZ;
+    assert!((theta - truth).abs() < 0.1 * TAU / PULSES as f64);
+    assert!((pll.rate_rad_s() / TAU - 1.01).abs() < 1e-4);
+    assert!(!pll.faulted());
+}
+
+#[test]
+fn tracker_faults_when_the_encoder_jumps() {
+    let mut pll = SpindleTrackerConfig {
+        pulses_per_rev: PULSES,
+        speed_rpm: 60.0,
+        bandwidth_hz: 10.0,
+    }
+    .try_build(1.0 / RATE_HZ)
+    .unwrap();
+    let mut last = 0.0;
+    for k in 0..1000 {
+        last = pll.update(count_at(k as f64 / RATE_HZ, 60.0));
+    }
+    let frozen = pll.update(count_at(1000.0 / RATE_HZ, 60.0) + 100);
+    assert!(pll.faulted());
+    assert!((frozen - last).abs() < 1e-3 * TAU / PULSES as f64);
+    assert_eq!(pll.update(5), frozen);
+    pll.reset();
+    assert!(!pll.faulted());
+}
+
+#[test]
+fn tracker_rejects_bad_configuration() {
+    let bad = SpindleTrackerConfig {
+        pulses_per_rev: PULSES,
+        speed_rpm: f64::NAN,
+        bandwidth_hz: 10.0,
+    };
+    assert!(bad.try_build(1.0 / RATE_HZ).is_err());
+    let fast = SpindleTrackerConfig {
+        bandwidth_hz: 50e3,
+        ..bad
+    };
+    assert!(fast.try_build(1.0 / RATE_HZ).is_err());
+}
+
+#[test]
+fn spiral_feeds_inward_per_revolution() {
+    let s = Spiral {
+        start_radius_m: 25e-3,
+        feed_m_per_rev: 5e-6,
+    };
+    assert_eq!(s.radius_m(0.0), 25e-3);
+    assert!((s.radius_m(10.0 * TAU) - (25e-3 - 50e-6)).abs() < 1e-15);
+    assert_eq!(s.radius_m(1e9), 0.0);
 }

@@ -1,0 +1,284 @@
+//! Zero-phase-error tracking control (Tomizuka, 1987, ASME J. Dyn. Sys. 109:65–68) designed
+//! from a discrete closed-loop model from reference to output.
+//!
+//! With the loop written `T(z⁻¹) = z⁻ᵈ B_a(z⁻¹) B_u(z⁻¹) / A(z⁻¹)` — `B_a` the zeros that may be
+//! inverted, `B_u` the rest (outside or near the unit circle, or oscillatory on the negative real
+//! axis) — the feedforward
+//!
+//! ```text
+//! F(z) = zᵈ A(z⁻¹) B_u(z) / (B_a(z⁻¹) B_u(1)²)
+//! ```
+//!
+//! makes `T·F = B_u(z⁻¹) B_u(z) / B_u(1)²`: real (zero phase) at every frequency and 1 at DC.
+//! `F` needs `d + s` ticks of preview (`s` = the order of `B_u`). The model is first reduced
+//! by balanced truncation (a sampled loop at 200 kHz has 30 states, most of them noise filters
+//! the reference never reaches); `F` is returned as second-order sections, each zero of `F`
+//! paired with its nearest pole, because the expanded polynomials of a 200 kHz loop (poles
+//! near z = 1) lose most of their digits.
+
+use crate::lti::{eigenvalues, LtiError, StateSpace};
+use crate::reduce::balanced_truncation;
+use nalgebra::DMatrix;
+use num_complex::Complex64;
+
+/// Zeros of `T` inside this radius on the negative real half-plane are inverted; beyond it they
+/// would make `F` ring at Nyquist and are treated like zeros outside the unit circle.
+pub const NEGATIVE_ZERO_RADIUS: f64 = 0.5;
+
+/// Zeros closer to the unit circle than this are not inverted.
+pub const UNIT_CIRCLE_MARGIN: f64 = 1e-6;
+
+/// A ZPETC design.
+#[derive(Debug, Clone)]
+pub struct ZpetcDesign {
+    /// Overall gain of `F` after the sections (each section has unity DC gain).
+    pub gain: f64,
+    /// Sections `[b0, b1, b2, a1, a2]` of `F·z^{-preview}` with `a0 = 1`.
+    pub sections: Vec<[f64; 5]>,
+    /// Ticks of preview `d + s`.
+    pub preview: usize,
+    /// Order of the reduced model the filter inverts.
+    pub order: usize,
+    /// Zeros of the reduced model that were not inverted (z-plane).
+    pub unacceptable_zeros: Vec<Complex64>,
+    /// Largest relative error `|T_r − T| / |T|` of the reduced model on the check grid.
+    pub model_error: f64,
+}
+
+impl ZpetcDesign {
+    /// `F(e^{j2πfT})` including the preview advance, at `f_hz` for period `period_s`.
+    pub fn response(&self, f_hz: f64, period_s: f64) -> Complex64 {
+        let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * period_s);
+        let zi = 1.0 / z;
+        let sections: Complex64 = self
+            .sections
+            .iter()
+            .map(|&[b0, b1, b2, a1, a2]| (b0 + zi * (b1 + zi * b2)) / (1.0 + zi * (a1 + zi * a2)))
+            .product();
+        self.gain * sections * z.powi(self.preview as i32)
+    }
+}
+
+/// Errors of [`design`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ZpetcError {
+    /// The model is not a SISO discrete model.
+    #[error("ZPETC needs a single-input single-output model, got {0}×{1}")]
+    NotSiso(usize, usize),
+    /// A linear-algebra step failed.
+    #[error(transparent)]
+    Lti(#[from] LtiError),
+    /// No reduced order up to the limit matches the model well enough.
+    #[error("no reduced model of order ≤ {max_order} matches the loop within {tolerance} up to {f_check_hz} Hz (best {best:.2e})")]
+    NoFit {
+        /// Largest order tried.
+        max_order: usize,
+        /// Required relative accuracy.
+        tolerance: f64,
+        /// Upper end of the check band in Hz.
+        f_check_hz: f64,
+        /// Best relative error reached.
+        best: f64,
+    },
+}
+
+/// Designs the ZPETC of the stable SISO discrete loop `sys` (period `period_s`): the smallest
+/// balanced truncation of order ≤ `max_order` whose response matches `sys` within `tolerance`
+/// (relative) from 1 Hz to `f_check_hz`, factored and inverted as above.
+pub fn design(
+    sys: &StateSpace,
+    period_s: f64,
+    max_order: usize,
+    f_check_hz: f64,
+    tolerance: f64,
+) -> Result<ZpetcDesign, ZpetcError> {
+    if sys.nu() != 1 || sys.ny() != 1 {
+        return Err(ZpetcError::NotSiso(sys.ny(), sys.nu()));
+    }
+    let grid = crate::spectral::log_space(1.0, f_check_hz, 200);
+    let full: Vec<Complex64> = grid
+        .iter()
+        .map(|&f| Ok(sys.freq_response_discrete(f, period_s)?[(0, 0)]))
+        .collect::<Result<_, LtiError>>()?;
+    let dc_full = sys.freq_response_discrete(0.0, period_s)?[(0, 0)].re;
+    let mut best = f64::INFINITY;
+    for order in 1..=max_order.min(sys.nx()) {
+        let reduced = balanced_truncation(sys, order)?.sys;
+        let Some(zpk) = Zpk::of(&reduced) else {
+            continue;
+        };
+        let error = grid
+            .iter()
+            .zip(&full)
+            .map(|(&f, t)| (zpk.response(f, period_s) - t).norm() / t.norm())
+            .fold(0.0, f64::max);
+        best = best.min(error);
+        if error <= tolerance {
+            return Ok(zpk.inverse(order, error, dc_full));
+        }
+    }
+    Err(ZpetcError::NoFit {
+        max_order,
+        tolerance,
+        f_check_hz,
+        best,
+    })
+}
+
+/// `T(z) = k Π(z − zeros) / Π(z − poles)`.
+struct Zpk {
+    k: f64,
+    zeros: Vec<Complex64>,
+    poles: Vec<Complex64>,
+}
+
+impl Zpk {
+    /// The zero-pole-gain form of a small, well-scaled (balanced) SISO model; None when its
+    /// numerator vanishes.
+    fn of(sys: &StateSpace) -> Option<Zpk> {
+        let n = sys.nx();
+        let poles = eigenvalues(&sys.a);
+        let den = poly(&poles);
+        // C(zI − A)⁻¹B = [det(zI − A + BC) − det(zI − A)] / det(zI − A).
+        let closed = poly(&eigenvalues(&(&sys.a - &sys.b * &sys.c)));
+        let d = sys.d[(0, 0)];
+        let num: Vec<f64> = (0..=n).map(|i| closed[i] - den[i] + d * den[i]).collect();
+        let scale = num.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        let lead = num.iter().position(|c| c.abs() > 1e-10 * scale)?;
+        let num = &num[lead..];
+        let companion = DMatrix::from_fn(num.len() - 1, num.len() - 1, |i, j| {
+            if i == 0 {
+                -num[j + 1] / num[0]
+            } else if i == j + 1 {
+                1.0
+            } else {
+                0.0
+            }
+        });
+        let zeros = if num.len() > 1 {
+            eigenvalues(&companion)
+        } else {
+            Vec::new()
+        };
+        Some(Zpk {
+            k: num[0],
+            zeros,
+            poles,
+        })
+    }
+
+    fn response(&self, f_hz: f64, period_s: f64) -> Complex64 {
+        let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * period_s);
+        let num: Complex64 = self.zeros.iter().map(|q| z - q).product();
+        let den: Complex64 = self.poles.iter().map(|p| z - p).product();
+        self.k * num / den
+    }
+
+    /// The ZPETC of this model, scaled so that it inverts the full loop's DC gain `dc_full`.
+    fn inverse(&self, order: usize, model_error: f64, dc_full: f64) -> ZpetcDesign {
+        let (accepted, rejected): (Vec<Complex64>, Vec<Complex64>) =
+            self.zeros.iter().partition(|q| invertible(**q));
+        let d = self.poles.len() - self.zeros.len();
+        // F·z^{-(d+s)} = G Π(1 − p z⁻¹) Π(1 − z⁻¹/q_u) / Π(1 − q_a z⁻¹),
+        // G = Π(−q_u) / (k B_u(1)²), B_u(1) = Π(1 − q_u).
+        let mirrored: Vec<Complex64> = rejected.iter().map(|q| 1.0 / q).collect();
+        let numerator: Vec<Complex64> = self.poles.iter().chain(&mirrored).copied().collect();
+        let bu1: Complex64 = rejected.iter().map(|q| 1.0 - q).product();
+        let neg: Complex64 = rejected.iter().map(|q| -q).product();
+        let mut gain = (neg / (self.k * bu1 * bu1)).re;
+        let sections = sections(&numerator, &accepted);
+        // Unity-DC sections; the gain carries the rest, matched to the full loop's DC gain.
+        let sections: Vec<[f64; 5]> = sections
+            .into_iter()
+            .map(|[b0, b1, b2, a1, a2]| {
+                let dc = (b0 + b1 + b2) / (1.0 + a1 + a2);
+                gain *= dc;
+                [b0 / dc, b1 / dc, b2 / dc, a1, a2]
+            })
+            .collect();
+        let dc_reduced = self.response(0.0, 1.0).re;
+        ZpetcDesign {
+            gain: gain * dc_reduced / dc_full,
+            sections,
+            preview: d + rejected.len(),
+            order,
+            unacceptable_zeros: rejected,
+            model_error,
+        }
+    }
+}
+
+/// Whether the zero `q` of the loop may become a pole of the feedforward.
+fn invertible(q: Complex64) -> bool {
+    q.norm() < 1.0 - UNIT_CIRCLE_MARGIN && !(q.re < 0.0 && q.norm() >= NEGATIVE_ZERO_RADIUS)
+}
+
+/// Real coefficients of `Π(z − r)` (highest power first).
+fn poly(roots: &[Complex64]) -> Vec<f64> {
+    let mut c = vec![Complex64::new(1.0, 0.0)];
+    for r in roots {
+        let mut next = vec![Complex64::new(0.0, 0.0); c.len() + 1];
+        for (i, ci) in c.iter().enumerate() {
+            next[i] += ci;
+            next[i + 1] -= ci * r;
+        }
+        c = next;
+    }
+    c.into_iter().map(|x| x.re).collect()
+}
+
+/// Roots grouped into real second-order factors: conjugate pairs together, real roots two by
+/// two (closest to the unit circle first); each group as `[c1, c2]` of `1 + c1 z⁻¹ + c2 z⁻²`.
+fn factors(roots: &[Complex64]) -> Vec<(Complex64, [f64; 2])> {
+    const IMAG: f64 = 1e-9;
+    let mut complex: Vec<Complex64> = roots.iter().filter(|r| r.im > IMAG).copied().collect();
+    complex.sort_by(|a, b| b.norm().total_cmp(&a.norm()));
+    let mut real: Vec<f64> = roots
+        .iter()
+        .filter(|r| r.im.abs() <= IMAG)
+        .map(|r| r.re)
+        .collect();
+    real.sort_by(|a, b| b.abs().total_cmp(&a.abs()));
+    let mut out: Vec<(Complex64, [f64; 2])> = complex
+        .into_iter()
+        .map(|r| (r, [-2.0 * r.re, r.norm_sqr()]))
+        .collect();
+    for pair in real.chunks(2) {
+        let (c1, c2) = match *pair {
+            [a, b] => (-(a + b), a * b),
+            [a] => (-a, 0.0),
+            _ => unreachable!("chunks of two"),
+        };
+        out.push((Complex64::new(pair[0], 0.0), [c1, c2]));
+    }
+    out
+}
+
+/// Second-order sections `[b0, b1, b2, a1, a2]` of `Π(1 − n z⁻¹) / Π(1 − d z⁻¹)`: each
+/// denominator factor paired with the nearest numerator factor (near-cancelling pairs keep
+/// every section's gain close to 1), the leftover numerator factors on their own.
+fn sections(numerator: &[Complex64], denominator: &[Complex64]) -> Vec<[f64; 5]> {
+    let mut nums = factors(numerator);
+    let mut out = Vec::new();
+    for (d_root, [a1, a2]) in factors(denominator) {
+        let [b1, b2] = if nums.is_empty() {
+            [0.0, 0.0]
+        } else {
+            let nearest = (0..nums.len())
+                .min_by(|&i, &j| {
+                    (nums[i].0 - d_root)
+                        .norm()
+                        .total_cmp(&(nums[j].0 - d_root).norm())
+                })
+                .expect("not empty");
+            nums.swap_remove(nearest).1
+        };
+        out.push([1.0, b1, b2, a1, a2]);
+    }
+    out.extend(
+        nums.into_iter()
+            .map(|(_, [b1, b2])| [1.0, b1, b2, 0.0, 0.0]),
+    );
+    out
+}
