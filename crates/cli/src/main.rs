@@ -5,7 +5,8 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use plant_sim::params::{NoiseParams, StageParams};
 use runner::analysis::Budget;
-use runner::config::{ConfigError, ControllerKind, Loaded, Scenario};
+use runner::config::{ConfigError, ControllerKind, FeedforwardKind, Loaded, Scenario};
+use runner::machine::{Machining, SurfaceConfig};
 use runner::run::{closed_loop, inspect, run, RunError, RunOptions};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -194,6 +195,44 @@ enum Command {
         /// Print the result as JSON.
         #[arg(long)]
         json: bool,
+    },
+    /// Machine a freeform surface in simulation (thesis Ch. 8) and show the form error.
+    ///
+    /// Cuts the facing spiral over `--radius-range` with the spindle synchronised to the servo
+    /// (encoder → angle → surface height per tick, §8.3), cutting force on, and writes the
+    /// recording (MCAP), `machine.json` (form error PV/RMS, machined grid amplitude, following
+    /// error), `form_map.csv`, `trajectory.csv` and pictures into `--out-dir`.
+    /// Example: servo machine --surface sinusoidal-grid --feedforward zpetc
+    Machine {
+        #[command(flatten)]
+        settings: Settings,
+        #[command(flatten)]
+        recording: Recording,
+        /// Surface (default: the configured one, else the sinusoidal grid of Table 8-5).
+        #[arg(long, value_enum)]
+        surface: Option<SurfaceKind>,
+        /// Greyscale PNG height map for --surface image.
+        #[arg(long)]
+        image: Option<PathBuf>,
+        /// Pixel edge of the height map in m.
+        #[arg(long, default_value_t = 20e-6)]
+        pixel_m: f64,
+        /// Height of a white pixel in m (Table 8-6: 5 µm).
+        #[arg(long, default_value_t = 5e-6)]
+        depth_range_m: f64,
+        /// The band to cut, `inner:outer` radius in m (the tool moves inward from `outer`).
+        #[arg(long, default_value = "24.95e-3:25e-3")]
+        radius_range: String,
+        /// Radial feed per revolution in m (5e-6, Tables 8-4..8-6).
+        #[arg(long)]
+        feed: Option<f64>,
+        /// Cut from a flat blank in one pass (the depth of cut and the force follow the
+        /// surface) instead of a finishing pass of constant depth over a pre-shaped part.
+        #[arg(long)]
+        flat_blank: bool,
+        /// Directory for the analysis files.
+        #[arg(long, default_value = "machine")]
+        out_dir: PathBuf,
     },
     /// HIL: serve the simulated stage to a controller process.
     ///
@@ -396,6 +435,32 @@ enum ScenarioKind {
     Chirp,
     /// Hold during the §7.6 intermittent cut (--force, --rpm).
     IntermittentCut,
+    /// Cut the default freeform surface (see `servo machine`; --rpm).
+    Machine,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum SurfaceKind {
+    /// Sinusoidal grid, ±5 µm, 1 mm wavelengths (Table 8-5; 60 rpm).
+    SinusoidalGrid,
+    /// Beam integrator: R 100 mm lenslets on a 2 mm pitch (Table 8-4; 120 rpm).
+    BeamIntegrator,
+    /// Single-path micro-lenslets, 10 µm, 375 per revolution (Table 8-3; 16 rpm).
+    MicroLenslet,
+    /// Greyscale PNG height map (--image; Table 8-6; 30 rpm).
+    Image,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum Ff {
+    /// Feedback only.
+    None,
+    /// Stage-model velocity/acceleration/stiffness feedforward.
+    Model,
+    /// Zero-phase-error tracking (ZPETC) with preview, to the true tool position.
+    Zpetc,
+    /// ZPETC to the sensor reading (zero following error; the tool leads by the sensor lag).
+    ZpetcSensor,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -475,9 +540,12 @@ struct Settings {
     /// Cutting force in N (intermittent-cut).
     #[arg(long)]
     force: Option<f64>,
-    /// Spindle speed in rpm (intermittent-cut).
+    /// Spindle speed in rpm (intermittent-cut, machine).
     #[arg(long)]
     rpm: Option<f64>,
+    /// Feedforward from the reference.
+    #[arg(long, value_enum)]
+    feedforward: Option<Ff>,
     /// Noise sources on: comma list of sensor,current,base,accel, or `none` / `all`.
     #[arg(long)]
     noise: Option<String>,
@@ -546,6 +614,18 @@ impl Settings {
                     force_n: self.force.unwrap_or(1.0),
                     spindle_rpm: self.rpm.unwrap_or(250.0),
                 },
+                ScenarioKind::Machine => Scenario::Machine(Machining::default()),
+            };
+        }
+        if let (Some(rpm), Scenario::Machine(m)) = (self.rpm, &mut c.scenario) {
+            m.spindle_rpm = rpm;
+        }
+        if let Some(f) = self.feedforward {
+            c.controller.feedforward = match f {
+                Ff::None => FeedforwardKind::None,
+                Ff::Model => FeedforwardKind::Model,
+                Ff::Zpetc => FeedforwardKind::Zpetc,
+                Ff::ZpetcSensor => FeedforwardKind::ZpetcSensor,
             };
         }
         if let Some(list) = &self.noise {
@@ -669,6 +749,117 @@ fn print_written(w: &runner::report::Written) {
     if let Some(n) = &w.note {
         println!("  note: {n}");
     }
+}
+
+/// `inner:outer` in m.
+fn radius_range(text: &str) -> Option<(f64, f64)> {
+    let (a, b) = text.split_once(':')?;
+    let (inner, outer) = (a.trim().parse::<f64>().ok()?, b.trim().parse::<f64>().ok()?);
+    (inner >= 0.0 && outer > inner && outer <= 1.0).then_some((inner, outer))
+}
+
+fn machine(
+    s: &Settings,
+    rec: &Recording,
+    surface: Option<(SurfaceConfig, f64)>,
+    range: &str,
+    feed: Option<f64>,
+    flat_blank: bool,
+    out_dir: &Path,
+) -> Result<(), RunError> {
+    let mut cfg = s.resolve()?;
+    let Some((inner, outer)) = radius_range(range) else {
+        return Err(cfg
+            .invalid(
+                "--radius-range",
+                range,
+                "inner:outer in m, 0 ≤ inner < outer ≤ 1",
+            )
+            .into());
+    };
+    let mut m = match &cfg.config.scenario {
+        Scenario::Machine(m) => m.clone(),
+        _ => Machining::default(),
+    };
+    if let Some((surface, rpm)) = surface {
+        m.surface = surface;
+        m.spindle_rpm = s.rpm.unwrap_or(rpm);
+    }
+    if let Some(f) = feed {
+        m.feed_m_per_rev = f;
+    }
+    if flat_blank {
+        m.finish_depth_m = None;
+    }
+    m.start_radius_m = outer;
+    let duration = m.duration_to(inner);
+    cfg.config.scenario = Scenario::Machine(m);
+    if s.duration.is_none() {
+        cfg.config.run.duration_s = duration;
+    }
+    let stop = stop_flag();
+    let bar = progress_bar(rec.quiet, "machining");
+    let mut progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let result = runner::form::run_machining(
+        &cfg,
+        RunOptions {
+            out: rec.out(),
+            stop: &stop,
+            progress: &mut progress,
+        },
+    );
+    bar.finish_and_clear();
+    let (summary, analysis) = result?;
+    let title = format!(
+        "{}, {}",
+        summary.meta.controller,
+        match cfg.config.controller.feedforward {
+            FeedforwardKind::None => "no feedforward",
+            FeedforwardKind::Model => "model feedforward",
+            FeedforwardKind::Zpetc => "ZPETC feedforward (tool)",
+            FeedforwardKind::ZpetcSensor => "ZPETC feedforward (sensor)",
+        }
+    );
+    let written = runner::report::machining(&analysis, &title, out_dir)
+        .map_err(|e| RunError::Plant(e.to_string()))?;
+    let report = analysis.report();
+    if rec.json {
+        print_json(&report);
+        return Ok(());
+    }
+    print_summary(&summary, false);
+    let nm = |v: f64| v * 1e9;
+    println!(
+        "  machined band {:.3}–{:.3} mm ({:.1} revolutions)",
+        report.band_m[0] * 1e3,
+        report.band_m[1] * 1e3,
+        report.revolutions
+    );
+    println!(
+        "  form error (tool − design): RMS {:.1} nm, PV {:.1} nm, max |e| {:.1} nm",
+        nm(report.form_error_m.rms),
+        nm(report.form_error_m.pv),
+        nm(report.max_abs_form_error_m)
+    );
+    if let Some(g) = report.grid {
+        println!(
+            "  grid peak-to-valley: X {:.3} µm, Y {:.3} µm (nominal {:.3} µm; thesis edge 11.18 µm without feedforward)",
+            g.machined_pv_x_m * 1e6,
+            g.machined_pv_y_m * 1e6,
+            g.nominal_pv_x_m * 1e6
+        );
+    }
+    if let Some(f) = report.max_motion_frequency_hz {
+        println!("  fastest tool motion {f:.0} Hz at the outer radius");
+    }
+    if let Some(o) = rec.out() {
+        println!("  wrote {}", o.display());
+    }
+    print_written(&written);
+    Ok(())
 }
 
 fn budget(
@@ -1167,6 +1358,47 @@ fn main() -> ExitCode {
             out,
             json,
         } => done(tune(&settings, bandwidth_hz, (ms, mt), &out, json)),
+        Command::Machine {
+            settings,
+            recording,
+            surface,
+            image,
+            pixel_m,
+            depth_range_m,
+            radius_range,
+            feed,
+            flat_blank,
+            out_dir,
+        } => {
+            let surface = surface.map(|k| match k {
+                SurfaceKind::SinusoidalGrid => (SurfaceConfig::THESIS_GRID, 60.0),
+                SurfaceKind::BeamIntegrator => (SurfaceConfig::THESIS_BEAM, 120.0),
+                SurfaceKind::MicroLenslet => (
+                    SurfaceConfig::MicroLenslet {
+                        amplitude_m: 10e-6,
+                        per_revolution: 375.0,
+                    },
+                    16.0,
+                ),
+                SurfaceKind::Image => (
+                    SurfaceConfig::Image {
+                        path: image.clone().unwrap_or_default(),
+                        pixel_m,
+                        depth_range_m,
+                    },
+                    30.0,
+                ),
+            });
+            done(machine(
+                &settings,
+                &recording,
+                surface,
+                &radius_range,
+                feed,
+                flat_blank,
+                &out_dir,
+            ))
+        }
         Command::Identify {
             file,
             settings,

@@ -214,6 +214,104 @@ pub fn write(fig: &Figure, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
     Ok(vec![png, svg])
 }
 
+/// A map of values on a regular grid (a form-error map), drawn with a diverging colour scale
+/// symmetric about zero (blue below, red above, white at 0; cells without data grey).
+#[derive(Debug, Clone)]
+pub struct Map {
+    /// Title.
+    pub title: String,
+    /// X label with unit.
+    pub x_label: String,
+    /// Y label with unit.
+    pub y_label: String,
+    /// X extent (first column's left edge, last column's right edge).
+    pub x: (f64, f64),
+    /// Y extent (first row's lower edge, last row's upper edge).
+    pub y: (f64, f64),
+    /// Columns.
+    pub cols: usize,
+    /// Row-major values, `rows × cols` (NaN: no data), row 0 at the bottom.
+    pub values: Vec<f64>,
+}
+
+/// Blue–white–red for `v / scale` in [−1, 1].
+fn diverging(v: f64, scale: f64) -> RGBColor {
+    if !v.is_finite() {
+        return RGBColor(200, 200, 200);
+    }
+    let t = (v / scale).clamp(-1.0, 1.0);
+    let fade = |c: u8, t: f64| (255.0 - (255.0 - c as f64) * t).round() as u8;
+    if t >= 0.0 {
+        RGBColor(fade(180, t), fade(20, t), fade(30, t))
+    } else {
+        RGBColor(fade(30, -t), fade(60, -t), fade(180, -t))
+    }
+}
+
+fn draw_map<DB: DrawingBackend>(
+    map: &Map,
+    root: DrawingArea<DB, plotters::coord::Shift>,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let rows = map.values.len() / map.cols.max(1);
+    let scale = map
+        .values
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(1e-300);
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{} (colour scale ±{scale:.4})", map.title),
+            ("sans-serif", 20),
+        )
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(map.x.0..map.x.1, map.y.0..map.y.1)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(&map.x_label)
+        .y_desc(&map.y_label)
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let (dx, dy) = (
+        (map.x.1 - map.x.0) / map.cols as f64,
+        (map.y.1 - map.y.0) / rows.max(1) as f64,
+    );
+    chart
+        .draw_series(map.values.iter().enumerate().map(|(i, &v)| {
+            let (r, c) = (i / map.cols, i % map.cols);
+            let x0 = map.x.0 + c as f64 * dx;
+            let y0 = map.y.0 + r as f64 * dy;
+            Rectangle::new([(x0, y0), (x0 + dx, y0 + dy)], diverging(v, scale).filled())
+        }))
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())
+}
+
+/// Writes `stem.png` and `stem.svg` of a map; returns their paths.
+pub fn write_map(map: &Map, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
+    if !font_ready() {
+        return Err(PlotError::NoFont);
+    }
+    let (png, svg) = (stem.with_extension("png"), stem.with_extension("svg"));
+    let size = (1200, 500);
+    let err = |path: &PathBuf| {
+        let path = path.clone();
+        move |message| PlotError::Draw { path, message }
+    };
+    draw_map(map, BitMapBackend::new(&png, size).into_drawing_area()).map_err(err(&png))?;
+    draw_map(map, SVGBackend::new(&svg, size).into_drawing_area()).map_err(err(&svg))?;
+    Ok(vec![png, svg])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -18,12 +18,14 @@
 
 use crate::lti::{eigenvalues, LtiError, StateSpace};
 use crate::reduce::balanced_truncation;
-use nalgebra::DMatrix;
 use num_complex::Complex64;
 
 /// Zeros of `T` inside this radius on the negative real half-plane are inverted; beyond it they
 /// would make `F` ring at Nyquist and are treated like zeros outside the unit circle.
 pub const NEGATIVE_ZERO_RADIUS: f64 = 0.5;
+
+/// Generalized eigenvalues larger than `1 / FINITE_ZERO` are the pencil's infinite ones.
+const FINITE_ZERO: f64 = 1e-10;
 
 /// Zeros closer to the unit circle than this are not inverted.
 pub const UNIT_CIRCLE_MARGIN: f64 = 1e-6;
@@ -134,35 +136,36 @@ struct Zpk {
 }
 
 impl Zpk {
-    /// The zero-pole-gain form of a small, well-scaled (balanced) SISO model; None when its
-    /// numerator vanishes.
+    /// The zero-pole-gain form of a SISO model: the zeros are the finite generalized
+    /// eigenvalues of the system pencil `([A B; C D], [I 0; 0 0])` (QZ, no polynomial is ever
+    /// formed); the gain matches the DC response. None when the DC gain is zero.
     fn of(sys: &StateSpace) -> Option<Zpk> {
         let n = sys.nx();
         let poles = eigenvalues(&sys.a);
-        let den = poly(&poles);
-        // C(zI − A)⁻¹B = [det(zI − A + BC) − det(zI − A)] / det(zI − A).
-        let closed = poly(&eigenvalues(&(&sys.a - &sys.b * &sys.c)));
-        let d = sys.d[(0, 0)];
-        let num: Vec<f64> = (0..=n).map(|i| closed[i] - den[i] + d * den[i]).collect();
-        let scale = num.iter().fold(0.0f64, |m, c| m.max(c.abs()));
-        let lead = num.iter().position(|c| c.abs() > 1e-10 * scale)?;
-        let num = &num[lead..];
-        let companion = DMatrix::from_fn(num.len() - 1, num.len() - 1, |i, j| {
-            if i == 0 {
-                -num[j + 1] / num[0]
-            } else if i == j + 1 {
-                1.0
-            } else {
-                0.0
-            }
+        let m = faer::Mat::<f64>::from_fn(n + 1, n + 1, |i, j| match (i < n, j < n) {
+            (true, true) => sys.a[(i, j)],
+            (true, false) => sys.b[(i, 0)],
+            (false, true) => sys.c[(0, j)],
+            (false, false) => sys.d[(0, 0)],
         });
-        let zeros = if num.len() > 1 {
-            eigenvalues(&companion)
-        } else {
-            Vec::new()
-        };
-        Some(Zpk {
-            k: num[0],
+        let e =
+            faer::Mat::<f64>::from_fn(n + 1, n + 1, |i, j| if i == j && i < n { 1.0 } else { 0.0 });
+        let gevd =
+            faer::linalg::solvers::GeneralizedEigen::new_from_real(m.as_ref(), e.as_ref()).ok()?;
+        let (alpha, beta) = (gevd.S_a(), gevd.S_b());
+        let zeros: Vec<Complex64> = (0..=n)
+            .filter_map(|i| {
+                let (a, b) = (alpha[i], beta[i]);
+                let (a, b) = (Complex64::new(a.re, a.im), Complex64::new(b.re, b.im));
+                (b.norm() > FINITE_ZERO * a.norm()).then(|| a / b)
+            })
+            .collect();
+        let dc = sys.freq_response_discrete(0.0, 1.0).ok()?[(0, 0)].re;
+        let one = Complex64::new(1.0, 0.0);
+        let shape: Complex64 = zeros.iter().map(|q| one - q).product::<Complex64>()
+            / poles.iter().map(|p| one - p).product::<Complex64>();
+        (dc != 0.0).then(|| Zpk {
+            k: dc / shape.re,
             zeros,
             poles,
         })
@@ -212,20 +215,6 @@ impl Zpk {
 /// Whether the zero `q` of the loop may become a pole of the feedforward.
 fn invertible(q: Complex64) -> bool {
     q.norm() < 1.0 - UNIT_CIRCLE_MARGIN && !(q.re < 0.0 && q.norm() >= NEGATIVE_ZERO_RADIUS)
-}
-
-/// Real coefficients of `Π(z − r)` (highest power first).
-fn poly(roots: &[Complex64]) -> Vec<f64> {
-    let mut c = vec![Complex64::new(1.0, 0.0)];
-    for r in roots {
-        let mut next = vec![Complex64::new(0.0, 0.0); c.len() + 1];
-        for (i, ci) in c.iter().enumerate() {
-            next[i] += ci;
-            next[i + 1] -= ci * r;
-        }
-        c = next;
-    }
-    c.into_iter().map(|x| x.re).collect()
 }
 
 /// Roots grouped into real second-order factors: conjugate pairs together, real roots two by

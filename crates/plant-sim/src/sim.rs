@@ -597,7 +597,15 @@ impl Simulator {
 
     /// Runs one tick: `command_v` goes to the DAC now and reaches the coil τ later. Returns the
     /// ADC sample closing the tick (the controller's next input) and the truth at that time.
+    #[inline]
     pub fn step(&mut self, command_v: f64) -> (SensorSample, Truth) {
+        self.step_with_force(command_v, 0.0)
+    }
+
+    /// [`Simulator::step`] with `extra_force_n` (N, positive away from the workpiece, held over
+    /// the tick) added to the configured cutting profile: the force of a cut the caller
+    /// models (a freeform surface at the spindle position).
+    pub fn step_with_force(&mut self, command_v: f64, extra_force_n: f64) -> (SensorSample, Truth) {
         let mut flag = 0;
         let (u_now, _, clipped) = self.dac_q.convert(command_v);
         let u_now = if command_v.is_finite() {
@@ -608,7 +616,12 @@ impl Simulator {
             0.0
         };
         let t = self.tick as f64 * self.period_s;
-        let f_cut = self.cutting.at(t);
+        let extra = if extra_force_n.is_finite() {
+            extra_force_n
+        } else {
+            0.0
+        };
+        let f_cut = self.cutting.at(t) + extra;
         let n = self.n;
         let k = self.intervals.len();
         match &mut self.coil {

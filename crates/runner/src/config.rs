@@ -80,6 +80,9 @@ pub enum Scenario {
         /// End frequency in Hz.
         f_end_hz: f64,
     },
+    /// Cut a freeform surface along the facing spiral (Ch. 8): the reference is the surface
+    /// height under the tool, from the encoder count (see [`crate::machine`]).
+    Machine(crate::machine::Machining),
     /// Hold position during the intermittent cut of §7.6.
     IntermittentCut {
         /// Cutting force in N (★ 1 N).
@@ -162,6 +165,29 @@ pub struct ControllerConfig {
     pub ss_file: Option<PathBuf>,
     /// Output limit ±V (the ±10 V DAC).
     pub limit_v: f64,
+    /// Feedforward from the reference: `none`, `model` (the stage's inverse
+    /// `m·r̈ + c·ṙ + k·r` added to the output, one tick of preview) or `zpetc` / `zpetc-sensor`
+    /// (zero-phase-error tracking of the whole loop to the tool / to the sensor reading,
+    /// designed from the sampled closed-loop model, with the preview it needs; thesis §9.3.1's
+    /// missing feedforward).
+    pub feedforward: FeedforwardKind,
+}
+
+/// Feedforward kinds (see [`ControllerConfig::feedforward`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum FeedforwardKind {
+    /// Feedback only (the thesis's experiments).
+    #[default]
+    None,
+    /// Velocity, acceleration and stiffness feedforward from the stage model.
+    Model,
+    /// Zero-phase-error tracking controller (Tomizuka) with preview, inverting the loop from
+    /// reference to the true tool position (the form is right; the sensor shows its own lag).
+    Zpetc,
+    /// The same, inverting the loop from reference to the sensor reading (what a machine's own
+    /// FRF measurement gives: the following error vanishes, the tool leads by the sensor lag).
+    ZpetcSensor,
 }
 
 impl Default for ControllerConfig {
@@ -174,6 +200,7 @@ impl Default for ControllerConfig {
             accel_filter_hz: 0.0,
             ss_file: None,
             limit_v: 10.0,
+            feedforward: FeedforwardKind::None,
         }
     }
 }
@@ -321,18 +348,18 @@ impl RunConfig {
                 Err(at.invalid(key, f, &format!("(0, {nyquist}) Hz")))
             }
         };
-        match self.scenario {
+        match &self.scenario {
             Scenario::Hold => {}
             Scenario::Sine {
                 amplitude_m,
                 frequency_hz,
             } => {
-                amp("scenario.amplitude_m", amplitude_m)?;
-                freq("scenario.frequency_hz", frequency_hz)?;
+                amp("scenario.amplitude_m", *amplitude_m)?;
+                freq("scenario.frequency_hz", *frequency_hz)?;
             }
             Scenario::Step { amplitude_m, at_s } => {
-                amp("scenario.amplitude_m", amplitude_m)?;
-                if !(at_s >= 0.0 && at_s < r.duration_s) {
+                amp("scenario.amplitude_m", *amplitude_m)?;
+                if !(*at_s >= 0.0 && *at_s < r.duration_s) {
                     return Err(at.invalid("scenario.at_s", at_s, "[0, run.duration_s) s"));
                 }
             }
@@ -341,10 +368,11 @@ impl RunConfig {
                 f_start_hz,
                 f_end_hz,
             } => {
-                amp("scenario.amplitude_m", amplitude_m)?;
-                freq("scenario.f_start_hz", f_start_hz)?;
-                freq("scenario.f_end_hz", f_end_hz)?;
+                amp("scenario.amplitude_m", *amplitude_m)?;
+                freq("scenario.f_start_hz", *f_start_hz)?;
+                freq("scenario.f_end_hz", *f_end_hz)?;
             }
+            Scenario::Machine(m) => m.validate(at)?,
             Scenario::IntermittentCut {
                 force_n,
                 spindle_rpm,
@@ -352,7 +380,7 @@ impl RunConfig {
                 if !(force_n.is_finite() && force_n.abs() <= 100.0) {
                     return Err(at.invalid("scenario.force_n", force_n, "[-100, 100] N"));
                 }
-                if !(spindle_rpm > 0.0 && spindle_rpm <= 1e5) {
+                if !(*spindle_rpm > 0.0 && *spindle_rpm <= 1e5) {
                     return Err(at.invalid("scenario.spindle_rpm", spindle_rpm, "(0, 1e5] rpm"));
                 }
             }

@@ -9,14 +9,13 @@
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
 use crate::config::Loaded;
-use crate::run::{meta, metadata, plant_error, RunError};
+use crate::run::{meta, metadata, RunError};
 use crate::servo_loop::{frame, ServoLoop, SimBackend};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Control, Daq, Health, Latency, Telemetry, TelemetryBlock, Truth};
-use plant_sim::Simulator;
 use recorder::{Chunks, Recorder, WhenFull};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
@@ -74,8 +73,7 @@ pub fn plant(
 ) -> Result<daq_io::serve::ServeReport, RunError> {
     let c = &cfg.config;
     c.validate(cfg)?;
-    let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
-        .map_err(|e| plant_error(e, cfg))?;
+    let mut backend = SimBackend::for_run(cfg)?;
     let mut opts = ServeOptions::new(c.ticks(), c.plant.period_s(), p.pacing);
     opts.wait_for_recorder = p.wait_for_recorder;
     opts.wait_for_start = p.wait_for_start;
@@ -84,8 +82,7 @@ pub fn plant(
         opts.peer_timeout = t;
     }
     let ep = Endpoint::open(prefix, "plant").map_err(ipc)?;
-    serve(&ep, &mut SimBackend::new(sim), &opts, stop)
-        .map_err(|e| RunError::Transport(e.to_string()))
+    serve(&ep, &mut backend, &opts, stop).map_err(|e| RunError::Transport(e.to_string()))
 }
 
 /// `servo controller`: runs the controller of `cfg` against the plant of run `prefix` until

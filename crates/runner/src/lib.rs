@@ -18,9 +18,12 @@
 pub mod analysis;
 pub mod config;
 pub mod controller;
+pub mod feedforward;
+pub mod form;
 pub mod frf;
 pub mod hil;
 pub mod identify;
+pub mod machine;
 pub mod report;
 pub mod run;
 pub mod servo_loop;

@@ -89,6 +89,7 @@ fn scenario_name(s: &Scenario) -> &'static str {
         Scenario::Sine { .. } => "sine",
         Scenario::Step { .. } => "step",
         Scenario::Chirp { .. } => "chirp",
+        Scenario::Machine(_) => "machine",
         Scenario::IntermittentCut { .. } => "intermittent-cut",
     }
 }
@@ -190,13 +191,25 @@ pub fn check_stable(cfg: &Loaded) -> Result<f64, RunError> {
 
 /// Runs `cfg`: builds everything, checks closed-loop stability, runs, records, summarises.
 pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
+    run_with(cfg, opts, |_| {})
+}
+
+/// [`run`], showing every recorded frame to `on_frame` as well (analyses that need more than
+/// the summary, without reading the file back).
+pub fn run_with(
+    cfg: &Loaded,
+    opts: RunOptions<'_>,
+    mut on_frame: impl FnMut(&recorder::Frame),
+) -> Result<Summary, RunError> {
     let c = &cfg.config;
     c.validate(cfg)?;
-    let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
-        .map_err(|e| plant_error(e, cfg))?;
+    let backend = SimBackend::for_run(cfg)?;
     let mut servo = ServoLoop::new(cfg)?;
     let description = servo.controller.description.clone();
-    let radius = stable(&closed_loop_of(cfg, &sim, &servo.controller)?, &description)?;
+    let radius = stable(
+        &closed_loop_of(cfg, backend.sim(), &servo.controller)?,
+        &description,
+    )?;
     let mut recorder = match &opts.out {
         Some(path) => Some(Recorder::create(path, metadata(cfg), WhenFull::Wait)?),
         None => None,
@@ -204,7 +217,7 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
     let total = c.ticks();
     let mut summary = SummaryBuilder::new(c.run.settle());
     let start = Instant::now();
-    let mut daq = InProcess::new(SimBackend::new(sim), total);
+    let mut daq = InProcess::new(backend, total);
     let mut truth = daq_io::Truth::default();
     let mut interrupted = false;
     loop {
@@ -221,6 +234,7 @@ pub fn run(cfg: &Loaded, opts: RunOptions<'_>) -> Result<Summary, RunError> {
         if let Some(t) = telemetry {
             let frame = frame(&t, &truth);
             summary.add(&frame);
+            on_frame(&frame);
             if let Some(rec) = &mut recorder {
                 if rec.push(frame).is_err() {
                     // The writer thread failed (disk full…): its error comes out of finish().

@@ -2,34 +2,67 @@
 //! compute bit-identical results: [`SimBackend`] (plant-sim behind daq-io's [`Backend`]) and
 //! [`ServoLoop`] (reference + controller → command and telemetry).
 
-use crate::config::{ConfigError, Loaded, Scenario};
+use crate::config::{ConfigError, FeedforwardKind, Loaded, Scenario};
 use crate::controller::Controller;
+use crate::machine::{SurfaceReference, Workpiece};
+use crate::run::RunError;
 use crate::summary::SATURATED;
 use daq_io::{flags, Backend, Command, Sensor, Telemetry, Truth};
 use plant_sim::Simulator;
 use recorder::Frame;
 use servo_core::{Block, ChirpConfig, SineConfig, StepConfig, Sweep};
 
-/// The simulated stage as a daq-io backend (keeps the last step's truth).
+/// The simulated stage as a daq-io backend (keeps the last step's truth), with the part on
+/// the spindle when machining.
 pub struct SimBackend {
     sim: Simulator,
     truth: Truth,
+    workpiece: Option<Workpiece>,
+    tick: u64,
 }
 
 impl SimBackend {
-    /// Wraps `sim`.
+    /// Wraps `sim` (no spindle).
     pub fn new(sim: Simulator) -> Self {
         SimBackend {
             sim,
             truth: Truth::default(),
+            workpiece: None,
+            tick: 0,
         }
+    }
+
+    /// The stage of a run of `cfg`: its seed and cutting profile, and the spindle and part of
+    /// a machining scenario.
+    pub fn for_run(cfg: &Loaded) -> Result<Self, RunError> {
+        let c = &cfg.config;
+        let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
+            .map_err(|e| crate::run::plant_error(e, cfg))?;
+        let workpiece = match &c.scenario {
+            Scenario::Machine(m) => Some(Workpiece::new(m, m.surface.load(cfg)?, sim.period_s())),
+            _ => None,
+        };
+        Ok(SimBackend {
+            workpiece,
+            ..SimBackend::new(sim)
+        })
+    }
+
+    /// The simulator.
+    pub fn sim(&self) -> &Simulator {
+        &self.sim
     }
 }
 
 impl Backend for SimBackend {
     #[inline]
     fn step(&mut self, dac_v: f64) -> Sensor {
-        let (s, t) = self.sim.step(dac_v);
+        let force = self
+            .workpiece
+            .as_ref()
+            .map_or(0.0, |w| w.cutting_force_n(self.tick));
+        let (s, t) = self.sim.step_with_force(dac_v, force);
+        self.tick += 1;
         self.truth = Truth {
             seq: 0,
             time_s: s.time_s,
@@ -50,7 +83,10 @@ impl Backend for SimBackend {
             time_s: s.time_s,
             gap_v: s.gap_v,
             accel_v: s.accel_v,
-            encoder_count: 0,
+            encoder_count: self
+                .workpiece
+                .as_ref()
+                .map_or(0, |w| w.encoder_count(self.tick)),
             flags: s.flags,
             reserved: 0,
         }
@@ -61,57 +97,156 @@ impl Backend for SimBackend {
     }
 }
 
-/// The reference trajectory in m, one sample per tick.
-enum Reference {
+/// Where the desired trajectory comes from (m, one sample per tick).
+enum Source {
     Zero,
     Gen(Box<dyn Block<Input = (), Output = servo_core::Setpoint> + Send>),
+    Surface(Box<SurfaceReference>),
 }
 
-impl Reference {
-    fn new(s: &Scenario, period: f64, duration: f64) -> Result<Self, servo_core::Error> {
-        Ok(match *s {
-            Scenario::Hold | Scenario::IntermittentCut { .. } => Reference::Zero,
+impl Source {
+    fn new(cfg: &Loaded) -> Result<Self, ConfigError> {
+        let c = &cfg.config;
+        let (period, duration) = (c.plant.period_s(), c.run.duration_s);
+        let scenario = |e: servo_core::Error| cfg.invalid("scenario", e, "see the message");
+        Ok(match &c.scenario {
+            Scenario::Hold | Scenario::IntermittentCut { .. } => Source::Zero,
             Scenario::Sine {
                 amplitude_m,
                 frequency_hz,
-            } => Reference::Gen(Box::new(
+            } => Source::Gen(Box::new(
                 SineConfig {
-                    amplitude: amplitude_m,
-                    frequency_hz,
+                    amplitude: *amplitude_m,
+                    frequency_hz: *frequency_hz,
                     phase_rad: 0.0,
                     offset: 0.0,
                 }
-                .try_build(period)?,
+                .try_build(period)
+                .map_err(scenario)?,
             )),
-            Scenario::Step { amplitude_m, at_s } => Reference::Gen(Box::new(
+            Scenario::Step { amplitude_m, at_s } => Source::Gen(Box::new(
                 StepConfig {
-                    amplitude: amplitude_m,
-                    delay_s: at_s,
+                    amplitude: *amplitude_m,
+                    delay_s: *at_s,
                 }
-                .try_build(period)?,
+                .try_build(period)
+                .map_err(scenario)?,
             )),
             Scenario::Chirp {
                 amplitude_m,
                 f_start_hz,
                 f_end_hz,
-            } => Reference::Gen(Box::new(
+            } => Source::Gen(Box::new(
                 ChirpConfig {
-                    amplitude: amplitude_m,
-                    f_start_hz,
-                    f_end_hz,
+                    amplitude: *amplitude_m,
+                    f_start_hz: *f_start_hz,
+                    f_end_hz: *f_end_hz,
                     duration_s: duration,
                     sweep: Sweep::Exponential,
                 }
-                .try_build(period)?,
+                .try_build(period)
+                .map_err(scenario)?,
+            )),
+            Scenario::Machine(m) => Source::Surface(Box::new(
+                SurfaceReference::new(m, m.surface.load(cfg)?, period).map_err(scenario)?,
             )),
         })
     }
 
+    /// The desired position `ahead` ticks after this one (generators are sequential: they
+    /// are simply run `ahead` ticks early).
     #[inline]
-    fn next(&mut self) -> f64 {
+    fn ahead(&mut self, s: &Sensor, ahead: usize) -> f64 {
         match self {
-            Reference::Zero => 0.0,
-            Reference::Gen(g) => g.update(()).position,
+            Source::Zero => 0.0,
+            Source::Gen(g) => g.update(()).position,
+            Source::Surface(r) => {
+                r.track(s.encoder_count);
+                r.height_m(ahead)
+            }
+        }
+    }
+
+    fn faulted(&self) -> bool {
+        match self {
+            Source::Zero => false,
+            Source::Gen(g) => g.faulted(),
+            Source::Surface(r) => r.faulted(),
+        }
+    }
+}
+
+/// Largest preview in ticks (the ZPETC's delay plus its uninvertible zeros).
+pub const MAX_PREVIEW: usize = 62;
+
+/// Sections of the largest ZPETC filter the loop runs.
+pub const ZPETC_SECTIONS: usize = 12;
+
+/// The desired trajectory from one tick ago to `preview` ticks ahead: `y[j + 1] = y_d[k + j]`.
+struct Window {
+    y: [f64; MAX_PREVIEW + 2],
+    preview: usize,
+}
+
+impl Window {
+    #[inline]
+    fn push(&mut self, ahead: f64) {
+        let p = self.preview;
+        self.y.copy_within(1..=p + 1, 0);
+        self.y[p + 1] = ahead;
+    }
+
+    /// `y_d[k + j]`, j ∈ −1..=preview.
+    #[inline]
+    fn at(&self, j: isize) -> f64 {
+        self.y[(j + 1) as usize]
+    }
+}
+
+/// The feedforward of [`ServoLoop`].
+enum Feedforward {
+    None,
+    /// Stage-model inverse on finite differences of the window (V).
+    Model(servo_core::Feedforward),
+    /// Reshaped reference (m).
+    Zpetc(Box<servo_core::Zpetc<ZPETC_SECTIONS>>),
+}
+
+impl Feedforward {
+    fn new(cfg: &Loaded) -> Result<(Self, usize), RunError> {
+        let c = &cfg.config;
+        Ok(match c.controller.feedforward {
+            FeedforwardKind::None => (Feedforward::None, 0),
+            FeedforwardKind::Model => {
+                let (st, a) = (&c.plant.stage, &c.plant.actuator);
+                let ff = servo_core::FeedforwardConfig {
+                    mass_kg: st.suspended_mass_kg(),
+                    damping_n_s_per_m: st.c2_n_s_per_m,
+                    stiffness_n_per_m: st.k2_n_per_m,
+                    newton_per_unit: a.current_gain_a_per_v * a.kt_n_per_a,
+                    limits: servo_core::Limits::try_new(
+                        -c.controller.limit_v,
+                        c.controller.limit_v,
+                    )
+                    .map_err(|e| cfg.invalid("controller.limit_v", e, "(0, 10] V"))?,
+                }
+                .try_build()
+                .map_err(|e| cfg.invalid("plant", e, "a valid stage for feedforward"))?;
+                (Feedforward::Model(ff), 1)
+            }
+            FeedforwardKind::Zpetc | FeedforwardKind::ZpetcSensor => {
+                let z = crate::feedforward::zpetc(cfg)?;
+                let preview = z.preview();
+                (Feedforward::Zpetc(Box::new(z)), preview)
+            }
+        })
+    }
+
+    fn faulted(&self) -> bool {
+        match self {
+            Feedforward::None => false,
+            Feedforward::Model(f) => f.faulted(),
+            Feedforward::Zpetc(z) => z.faulted(),
         }
     }
 }
@@ -122,30 +257,50 @@ impl Reference {
 pub struct ServoLoop {
     /// The controller.
     pub controller: Controller,
-    reference: Reference,
+    source: Source,
+    feedforward: Feedforward,
+    window: Window,
+    primed: bool,
     r: f64,
     last_u: f64,
     gain_scale: f64,
     sensitivity: f64,
     accel_scale: f64,
+    period_s: f64,
 }
 
 impl ServoLoop {
-    /// Builds the controller and reference of `cfg`.
-    pub fn new(cfg: &Loaded) -> Result<Self, ConfigError> {
+    /// Builds the controller, reference and feedforward of `cfg`.
+    pub fn new(cfg: &Loaded) -> Result<Self, RunError> {
         let c = &cfg.config;
         let controller = Controller::build(cfg)?;
-        let mut reference = Reference::new(&c.scenario, c.plant.period_s(), c.run.duration_s)
-            .map_err(|e| cfg.invalid("scenario", e, "see the message"))?;
-        let r = reference.next();
+        let mut source = Source::new(cfg)?;
+        let (feedforward, preview) = Feedforward::new(cfg)?;
+        let mut window = Window {
+            y: [0.0; MAX_PREVIEW + 2],
+            preview,
+        };
+        let mut primed = false;
+        if let Source::Gen(_) = source {
+            // Generators start at tick 0: run them `preview` ticks ahead now.
+            let sample = Sensor::default();
+            for _ in 0..preview {
+                window.push(source.ahead(&sample, preview));
+            }
+            primed = true;
+        }
         Ok(ServoLoop {
             controller,
-            reference,
-            r,
+            source,
+            feedforward,
+            window,
+            primed,
+            r: 0.0,
             last_u: 0.0,
             gain_scale: 1.0,
             sensitivity: c.plant.capa.sensitivity_v_per_m,
             accel_scale: 1.0 / c.plant.accel.sensitivity_v_per_m_s2,
+            period_s: c.plant.period_s(),
         })
     }
 
@@ -155,10 +310,35 @@ impl ServoLoop {
         self.gain_scale = scale;
     }
 
+    fn faulted(&self) -> bool {
+        self.controller.faulted() || self.source.faulted() || self.feedforward.faulted()
+    }
+
+    /// Reads this tick's reference into the window (the first tick of a surface fills it
+    /// from the tracked angle; the trajectory is taken as at rest before tick 0).
+    #[inline]
+    fn advance(&mut self, s: &Sensor) {
+        let p = self.window.preview;
+        let ahead = self.source.ahead(s, p);
+        if !self.primed {
+            self.primed = true;
+            if let Source::Surface(r) = &self.source {
+                for j in 0..p {
+                    self.window.push(r.height_m(j));
+                }
+            }
+            self.window.push(ahead);
+            self.window.y[0] = self.window.y[1];
+            return;
+        }
+        self.window.push(ahead);
+    }
+
     /// One tick for sample `s`: the command (None when `s` closes the run) and the telemetry
     /// of the previous tick (None for the first sample). Allocation-free.
     #[inline]
     pub fn tick(&mut self, s: &Sensor) -> (Option<Command>, Option<Telemetry>) {
+        let faulted = self.faulted();
         let telemetry = (s.seq > 0).then(|| {
             let measured = s.gap_v / self.sensitivity;
             let saturated = self.last_u.abs() >= self.controller.limit_v
@@ -173,28 +353,45 @@ impl ServoLoop {
                 accel_m_s2: s.accel_v * self.accel_scale,
                 flags: (s.flags & !flags::END)
                     | if saturated { SATURATED } else { 0 }
-                    | if self.controller.faulted() {
-                        flags::FAULT_CONTROLLER
-                    } else {
-                        0
-                    },
+                    | if faulted { flags::FAULT_CONTROLLER } else { 0 },
                 reserved: 0,
             }
         });
         if s.flags & flags::END != 0 {
             return (None, telemetry);
         }
+        self.advance(s);
+        let w = &self.window;
+        let desired = w.at(0);
+        let (reference, u_ff) = match &mut self.feedforward {
+            Feedforward::None => (desired, 0.0),
+            Feedforward::Model(ff) => {
+                let t = self.period_s;
+                let (prev, next) = (w.at(-1), w.at(1));
+                let sp = servo_core::Setpoint {
+                    position: desired,
+                    velocity: (next - prev) / (2.0 * t),
+                    acceleration: (next - 2.0 * desired + prev) / (t * t),
+                };
+                (desired, ff.update(sp))
+            }
+            Feedforward::Zpetc(z) => (z.update(w.at(w.preview as isize)), 0.0),
+        };
         let raw = self
             .controller
-            .update(self.r * self.sensitivity - s.gap_v, s.accel_v);
+            .update(reference * self.sensitivity - s.gap_v, s.accel_v);
         let limit = self.controller.limit_v;
-        let u = (raw * self.gain_scale).clamp(-limit, limit);
+        let u = if self.faulted() {
+            0.0
+        } else {
+            (raw * self.gain_scale + u_ff).clamp(-limit, limit)
+        };
         self.last_u = u;
-        self.r = self.reference.next();
+        self.r = desired;
         let command = Command {
             seq: s.seq,
             dac_v: u,
-            flags: if self.controller.faulted() {
+            flags: if self.faulted() {
                 flags::FAULT_CONTROLLER
             } else {
                 0

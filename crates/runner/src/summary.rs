@@ -19,8 +19,9 @@ pub struct Stats {
     pub mean: f64,
 }
 
+/// Running RMS, peak-to-valley and mean.
 #[derive(Debug, Clone, Copy)]
-struct Acc {
+pub(crate) struct Acc {
     n: u64,
     sum: f64,
     sum_sq: f64,
@@ -41,8 +42,7 @@ impl Default for Acc {
 }
 
 impl Acc {
-    fn add(&mut self, x: f32) {
-        let x = x as f64;
+    pub(crate) fn add(&mut self, x: f64) {
         self.n += 1;
         self.sum += x;
         self.sum_sq += x * x;
@@ -50,7 +50,7 @@ impl Acc {
         self.max = self.max.max(x);
     }
 
-    fn stats(&self) -> Stats {
+    pub(crate) fn stats(&self) -> Stats {
         let n = self.n.max(1) as f64;
         Stats {
             rms: (self.sum_sq / n).sqrt(),
@@ -95,9 +95,9 @@ impl SummaryBuilder {
         if f.time_ns < self.settle_ns {
             return;
         }
-        self.following.add(f.telemetry.following_error_m);
-        self.truth.add(f.truth.true_error_m);
-        self.control.add(f.telemetry.control_v);
+        self.following.add(f.telemetry.following_error_m as f64);
+        self.truth.add(f.truth.true_error_m as f64);
+        self.control.add(f.telemetry.control_v as f64);
         let flags = f.telemetry.flags as u32;
         if flags & SATURATED != 0 {
             self.saturated += 1;
