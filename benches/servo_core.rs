@@ -90,13 +90,22 @@ fn biquad(c: &mut Criterion) {
     });
 }
 
-/// Per-tick depth command (§8.5.3, §8.5.4): encoder count → angle → surface depth, with the
-/// radius feeding 5 µm per revolution; baseline in the same run: the angle alone.
+/// Per-tick depth command (§8.3, §8.5.3, §8.5.4) as `servo machine` runs it: encoder count →
+/// tracked angle → spiral radius → surface height; baseline in the same run: the tracker and
+/// spiral alone.
 fn surface(c: &mut Criterion) {
     use servo_core::surface::{BeamIntegrator, SinusoidalGrid, Surface};
-    use servo_core::Encoder;
-    let enc = Encoder {
+    use servo_core::{SpindleTrackerConfig, Spiral};
+    let mut tracker = SpindleTrackerConfig {
         pulses_per_rev: 80_000,
+        speed_rpm: 60.0,
+        bandwidth_hz: 10.0,
+    }
+    .try_build(T)
+    .unwrap();
+    let spiral = Spiral {
+        start_radius_m: 25e-3,
+        feed_m_per_rev: 5e-6,
     };
     let grid = SinusoidalGrid {
         ax_m: 5e-6,
@@ -108,28 +117,52 @@ fn surface(c: &mut Criterion) {
         radius_m: 0.1,
         pitch_m: 2e-3,
     };
-    let tick = |count: &mut u64| {
-        *count += 40; // 60 rpm at 199.6 kHz ≈ 0.4 pulses per tick; 40 keeps θ moving
-        let r = 0.025 - 5e-6 * (*count / 80_000) as f64;
-        (r, enc.angle_rad(*count))
+    let mut k = 0u64;
+    let mut tick = move || {
+        k += 1;
+        tracker.update(k * 2 / 5); // 60 rpm at 199.6 kHz: 0.4 pulses per tick
+        let theta = tracker.predict_rad(1.0);
+        (spiral.radius_m(theta), theta)
     };
-    let mut count = 0u64;
     c.bench_function("surface/sinusoidal_grid", |b| {
         b.iter(|| {
-            let (r, th) = tick(&mut count);
+            let (r, th) = tick();
             grid.depth_m(black_box(r), black_box(th))
         })
     });
     c.bench_function("surface/beam_integrator", |b| {
         b.iter(|| {
-            let (r, th) = tick(&mut count);
+            let (r, th) = tick();
             beam.depth_m(black_box(r), black_box(th))
         })
     });
-    c.bench_function("surface/angle_baseline", |b| {
+    c.bench_function("surface/tracker_baseline", |b| {
         b.iter(|| {
-            let (r, th) = tick(&mut count);
+            let (r, th) = tick();
             black_box(r) + black_box(th)
+        })
+    });
+}
+
+/// The ZPETC of the default loop (12 sections, as `servo run --feedforward zpetc` runs it);
+/// baseline in the same run: one biquad (`biquad/servo_core`).
+fn zpetc(c: &mut Criterion) {
+    let cfg = runner::config::Loaded {
+        config: runner::config::RunConfig {
+            controller: runner::config::ControllerConfig {
+                feedforward: runner::config::FeedforwardKind::Zpetc,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let mut z = runner::feedforward::zpetc(&cfg).unwrap();
+    let mut y = 0.0;
+    c.bench_function("zpetc/12_sections", |b| {
+        b.iter(|| {
+            y += 1e-9;
+            z.update(black_box(y))
         })
     });
 }
@@ -140,6 +173,7 @@ criterion_group!(
     cascade,
     biquad,
     surface,
+    zpetc,
     state_space::<8>,
     state_space::<13>,
     state_space::<27>

@@ -13,5 +13,6 @@ pub mod plot;
 pub mod reduce;
 pub mod riccati;
 pub mod spectral;
+pub mod spindle;
 pub mod tune;
 pub mod zpetc;

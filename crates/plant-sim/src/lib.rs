@@ -2,11 +2,13 @@
 //!
 //! The fast tool servo stage of the thesis as a deterministic, exactly discretised simulator:
 //! four-mass flexure mechanics, FVCM current loop, capacitive sensor, accelerometer, ADC/DAC,
-//! transport delay, coloured noise and cutting forces. See `README.md` for the calibration.
+//! transport delay, coloured noise and cutting forces; and the spindle metrology rig of
+//! Appendix D (artefact, spindle error motion, probes). See `README.md` for the calibration.
 
 pub mod convert;
 pub mod cutting;
 pub mod impedance;
+pub mod metrology;
 pub mod model;
 pub mod params;
 pub mod sim;

@@ -27,6 +27,7 @@ pub mod machine;
 pub mod report;
 pub mod run;
 pub mod servo_loop;
+pub mod spindle;
 pub mod stiffness;
 pub mod summary;
 pub mod sweep;
