@@ -329,3 +329,73 @@ fn budget_writes_data_and_plots() {
         assert!(dir.join("budget_psd.png").exists() && dir.join("budget_cas.svg").exists());
     }
 }
+
+#[test]
+fn machining_writes_the_recording_the_form_report_and_pictures() {
+    let dir = tmp("machine");
+    let mcap = tmp("machine.mcap");
+    let out = servo()
+        .args([
+            "machine",
+            "--json",
+            "--quiet",
+            "--radius-range",
+            "24.9975e-3:25e-3",
+        ])
+        .args(["--feedforward", "zpetc", "--out"])
+        .arg(&mcap)
+        .arg("--out-dir")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let report = json(&out);
+    // Half a revolution of the Table 8-5 grid at the part edge with ZPETC: the form is true
+    // to a few nm (the quantitative claims are in runner's machining tests).
+    assert!(
+        report["form_error_m"]["rms"].as_f64().unwrap() < 5e-9,
+        "{report}"
+    );
+    for f in ["machine.json", "form_map.csv", "trajectory.csv"] {
+        assert!(dir.join(f).exists(), "{f}");
+    }
+    let summary = json(
+        &servo()
+            .arg("inspect")
+            .arg(&mcap)
+            .arg("--json")
+            .output()
+            .unwrap(),
+    );
+    assert_eq!(summary["meta"]["scenario"], "machine");
+    fails_with(
+        &["machine", "--no-record", "--radius-range", "25e-3:24e-3"],
+        None,
+        &["--radius-range", "inner:outer"],
+    );
+    fails_with(
+        &[
+            "machine",
+            "--no-record",
+            "--surface",
+            "image",
+            "--image",
+            "/nonexistent.png",
+        ],
+        None,
+        &["scenario.surface.path", "/nonexistent.png", "PNG"],
+    );
+}
+
+#[test]
+fn spindle_errors_recovers_the_simulated_spindle() {
+    let dir = tmp("spindle");
+    let out = servo()
+        .args(["spindle-errors", "--json", "--per-rev", "2048", "--out-dir"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let r = json(&out);
+    let synth = r["synthesised"]["artefact_rms_error_m"].as_f64().unwrap();
+    assert!(synth < 0.01 * r["truth_rms_m"][0].as_f64().unwrap(), "{r}");
+    assert!(dir.join("harmonic_weighting.csv").exists());
+}

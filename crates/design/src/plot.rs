@@ -99,7 +99,11 @@ fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
         // Ten decades are plenty to read a spectrum; deeper values are clipped.
         ((lo / 1.5).max(hi * 1e-10), hi * 1.5)
     } else {
-        let pad = 0.05 * (hi - lo).max(hi.abs().max(1e-30));
+        let pad = if hi > lo {
+            0.05 * (hi - lo)
+        } else {
+            0.05 * hi.abs().max(1e-30)
+        };
         (lo - pad, hi + pad)
     }
 }

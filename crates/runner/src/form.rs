@@ -99,7 +99,7 @@ impl FormAnalysis {
         let c = &cfg.config;
         let surface = m.surface.load(cfg)?;
         let revolutions = c.run.duration_s * m.spindle_rpm / 60.0;
-        let rows = (revolutions.ceil() as usize).max(1);
+        let rows = ((revolutions - 1e-9).ceil() as usize).max(1);
         Ok(FormAnalysis {
             workpiece: Workpiece::new(m, surface.clone(), c.plant.period_s()),
             lambda_x_m: match &surface {

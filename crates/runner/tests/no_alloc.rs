@@ -1,0 +1,57 @@
+//! The tick of a machining run — encoder tracking, surface height with preview, ZPETC, the
+//! controller, and the simulated stage with the part's cutting force — allocates nothing.
+
+use daq_io::{Backend, Sensor};
+use runner::config::{FeedforwardKind, Loaded, Scenario};
+use runner::machine::{Machining, SurfaceConfig};
+use runner::servo_loop::{ServoLoop, SimBackend};
+use stats_alloc::{Region, StatsAlloc, INSTRUMENTED_SYSTEM};
+use std::alloc::System;
+
+#[global_allocator]
+static GLOBAL: &StatsAlloc<System> = &INSTRUMENTED_SYSTEM;
+
+#[test]
+fn machining_tick_allocates_nothing() {
+    for (surface, ff) in [
+        (SurfaceConfig::THESIS_GRID, FeedforwardKind::Zpetc),
+        (SurfaceConfig::THESIS_BEAM, FeedforwardKind::Model),
+    ] {
+        let mut cfg = Loaded::default();
+        cfg.config.scenario = Scenario::Machine(Machining {
+            surface,
+            finish_depth_m: None,
+            ..Machining::default()
+        });
+        cfg.config.controller.feedforward = ff;
+        let mut servo = ServoLoop::new(&cfg).unwrap();
+        let mut plant = SimBackend::for_run(&cfg).unwrap();
+        let mut sample = Sensor::default();
+        // Warm up past the first tick (which fills the preview window).
+        for _ in 0..10 {
+            let (cmd, _) = servo.tick(&sample);
+            sample = Sensor {
+                seq: sample.seq + 1,
+                ..plant.step(cmd.unwrap().dac_v)
+            };
+        }
+        let region = Region::new(GLOBAL);
+        let mut acc = 0.0;
+        for _ in 0..50_000 {
+            let (cmd, tel) = servo.tick(&sample);
+            acc += tel.map_or(0.0, |t| t.following_error_m);
+            sample = Sensor {
+                seq: sample.seq + 1,
+                ..plant.step(cmd.unwrap().dac_v)
+            };
+        }
+        let stats = region.change();
+        assert!(acc.is_finite());
+        assert!(sample.encoder_count > 0);
+        assert_eq!(
+            (stats.allocations, stats.reallocations),
+            (0, 0),
+            "{stats:?}"
+        );
+    }
+}
