@@ -583,6 +583,10 @@ struct Settings {
     /// Feedforward from the reference.
     #[arg(long, value_enum)]
     feedforward: Option<Ff>,
+    /// Zero-phase smoothing of the previewed reference in Hz (Hann window; 0 = off), for
+    /// surfaces with kinks or steps.
+    #[arg(long)]
+    smoothing_hz: Option<f64>,
     /// Noise sources on: comma list of sensor,current,base,accel, or `none` / `all`.
     #[arg(long)]
     noise: Option<String>,
@@ -656,6 +660,9 @@ impl Settings {
         }
         if let (Some(rpm), Scenario::Machine(m)) = (self.rpm, &mut c.scenario) {
             m.spindle_rpm = rpm;
+        }
+        if let Some(f) = self.smoothing_hz {
+            c.controller.smoothing_hz = f;
         }
         if let Some(f) = self.feedforward {
             c.controller.feedforward = match f {
@@ -891,6 +898,12 @@ fn machine(
     }
     if let Some(f) = report.max_motion_frequency_hz {
         println!("  fastest tool motion {f:.0} Hz at the outer radius");
+    }
+    if summary.saturated_ticks > 0 && cfg.config.controller.smoothing_hz == 0.0 {
+        println!(
+            "  note: the DAC saturated for {} ticks: the surface has kinks or steps the loop cannot follow; try --smoothing-hz 5000",
+            summary.saturated_ticks
+        );
     }
     if let Some(o) = rec.out() {
         println!("  wrote {}", o.display());

@@ -171,6 +171,11 @@ pub struct ControllerConfig {
     /// designed from the sampled closed-loop model, with the preview it needs; thesis §9.3.1's
     /// missing feedforward).
     pub feedforward: FeedforwardKind,
+    /// Zero-phase smoothing of the previewed trajectory before the controller and the
+    /// feedforward, in Hz: a Hann window of `rate / smoothing_hz` ticks (about its −6 dB
+    /// point), adding half of it to the preview. For surfaces with kinks or steps (beam
+    /// integrator, images) whose exact inverse would saturate the DAC; 0 = off.
+    pub smoothing_hz: f64,
 }
 
 /// Feedforward kinds (see [`ControllerConfig::feedforward`]).
@@ -201,6 +206,7 @@ impl Default for ControllerConfig {
             ss_file: None,
             limit_v: 10.0,
             feedforward: FeedforwardKind::None,
+            smoothing_hz: 0.0,
         }
     }
 }
@@ -397,6 +403,13 @@ impl RunConfig {
                 "controller.accel_filter_hz",
                 c.accel_filter_hz,
                 &format!("0 (none) or (0, {nyquist}) Hz"),
+            ));
+        }
+        if !(c.smoothing_hz == 0.0 || (c.smoothing_hz > 0.0 && c.smoothing_hz < nyquist)) {
+            return Err(at.invalid(
+                "controller.smoothing_hz",
+                c.smoothing_hz,
+                &format!("0 (off) or (0, {nyquist}) Hz"),
             ));
         }
         if c.kind == ControllerKind::Ss && c.ss_file.is_none() {

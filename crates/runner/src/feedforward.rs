@@ -3,8 +3,9 @@
 
 use crate::analysis::{input, output};
 use crate::config::{FeedforwardKind, Loaded};
+use crate::preview::MAX_PREVIEW;
 use crate::run::{closed_loop, RunError};
-use crate::servo_loop::{MAX_PREVIEW, ZPETC_SECTIONS};
+use crate::servo_loop::ZPETC_SECTIONS;
 use design::lti::StateSpace;
 use design::zpetc::{design, ZpetcDesign};
 use servo_core::{IirCoeffs, Zpetc, ZpetcConfig};

@@ -24,6 +24,7 @@ pub mod frf;
 pub mod hil;
 pub mod identify;
 pub mod machine;
+pub mod preview;
 pub mod report;
 pub mod run;
 pub mod servo_loop;

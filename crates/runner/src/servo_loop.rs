@@ -5,6 +5,7 @@
 use crate::config::{ConfigError, FeedforwardKind, Loaded, Scenario};
 use crate::controller::Controller;
 use crate::machine::{SurfaceReference, Workpiece};
+use crate::preview::{Window, MAX_PREVIEW};
 use crate::run::RunError;
 use crate::summary::SATURATED;
 use daq_io::{flags, Backend, Command, Sensor, Telemetry, Truth};
@@ -167,6 +168,20 @@ impl Source {
         }
     }
 
+    /// The trajectory from this tick to `out.len() − 1` ticks ahead, at the first tick.
+    fn prime(&mut self, s: &Sensor, out: &mut [f64]) {
+        match self {
+            Source::Zero => out.iter_mut().for_each(|v| *v = 0.0),
+            Source::Gen(g) => out.iter_mut().for_each(|v| *v = g.update(()).position),
+            Source::Surface(r) => {
+                r.track(s.encoder_count);
+                for (j, v) in out.iter_mut().enumerate() {
+                    *v = r.height_m(j);
+                }
+            }
+        }
+    }
+
     fn faulted(&self) -> bool {
         match self {
             Source::Zero => false,
@@ -176,32 +191,8 @@ impl Source {
     }
 }
 
-/// Largest preview in ticks (the ZPETC's delay plus its uninvertible zeros).
-pub const MAX_PREVIEW: usize = 62;
-
 /// Sections of the largest ZPETC filter the loop runs.
 pub const ZPETC_SECTIONS: usize = 12;
-
-/// The desired trajectory from one tick ago to `preview` ticks ahead: `y[j + 1] = y_d[k + j]`.
-struct Window {
-    y: [f64; MAX_PREVIEW + 2],
-    preview: usize,
-}
-
-impl Window {
-    #[inline]
-    fn push(&mut self, ahead: f64) {
-        let p = self.preview;
-        self.y.copy_within(1..=p + 1, 0);
-        self.y[p + 1] = ahead;
-    }
-
-    /// `y_d[k + j]`, j ∈ −1..=preview.
-    #[inline]
-    fn at(&self, j: isize) -> f64 {
-        self.y[(j + 1) as usize]
-    }
-}
 
 /// The feedforward of [`ServoLoop`].
 enum Feedforward {
@@ -274,27 +265,31 @@ impl ServoLoop {
     pub fn new(cfg: &Loaded) -> Result<Self, RunError> {
         let c = &cfg.config;
         let controller = Controller::build(cfg)?;
-        let mut source = Source::new(cfg)?;
+        let source = Source::new(cfg)?;
         let (feedforward, preview) = Feedforward::new(cfg)?;
-        let mut window = Window {
-            y: [0.0; MAX_PREVIEW + 2],
-            preview,
+        let rate = c.plant.timing.servo_rate_hz;
+        let smoothing = c.controller.smoothing_hz;
+        let half = if smoothing > 0.0 {
+            (rate / smoothing / 2.0).round() as usize
+        } else {
+            0
         };
-        let mut primed = false;
-        if let Source::Gen(_) = source {
-            // Generators start at tick 0: run them `preview` ticks ahead now.
-            let sample = Sensor::default();
-            for _ in 0..preview {
-                window.push(source.ahead(&sample, preview));
-            }
-            primed = true;
-        }
+        let window = Window::new(preview, half).ok_or_else(|| {
+            cfg.invalid(
+                "controller.smoothing_hz",
+                smoothing,
+                &format!(
+                    "0 (off) or ≥ {:.0} Hz (the preview holds {MAX_PREVIEW} ticks; the feedforward needs {preview})",
+                    rate / (2.0 * (MAX_PREVIEW - preview) as f64 + 1.0)
+                ),
+            )
+        })?;
         Ok(ServoLoop {
             controller,
             source,
             feedforward,
             window,
-            primed,
+            primed: false,
             r: 0.0,
             last_u: 0.0,
             gain_scale: 1.0,
@@ -314,23 +309,18 @@ impl ServoLoop {
         self.controller.faulted() || self.source.faulted() || self.feedforward.faulted()
     }
 
-    /// Reads this tick's reference into the window (the first tick of a surface fills it
-    /// from the tracked angle; the trajectory is taken as at rest before tick 0).
+    /// Reads this tick's reference into the window (the first tick fills it).
     #[inline]
     fn advance(&mut self, s: &Sensor) {
-        let p = self.window.preview;
-        let ahead = self.source.ahead(s, p);
+        let p = self.window.preview();
         if !self.primed {
             self.primed = true;
-            if let Source::Surface(r) = &self.source {
-                for j in 0..p {
-                    self.window.push(r.height_m(j));
-                }
-            }
-            self.window.push(ahead);
-            self.window.y[0] = self.window.y[1];
+            let mut ahead = [0.0; MAX_PREVIEW + 1];
+            self.source.prime(s, &mut ahead[..=p]);
+            self.window.prime(&ahead);
             return;
         }
+        let ahead = self.source.ahead(s, p);
         self.window.push(ahead);
     }
 
@@ -364,18 +354,18 @@ impl ServoLoop {
         let w = &self.window;
         let desired = w.at(0);
         let (reference, u_ff) = match &mut self.feedforward {
-            Feedforward::None => (desired, 0.0),
+            Feedforward::None => (w.smooth(0), 0.0),
             Feedforward::Model(ff) => {
                 let t = self.period_s;
-                let (prev, next) = (w.at(-1), w.at(1));
+                let (prev, now, next) = (w.smooth(-1), w.smooth(0), w.smooth(1));
                 let sp = servo_core::Setpoint {
-                    position: desired,
+                    position: now,
                     velocity: (next - prev) / (2.0 * t),
-                    acceleration: (next - 2.0 * desired + prev) / (t * t),
+                    acceleration: (next - 2.0 * now + prev) / (t * t),
                 };
-                (desired, ff.update(sp))
+                (now, ff.update(sp))
             }
-            Feedforward::Zpetc(z) => (z.update(w.at(w.preview as isize)), 0.0),
+            Feedforward::Zpetc(z) => (z.update(w.smooth(z.preview() as isize)), 0.0),
         };
         let raw = self
             .controller

@@ -1,0 +1,111 @@
+//! The previewed desired trajectory of a servo tick: a sliding window from the past to
+//! `preview` ticks ahead, and its zero-phase smoothing by a Hann window (for trajectories with
+//! kinks or steps — beam-integrator cell edges, image pixels — that no loop can follow and
+//! whose inverse would saturate the actuator). Fixed capacity: the tick never allocates.
+
+/// Most ticks of preview (feedforward preview plus half the smoothing window).
+pub const MAX_PREVIEW: usize = 62;
+
+const LEN: usize = 2 * MAX_PREVIEW + 2;
+
+/// `y_d[k + j]` for `j ∈ −past..=preview`, with Hann weights for smoothing.
+pub(crate) struct Window {
+    y: [f64; LEN],
+    past: usize,
+    preview: usize,
+    /// Normalised Hann weights `w[|i|]`, `i ∈ −half..=half`.
+    weights: [f64; MAX_PREVIEW + 1],
+    half: usize,
+}
+
+impl Window {
+    /// A window for a feedforward needing `lead` ticks of preview, smoothed over `2·half + 1`
+    /// ticks (0: none). None when the preview would exceed [`MAX_PREVIEW`].
+    pub(crate) fn new(lead: usize, half: usize) -> Option<Self> {
+        let preview = lead + half;
+        if preview > MAX_PREVIEW {
+            return None;
+        }
+        let mut weights = [0.0; MAX_PREVIEW + 1];
+        let n = (2 * half + 2) as f64;
+        for (i, w) in weights.iter_mut().enumerate().take(half + 1) {
+            // Hann over 2·half + 1 taps, endpoints (zero) excluded.
+            *w = 0.5 + 0.5 * (std::f64::consts::TAU * i as f64 / n).cos();
+        }
+        let sum = weights[0] + 2.0 * weights[1..=half].iter().sum::<f64>();
+        weights.iter_mut().for_each(|w| *w /= sum);
+        Some(Window {
+            y: [0.0; LEN],
+            past: half + 1,
+            preview,
+            weights,
+            half,
+        })
+    }
+
+    /// Ticks of preview the window needs.
+    pub(crate) fn preview(&self) -> usize {
+        self.preview
+    }
+
+    /// Fills the window at the first tick: `ahead[j] = y_d[j]` for `j = 0..=preview`; the
+    /// past is taken as at rest at `y_d[0]`.
+    pub(crate) fn prime(&mut self, ahead: &[f64]) {
+        let (past, p) = (self.past, self.preview);
+        self.y[past..=past + p].copy_from_slice(&ahead[..=p]);
+        let now = self.y[past];
+        self.y[..past].iter_mut().for_each(|v| *v = now);
+    }
+
+    /// Slides by one tick with `y_d[k + preview]`.
+    #[inline]
+    pub(crate) fn push(&mut self, ahead: f64) {
+        let last = self.past + self.preview;
+        self.y.copy_within(1..=last, 0);
+        self.y[last] = ahead;
+    }
+
+    /// `y_d[k + j]`.
+    #[inline]
+    pub(crate) fn at(&self, j: isize) -> f64 {
+        self.y[(self.past as isize + j) as usize]
+    }
+
+    /// The smoothed trajectory at `k + j` (needs `|j| + half` inside the window).
+    #[inline]
+    pub(crate) fn smooth(&self, j: isize) -> f64 {
+        let h = self.half as isize;
+        let mut acc = self.weights[0] * self.at(j);
+        for i in 1..=h {
+            acc += self.weights[i as usize] * (self.at(j - i) + self.at(j + i));
+        }
+        acc
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hann_smoothing_keeps_lines_and_has_unit_gain() {
+        let mut w = Window::new(1, 10).unwrap();
+        let ramp: Vec<f64> = (0..=w.preview()).map(|j| j as f64).collect();
+        w.prime(&ramp);
+        for k in 1..=30 {
+            w.push((w.preview() + k) as f64);
+        }
+        // After 30 pushes y_d[k + j] = 30 + j: a straight line is unchanged by a symmetric
+        // window with unit sum.
+        for j in -1..=1 {
+            assert!((w.smooth(j) - (30.0 + j as f64)).abs() < 1e-12);
+        }
+        assert_eq!(w.at(0), 30.0);
+    }
+
+    #[test]
+    fn preview_beyond_capacity_is_refused() {
+        assert!(Window::new(3, MAX_PREVIEW - 2).is_none());
+        assert!(Window::new(2, MAX_PREVIEW - 2).is_some());
+    }
+}
