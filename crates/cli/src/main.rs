@@ -406,6 +406,23 @@ enum Command {
         #[arg(long, default_value = "stiffness")]
         out_dir: PathBuf,
     },
+    /// The intermittent cut of §7.6 for a list of acceleration gains: peak following error
+    /// and the form-error height at the step edge per Ka (thesis: 75 → 25 nm and 106 → 27 nm
+    /// for Ka 0 → 4). The acceleration loop needs a shaping filter Ha that keeps its phase:
+    /// Example: servo intermittent-cut --mass heavy --kg-scaling --accel-filter-hz 300 --accel-filter-order 1
+    IntermittentCut {
+        #[command(flatten)]
+        settings: Settings,
+        /// Acceleration gains (V/V).
+        #[arg(long, value_delimiter = ',', default_value = "0,0.5,1,4")]
+        kas: Vec<f64>,
+        /// Output directory for CSV and JSON.
+        #[arg(long, default_value = "intermittent")]
+        out_dir: PathBuf,
+        /// Print the table as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Design an H2-optimal controller and write a controller file (thesis Ch. 6).
     ///
     /// `h2`: the H2-optimal controller on the simulator's exact discrete
@@ -580,6 +597,12 @@ struct Settings {
     /// Spindle speed in rpm (intermittent-cut, machine).
     #[arg(long)]
     rpm: Option<f64>,
+    /// Corner of the acceleration shaping filter Ha in Hz (0: none).
+    #[arg(long)]
+    accel_filter_hz: Option<f64>,
+    /// Order of Ha: 1 or 2.
+    #[arg(long)]
+    accel_filter_order: Option<u8>,
     /// Feedforward from the reference.
     #[arg(long, value_enum)]
     feedforward: Option<Ff>,
@@ -660,6 +683,12 @@ impl Settings {
         }
         if let (Some(rpm), Scenario::Machine(m)) = (self.rpm, &mut c.scenario) {
             m.spindle_rpm = rpm;
+        }
+        if let Some(f) = self.accel_filter_hz {
+            c.controller.accel_filter_hz = f;
+        }
+        if let Some(o) = self.accel_filter_order {
+            c.controller.accel_filter_order = o;
         }
         if let Some(f) = self.smoothing_hz {
             c.controller.smoothing_hz = f;
@@ -1171,6 +1200,43 @@ fn frf(
     Ok(())
 }
 
+fn intermittent(s: &Settings, kas: &[f64], dir: &Path, json: bool) -> Result<(), RunError> {
+    let mut cfg = s.resolve()?;
+    if !matches!(cfg.config.scenario, Scenario::IntermittentCut { .. }) {
+        cfg.config.scenario = Scenario::IntermittentCut {
+            force_n: s.force.unwrap_or(1.0),
+            spindle_rpm: s.rpm.unwrap_or(250.0),
+        };
+    }
+    if s.duration.is_none() {
+        cfg.config.run.duration_s = 0.5;
+    }
+    let rows = runner::intermittent::study(&cfg, kas)?;
+    let written =
+        runner::report::intermittent(&rows, dir).map_err(|e| RunError::Plant(e.to_string()))?;
+    if json {
+        print_json(&rows);
+        return Ok(());
+    }
+    println!("Intermittent cut (§7.6): force steps twice per revolution");
+    println!(
+        "  {:>5} {:>8} {:>22} {:>22} {:>16}",
+        "Ka", "PID ×", "peak following (nm)", "edge form error (nm)", "following RMS"
+    );
+    for r in &rows {
+        println!(
+            "  {:>5} {:>8.3} {:>22.1} {:>22.1} {:>16.1}",
+            r.ka,
+            r.pid_scale,
+            r.peak_following_error_m * 1e9,
+            r.edge_form_error_m * 1e9,
+            r.following_rms_m * 1e9
+        );
+    }
+    print_written(&written);
+    Ok(())
+}
+
 fn stiffness(s: &Settings, kas: &[f64], to: f64, dir: &Path) -> Result<(), RunError> {
     let cfg = s.resolve()?;
     let freqs = design::spectral::log_space(10.0, to, 200);
@@ -1473,6 +1539,12 @@ fn main() -> ExitCode {
             method,
             &out_dir,
         )),
+        Command::IntermittentCut {
+            settings,
+            kas,
+            out_dir,
+            json,
+        } => done(intermittent(&settings, &kas, &out_dir, json)),
         Command::Stiffness {
             settings,
             kas,

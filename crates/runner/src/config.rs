@@ -159,8 +159,11 @@ pub struct ControllerConfig {
     pub ka: f64,
     /// Multiply the PID gains by 1/Kg (§7.4.1) so reference tracking stays unchanged.
     pub kg_scaling: bool,
-    /// Corner of the acceleration shaping filter Ha (2nd-order Butterworth) in Hz; 0 = none.
+    /// Corner of the acceleration shaping filter Ha in Hz; 0 = none.
     pub accel_filter_hz: f64,
+    /// Order of Ha: 1 (first-order low pass: the inner acceleration loop keeps its phase, so
+    /// large Ka stays stable) or 2 (Butterworth).
+    pub accel_filter_order: u8,
     /// Controller file for `ss` (TOML: sample_rate_hz, a, b, c, d), relative to the config file.
     pub ss_file: Option<PathBuf>,
     /// Output limit ±V (the ±10 V DAC).
@@ -203,6 +206,7 @@ impl Default for ControllerConfig {
             ka: 0.0,
             kg_scaling: false,
             accel_filter_hz: 0.0,
+            accel_filter_order: 2,
             ss_file: None,
             limit_v: 10.0,
             feedforward: FeedforwardKind::None,
@@ -403,6 +407,13 @@ impl RunConfig {
                 "controller.accel_filter_hz",
                 c.accel_filter_hz,
                 &format!("0 (none) or (0, {nyquist}) Hz"),
+            ));
+        }
+        if !(1..=2).contains(&c.accel_filter_order) {
+            return Err(at.invalid(
+                "controller.accel_filter_order",
+                c.accel_filter_order,
+                "1 or 2",
             ));
         }
         if !(c.smoothing_hz == 0.0 || (c.smoothing_hz > 0.0 && c.smoothing_hz < nyquist)) {

@@ -220,9 +220,13 @@ impl Controller {
             },
             ControllerKind::Accel => {
                 let ha = if c.accel_filter_hz > 0.0 {
-                    BiquadDesign::LowPass {
-                        f0_hz: c.accel_filter_hz,
-                        q: std::f64::consts::FRAC_1_SQRT_2,
+                    let f0_hz = c.accel_filter_hz;
+                    match c.accel_filter_order {
+                        1 => BiquadDesign::FirstOrderLowPass { f0_hz },
+                        _ => BiquadDesign::LowPass {
+                            f0_hz,
+                            q: std::f64::consts::FRAC_1_SQRT_2,
+                        },
                     }
                     .try_coeffs(period)
                     .map_err(|e| invalid(cfg, "controller.accel_filter_hz", e))?

@@ -23,6 +23,7 @@ pub mod form;
 pub mod frf;
 pub mod hil;
 pub mod identify;
+pub mod intermittent;
 pub mod machine;
 pub mod preview;
 pub mod report;

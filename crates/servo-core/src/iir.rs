@@ -197,6 +197,11 @@ impl<const M: usize> Block for BiquadCascade<M> {
 /// (and `H_d(e^{jωT}) = H_a(j·K·tan(ωT/2))` with `K = ω0 / tan(ω0·T/2)` everywhere).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BiquadDesign {
+    /// First-order `ω0 / (s + ω0)` (a biquad with `b2 = a2 = 0`).
+    FirstOrderLowPass {
+        /// Corner frequency in Hz.
+        f0_hz: f64,
+    },
     /// `ω0² / (s² + (ω0/Q)s + ω0²)`.
     LowPass {
         /// Corner frequency in Hz.
@@ -235,19 +240,21 @@ impl BiquadDesign {
         let (f0, q) = self.f0_q();
         let w0 = 2.0 * PI * f0;
         let den = [1.0, w0 / q, w0 * w0];
-        let num = match *self {
-            BiquadDesign::LowPass { .. } => [0.0, 0.0, w0 * w0],
-            BiquadDesign::HighPass { .. } => [1.0, 0.0, 0.0],
-            BiquadDesign::Notch { .. } => [1.0, 0.0, w0 * w0],
-            BiquadDesign::Peak { gain_db, .. } => {
-                [1.0, libm::pow(10.0, gain_db / 20.0) * w0 / q, w0 * w0]
-            }
-        };
-        (num, den)
+        match *self {
+            BiquadDesign::FirstOrderLowPass { .. } => ([0.0, 0.0, w0], [0.0, 1.0, w0]),
+            BiquadDesign::LowPass { .. } => ([0.0, 0.0, w0 * w0], den),
+            BiquadDesign::HighPass { .. } => ([1.0, 0.0, 0.0], den),
+            BiquadDesign::Notch { .. } => ([1.0, 0.0, w0 * w0], den),
+            BiquadDesign::Peak { gain_db, .. } => (
+                [1.0, libm::pow(10.0, gain_db / 20.0) * w0 / q, w0 * w0],
+                den,
+            ),
+        }
     }
 
     fn f0_q(&self) -> (f64, f64) {
         match *self {
+            BiquadDesign::FirstOrderLowPass { f0_hz } => (f0_hz, 1.0),
             BiquadDesign::LowPass { f0_hz, q }
             | BiquadDesign::HighPass { f0_hz, q }
             | BiquadDesign::Notch { f0_hz, q }
@@ -276,14 +283,21 @@ impl BiquadDesign {
 }
 
 /// Bilinear map of `(n0 s² + n1 s + n2)/(d0 s² + d1 s + d2)` with `s = K(1 − z⁻¹)/(1 + z⁻¹)`.
+/// A first-order prototype (`n0 = d0 = 0`) maps to `b2 = a2 = 0`: multiplying by
+/// `(1 + z⁻¹)²` would add a cancelling pole-zero pair at z = −1 (an undamped Nyquist mode).
 fn bilinear(num: [f64; 3], den: [f64; 3], k: f64) -> IirCoeffs<2> {
     let k2 = k * k;
+    let first_order = num[0] == 0.0 && den[0] == 0.0;
     let map = |p: [f64; 3]| {
-        [
-            p[0] * k2 + p[1] * k + p[2],
-            2.0 * (p[2] - p[0] * k2),
-            p[0] * k2 - p[1] * k + p[2],
-        ]
+        if first_order {
+            [p[1] * k + p[2], p[2] - p[1] * k, 0.0]
+        } else {
+            [
+                p[0] * k2 + p[1] * k + p[2],
+                2.0 * (p[2] - p[0] * k2),
+                p[0] * k2 - p[1] * k + p[2],
+            ]
+        }
     };
     let (n, d) = (map(num), map(den));
     IirCoeffs::new(
@@ -350,6 +364,7 @@ mod tests {
                 f0_hz: 1600.0,
                 q: 5.0,
             },
+            BiquadDesign::FirstOrderLowPass { f0_hz: 300.0 },
             BiquadDesign::Peak {
                 f0_hz: 7748.0,
                 q: 10.0,
@@ -390,6 +405,18 @@ mod tests {
             // Tolerance relative to the unit passband gain (a notch's exact value is zero).
             assert!((dig.abs() - exact.abs()).abs() < 1e-9, "{d:?}");
         }
+    }
+
+    /// A first-order design is a true first-order section: no pole (or zero) at z = −1.
+    #[test]
+    fn first_order_low_pass_has_one_pole() {
+        let c = BiquadDesign::FirstOrderLowPass { f0_hz: 300.0 }
+            .try_coeffs(T)
+            .unwrap();
+        assert_eq!((c.b[1], c.a[1]), (0.0, 0.0));
+        let pole = -c.a[0];
+        assert!((pole - libm::exp(-2.0 * PI * 300.0 * T)).abs() < 1e-4);
+        assert!((c.dc_gain() - 1.0).abs() < 1e-12);
     }
 
     /// The running filter's steady-state sine response equals H(e^{jω}) in magnitude and phase.
