@@ -350,7 +350,7 @@ mod tests {
 
     const T: f64 = 1.0 / 199_600.0;
 
-    fn designs() -> [BiquadDesign; 5] {
+    fn designs() -> [BiquadDesign; 6] {
         [
             BiquadDesign::LowPass {
                 f0_hz: 15e3,
