@@ -7,7 +7,7 @@ use plant_sim::params::{NoiseParams, StageParams};
 use runner::analysis::Budget;
 use runner::config::{ConfigError, ControllerKind, FeedforwardKind, Loaded, Scenario};
 use runner::machine::{Machining, SurfaceConfig};
-use runner::run::{closed_loop, inspect, run, RunError, RunOptions};
+use runner::run::{closed_loop, run, RunError, RunOptions};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -904,6 +904,41 @@ fn machine(
         return Ok(());
     }
     print_summary(&summary, false);
+    print_form(&report);
+    if summary.saturated_ticks > 0 && cfg.config.controller.smoothing_hz == 0.0 {
+        println!(
+            "  note: the DAC saturated for {} ticks: the surface has kinks or steps the loop cannot follow; try --smoothing-hz 5000",
+            summary.saturated_ticks
+        );
+    }
+    if let Some(o) = rec.out() {
+        println!("  wrote {}", o.display());
+    }
+    print_written(&written);
+    Ok(())
+}
+
+/// `servo inspect`: the summary of a recording, and the form report of a machining run.
+fn inspect_file(file: &Path, json: bool) -> Result<(), RunError> {
+    let (loaded, rec) = runner::run::read_run(file)?;
+    let summary = runner::run::summarise(&loaded, &rec);
+    let form = runner::form::from_recording(&loaded, &rec)?.map(|a| a.report());
+    if json {
+        match form {
+            Some(f) => print_json(&serde_json::json!({ "summary": summary, "form": f })),
+            None => print_json(&summary),
+        }
+        return Ok(());
+    }
+    print_summary(&summary, false);
+    if let Some(f) = &form {
+        print_form(f);
+    }
+    Ok(())
+}
+
+/// The form report of a machining run, in a few lines.
+fn print_form(report: &runner::form::FormReport) {
     let nm = |v: f64| v * 1e9;
     println!(
         "  machined band {:.3}–{:.3} mm ({:.1} revolutions)",
@@ -928,17 +963,6 @@ fn machine(
     if let Some(f) = report.max_motion_frequency_hz {
         println!("  fastest tool motion {f:.0} Hz at the outer radius");
     }
-    if summary.saturated_ticks > 0 && cfg.config.controller.smoothing_hz == 0.0 {
-        println!(
-            "  note: the DAC saturated for {} ticks: the surface has kinks or steps the loop cannot follow; try --smoothing-hz 5000",
-            summary.saturated_ticks
-        );
-    }
-    if let Some(o) = rec.out() {
-        println!("  wrote {}", o.display());
-    }
-    print_written(&written);
-    Ok(())
 }
 
 fn spindle_errors(
@@ -1669,13 +1693,7 @@ fn main() -> ExitCode {
             Err(code) => code,
         },
         Command::Ctl { prefix, action } => hil::ctl(&prefix, action.message()),
-        Command::Inspect { file, json } => match inspect(&file) {
-            Ok(s) => {
-                print_summary(&s, json);
-                ExitCode::SUCCESS
-            }
-            Err(e) => fail(e, 1),
-        },
+        Command::Inspect { file, json } => done(inspect_file(&file, json)),
         Command::Config {
             settings,
             dump: _,

@@ -37,9 +37,32 @@ fn assert_same_recording(a: &Path, b: &Path) {
     assert_eq!(first_diff, None, "frames differ");
 }
 
+/// `servo run --hil` (lockstep) of `common` records what `servo run` records, frame for frame.
+fn hil_equals_in_process(tag: &str, common: &[&str], seconds: f64) {
+    let (a, b) = (
+        tmp(&format!("{tag}-inproc.mcap")),
+        tmp(&format!("{tag}-hil.mcap")),
+    );
+    let inproc = run_ok(&[&["run", "--out", a.to_str().unwrap()][..], common].concat());
+    let p = prefix(tag);
+    let hil = run_ok(
+        &[
+            &["run", "--hil", "--prefix", &p, "--out", b.to_str().unwrap()][..],
+            common,
+        ]
+        .concat(),
+    );
+    assert_same_recording(&a, &b);
+    for key in ["following_error_m", "true_error_m", "control_v"] {
+        assert_eq!(inproc[key], hil[key], "{key}");
+    }
+    assert_eq!(hil["meta"]["dropped_frames"], 0);
+    assert_eq!(hil["meta"]["hil"]["faults"], 0);
+    assert_eq!(hil["ticks"], (seconds * 199_600.0).round() as u64);
+}
+
 #[test]
 fn lockstep_hil_equals_the_in_process_run_bit_for_bit() {
-    let (a, b) = (tmp("inproc.mcap"), tmp("hil.mcap"));
     let common = [
         "--duration",
         "0.3",
@@ -50,22 +73,24 @@ fn lockstep_hil_equals_the_in_process_run_bit_for_bit() {
         "-q",
         "--json",
     ];
-    let inproc = run_ok(&[&["run", "--out", a.to_str().unwrap()][..], &common].concat());
-    let p = prefix("bits");
-    let hil = run_ok(
-        &[
-            &["run", "--hil", "--prefix", &p, "--out", b.to_str().unwrap()][..],
-            &common,
-        ]
-        .concat(),
-    );
-    assert_same_recording(&a, &b);
-    for key in ["following_error_m", "true_error_m", "control_v"] {
-        assert_eq!(inproc[key], hil[key], "{key}");
-    }
-    assert_eq!(hil["meta"]["dropped_frames"], 0);
-    assert_eq!(hil["meta"]["hil"]["faults"], 0);
-    assert_eq!(hil["ticks"], (0.3f64 * 199_600.0).round() as u64);
+    hil_equals_in_process("bits", &common, 0.3);
+}
+
+/// Machining over shared memory: the plant's encoder count crosses the process boundary and
+/// the controller's tracker, surface and ZPETC compute the same commands.
+#[test]
+fn lockstep_hil_machining_with_zpetc_equals_the_in_process_run() {
+    let common = [
+        "--duration",
+        "0.2",
+        "--scenario",
+        "machine",
+        "--feedforward",
+        "zpetc",
+        "-q",
+        "--json",
+    ];
+    hil_equals_in_process("machine", &common, 0.2);
 }
 
 #[test]

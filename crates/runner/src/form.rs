@@ -249,3 +249,16 @@ pub fn run_machining(
     let summary = crate::run::run_with(cfg, opts, |f| analysis.add(f))?;
     Ok((summary, analysis))
 }
+
+/// The form analysis of a machining recording of `loaded` (None for other scenarios).
+pub fn from_recording(
+    loaded: &Loaded,
+    rec: &recorder::Recording,
+) -> Result<Option<FormAnalysis>, crate::config::ConfigError> {
+    let crate::config::Scenario::Machine(m) = &loaded.config.scenario else {
+        return Ok(None);
+    };
+    let mut a = FormAnalysis::new(loaded, m)?;
+    rec.frames.iter().for_each(|f| a.add(f));
+    Ok(Some(a))
+}

@@ -291,8 +291,8 @@ pub(crate) fn metadata(cfg: &Loaded) -> BTreeMap<String, String> {
     ])
 }
 
-/// Recomputes the summary of a recording written by [`run`].
-pub fn inspect(path: &Path) -> Result<Summary, RunError> {
+/// A recording written by [`run`] and the configuration it was run with.
+pub fn read_run(path: &Path) -> Result<(Loaded, recorder::Recording), RunError> {
     let rec = recorder::read(path)?;
     let text = rec
         .metadata
@@ -302,19 +302,33 @@ pub fn inspect(path: &Path) -> Result<Summary, RunError> {
         path: path.to_owned(),
         message: e.to_string(),
     })?;
+    Ok((
+        Loaded {
+            config: cfg,
+            ..Default::default()
+        },
+        rec,
+    ))
+}
+
+/// Recomputes the summary of a recording written by [`run`].
+pub fn inspect(path: &Path) -> Result<Summary, RunError> {
+    let (loaded, rec) = read_run(path)?;
+    Ok(summarise(&loaded, &rec))
+}
+
+/// The summary of the recording `rec` of a run of `loaded`.
+pub fn summarise(loaded: &Loaded, rec: &recorder::Recording) -> Summary {
+    let cfg = &loaded.config;
     let mut b = SummaryBuilder::new(cfg.run.settle());
     rec.frames.iter().for_each(|f| b.add(f));
-    let loaded = Loaded {
-        config: cfg.clone(),
-        ..Default::default()
-    };
-    let controller = Controller::build(&loaded)
+    let controller = Controller::build(loaded)
         .map(|c| c.description)
         .unwrap_or_else(|_| format!("{:?}", cfg.controller.kind));
     let expected = cfg.ticks();
-    Ok(b.finish(RunMeta {
+    b.finish(RunMeta {
         interrupted: (rec.frames.len() as u64) < expected,
         recorded_messages: Some(rec.messages),
-        ..meta(&cfg, controller)
-    }))
+        ..meta(cfg, controller)
+    })
 }
