@@ -6,7 +6,7 @@
 use crate::config::{ConfigError, Loaded};
 use serde::{Deserialize, Serialize};
 use servo_core::surface::{BeamIntegrator, HeightMap, MicroLenslet, SinusoidalGrid, Surface};
-use servo_core::{Block, SpindleTracker, SpindleTrackerConfig, Spiral};
+use servo_core::{Block, Encoder, SpindleTracker, SpindleTrackerConfig, Spiral};
 use std::f64::consts::TAU;
 use std::path::PathBuf;
 
@@ -341,7 +341,7 @@ pub struct Workpiece {
     surface: LoadedSurface,
     spiral: Spiral,
     rad_per_tick: f64,
-    counts_per_rad: f64,
+    encoder: Encoder,
     cutting_n_per_m: f64,
     peak_m: f64,
     finish_depth_m: Option<f64>,
@@ -355,7 +355,9 @@ impl Workpiece {
             surface,
             spiral: m.spiral(),
             rad_per_tick: m.rad_per_s() * period_s,
-            counts_per_rad: m.pulses_per_rev as f64 / TAU,
+            encoder: Encoder {
+                pulses_per_rev: m.pulses_per_rev,
+            },
             cutting_n_per_m: m.cutting_n_per_m,
             finish_depth_m: m.finish_depth_m,
         }
@@ -370,7 +372,7 @@ impl Workpiece {
     /// The encoder count at the start of tick `k`.
     #[inline]
     pub fn encoder_count(&self, k: u64) -> u64 {
-        (self.angle_rad(k) * self.counts_per_rad) as u64
+        self.encoder.count_at(self.angle_rad(k))
     }
 
     /// Design height in m under the tool at spindle angle `theta_rad`.

@@ -137,11 +137,6 @@ impl<const M: usize> Zpetc<M> {
     pub fn preview(&self) -> usize {
         self.preview
     }
-
-    /// Gain at DC (1 for a design matched to its loop).
-    pub fn dc_gain(&self) -> f64 {
-        self.gain * self.filter.dc_gain()
-    }
 }
 
 impl<const M: usize> Block for Zpetc<M> {

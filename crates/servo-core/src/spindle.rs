@@ -28,6 +28,18 @@ impl Encoder {
         let n = self.pulses_per_rev.max(1);
         (count % n) as f64 * (TAU / n as f64)
     }
+
+    /// One pulse in rad.
+    #[inline]
+    pub fn rad_per_count(&self) -> f64 {
+        TAU / self.pulses_per_rev.max(1) as f64
+    }
+
+    /// The count the encoder shows at the unwrapped angle `angle_rad` ≥ 0 (pulses since 0).
+    #[inline]
+    pub fn count_at(&self, angle_rad: f64) -> u64 {
+        (angle_rad * (self.pulses_per_rev as f64 / TAU)) as u64
+    }
 }
 
 /// Configuration of a [`SpindleTracker`].
@@ -49,8 +61,11 @@ impl SpindleTrackerConfig {
         check_range("pulses_per_rev", self.pulses_per_rev as f64, 1.0, 1e9)?;
         let rpm = check_range("speed_rpm", self.speed_rpm, -1e6, 1e6)?;
         let wn = TAU * check_range("bandwidth_hz", self.bandwidth_hz, 1e-3, 0.05 / t)? * t;
+        let encoder = Encoder {
+            pulses_per_rev: self.pulses_per_rev,
+        };
         Ok(SpindleTracker {
-            rad_per_count: TAU / self.pulses_per_rev as f64,
+            rad_per_count: encoder.rad_per_count(),
             period_s: t,
             gain_angle: 2.0 * core::f64::consts::FRAC_1_SQRT_2 * wn,
             gain_rate: wn * wn,
