@@ -27,42 +27,78 @@ fn sqrt_factor(p: &DMatrix<f64>) -> DMatrix<f64> {
     d * e.eigenvectors.transpose()
 }
 
+/// The balancing of a stable discrete system, computed once (two gramians and an SVD) and
+/// truncated to any order.
+pub struct Balancing<'a> {
+    sys: &'a StateSpace,
+    /// `Wc = RᵀR`, `Wo = LᵀL`.
+    r: DMatrix<f64>,
+    l: DMatrix<f64>,
+    u: DMatrix<f64>,
+    vt: DMatrix<f64>,
+    s: nalgebra::DVector<f64>,
+    /// State indices by descending Hankel singular value.
+    idx: Vec<usize>,
+}
+
+impl<'a> Balancing<'a> {
+    /// Balances `sys`.
+    pub fn new(sys: &'a StateSpace) -> Result<Self, LtiError> {
+        let n = sys.nx();
+        let (wc, _) = dlyap(&sys.a, &(&sys.b * sys.b.transpose()))?;
+        let (wo, _) = dlyap(&sys.a.transpose(), &(sys.c.transpose() * &sys.c))?;
+        let (r, l) = (sqrt_factor(&wc), sqrt_factor(&wo));
+        let svd = (&l * r.transpose()).svd(true, true);
+        let (u, vt, s) = (
+            svd.u.expect("requested"),
+            svd.v_t.expect("requested"),
+            svd.singular_values,
+        );
+        let mut idx: Vec<usize> = (0..n).collect();
+        idx.sort_by(|&i, &j| s[j].total_cmp(&s[i]));
+        Ok(Balancing {
+            sys,
+            r,
+            l,
+            u,
+            vt,
+            s,
+            idx,
+        })
+    }
+
+    /// The reduced model of `order` states (at most all of them).
+    pub fn truncate(&self, order: usize) -> Reduced {
+        let (sys, n) = (self.sys, self.sys.nx());
+        let order = order.min(n);
+        let (r, l, u, vt, s) = (&self.r, &self.l, &self.u, &self.vt, &self.s);
+        let hankel: Vec<f64> = self.idx.iter().map(|&i| s[i]).collect();
+        let keep = &self.idx[..order];
+        // T = Rᵀ V Σ^{-1/2}, T⁻¹ = Σ^{-1/2} Uᵀ L (kept columns / rows only).
+        let t = DMatrix::from_fn(n, order, |i, k| {
+            let j = keep[k];
+            (0..n).map(|m| r[(m, i)] * vt[(j, m)]).sum::<f64>() / s[j].sqrt()
+        });
+        let ti = DMatrix::from_fn(order, n, |k, i| {
+            let j = keep[k];
+            (0..n).map(|m| u[(m, j)] * l[(m, i)]).sum::<f64>() / s[j].sqrt()
+        });
+        Reduced {
+            sys: StateSpace {
+                a: &ti * &sys.a * &t,
+                b: &ti * &sys.b,
+                c: &sys.c * &t,
+                d: sys.d.clone(),
+            },
+            error_bound: 2.0 * hankel[order..].iter().sum::<f64>(),
+            hankel,
+        }
+    }
+}
+
 /// Balanced truncation of a stable discrete `sys` to `order` states.
 pub fn balanced_truncation(sys: &StateSpace, order: usize) -> Result<Reduced, LtiError> {
-    let n = sys.nx();
-    let order = order.min(n);
-    let (wc, _) = dlyap(&sys.a, &(&sys.b * sys.b.transpose()))?;
-    let (wo, _) = dlyap(&sys.a.transpose(), &(sys.c.transpose() * &sys.c))?;
-    let (r, l) = (sqrt_factor(&wc), sqrt_factor(&wo)); // Wc = RᵀR, Wo = LᵀL
-    let svd = (&l * r.transpose()).svd(true, true);
-    let (u, vt, s) = (
-        svd.u.expect("requested"),
-        svd.v_t.expect("requested"),
-        svd.singular_values,
-    );
-    let mut idx: Vec<usize> = (0..n).collect();
-    idx.sort_by(|&i, &j| s[j].total_cmp(&s[i]));
-    let hankel: Vec<f64> = idx.iter().map(|&i| s[i]).collect();
-    let keep = &idx[..order];
-    // T = Rᵀ V Σ^{-1/2}, T⁻¹ = Σ^{-1/2} Uᵀ L (kept columns / rows only).
-    let t = DMatrix::from_fn(n, order, |i, k| {
-        let j = keep[k];
-        (0..n).map(|m| r[(m, i)] * vt[(j, m)]).sum::<f64>() / s[j].sqrt()
-    });
-    let ti = DMatrix::from_fn(order, n, |k, i| {
-        let j = keep[k];
-        (0..n).map(|m| u[(m, j)] * l[(m, i)]).sum::<f64>() / s[j].sqrt()
-    });
-    Ok(Reduced {
-        sys: StateSpace {
-            a: &ti * &sys.a * &t,
-            b: &ti * &sys.b,
-            c: &sys.c * &t,
-            d: sys.d.clone(),
-        },
-        error_bound: 2.0 * hankel[order..].iter().sum::<f64>(),
-        hankel,
-    })
+    Ok(Balancing::new(sys)?.truncate(order))
 }
 
 #[cfg(test)]

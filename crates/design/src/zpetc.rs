@@ -17,7 +17,7 @@
 //! near z = 1) lose most of their digits.
 
 use crate::lti::{eigenvalues, LtiError, StateSpace};
-use crate::reduce::balanced_truncation;
+use crate::reduce::Balancing;
 use num_complex::Complex64;
 
 /// Zeros of `T` inside this radius on the negative real half-plane are inverted; beyond it they
@@ -104,9 +104,10 @@ pub fn design(
         .map(|&f| Ok(sys.freq_response_discrete(f, period_s)?[(0, 0)]))
         .collect::<Result<_, LtiError>>()?;
     let dc_full = sys.freq_response_discrete(0.0, period_s)?[(0, 0)].re;
+    let balancing = Balancing::new(sys)?;
     let mut best = f64::INFINITY;
     for order in 1..=max_order.min(sys.nx()) {
-        let reduced = balanced_truncation(sys, order)?.sys;
+        let reduced = balancing.truncate(order).sys;
         let Some(zpk) = Zpk::of(&reduced) else {
             continue;
         };
@@ -133,6 +134,8 @@ struct Zpk {
     k: f64,
     zeros: Vec<Complex64>,
     poles: Vec<Complex64>,
+    /// `T(1)`.
+    dc: f64,
 }
 
 impl Zpk {
@@ -168,6 +171,7 @@ impl Zpk {
             k: dc / shape.re,
             zeros,
             poles,
+            dc,
         })
     }
 
@@ -200,9 +204,8 @@ impl Zpk {
                 [b0 / dc, b1 / dc, b2 / dc, a1, a2]
             })
             .collect();
-        let dc_reduced = self.response(0.0, 1.0).re;
         ZpetcDesign {
-            gain: gain * dc_reduced / dc_full,
+            gain: gain * self.dc / dc_full,
             sections,
             preview: d + rejected.len(),
             order,
