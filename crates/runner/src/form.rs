@@ -4,11 +4,12 @@
 //! peak-to-valley), and a segment of commanded vs true tool trajectory (Figs 8-15, 8-20).
 
 use crate::config::Loaded;
-use crate::machine::{LoadedSurface, Machining, Workpiece};
+use crate::machine::{LoadedSurface, Machining, SpiralCut};
 use crate::summary::{Acc, Stats};
 use nalgebra::{SMatrix, SVector};
 use recorder::Frame;
 use serde::Serialize;
+use servo_core::surface::SinusoidalGrid;
 use std::f64::consts::TAU;
 
 /// Angular bins of the form-error map per revolution (0.1°).
@@ -71,13 +72,10 @@ pub struct SegmentRow {
 
 /// Accumulates a [`FormReport`], the form-error map and the segment, frame by frame.
 pub struct FormAnalysis {
-    workpiece: Workpiece,
-    surface: LoadedSurface,
+    cut: SpiralCut,
+    grid: Option<SinusoidalGrid>,
     rad_per_s: f64,
     settle_s: f64,
-    start_radius_m: f64,
-    feed_m_per_rev: f64,
-    lambda_x_m: Option<f64>,
     form: Acc,
     range: (f64, f64),
     following: Acc,
@@ -101,16 +99,13 @@ impl FormAnalysis {
         let revolutions = c.run.duration_s * m.spindle_rpm / 60.0;
         let rows = ((revolutions - 1e-9).ceil() as usize).max(1);
         Ok(FormAnalysis {
-            workpiece: Workpiece::new(m, surface.clone(), c.plant.period_s()),
-            lambda_x_m: match &surface {
-                LoadedSurface::Grid(g) => Some(g.lambda_x_m),
+            grid: match surface {
+                LoadedSurface::Grid(g) => Some(g),
                 _ => None,
             },
-            surface,
+            cut: SpiralCut::new(m, surface),
             rad_per_s: m.rad_per_s(),
             settle_s: c.run.settle(),
-            start_radius_m: m.start_radius_m,
-            feed_m_per_rev: m.feed_m_per_rev,
             form: Acc::default(),
             range: (f64::INFINITY, f64::NEG_INFINITY),
             following: Acc::default(),
@@ -134,7 +129,7 @@ impl FormAnalysis {
             return;
         }
         let theta = self.rad_per_s * t;
-        let design = self.workpiece.design_m(theta);
+        let design = self.cut.height_m(theta);
         let tool = f.truth.tool_m as f64;
         let e = tool - design;
         self.form.add(e);
@@ -148,8 +143,8 @@ impl FormAnalysis {
         let col = ((turns.fract() * MAP_COLUMNS as f64) as usize).min(MAP_COLUMNS - 1);
         self.map_sum[row * MAP_COLUMNS + col] += e;
         self.map_count[row * MAP_COLUMNS + col] += 1;
-        if let LoadedSurface::Grid(g) = &self.surface {
-            let r = self.radius_m(theta);
+        if let Some(g) = &self.grid {
+            let r = self.cut.radius_m(theta);
             let (x, y) = (r * theta.cos(), r * theta.sin());
             let (px, py) = (TAU * x / g.lambda_x_m, TAU * y / g.lambda_y_m);
             let a = SVector::<f64, 5>::from([px.sin(), px.cos(), py.sin(), py.cos(), 1.0]);
@@ -172,16 +167,12 @@ impl FormAnalysis {
         }
     }
 
-    fn radius_m(&self, theta: f64) -> f64 {
-        (self.start_radius_m - self.feed_m_per_rev * theta / TAU).max(0.0)
-    }
-
     /// The report.
     pub fn report(&self) -> FormReport {
         let (first, last) = (self.first_theta.unwrap_or(0.0), self.last_theta);
-        let outer = self.radius_m(first);
-        let grid = match &self.surface {
-            LoadedSurface::Grid(g) => self.fit_ata.try_inverse().map(|inv| {
+        let outer = self.cut.radius_m(first);
+        let grid = self.grid.and_then(|g| {
+            self.fit_ata.try_inverse().map(|inv| {
                 let c = inv * self.fit_atb;
                 GridAmplitude {
                     nominal_pv_x_m: 2.0 * g.ax_m.abs(),
@@ -189,14 +180,13 @@ impl FormAnalysis {
                     nominal_pv_y_m: 2.0 * g.ay_m.abs(),
                     machined_pv_y_m: 2.0 * c[2].hypot(c[3]),
                 }
-            }),
-            _ => None,
-        };
+            })
+        });
         let form = self.form.stats();
         FormReport {
-            band_m: [self.radius_m(last), outer],
+            band_m: [self.cut.radius_m(last), outer],
             revolutions: (last - first) / TAU,
-            max_motion_frequency_hz: self.lambda_x_m.map(|l| outer * self.rad_per_s / l),
+            max_motion_frequency_hz: self.grid.map(|g| outer * self.rad_per_s / g.lambda_x_m),
             form_error_m: Stats {
                 rms: (form.rms * form.rms - form.mean * form.mean)
                     .max(0.0)

@@ -5,9 +5,8 @@
 //! leaves material standing).
 
 use crate::config::{ControllerKind, Loaded, Scenario};
-use crate::run::{run_with, RunError, RunOptions};
+use crate::run::{run_to_end_with, RunError};
 use serde::Serialize;
-use std::sync::atomic::AtomicBool;
 
 /// One acceleration gain's result.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -44,25 +43,16 @@ pub fn study(cfg: &Loaded, kas: &[f64]) -> Result<Vec<KaRow>, RunError> {
             c.config.controller.ka = ka;
             let settle_ns = (c.config.run.settle() * 1e9) as u64;
             let (mut peak, mut edge) = (0.0f64, 0.0f64);
-            let stop = AtomicBool::new(false);
             let pid_scale = {
                 let ctrl = crate::controller::Controller::build(&c)?;
                 ctrl.pid.kp / c.config.controller.pid.kp
             };
-            let summary = run_with(
-                &c,
-                RunOptions {
-                    out: None,
-                    stop: &stop,
-                    progress: &mut |_, _| {},
-                },
-                |f| {
-                    if f.time_ns >= settle_ns {
-                        peak = peak.max((f.telemetry.following_error_m as f64).abs());
-                        edge = edge.max(f.truth.true_error_m as f64);
-                    }
-                },
-            )?;
+            let summary = run_to_end_with(&c, |f| {
+                if f.time_ns >= settle_ns {
+                    peak = peak.max((f.telemetry.following_error_m as f64).abs());
+                    edge = edge.max(f.truth.true_error_m as f64);
+                }
+            })?;
             Ok(KaRow {
                 ka,
                 pid_scale,

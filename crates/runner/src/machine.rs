@@ -334,12 +334,41 @@ impl Machining {
     }
 }
 
+/// A surface cut along the facing spiral: the design height under the tool at each unwrapped
+/// spindle angle (what the plant cuts, the controller follows and the form is judged against).
+#[derive(Debug, Clone)]
+pub struct SpiralCut {
+    surface: LoadedSurface,
+    spiral: Spiral,
+}
+
+impl SpiralCut {
+    /// `surface` along the spiral of `m`.
+    pub fn new(m: &Machining, surface: LoadedSurface) -> Self {
+        SpiralCut {
+            surface,
+            spiral: m.spiral(),
+        }
+    }
+
+    /// X radius in m at the unwrapped spindle angle `theta_rad`.
+    #[inline]
+    pub fn radius_m(&self, theta_rad: f64) -> f64 {
+        self.spiral.radius_m(theta_rad)
+    }
+
+    /// Design height in m under the tool at spindle angle `theta_rad`.
+    #[inline]
+    pub fn height_m(&self, theta_rad: f64) -> f64 {
+        self.surface.depth_m(self.radius_m(theta_rad), theta_rad)
+    }
+}
+
 /// The plant side: the part on a spindle turning at exactly the configured speed from angle 0,
 /// cut along the spiral.
 #[derive(Debug, Clone)]
 pub struct Workpiece {
-    surface: LoadedSurface,
-    spiral: Spiral,
+    cut: SpiralCut,
     rad_per_tick: f64,
     encoder: Encoder,
     cutting_n_per_m: f64,
@@ -352,8 +381,7 @@ impl Workpiece {
     pub fn new(m: &Machining, surface: LoadedSurface, period_s: f64) -> Self {
         Workpiece {
             peak_m: surface.peak_m(),
-            surface,
-            spiral: m.spiral(),
+            cut: SpiralCut::new(m, surface),
             rad_per_tick: m.rad_per_s() * period_s,
             encoder: Encoder {
                 pulses_per_rev: m.pulses_per_rev,
@@ -375,13 +403,6 @@ impl Workpiece {
         self.encoder.count_at(self.angle_rad(k))
     }
 
-    /// Design height in m under the tool at spindle angle `theta_rad`.
-    #[inline]
-    pub fn design_m(&self, theta_rad: f64) -> f64 {
-        self.surface
-            .depth_m(self.spiral.radius_m(theta_rad), theta_rad)
-    }
-
     /// Cutting force on the tool in N during tick `k` (positive away from the part): the
     /// depth of cut at the tool's design position times the cutting stiffness (the force the
     /// thesis applied as a known disturbance, §5.7.5; the few-nm deflection's effect on the
@@ -390,7 +411,7 @@ impl Workpiece {
     pub fn cutting_force_n(&self, k: u64) -> f64 {
         let depth = match self.finish_depth_m {
             Some(d) => d,
-            None => (self.peak_m - self.design_m(self.angle_rad(k))).max(0.0),
+            None => (self.peak_m - self.cut.height_m(self.angle_rad(k))).max(0.0),
         };
         self.cutting_n_per_m * depth
     }
@@ -400,8 +421,7 @@ impl Workpiece {
 /// angle, `ahead` ticks after the end of the current tick (for preview).
 #[derive(Debug, Clone)]
 pub struct SurfaceReference {
-    surface: LoadedSurface,
-    spiral: Spiral,
+    cut: SpiralCut,
     tracker: SpindleTracker,
 }
 
@@ -413,8 +433,7 @@ impl SurfaceReference {
         period_s: f64,
     ) -> Result<Self, servo_core::Error> {
         Ok(SurfaceReference {
-            surface,
-            spiral: m.spiral(),
+            cut: SpiralCut::new(m, surface),
             tracker: SpindleTrackerConfig {
                 pulses_per_rev: m.pulses_per_rev,
                 speed_rpm: m.spindle_rpm,
@@ -433,8 +452,8 @@ impl SurfaceReference {
     /// The height at the end of tick `k + ahead` (k: the last tracked tick).
     #[inline]
     pub fn height_m(&self, ahead: usize) -> f64 {
-        let theta = self.tracker.predict_rad(ahead as f64 + 1.0);
-        self.surface.depth_m(self.spiral.radius_m(theta), theta)
+        self.cut
+            .height_m(self.tracker.predict_rad(ahead as f64 + 1.0))
     }
 
     /// Whether the tracker lost the encoder.

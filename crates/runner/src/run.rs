@@ -265,14 +265,23 @@ pub fn run_with(
 /// [`run`] to the end of `cfg`'s duration: no recording, no progress, no stop flag (sweeps,
 /// tests, benches).
 pub fn run_to_end(cfg: &Loaded) -> Result<Summary, RunError> {
+    run_to_end_with(cfg, |_| {})
+}
+
+/// [`run_to_end`], showing every frame to `on_frame` (see [`run_with`]).
+pub fn run_to_end_with(
+    cfg: &Loaded,
+    on_frame: impl FnMut(&recorder::Frame),
+) -> Result<Summary, RunError> {
     let stop = AtomicBool::new(false);
-    run(
+    run_with(
         cfg,
         RunOptions {
             out: None,
             stop: &stop,
             progress: &mut |_, _| {},
         },
+        on_frame,
     )
 }
 

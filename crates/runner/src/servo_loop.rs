@@ -254,6 +254,8 @@ pub struct ServoLoop {
     primed: bool,
     r: f64,
     last_u: f64,
+    /// Whether any block had latched a fault after the last command.
+    last_fault: bool,
     gain_scale: f64,
     sensitivity: f64,
     accel_scale: f64,
@@ -292,6 +294,7 @@ impl ServoLoop {
             primed: false,
             r: 0.0,
             last_u: 0.0,
+            last_fault: false,
             gain_scale: 1.0,
             sensitivity: c.plant.capa.sensitivity_v_per_m,
             accel_scale: 1.0 / c.plant.accel.sensitivity_v_per_m_s2,
@@ -305,7 +308,7 @@ impl ServoLoop {
         self.gain_scale = scale;
     }
 
-    fn faulted(&self) -> bool {
+    fn any_fault(&self) -> bool {
         self.controller.faulted() || self.source.faulted() || self.feedforward.faulted()
     }
 
@@ -328,7 +331,7 @@ impl ServoLoop {
     /// of the previous tick (None for the first sample). Allocation-free.
     #[inline]
     pub fn tick(&mut self, s: &Sensor) -> (Option<Command>, Option<Telemetry>) {
-        let faulted = self.faulted();
+        let faulted = self.last_fault;
         let telemetry = (s.seq > 0).then(|| {
             let measured = s.gap_v / self.sensitivity;
             let saturated = self.last_u.abs() >= self.controller.limit_v
@@ -371,21 +374,19 @@ impl ServoLoop {
             .controller
             .update(reference * self.sensitivity - s.gap_v, s.accel_v);
         let limit = self.controller.limit_v;
-        let u = if self.faulted() {
+        let faulted = self.any_fault();
+        let u = if faulted {
             0.0
         } else {
             (raw * self.gain_scale + u_ff).clamp(-limit, limit)
         };
         self.last_u = u;
+        self.last_fault = faulted;
         self.r = desired;
         let command = Command {
             seq: s.seq,
             dac_v: u,
-            flags: if self.faulted() {
-                flags::FAULT_CONTROLLER
-            } else {
-                0
-            },
+            flags: if faulted { flags::FAULT_CONTROLLER } else { 0 },
             reserved: 0,
         };
         (Some(command), telemetry)

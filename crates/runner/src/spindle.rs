@@ -100,8 +100,13 @@ pub struct SpindleProfiles {
     pub synthesised: Separation,
 }
 
+fn rms(v: impl ExactSizeIterator<Item = f64>) -> f64 {
+    let n = v.len().max(1) as f64;
+    (v.map(|x| x * x).sum::<f64>() / n).sqrt()
+}
+
 fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
-    (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / a.len().max(1) as f64).sqrt()
+    rms(a.iter().zip(b).map(|(x, y)| x - y))
 }
 
 /// Largest pointwise difference between any two sets' artefact profiles.
@@ -173,9 +178,7 @@ pub fn study(s: &SpindleStudy) -> (SpindleReport, SpindleProfiles) {
     };
     let predicted_noise_m = (2..=k).map(|k| 2.0 * per_harmonic(k)).sum::<f64>().sqrt();
     let report = SpindleReport {
-        truth_rms_m: truth
-            .clone()
-            .map(|v| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()),
+        truth_rms_m: truth.each_ref().map(|v| rms(v.iter().copied())),
         sets: sets
             .iter()
             .zip(&modified)
