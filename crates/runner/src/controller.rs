@@ -1,7 +1,7 @@
 //! The controllers `servo run` can drive, built from the configuration, and their linear
 //! realisations for the pre-run stability check.
 
-use crate::config::{ConfigError, ControllerKind, Loaded};
+use crate::config::{ConfigError, ControllerConfig, ControllerKind, Loaded};
 use nalgebra::{DMatrix, SMatrix};
 use serde::Deserialize;
 use servo_core::{
@@ -158,6 +158,19 @@ fn parallel(p: LinearController, q: LinearController) -> LinearController {
     }
 }
 
+/// The acceleration shaping filter Ha of `c` (None: no filter): a first-order low pass or a
+/// Butterworth at `accel_filter_hz`, by `accel_filter_order`.
+pub fn accel_shaping(c: &ControllerConfig) -> Option<BiquadDesign> {
+    let f0_hz = c.accel_filter_hz;
+    (f0_hz > 0.0).then_some(match c.accel_filter_order {
+        1 => BiquadDesign::FirstOrderLowPass { f0_hz },
+        _ => BiquadDesign::LowPass {
+            f0_hz,
+            q: std::f64::consts::FRAC_1_SQRT_2,
+        },
+    })
+}
+
 fn invalid(cfg: &Loaded, key: &str, e: impl std::fmt::Display) -> ConfigError {
     cfg.invalid(key, e, "a valid value (see the message)")
 }
@@ -219,19 +232,11 @@ impl Controller {
                 pid: pid_cfg,
             },
             ControllerKind::Accel => {
-                let ha = if c.accel_filter_hz > 0.0 {
-                    let f0_hz = c.accel_filter_hz;
-                    match c.accel_filter_order {
-                        1 => BiquadDesign::FirstOrderLowPass { f0_hz },
-                        _ => BiquadDesign::LowPass {
-                            f0_hz,
-                            q: std::f64::consts::FRAC_1_SQRT_2,
-                        },
-                    }
-                    .try_coeffs(period)
-                    .map_err(|e| invalid(cfg, "controller.accel_filter_hz", e))?
-                } else {
-                    IirCoeffs::<2>::IDENTITY
+                let ha = match accel_shaping(c) {
+                    Some(d) => d
+                        .try_coeffs(period)
+                        .map_err(|e| invalid(cfg, "controller.accel_filter_hz", e))?,
+                    None => IirCoeffs::<2>::IDENTITY,
                 };
                 let cascade = AccelCascadeConfig {
                     pid: pid_cfg,

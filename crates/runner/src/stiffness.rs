@@ -10,7 +10,7 @@
 
 use crate::analysis::{input, output};
 use crate::config::{ControllerKind, Loaded};
-use crate::controller::Controller;
+use crate::controller::{accel_shaping, Controller};
 use crate::run::{closed_loop, RunError};
 use num_complex::Complex64 as C;
 use plant_sim::impedance::Impedances;
@@ -87,15 +87,11 @@ pub fn compliance(
                 * second_order(wr, 1.0 / (2.0 * acc.resonance_q), s)
                 * (s / (s + 1.0 / acc.highpass_time_constant_s))
                 * second_order(2.0 * PI * acc.lowpass_hz, SQRT_2 / 2.0, s);
-            let h_a = if c.config.controller.accel_filter_hz > 0.0 {
-                second_order(
-                    2.0 * PI * c.config.controller.accel_filter_hz,
-                    SQRT_2 / 2.0,
-                    s,
-                )
-            } else {
-                C::new(1.0, 0.0)
-            };
+            let h_a = accel_shaping(&c.config.controller).map_or(C::new(1.0, 0.0), |d| {
+                let (num, den) = d.analog();
+                let at = |p: [f64; 3]| p[0] * s * s + p[1] * s + p[2];
+                at(num) / at(den)
+            });
             let pid_s = pid.kp + pid.ki / s + pid.kd * s / (pid.tf_s * s + 1.0);
             let z_ctrl = (pid_s * h_capa + ka * h_a * h_acc * s * s)
                 * h_i
