@@ -39,6 +39,18 @@ pub struct Series {
     pub points: bool,
 }
 
+impl Series {
+    /// A line through the points `(x, y)`.
+    pub fn line(label: impl Into<String>, x: Vec<f64>, y: Vec<f64>) -> Self {
+        Series {
+            label: label.into(),
+            x,
+            y,
+            points: false,
+        }
+    }
+}
+
 /// A figure.
 #[derive(Debug, Clone)]
 pub struct Figure {
@@ -196,26 +208,52 @@ where
     root.present().map_err(|e| e.to_string())
 }
 
-/// Writes `stem.png` and `stem.svg`; returns their paths.
-pub fn write(fig: &Figure, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
+/// Something drawn on any plotters backend, at a fixed picture size.
+trait Drawing {
+    /// Picture size in pixels.
+    const SIZE: (u32, u32);
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static;
+}
+
+impl Drawing for Figure {
+    const SIZE: (u32, u32) = (1000, 620);
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw(self, root)
+    }
+}
+
+/// Writes `stem.png` and `stem.svg` of `item`; returns their paths.
+fn write_png_svg<D: Drawing>(item: &D, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
     if !font_ready() {
         return Err(PlotError::NoFont);
     }
     let (png, svg) = (stem.with_extension("png"), stem.with_extension("svg"));
-    let size = (1000, 620);
-    draw(fig, BitMapBackend::new(&png, size).into_drawing_area()).map_err(|message| {
-        PlotError::Draw {
-            path: png.clone(),
-            message,
-        }
-    })?;
-    draw(fig, SVGBackend::new(&svg, size).into_drawing_area()).map_err(|message| {
-        PlotError::Draw {
-            path: svg.clone(),
-            message,
-        }
-    })?;
+    let size = D::SIZE;
+    let err = |path: &PathBuf| {
+        let path = path.clone();
+        move |message| PlotError::Draw { path, message }
+    };
+    item.draw_on(BitMapBackend::new(&png, size).into_drawing_area())
+        .map_err(err(&png))?;
+    item.draw_on(SVGBackend::new(&svg, size).into_drawing_area())
+        .map_err(err(&svg))?;
     Ok(vec![png, svg])
+}
+
+/// Writes `stem.png` and `stem.svg`; returns their paths.
+pub fn write(fig: &Figure, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
+    write_png_svg(fig, stem)
 }
 
 /// A map of values on a regular grid (a form-error map), drawn with a diverging colour scale
@@ -300,20 +338,22 @@ where
     root.present().map_err(|e| e.to_string())
 }
 
+impl Drawing for Map {
+    const SIZE: (u32, u32) = (1200, 500);
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        draw_map(self, root)
+    }
+}
+
 /// Writes `stem.png` and `stem.svg` of a map; returns their paths.
 pub fn write_map(map: &Map, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
-    if !font_ready() {
-        return Err(PlotError::NoFont);
-    }
-    let (png, svg) = (stem.with_extension("png"), stem.with_extension("svg"));
-    let size = (1200, 500);
-    let err = |path: &PathBuf| {
-        let path = path.clone();
-        move |message| PlotError::Draw { path, message }
-    };
-    draw_map(map, BitMapBackend::new(&png, size).into_drawing_area()).map_err(err(&png))?;
-    draw_map(map, SVGBackend::new(&svg, size).into_drawing_area()).map_err(err(&svg))?;
-    Ok(vec![png, svg])
+    write_png_svg(map, stem)
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 
 use crate::analysis::{Budget, SOURCES};
 use crate::sweep::Sweep;
-use design::plot::{self, Figure, PlotError, Series};
+use design::plot::{self, Figure, Series};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -29,6 +29,26 @@ fn write_file(path: PathBuf, text: &str) -> Result<PathBuf, ReportError> {
     Ok(path)
 }
 
+/// Creates `dir` and writes `files` (file name, contents) into it.
+fn write_files(dir: &Path, files: &[(&str, &str)]) -> Result<Written, ReportError> {
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    Ok(Written {
+        files: files
+            .iter()
+            .map(|(name, text)| write_file(dir.join(name), text))
+            .collect::<Result<_, _>>()?,
+        note: None,
+    })
+}
+
+/// Pretty JSON of an analysis result.
+fn to_json<T: serde::Serialize + ?Sized>(value: &T) -> String {
+    serde_json::to_string_pretty(value).expect("analysis results serialise")
+}
+
 /// Creates `dir` and writes the data files `<stem>.csv` and `<stem>.json`.
 fn data<T: serde::Serialize + ?Sized>(
     dir: &Path,
@@ -36,18 +56,13 @@ fn data<T: serde::Serialize + ?Sized>(
     csv: &str,
     json: &T,
 ) -> Result<Written, ReportError> {
-    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
-    let json = serde_json::to_string_pretty(json).expect("analysis results serialise");
-    Ok(Written {
-        files: vec![
-            write_file(dir.join(format!("{stem}.csv")), csv)?,
-            write_file(dir.join(format!("{stem}.json")), &json)?,
+    write_files(
+        dir,
+        &[
+            (&format!("{stem}.csv"), csv),
+            (&format!("{stem}.json"), &to_json(json)),
         ],
-        note: None,
-    })
+    )
 }
 
 /// Writes the plots, or returns the reason they were skipped (no font) as a note.
@@ -55,7 +70,6 @@ fn plots(figs: &[(Figure, &str)], dir: &Path, written: &mut Vec<PathBuf>) -> Opt
     for (fig, stem) in figs {
         match plot::write(fig, &dir.join(stem)) {
             Ok(paths) => written.extend(paths),
-            Err(e @ PlotError::NoFont) => return Some(e.to_string()),
             Err(e) => return Some(e.to_string()),
         }
     }
@@ -99,27 +113,24 @@ pub fn budget(b: &Budget, title: &str, dir: &Path) -> Result<Written, ReportErro
             .collect::<Vec<f64>>()
     };
     let mut psd_series = vec![
-        Series {
-            label: "following error, total".into(),
-            x: b.freq_hz.clone(),
-            y: nm2(&total(&b.following_psd)),
-            points: false,
-        },
-        Series {
-            label: "true error, total".into(),
-            x: b.freq_hz.clone(),
-            y: nm2(&total(&b.true_psd)),
-            points: false,
-        },
+        Series::line(
+            "following error, total",
+            b.freq_hz.clone(),
+            nm2(&total(&b.following_psd)),
+        ),
+        Series::line(
+            "true error, total",
+            b.freq_hz.clone(),
+            nm2(&total(&b.true_psd)),
+        ),
     ];
     for (k, (name, _)) in SOURCES.iter().enumerate() {
         if b.contributions[k].following_rms_m > 1e-3 * b.following_rms_m {
-            psd_series.push(Series {
-                label: format!("following, {name}"),
-                x: b.freq_hz.clone(),
-                y: nm2(&b.following_psd[k]),
-                points: false,
-            });
+            psd_series.push(Series::line(
+                format!("following, {name}"),
+                b.freq_hz.clone(),
+                nm2(&b.following_psd[k]),
+            ));
         }
     }
     let psd = Figure {
@@ -138,18 +149,8 @@ pub fn budget(b: &Budget, title: &str, dir: &Path) -> Result<Written, ReportErro
         log_x: true,
         log_y: false,
         series: vec![
-            Series {
-                label: "following error".into(),
-                x: b.freq_hz.clone(),
-                y: nm(&b.following_cas),
-                points: false,
-            },
-            Series {
-                label: "true error".into(),
-                x: b.freq_hz.clone(),
-                y: nm(&b.true_cas),
-                points: false,
-            },
+            Series::line("following error", b.freq_hz.clone(), nm(&b.following_cas)),
+            Series::line("true error", b.freq_hz.clone(), nm(&b.true_cas)),
         ],
     };
     out.note = plots(
@@ -191,18 +192,16 @@ pub fn sweeps(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
                 .map(|p| f(p).map_or(f64::NAN, |v| v * 1e9))
                 .collect::<Vec<f64>>()
         };
-        series.push(Series {
-            label: format!("{} following, predicted", s.label),
-            x: bw.clone(),
-            y: nm(|p| Some(p.predicted_following_m)),
-            points: false,
-        });
-        series.push(Series {
-            label: format!("{} true, predicted", s.label),
-            x: bw.clone(),
-            y: nm(|p| Some(p.predicted_true_m)),
-            points: false,
-        });
+        series.push(Series::line(
+            format!("{} following, predicted", s.label),
+            bw.clone(),
+            nm(|p| Some(p.predicted_following_m)),
+        ));
+        series.push(Series::line(
+            format!("{} true, predicted", s.label),
+            bw.clone(),
+            nm(|p| Some(p.predicted_true_m)),
+        ));
         if s.points.iter().any(|p| p.simulated_following_m.is_some()) {
             series.push(Series {
                 label: format!("{} following, simulated", s.label),
@@ -255,12 +254,7 @@ pub fn frf(
     let mut out = data(dir, "frf", &csv, points)?;
     let f: Vec<f64> = points.iter().map(|p| p.freq_hz).collect();
     let mf: Vec<f64> = model.iter().map(|m| m.0).collect();
-    let model_series = |y: Vec<f64>| Series {
-        label: "model (sampled loop)".into(),
-        x: mf.clone(),
-        y,
-        points: false,
-    };
+    let model_series = |y: Vec<f64>| Series::line("model (sampled loop)", mf.clone(), y);
     let series = |get: fn(&crate::frf::FrfPoint) -> f64, label: &str, pts: bool| Series {
         label: label.into(),
         x: f.clone(),
@@ -348,12 +342,11 @@ pub fn stiffness(
     let mut series = Vec::new();
     for c in curves.iter().filter(|c| c.stable()) {
         let um = |v: &Vec<f64>| v.iter().map(|x| x * 1e6).collect::<Vec<f64>>();
-        series.push(Series {
-            label: format!("Ka {} analytic (eq 7-9)", c.ka),
-            x: c.freq_hz.clone(),
-            y: um(&c.analytic_m_per_n),
-            points: false,
-        });
+        series.push(Series::line(
+            format!("Ka {} analytic (eq 7-9)", c.ka),
+            c.freq_hz.clone(),
+            um(&c.analytic_m_per_n),
+        ));
         series.push(Series {
             label: format!("Ka {} sampled loop", c.ka),
             x: c.freq_hz.clone(),
@@ -396,14 +389,6 @@ pub fn machining(
         let radius = outer - ring * (r as f64 + (c as f64 + 0.5) / MAP_COLUMNS as f64);
         writeln!(map_csv, "{r},{radius:.9e},{angle:.2},{v:.6e}").unwrap();
     }
-    let mut out = data(dir, "form_map", &map_csv, &report)?;
-    let json = out.files.pop().expect("data writes csv and json");
-    let machine_json = dir.join("machine.json");
-    std::fs::rename(&json, &machine_json).map_err(|source| ReportError::Io {
-        path: machine_json.clone(),
-        source,
-    })?;
-    out.files.push(machine_json);
     let mut seg_csv = String::from("time_s,reference_m,tool_m,measured_m,cutting_force_n\n");
     for s in a.segment() {
         writeln!(
@@ -413,8 +398,14 @@ pub fn machining(
         )
         .unwrap();
     }
-    out.files
-        .push(write_file(dir.join("trajectory.csv"), &seg_csv)?);
+    let mut out = write_files(
+        dir,
+        &[
+            ("form_map.csv", &map_csv),
+            ("machine.json", &to_json(&report)),
+            ("trajectory.csv", &seg_csv),
+        ],
+    )?;
     // The map picture: rows = revolutions (outermost at the top), columns merged to 0.5°.
     let merge = MAP_COLUMNS / MAP_PICTURE_COLUMNS;
     let picture: Vec<f64> = (0..rows)
@@ -452,12 +443,7 @@ pub fn machining(
     let nm = |f: fn(&crate::form::SegmentRow) -> f64| -> Vec<f64> {
         a.segment().iter().map(|s| f(s) * 1e9).collect()
     };
-    let series = |label: &str, y: Vec<f64>| Series {
-        label: label.into(),
-        x: ms.clone(),
-        y,
-        points: false,
-    };
+    let series = |label: &str, y: Vec<f64>| Series::line(label, ms.clone(), y);
     let trajectory = Figure {
         title: format!("Tool trajectory (thesis Figs 8-15, 8-20) — {title}"),
         x_label: "time (ms)".into(),
@@ -534,7 +520,6 @@ pub fn spindle(
         let y = &p.synthesised;
         writeln!(csv, ",{:.6e},{:.6e},{:.6e}", y.artefact[j], y.x[j], y.y[j]).unwrap();
     }
-    let mut out = data(dir, "spindle", &csv, r)?;
     let ks: Vec<f64> = (2..=max_harmonic).map(|k| k as f64).collect();
     let h: Vec<Vec<f64>> = p
         .sets
@@ -557,15 +542,15 @@ pub fn spindle(
         }
         hcsv.push('\n');
     }
-    out.files
-        .push(write_file(dir.join("harmonic_weighting.csv"), &hcsv)?);
+    let mut out = write_files(
+        dir,
+        &[
+            ("spindle.csv", &csv),
+            ("spindle.json", &to_json(r)),
+            ("harmonic_weighting.csv", &hcsv),
+        ],
+    )?;
     let nm = |v: &[f64]| v.iter().map(|x| x * 1e9).collect::<Vec<f64>>();
-    let line = |label: String, x: &[f64], y: Vec<f64>| Series {
-        label,
-        x: x.to_vec(),
-        y,
-        points: false,
-    };
     let weighting = Figure {
         title: "Harmonic weighting |H(k)| of the three angle sets (thesis Fig D-2)".into(),
         x_label: "harmonic (UPR)".into(),
@@ -575,20 +560,24 @@ pub fn spindle(
         series: h
             .into_iter()
             .enumerate()
-            .map(|(i, y)| line(format!("angle set #{}", i + 1), &ks, y))
+            .map(|(i, y)| Series::line(format!("angle set #{}", i + 1), ks.clone(), y))
             .collect(),
     };
-    let mut artefact = vec![line("true artefact".into(), &p.angle_deg, nm(&p.truth[0]))];
+    let mut artefact = vec![Series::line(
+        "true artefact",
+        p.angle_deg.clone(),
+        nm(&p.truth[0]),
+    )];
     artefact.extend(p.sets.iter().enumerate().map(|(i, s)| {
-        line(
+        Series::line(
             format!("set #{} alone", i + 1),
-            &p.angle_deg,
+            p.angle_deg.clone(),
             nm(&s.artefact),
         )
     }));
-    artefact.push(line(
-        "synthesised".into(),
-        &p.angle_deg,
+    artefact.push(Series::line(
+        "synthesised",
+        p.angle_deg.clone(),
         nm(&p.synthesised.artefact),
     ));
     let artefact = Figure {
@@ -606,8 +595,8 @@ pub fn spindle(
         log_x: false,
         log_y: false,
         series: vec![
-            line("true".into(), &p.angle_deg, nm(&p.truth[1])),
-            line("synthesised".into(), &p.angle_deg, nm(&p.synthesised.x)),
+            Series::line("true", p.angle_deg.clone(), nm(&p.truth[1])),
+            Series::line("synthesised", p.angle_deg.clone(), nm(&p.synthesised.x)),
         ],
     };
     out.note = plots(
