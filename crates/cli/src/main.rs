@@ -623,15 +623,9 @@ impl Settings {
             None => Loaded::default(),
         };
         let c = &mut l.config;
-        if let Some(v) = self.duration {
-            c.run.duration_s = v;
-        }
-        if let Some(v) = self.rate {
-            c.plant.timing.servo_rate_hz = v;
-        }
-        if let Some(v) = self.seed {
-            c.run.seed = v;
-        }
+        set(&mut c.run.duration_s, self.duration);
+        set(&mut c.plant.timing.servo_rate_hz, self.rate);
+        set(&mut c.run.seed, self.seed);
         if let Some(k) = self.controller {
             c.controller.kind = match k {
                 Ctrl::Pid => ControllerKind::Pid,
@@ -639,9 +633,7 @@ impl Settings {
                 Ctrl::Ss => ControllerKind::Ss,
             };
         }
-        if let Some(v) = self.ka {
-            c.controller.ka = v;
-        }
+        set(&mut c.controller.ka, self.ka);
         c.controller.kg_scaling |= self.kg_scaling;
         if let Some(p) = &self.ss_file {
             c.controller.ss_file = Some(
@@ -681,18 +673,15 @@ impl Settings {
                 ScenarioKind::Machine => Scenario::Machine(Machining::default()),
             };
         }
-        if let (Some(rpm), Scenario::Machine(m)) = (self.rpm, &mut c.scenario) {
-            m.spindle_rpm = rpm;
+        if let Scenario::Machine(m) = &mut c.scenario {
+            set(&mut m.spindle_rpm, self.rpm);
         }
-        if let Some(f) = self.accel_filter_hz {
-            c.controller.accel_filter_hz = f;
-        }
-        if let Some(o) = self.accel_filter_order {
-            c.controller.accel_filter_order = o;
-        }
-        if let Some(f) = self.smoothing_hz {
-            c.controller.smoothing_hz = f;
-        }
+        set(&mut c.controller.accel_filter_hz, self.accel_filter_hz);
+        set(
+            &mut c.controller.accel_filter_order,
+            self.accel_filter_order,
+        );
+        set(&mut c.controller.smoothing_hz, self.smoothing_hz);
         if let Some(f) = self.feedforward {
             c.controller.feedforward = match f {
                 Ff::None => FeedforwardKind::None,
@@ -710,6 +699,13 @@ impl Settings {
             }
         }
         Ok(l)
+    }
+}
+
+/// Overrides `field` with a command-line `flag` when one was given.
+fn set<T>(field: &mut T, flag: Option<T>) {
+    if let Some(v) = flag {
+        *field = v;
     }
 }
 
@@ -746,6 +742,27 @@ fn progress_bar(quiet: bool, what: &str) -> ProgressBar {
         .progress_chars("=> "),
     );
     bar
+}
+
+/// Runs `f` with the recording, Ctrl-C stop flag and progress bar (labelled `what`) of `rec`.
+fn with_progress<T>(
+    rec: &Recording,
+    what: &str,
+    f: impl FnOnce(RunOptions<'_>) -> Result<T, RunError>,
+) -> Result<T, RunError> {
+    let stop = stop_flag();
+    let bar = progress_bar(rec.quiet, what);
+    let mut progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let result = f(RunOptions {
+        out: rec.out(),
+        stop: &stop,
+        progress: &mut progress,
+    });
+    bar.finish_and_clear();
+    result
 }
 
 /// The exit code of a command: 0, 2 for configuration problems (bad input, a controller that
@@ -870,22 +887,9 @@ fn machine(
     if s.duration.is_none() {
         cfg.config.run.duration_s = duration;
     }
-    let stop = stop_flag();
-    let bar = progress_bar(rec.quiet, "machining");
-    let mut progress = |done: u64, total: u64| {
-        bar.set_length(total);
-        bar.set_position(done);
-    };
-    let result = runner::form::run_machining(
-        &cfg,
-        RunOptions {
-            out: rec.out(),
-            stop: &stop,
-            progress: &mut progress,
-        },
-    );
-    bar.finish_and_clear();
-    let (summary, analysis) = result?;
+    let (summary, analysis) = with_progress(rec, "machining", |opts| {
+        runner::form::run_machining(&cfg, opts)
+    })?;
     let title = format!(
         "{}, {}",
         summary.meta.controller,
@@ -896,8 +900,7 @@ fn machine(
             FeedforwardKind::ZpetcSensor => "ZPETC feedforward (sensor)",
         }
     );
-    let written = runner::report::machining(&analysis, &title, out_dir)
-        .map_err(|e| RunError::Plant(e.to_string()))?;
+    let written = runner::report::machining(&analysis, &title, out_dir)?;
     let report = analysis.report();
     if rec.json {
         print_json(&report);
@@ -997,8 +1000,7 @@ fn spindle_errors(
         }
     }
     let (report, profiles) = runner::spindle::study(s);
-    let written = runner::report::spindle(&report, &profiles, s.max_harmonic, out_dir)
-        .map_err(|e| RunError::Plant(e.to_string()))?;
+    let written = runner::report::spindle(&report, &profiles, s.max_harmonic, out_dir)?;
     if json {
         print_json(&report);
         return Ok(());
@@ -1086,7 +1088,7 @@ fn budget(
         b.following_rms_m * 1e9,
         b.true_rms_m * 1e9
     );
-    let w = runner::report::budget(&b, &title, dir).map_err(|e| RunError::Plant(e.to_string()))?;
+    let w = runner::report::budget(&b, &title, dir)?;
     print_written(&w);
     if !sweep {
         return Ok(());
@@ -1143,7 +1145,7 @@ fn budget(
         }
         println!("  {}: lowest following error at {:.0} Hz, lowest true error at {:.0} Hz (thesis: 874 Hz for 0.075 kg, 468 Hz for 0.175 kg)", s.label, s.optimum_following_hz, s.optimum_true_hz);
     }
-    let w = runner::report::sweeps(&results, dir).map_err(|e| RunError::Plant(e.to_string()))?;
+    let w = runner::report::sweeps(&results, dir)?;
     print_written(&w);
     Ok(())
 }
@@ -1218,8 +1220,7 @@ fn frf(
     }
     println!("  where γ² > 0.99: largest deviation {worst_db:.3} dB, {worst_deg:.2}°");
     let curve = runner::frf::model_curve(&cfg, which, from, to, 600)?;
-    let w = runner::report::frf(&pts, &curve, &format!("{which:?}-loop FRF"), dir)
-        .map_err(|e| RunError::Plant(e.to_string()))?;
+    let w = runner::report::frf(&pts, &curve, &format!("{which:?}-loop FRF"), dir)?;
     print_written(&w);
     Ok(())
 }
@@ -1236,8 +1237,7 @@ fn intermittent(s: &Settings, kas: &[f64], dir: &Path, json: bool) -> Result<(),
         cfg.config.run.duration_s = 0.5;
     }
     let rows = runner::intermittent::study(&cfg, kas)?;
-    let written =
-        runner::report::intermittent(&rows, dir).map_err(|e| RunError::Plant(e.to_string()))?;
+    let written = runner::report::intermittent(&rows, dir)?;
     if json {
         print_json(&rows);
         return Ok(());
@@ -1304,7 +1304,7 @@ fn stiffness(s: &Settings, kas: &[f64], to: f64, dir: &Path) -> Result<(), RunEr
             }
         );
     }
-    let w = runner::report::stiffness(&curves, dir).map_err(|e| RunError::Plant(e.to_string()))?;
+    let w = runner::report::stiffness(&curves, dir)?;
     print_written(&w);
     Ok(())
 }
@@ -1488,22 +1488,8 @@ fn run_command(cfg: &Loaded, rec: &Recording, hil: Option<&HilArgs>) -> Result<E
             (summary, code)
         }
         None => {
-            let stop = stop_flag();
-            let bar = progress_bar(rec.quiet, "simulating");
-            let mut progress = |done: u64, total: u64| {
-                bar.set_length(total);
-                bar.set_position(done);
-            };
-            let result = run(
-                cfg,
-                RunOptions {
-                    out: out.clone(),
-                    stop: &stop,
-                    progress: &mut progress,
-                },
-            );
-            bar.finish_and_clear();
-            (result?, ExitCode::SUCCESS)
+            let summary = with_progress(rec, "simulating", |opts| run(cfg, opts))?;
+            (summary, ExitCode::SUCCESS)
         }
     };
     print_summary(&summary, rec.json);

@@ -41,6 +41,9 @@ pub enum RunError {
     /// Reading a recording.
     #[error(transparent)]
     Read(#[from] recorder::ReadError),
+    /// Writing analysis results.
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
     /// A design step (tuning, synthesis) found no solution.
     #[error(transparent)]
     Tune(#[from] design::tune::TuneError),
