@@ -152,6 +152,13 @@ fn blank_face_is_the_surface_peak() {
 const RATE_HZ: f64 = 199_600.0;
 const PULSES: u64 = 80_000;
 
+/// §8.3's encoder at the Table 8-5 speed, tracked at 10 Hz.
+const TRACKER: SpindleTrackerConfig = SpindleTrackerConfig {
+    pulses_per_rev: PULSES,
+    speed_rpm: 60.0,
+    bandwidth_hz: 10.0,
+};
+
 /// The count of an ideal encoder at `t_s` for a spindle at `rpm` starting at angle 0.
 fn count_at(t_s: f64, rpm: f64) -> u64 {
     (rpm / 60.0 * t_s * PULSES as f64).floor() as u64
@@ -161,13 +168,7 @@ fn count_at(t_s: f64, rpm: f64) -> u64 {
 fn tracker_interpolates_between_pulses() {
     // 60 rpm (Table 8-5): 0.4 pulses per tick, so the raw count is a staircase of ±½ pulse.
     let pulse = TAU / PULSES as f64;
-    let mut pll = SpindleTrackerConfig {
-        pulses_per_rev: PULSES,
-        speed_rpm: 60.0,
-        bandwidth_hz: 10.0,
-    }
-    .try_build(1.0 / RATE_HZ)
-    .unwrap();
+    let mut pll = TRACKER.try_build(1.0 / RATE_HZ).unwrap();
     let (mut worst, mut sum2, mut n) = (0.0f64, 0.0, 0.0);
     for k in 0..(RATE_HZ as u64) {
         let t = k as f64 / RATE_HZ;
@@ -190,13 +191,7 @@ fn tracker_interpolates_between_pulses() {
 #[test]
 fn tracker_locks_onto_an_off_nominal_speed() {
     // Spindle 1 % faster than configured: the type-2 loop removes the rate error.
-    let mut pll = SpindleTrackerConfig {
-        pulses_per_rev: PULSES,
-        speed_rpm: 60.0,
-        bandwidth_hz: 10.0,
-    }
-    .try_build(1.0 / RATE_HZ)
-    .unwrap();
+    let mut pll = TRACKER.try_build(1.0 / RATE_HZ).unwrap();
     let mut theta = 0.0;
     for k in 0..(RATE_HZ as u64) {
         theta = pll.update(count_at(k as f64 / RATE_HZ, 60.6));
@@ -209,13 +204,7 @@ fn tracker_locks_onto_an_off_nominal_speed() {
 
 #[test]
 fn tracker_faults_when_the_encoder_jumps() {
-    let mut pll = SpindleTrackerConfig {
-        pulses_per_rev: PULSES,
-        speed_rpm: 60.0,
-        bandwidth_hz: 10.0,
-    }
-    .try_build(1.0 / RATE_HZ)
-    .unwrap();
+    let mut pll = TRACKER.try_build(1.0 / RATE_HZ).unwrap();
     let mut last = 0.0;
     for k in 0..1000 {
         last = pll.update(count_at(k as f64 / RATE_HZ, 60.0));
@@ -231,9 +220,8 @@ fn tracker_faults_when_the_encoder_jumps() {
 #[test]
 fn tracker_rejects_bad_configuration() {
     let bad = SpindleTrackerConfig {
-        pulses_per_rev: PULSES,
         speed_rpm: f64::NAN,
-        bandwidth_hz: 10.0,
+        ..TRACKER
     };
     assert!(bad.try_build(1.0 / RATE_HZ).is_err());
     let fast = SpindleTrackerConfig {
