@@ -4,7 +4,7 @@
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use design::lti::DelayedZoh;
+use lti::DelayedZoh;
 use nalgebra::{DMatrix, DVector};
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::{PlantModel, PlantParams, Simulator};

@@ -3,7 +3,7 @@
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use design::riccati::dare;
+use lti::riccati::dare;
 use nalgebra::DMatrix;
 use runner::config::Loaded;
 

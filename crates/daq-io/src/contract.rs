@@ -5,11 +5,35 @@
 //! [`TelemetryBlock`] with `ctypes`. The iceoryx2 type names (`fts_servo::…`) are part of the
 //! contract; change a layout and its name together.
 
+#[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
 
-/// Bits of the `flags` words. Bits 0–15 are the plant's own (plant-sim's `sim::flags`: ADC
-/// and DAC clipping, non-finite command); bits 16 and up are the transport's.
+/// What a message type must be to cross processes: iceoryx2's `ZeroCopySend` with the `ipc`
+/// feature, nothing without it (the contract alone, as plant-sim uses it).
+#[cfg(feature = "ipc")]
+pub trait Shareable: ZeroCopySend {}
+#[cfg(feature = "ipc")]
+impl<T: ZeroCopySend> Shareable for T {}
+/// What a message type must be to cross processes (nothing without the `ipc` feature).
+#[cfg(not(feature = "ipc"))]
+pub trait Shareable {}
+#[cfg(not(feature = "ipc"))]
+impl<T> Shareable for T {}
+
+/// Bits of the `flags` words: the one table of status bits for every sample, telemetry and
+/// truth record (and the recording's `flags` field). Bits 0–7 are the plant's (converters),
+/// 8–15 the controller's, 16 and up the transport's.
 pub mod flags {
+    /// A gap-channel conversion clipped at the ADC range.
+    pub const GAP_CLIPPED: u32 = 1;
+    /// An accelerometer conversion clipped.
+    pub const ACCEL_CLIPPED: u32 = 1 << 1;
+    /// The command clipped at the DAC range.
+    pub const DAC_CLIPPED: u32 = 1 << 2;
+    /// The command was NaN/inf: the DAC was driven to 0 V.
+    pub const COMMAND_NOT_FINITE: u32 = 1 << 3;
+    /// The controller output was at its limit, or the DAC clipped (telemetry).
+    pub const SATURATED: u32 = 1 << 8;
     /// The plant has no more ticks: this sample closes the run (no command expected).
     pub const END: u32 = 1 << 16;
     /// The plant lost its controller and drives zero current (safe state).
@@ -21,9 +45,10 @@ pub mod flags {
 }
 
 /// Plant → controller, once per tick: the sensor readings at the start of tick `seq`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::Sensor")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::Sensor"))]
 pub struct Sensor {
     /// Tick index (0 for the reading before the first command).
     pub seq: u64,
@@ -42,9 +67,10 @@ pub struct Sensor {
 }
 
 /// Controller → plant, once per tick: the DAC command for tick `seq`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::Command")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::Command"))]
 pub struct Command {
     /// The tick this command answers (the echoed [`Sensor::seq`]).
     pub seq: u64,
@@ -57,9 +83,10 @@ pub struct Command {
 }
 
 /// What the controller saw and did over one tick (recorded on `/telemetry`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::Telemetry")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::Telemetry"))]
 pub struct Telemetry {
     /// Tick index.
     pub seq: u64,
@@ -82,9 +109,10 @@ pub struct Telemetry {
 }
 
 /// What really happened in the plant over one tick (simulator only; recorded on `/truth`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::Truth")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::Truth"))]
 pub struct Truth {
     /// Tick index.
     pub seq: u64,
@@ -119,9 +147,10 @@ pub struct Truth {
 pub const BLOCK_TICKS: usize = 64;
 
 /// Up to [`BLOCK_TICKS`] consecutive [`Telemetry`] records.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::TelemetryBlock")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::TelemetryBlock"))]
 pub struct TelemetryBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -134,9 +163,10 @@ pub struct TelemetryBlock {
 }
 
 /// Up to [`BLOCK_TICKS`] consecutive [`Truth`] records.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::TruthBlock")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::TruthBlock"))]
 pub struct TruthBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -149,7 +179,7 @@ pub struct TruthBlock {
 }
 
 /// A block of records ([`TelemetryBlock`], [`TruthBlock`]) as a sender fills it.
-pub trait Block: Copy + Default + core::fmt::Debug + ZeroCopySend {
+pub trait Block: Copy + Default + core::fmt::Debug + Shareable {
     /// One record.
     type Record: Copy;
     /// Appends a record; returns true when the block is full.
@@ -211,9 +241,10 @@ pub mod command {
 }
 
 /// A control-plane message (anyone → plant and controller).
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::Control")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::Control"))]
 pub struct Control {
     /// One of [`command`].
     pub command: u32,
@@ -244,11 +275,10 @@ pub mod state {
 }
 
 /// Round-trip latency statistics in ns (sensor published → command received, plant side).
-#[derive(
-    Debug, Clone, Copy, Default, PartialEq, ZeroCopySend, serde::Serialize, serde::Deserialize,
-)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::Latency")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::Latency"))]
 pub struct Latency {
     /// Exchanges measured.
     pub count: u64,
@@ -265,9 +295,10 @@ pub struct Latency {
 }
 
 /// A process's periodic status (every 2048 ticks and once at the end).
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("fts_servo::Health")]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::Health"))]
 pub struct Health {
     /// One of [`role`].
     pub role: u32,

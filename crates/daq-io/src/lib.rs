@@ -8,13 +8,18 @@
 //! - [`ipc`]: the same contract over iceoryx2 shared memory under a per-run prefix; [`serve`]
 //!   runs the plant side (lockstep or real time, overruns, lost-peer safe state).
 //!
+//! Without the default `ipc` feature the crate is the contract alone (no iceoryx2): what
+//! the simulated stage uses to report its samples.
+//!
 //! Embedding in a DAQ daemon: implement [`Backend`] for the ADC/DAC hardware and call
 //! [`serve::serve`]; see `examples/daq_daemon.rs`.
 
 pub mod contract;
 mod daq;
 mod histogram;
+#[cfg(feature = "ipc")]
 pub mod ipc;
+#[cfg(feature = "ipc")]
 pub mod serve;
 
 pub use contract::{

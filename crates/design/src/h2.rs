@@ -14,8 +14,8 @@
 //! The continuous problem (SLICOT SB10HD, [`h2syn_continuous`]) is the same with CAREs and a
 //! strictly proper controller: `A_K = A + B2F + LC2`, `B_K = −L`, `C_K = F`.
 
-use crate::lti::{dlyap, StateSpace};
-use crate::riccati::{care, dare, lyap, Riccati, RiccatiError};
+use lti::riccati::{care, dare, lyap, Riccati, RiccatiError};
+use lti::{dlyap, StateSpace};
 use nalgebra::DMatrix;
 
 /// A generalized plant for H2 synthesis.

@@ -1,18 +1,14 @@
 //! # design
 //!
-//! Offline design and analysis for fts-servo: continuous LTI models, frequency responses,
-//! exact (delayed) zero-order-hold discretisation, and spectral estimation.
+//! Offline controller design and identification on top of [`lti`]: H2 synthesis
+//! ([`h2`]), PID tuning by convex-concave programming ([`tune`], clarabel LPs), grey-box
+//! identification ([`identify`]), stability margins ([`loops`]), ZPETC feedforward
+//! ([`zpetc`]) and three-probe spindle error separation ([`spindle`], thesis Appendix D).
 
 pub mod h2;
 pub mod identify;
-pub mod interconnect;
 pub mod loops;
 mod lp;
-pub mod lti;
-pub mod plot;
-pub mod reduce;
-pub mod riccati;
-pub mod spectral;
 pub mod spindle;
 pub mod tune;
 pub mod zpetc;

@@ -16,8 +16,8 @@
 //! paired with its nearest pole, because the expanded polynomials of a 200 kHz loop (poles
 //! near z = 1) lose most of their digits.
 
-use crate::lti::{eigenvalues, LtiError, StateSpace};
-use crate::reduce::Balancing;
+use lti::reduce::Balancing;
+use lti::{eigenvalues, LtiError, StateSpace};
 use num_complex::Complex64;
 
 /// Zeros of `T` inside this radius on the negative real half-plane are inverted; beyond it they
@@ -98,7 +98,7 @@ pub fn design(
     if sys.nu() != 1 || sys.ny() != 1 {
         return Err(ZpetcError::NotSiso(sys.ny(), sys.nu()));
     }
-    let grid = crate::spectral::log_space(1.0, f_check_hz, 200);
+    let grid = lti::spectral::log_space(1.0, f_check_hz, 200);
     let full: Vec<Complex64> = grid
         .iter()
         .map(|&f| Ok(sys.freq_response_discrete(f, period_s)?[(0, 0)]))

@@ -1,9 +1,9 @@
 //! ZPETC against Tomizuka's defining property: `T·F = B_u(z⁻¹)B_u(z)/B_u(1)²` — exactly 1 for
 //! a minimum-phase loop, and real (zero phase) with the closed-form magnitude otherwise.
 
-use design::lti::StateSpace;
-use design::spectral::log_space;
 use design::zpetc::{design, ZpetcDesign};
+use lti::spectral::log_space;
+use lti::StateSpace;
 use num_complex::Complex64;
 use std::f64::consts::PI;
 

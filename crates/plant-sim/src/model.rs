@@ -3,8 +3,8 @@
 //! accelerometer chain (Table 7-2) and the noise shaping filters (eq 6-6..6-8, Table 7-2).
 
 use crate::params::{rad, CurrentLoopModel, PlantParams, StageParams};
-use design::interconnect::{ConnectError, Interconnect, NamedBlock};
-use design::lti::{LtiError, StateSpace};
+use lti::interconnect::{ConnectError, Interconnect, NamedBlock};
+use lti::{LtiError, StateSpace};
 use nalgebra::DMatrix;
 use std::f64::consts::SQRT_2;
 use std::ops::Range;

@@ -12,23 +12,12 @@ use crate::convert::Quantizer;
 use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
 use crate::model::{input, output, ModelError, PlantModel};
 use crate::params::{rad, CurrentLoopModel, PlantParams};
-use design::lti::zoh;
+use daq_io::flags;
+use lti::zoh;
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use rand_xoshiro::Xoshiro256PlusPlus;
-
-/// Status bits of a [`SensorSample`].
-pub mod flags {
-    /// A gap-channel conversion clipped at the ADC range.
-    pub const GAP_CLIPPED: u32 = 1;
-    /// An accelerometer conversion clipped.
-    pub const ACCEL_CLIPPED: u32 = 1 << 1;
-    /// The command clipped at the DAC range.
-    pub const DAC_CLIPPED: u32 = 1 << 2;
-    /// The command was NaN/inf: the DAC was driven to 0 V.
-    pub const COMMAND_NOT_FINITE: u32 = 1 << 3;
-}
 
 /// What the controller sees at the end of a tick: averaged ADC readings.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -45,7 +34,7 @@ pub struct SensorSample {
     pub gap_code_sum: i32,
     /// Sum of the accelerometer channel's ADC codes.
     pub accel_code_sum: i32,
-    /// [`flags`] bits.
+    /// [`daq_io::flags`] bits (the converters': ADC/DAC clipping, non-finite command).
     pub flags: u32,
 }
 
@@ -76,6 +65,28 @@ pub struct Truth {
     pub v_m_s: [f64; 4],
     /// DAC output applied from τ into the tick, in V.
     pub dac_v: f64,
+}
+
+impl Truth {
+    /// The truth record of the sample contract for the tick ending at `time_s` (s): what
+    /// crosses to the recorder (sequence number and flags set by the transport).
+    pub fn to_contract(&self, time_s: f64) -> daq_io::Truth {
+        daq_io::Truth {
+            seq: 0,
+            time_s,
+            tool_m: self.tool_m,
+            gap_m: self.gap_m,
+            motor_force_n: self.motor_force_n,
+            cutting_force_n: self.cutting_force_n,
+            coil_current_a: self.coil_current_a,
+            current_noise_a: self.current_noise_a,
+            base_m: self.base_m,
+            sensor_noise_v: self.sensor_noise_v,
+            dac_v: self.dac_v,
+            flags: 0,
+            reserved: 0,
+        }
+    }
 }
 
 /// One tick as a linear system, in the simulator's balanced state coordinates, with the

@@ -2,7 +2,7 @@
 //! specified spectrum (DESIGN.md noise table, thesis eq 6-6..6-8, Table 7-2) in bands of
 //! at least a third of an octave and five bins.
 
-use design::spectral::{welch, WelchConfig};
+use lti::spectral::{welch, WelchConfig};
 use num_complex::Complex64 as C;
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::params::{NoiseParams, PlantParams};

@@ -134,10 +134,10 @@ fn quantised_dac_and_nonfinite_command() {
     assert_eq!(t.dac_v, lsb);
     let (s, t) = sim.step(25.0);
     assert_eq!(t.dac_v, 131071.0 * lsb);
-    assert_ne!(s.flags & plant_sim::sim::flags::DAC_CLIPPED, 0);
+    assert_ne!(s.flags & daq_io::flags::DAC_CLIPPED, 0);
     let (s, t) = sim.step(f64::NAN);
     assert_eq!(t.dac_v, 0.0);
-    assert_ne!(s.flags & plant_sim::sim::flags::COMMAND_NOT_FINITE, 0);
+    assert_ne!(s.flags & daq_io::flags::COMMAND_NOT_FINITE, 0);
 }
 
 #[test]

@@ -57,7 +57,7 @@ record!(
     control_v,
     /// Accelerometer reading in m/s².
     accel_m_s2,
-    /// Status flags of the sample (plant-sim `flags` bits) as a number.
+    /// Status flags of the tick ([`daq_io::flags`] bits) as a number.
     flags,
 });
 
@@ -93,6 +93,36 @@ pub struct Frame {
     pub telemetry: Telemetry,
     /// Ground truth.
     pub truth: Truth,
+}
+
+impl Frame {
+    /// The frame of one tick: the controller's telemetry joined with the plant's truth (the
+    /// one conversion from the f64 sample contract to the f32 recorded schemas; the flags of
+    /// both, [`daq_io::flags`] bits, are merged).
+    pub fn join(t: &daq_io::Telemetry, truth: &daq_io::Truth) -> Frame {
+        Frame {
+            time_ns: (t.time_s * 1e9).round() as u64,
+            telemetry: Telemetry {
+                reference_m: t.reference_m as f32,
+                measured_m: t.measured_m as f32,
+                following_error_m: t.following_error_m as f32,
+                control_v: t.control_v as f32,
+                accel_m_s2: t.accel_m_s2 as f32,
+                flags: (t.flags | truth.flags) as f32,
+            },
+            truth: Truth {
+                tool_m: truth.tool_m as f32,
+                true_error_m: (truth.tool_m - t.reference_m) as f32,
+                gap_m: truth.gap_m as f32,
+                motor_force_n: truth.motor_force_n as f32,
+                cutting_force_n: truth.cutting_force_n as f32,
+                coil_current_a: truth.coil_current_a as f32,
+                current_noise_a: truth.current_noise_a as f32,
+                base_m: truth.base_m as f32,
+                sensor_noise_v: truth.sensor_noise_v as f32,
+            },
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,39 +1,20 @@
 //! The controllers `servo run` can drive, built from the configuration, and their linear
 //! realisations for the pre-run stability check.
 
-use crate::config::{ConfigError, ControllerConfig, ControllerKind, Loaded};
+use crate::config::{ConfigError, ControllerConfig, ControllerKind, Origin, RunConfig};
+use crate::controller_file::ControllerFile;
 use nalgebra::{DMatrix, SMatrix};
-use serde::Deserialize;
 use servo_core::{
     kg, AccelCascade, AccelCascadeConfig, BiquadDesign, Block, CascadeInput, Iir, IirCoeffs,
     Limits, Pid, PidConfig, StateSpace, StateSpaceConfig,
 };
-
-/// Largest state-space controller order `servo run` accepts (the thesis's full order is 27).
-pub const MAX_SS_ORDER: usize = 40;
-
-/// A controller file: the discrete controller `x⁺ = A x + B e`, `u = C x + D e` from the
-/// position error `e = reference − measurement` in sensor volts to the command in volts.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SsFile {
-    /// The sample rate the matrices were designed for, in Hz (must equal the servo rate).
-    pub sample_rate_hz: f64,
-    /// n × n.
-    pub a: Vec<Vec<f64>>,
-    /// n × 1.
-    pub b: Vec<Vec<f64>>,
-    /// 1 × n.
-    pub c: Vec<Vec<f64>>,
-    /// 1 × 1.
-    pub d: Vec<Vec<f64>>,
-}
 
 /// One tick of a state-space controller of run-time order (dispatched to the const-generic
 /// servo-core block of that order).
 trait SsTick: Send {
     fn tick(&mut self, e: f64) -> f64;
     fn faulted(&self) -> bool;
+    fn boxed_clone(&self) -> Box<dyn SsTick>;
 }
 
 impl<const N: usize> SsTick for StateSpace<N, 1, 1> {
@@ -42,6 +23,9 @@ impl<const N: usize> SsTick for StateSpace<N, 1, 1> {
     }
     fn faulted(&self) -> bool {
         Block::faulted(self)
+    }
+    fn boxed_clone(&self) -> Box<dyn SsTick> {
+        Box::new(self.clone())
     }
 }
 
@@ -78,7 +62,18 @@ enum Kind {
     Ss(Box<dyn SsTick>),
 }
 
-/// A built controller: the tick plus its linear model.
+impl Clone for Kind {
+    fn clone(&self) -> Self {
+        match self {
+            Kind::Pid(p) => Kind::Pid(p.clone()),
+            Kind::Accel(a) => Kind::Accel(a.clone()),
+            Kind::Ss(s) => Kind::Ss(s.boxed_clone()),
+        }
+    }
+}
+
+/// A built controller: the tick plus its linear model. Cloning copies its state.
+#[derive(Clone)]
 pub struct Controller {
     kind: Kind,
     /// Linear realisation on inputs `[gap_v, accel_v]` with zero reference (for stability).
@@ -117,7 +112,7 @@ impl LinearController {
 }
 
 /// A fixed-size servo-core matrix as a dynamic one.
-pub(crate) fn dm<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> DMatrix<f64> {
+pub fn dm<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> DMatrix<f64> {
     DMatrix::from_fn(R, C, |i, j| m[(i, j)])
 }
 
@@ -171,17 +166,19 @@ pub fn accel_shaping(c: &ControllerConfig) -> Option<BiquadDesign> {
     })
 }
 
-fn invalid(cfg: &Loaded, key: &str, e: impl std::fmt::Display) -> ConfigError {
-    cfg.invalid(key, e, "a valid value (see the message)")
+fn invalid(at: &Origin, key: &str, e: impl std::fmt::Display) -> ConfigError {
+    at.invalid(key, e, "a valid value (see the message)")
 }
 
 impl Controller {
-    /// Builds the controller of `cfg` (the plant section gives the mass for Kg scaling).
-    pub fn build(cfg: &Loaded) -> Result<Self, ConfigError> {
-        let c = &cfg.config.controller;
-        let period = 1.0 / cfg.config.plant.timing.servo_rate_hz;
+    /// Builds the controller of `config` (the plant section gives the rate, and the mass for
+    /// Kg scaling; a state-space controller is read from `controller.ss_file`, a path already
+    /// resolved). Errors are located in `at`.
+    pub fn build(config: &RunConfig, at: &Origin) -> Result<Self, ConfigError> {
+        let c = &config.controller;
+        let period = 1.0 / config.plant.timing.servo_rate_hz;
         let limits = Limits::try_new(-c.limit_v, c.limit_v)
-            .map_err(|e| invalid(cfg, "controller.limit_v", e))?;
+            .map_err(|e| invalid(at, "controller.limit_v", e))?;
         let mut pid_cfg = PidConfig {
             kp: c.pid.kp,
             ki: c.pid.ki,
@@ -191,7 +188,7 @@ impl Controller {
         };
         let mut description = String::new();
         if c.kind == ControllerKind::Accel && c.kg_scaling {
-            let p = &cfg.config.plant;
+            let p = &config.plant;
             let (a, mass) = (&p.actuator, p.stage.suspended_mass_kg());
             let k = kg(
                 mass,
@@ -209,12 +206,12 @@ impl Controller {
                 value,
                 min,
                 max,
-            } => cfg.invalid(
+            } => at.invalid(
                 &format!("controller.pid.{param}"),
                 value,
                 &format!("[{min}, {max}]"),
             ),
-            other => invalid(cfg, "controller.pid", other),
+            other => invalid(at, "controller.pid", other),
         })?;
         let (pa, pb, pc, pd) = pid.coeffs().realization();
         // The PID sees e = −gap (zero reference): gain −1 on the gap channel.
@@ -235,7 +232,7 @@ impl Controller {
                 let ha = match accel_shaping(c) {
                     Some(d) => d
                         .try_coeffs(period)
-                        .map_err(|e| invalid(cfg, "controller.accel_filter_hz", e))?,
+                        .map_err(|e| invalid(at, "controller.accel_filter_hz", e))?,
                     None => IirCoeffs::<2>::IDENTITY,
                 };
                 let cascade = AccelCascadeConfig {
@@ -244,7 +241,7 @@ impl Controller {
                     limits,
                 }
                 .try_build(period, Iir::new(ha))
-                .map_err(|e| invalid(cfg, "controller.ka", e))?;
+                .map_err(|e| invalid(at, "controller.ka", e))?;
                 let (ha_a, ha_b, ha_c, ha_d) = ha.realization();
                 // u = PID(−gap) − Ha(Ka·accel)
                 let accel_linear = on_channel(dm(&ha_a), dm(&ha_b), -dm(&ha_c), -ha_d, 1, c.ka);
@@ -260,15 +257,18 @@ impl Controller {
                 }
             }
             ControllerKind::Ss => {
-                let file = c.ss_file.as_ref().expect("validated: ss needs ss_file");
-                let path = cfg.resolve(file);
-                let (m, n) = load_ss(&path, cfg.config.plant.timing.servo_rate_hz)?;
+                let path = c.ss_file.as_ref().expect("validated: ss needs ss_file");
+                let ControllerFile { m, n } =
+                    ControllerFile::load(path, config.plant.timing.servo_rate_hz)?;
                 let tick = boxed_ss(&m, n, period, limits).ok_or_else(|| ConfigError::Invalid {
                     path: Some(path.clone()),
                     line: None,
                     key: "a".into(),
                     value: format!("{n} states"),
-                    range: format!("1..={MAX_SS_ORDER} states, finite entries"),
+                    range: format!(
+                        "1..={} states, finite entries",
+                        crate::controller_file::MAX_SS_ORDER
+                    ),
                 })?;
                 let linear = on_channel(
                     m.view((0, 0), (n, n)).into_owned(),
@@ -311,69 +311,4 @@ impl Controller {
             Kind::Ss(s) => s.tick(error_v),
         }
     }
-}
-
-/// Loads a controller file into `[[A, B], [C, D]]` and its order, checking shapes and rate.
-fn load_ss(
-    path: &std::path::Path,
-    servo_rate_hz: f64,
-) -> Result<(DMatrix<f64>, usize), ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
-        path: path.to_owned(),
-        source,
-    })?;
-    let file: SsFile = toml::from_str(&text).map_err(|e| ConfigError::Parse {
-        path: path.to_owned(),
-        message: e.to_string(),
-    })?;
-    let at = Loaded {
-        path: Some(path.to_owned()),
-        text: Some(text),
-        ..Default::default()
-    };
-    let n = file.a.len();
-    let shape = |key: &str, rows: &Vec<Vec<f64>>, r: usize, c: usize| {
-        let ok = rows.len() == r
-            && rows
-                .iter()
-                .all(|row| row.len() == c && row.iter().all(|x| x.is_finite()));
-        if ok {
-            Ok(())
-        } else {
-            let got = format!("{}×{}", rows.len(), rows.first().map_or(0, |x| x.len()));
-            Err(at.invalid(
-                key,
-                got,
-                &format!("{r}×{c} finite numbers (controller order {n}, one input, one output)"),
-            ))
-        }
-    };
-    if n == 0 || n > MAX_SS_ORDER {
-        return Err(at.invalid(
-            "a",
-            format!("{n} states"),
-            &format!("1..={MAX_SS_ORDER} states"),
-        ));
-    }
-    shape("a", &file.a, n, n)?;
-    shape("b", &file.b, n, 1)?;
-    shape("c", &file.c, 1, n)?;
-    shape("d", &file.d, 1, 1)?;
-    if (file.sample_rate_hz - servo_rate_hz).abs() > 1e-6 * servo_rate_hz {
-        return Err(at.invalid(
-            "sample_rate_hz",
-            file.sample_rate_hz,
-            &format!("{servo_rate_hz} Hz (the run's plant.timing.servo_rate_hz)"),
-        ));
-    }
-    let mut m = DMatrix::zeros(n + 1, n + 1);
-    for i in 0..n {
-        for j in 0..n {
-            m[(i, j)] = file.a[i][j];
-        }
-        m[(i, n)] = file.b[i][0];
-        m[(n, i)] = file.c[0][i];
-    }
-    m[(n, n)] = file.d[0][0];
-    Ok((m, n))
 }

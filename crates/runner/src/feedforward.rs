@@ -1,14 +1,16 @@
-//! The ZPETC feedforward of a run, designed from its sampled closed loop (reference → tool, or
-//! reference → sensor reading for `zpetc-sensor`).
+//! The feedforward of a run, built once from its plan: the stage-model inverse, or the ZPETC
+//! designed from the run's sampled closed loop (reference → tool, or reference → sensor
+//! reading for `zpetc-sensor`).
 
-use crate::analysis::{input, output};
-use crate::config::{FeedforwardKind, Loaded};
+use crate::closed_loop::{input, output, ClosedLoop};
+use crate::config::{ConfigError, FeedforwardKind, Origin, RunConfig};
 use crate::preview::MAX_PREVIEW;
-use crate::run::{closed_loop, RunError};
-use crate::servo_loop::ZPETC_SECTIONS;
-use design::lti::StateSpace;
-use design::zpetc::{design, ZpetcDesign};
-use servo_core::{IirCoeffs, Zpetc, ZpetcConfig};
+use design::zpetc::{design, ZpetcDesign, ZpetcError};
+use lti::StateSpace;
+use servo_core::{Block, IirCoeffs, Zpetc, ZpetcConfig};
+
+/// Sections of the largest ZPETC filter the loop runs.
+pub const ZPETC_SECTIONS: usize = 12;
 
 /// Largest reduced order tried.
 const MAX_ORDER: usize = 2 * ZPETC_SECTIONS - 4;
@@ -21,12 +23,97 @@ pub fn check_band_hz(period_s: f64) -> f64 {
     0.1 / period_s
 }
 
-/// The ZPETC design for the loop of `cfg`: reference in m → tool position in m (or the
-/// measured position in m for `zpetc-sensor`).
-pub fn design_for(cfg: &Loaded) -> Result<ZpetcDesign, RunError> {
-    let (cl, _) = closed_loop(cfg)?;
+/// Why no ZPETC could be built for a loop.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FeedforwardError {
+    /// The design failed.
+    #[error("ZPETC feedforward: {0}")]
+    Design(#[from] ZpetcError),
+    /// The reference → sensor loop has no delay to advance by one tick.
+    #[error("ZPETC feedforward: the sensor loop has no delay to advance")]
+    NoSensorDelay,
+    /// The design does not fit the loop's fixed-size filter or preview.
+    #[error("ZPETC feedforward needs {sections} sections and {preview} ticks of preview (at most {ZPETC_SECTIONS} and {MAX_PREVIEW})")]
+    TooLarge {
+        /// Sections needed.
+        sections: usize,
+        /// Preview needed, ticks.
+        preview: usize,
+    },
+    /// servo-core refused the filter.
+    #[error("ZPETC feedforward: {0}")]
+    Block(servo_core::Error),
+}
+
+/// The feedforward of a loop, ready to run (cloned into each [`crate::ServoLoop`]).
+#[derive(Debug, Clone)]
+pub enum Feedforward {
+    /// Feedback only.
+    None,
+    /// Stage-model inverse on finite differences of the window (V).
+    Model(servo_core::Feedforward),
+    /// Reshaped reference (m).
+    Zpetc(Box<Zpetc<ZPETC_SECTIONS>>),
+}
+
+impl Feedforward {
+    /// The feedforward `config` asks for, on the loop `cl` (errors located in `at`).
+    pub fn build(
+        config: &RunConfig,
+        at: &Origin,
+        cl: &ClosedLoop,
+    ) -> Result<Self, crate::RunError> {
+        let c = &config.controller;
+        Ok(match c.feedforward {
+            FeedforwardKind::None => Feedforward::None,
+            FeedforwardKind::Model => Feedforward::Model(model(config, at)?),
+            FeedforwardKind::Zpetc | FeedforwardKind::ZpetcSensor => {
+                Feedforward::Zpetc(Box::new(zpetc(cl, c.feedforward)?))
+            }
+        })
+    }
+
+    /// Ticks of reference preview it needs.
+    pub fn preview(&self) -> usize {
+        match self {
+            Feedforward::None => 0,
+            Feedforward::Model(_) => 1,
+            Feedforward::Zpetc(z) => z.preview(),
+        }
+    }
+
+    /// A block latched a fault.
+    pub fn faulted(&self) -> bool {
+        match self {
+            Feedforward::None => false,
+            Feedforward::Model(f) => f.faulted(),
+            Feedforward::Zpetc(z) => z.faulted(),
+        }
+    }
+}
+
+/// `m·r̈ + c·ṙ + k·r` of the configured stage, in V.
+fn model(config: &RunConfig, at: &Origin) -> Result<servo_core::Feedforward, ConfigError> {
+    let (st, a) = (&config.plant.stage, &config.plant.actuator);
+    let limit = config.controller.limit_v;
+    servo_core::FeedforwardConfig {
+        mass_kg: st.suspended_mass_kg(),
+        damping_n_s_per_m: st.c2_n_s_per_m,
+        stiffness_n_per_m: st.k2_n_per_m,
+        newton_per_unit: a.current_gain_a_per_v * a.kt_n_per_a,
+        limits: servo_core::Limits::try_new(-limit, limit)
+            .map_err(|e| at.invalid("controller.limit_v", e, "(0, 10] V"))?,
+    }
+    .try_build()
+    .map_err(|e| at.invalid("plant", e, "a valid stage for feedforward"))
+}
+
+/// The ZPETC design for the loop `cl`: reference in m → tool position in m (or the measured
+/// position in m for [`FeedforwardKind::ZpetcSensor`]).
+pub fn design_for(cl: &ClosedLoop, kind: FeedforwardKind) -> Result<ZpetcDesign, ZpetcError> {
     let sys = &cl.sys;
-    let out = match cfg.config.controller.feedforward {
+    let out = match kind {
         FeedforwardKind::ZpetcSensor => output::MEASURED_M,
         _ => output::TOOL_M,
     };
@@ -44,26 +131,28 @@ pub fn design_for(cfg: &Loaded) -> Result<ZpetcDesign, RunError> {
         check_band_hz(period),
         MODEL_TOLERANCE,
     )
-    .map_err(|e| RunError::Plant(format!("ZPETC feedforward: {e}")))
 }
 
-/// The servo-core ZPETC block for the loop of `cfg`. The tool output of tick k is the tool at
-/// the tick's end; the measured output is the sample the tick *starts* with, so the sensor
-/// design is advanced by one tick (its preview shrinks by one) to make the sample closing
-/// tick k follow the trajectory at that time, as the telemetry pairs them.
-pub fn zpetc(cfg: &Loaded) -> Result<Zpetc<ZPETC_SECTIONS>, RunError> {
-    let mut d = design_for(cfg)?;
-    if cfg.config.controller.feedforward == FeedforwardKind::ZpetcSensor {
-        d.preview = d.preview.checked_sub(1).ok_or_else(|| {
-            RunError::Plant("ZPETC feedforward: the sensor loop has no delay to advance".into())
-        })?;
+/// The servo-core ZPETC block for the loop `cl`. The tool output of tick k is the tool at the
+/// tick's end; the measured output is the sample the tick *starts* with, so the sensor design
+/// is advanced by one tick (its preview shrinks by one) to make the sample closing tick k
+/// follow the trajectory at that time, as the telemetry pairs them.
+pub fn zpetc(
+    cl: &ClosedLoop,
+    kind: FeedforwardKind,
+) -> Result<Zpetc<ZPETC_SECTIONS>, FeedforwardError> {
+    let mut d = design_for(cl, kind)?;
+    if kind == FeedforwardKind::ZpetcSensor {
+        d.preview = d
+            .preview
+            .checked_sub(1)
+            .ok_or(FeedforwardError::NoSensorDelay)?;
     }
     if d.sections.len() > ZPETC_SECTIONS || d.preview > MAX_PREVIEW {
-        return Err(RunError::Plant(format!(
-            "ZPETC feedforward needs {} sections and {} ticks of preview (at most {ZPETC_SECTIONS} and {MAX_PREVIEW})",
-            d.sections.len(),
-            d.preview
-        )));
+        return Err(FeedforwardError::TooLarge {
+            sections: d.sections.len(),
+            preview: d.preview,
+        });
     }
     let mut sections = [IirCoeffs::<2>::IDENTITY; ZPETC_SECTIONS];
     for (s, &[b0, b1, b2, a1, a2]) in sections.iter_mut().zip(&d.sections) {
@@ -75,5 +164,5 @@ pub fn zpetc(cfg: &Loaded) -> Result<Zpetc<ZPETC_SECTIONS>, RunError> {
         preview: d.preview,
     }
     .try_build()
-    .map_err(|e| RunError::Plant(format!("ZPETC feedforward: {e}")))
+    .map_err(FeedforwardError::Block)
 }

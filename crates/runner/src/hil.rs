@@ -8,16 +8,17 @@
 //! and the gap is counted as dropped frames); a lost controller puts the plant in the safe
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
-use crate::config::Loaded;
-use crate::run::{meta, metadata, RunError};
-use crate::servo_loop::{frame, ServoLoop, SimBackend};
-use crate::summary::{RunMeta, Summary, SummaryBuilder};
+use crate::error::RunError;
+use crate::plan::Plan;
+use crate::recording::metadata;
+use crate::servo_loop::ServoLoop;
+use crate::sim_backend::SimBackend;
+use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
 use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
-use daq_io::{flags, Control, Daq, Health, Latency, Telemetry, TelemetryBlock, Truth};
-use recorder::{Chunks, Recorder, WhenFull};
-use serde::{Deserialize, Serialize};
+use daq_io::{flags, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
+use recorder::{Chunks, Frame, Recorder, WhenFull};
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -30,25 +31,6 @@ pub const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 pub const PLANT_TIMEOUT: Duration = Duration::from_secs(1);
 /// Silence after which the recorder stops waiting for the end of a run.
 pub const RECORDER_TIMEOUT: Duration = Duration::from_secs(3);
-
-/// What the plant and controller reported about a HIL run (in the summary).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct HilMeta {
-    /// Paced to the wall clock (false: lockstep).
-    pub realtime: bool,
-    /// Late commands (real time: the DAC held its value).
-    pub overruns: u64,
-    /// Round trip sensor → command as the plant measured it, ns.
-    pub latency: Latency,
-    /// Fault bits ([`daq_io::flags`]) the plant raised.
-    pub faults: u32,
-    /// Ticks recorded from the plant's truth alone (no telemetry: controller lost).
-    pub truth_only_ticks: u64,
-}
-
-fn ipc(e: daq_io::ipc::IpcError) -> RunError {
-    RunError::Transport(e.to_string())
-}
 
 /// How `servo plant` runs (the rest of [`ServeOptions`] follows from the config).
 #[derive(Debug, Clone, Copy)]
@@ -63,17 +45,16 @@ pub struct PlantOptions {
     pub peer_timeout: Option<Duration>,
 }
 
-/// `servo plant`: serves the simulated stage of `cfg` to the run `prefix` until its duration,
+/// `servo plant`: serves the simulated stage of `plan` to the run `prefix` until its duration,
 /// a STOP, `stop`, or a lost controller.
 pub fn plant(
-    cfg: &Loaded,
+    plan: &Plan,
     prefix: &str,
     p: &PlantOptions,
     stop: &AtomicBool,
 ) -> Result<daq_io::serve::ServeReport, RunError> {
-    let c = &cfg.config;
-    c.validate(cfg)?;
-    let mut backend = SimBackend::for_run(cfg)?;
+    let c = &plan.config;
+    let mut backend = SimBackend::for_run(plan);
     let mut opts = ServeOptions::new(c.ticks(), c.plant.period_s(), p.pacing);
     opts.wait_for_recorder = p.wait_for_recorder;
     opts.wait_for_start = p.wait_for_start;
@@ -81,23 +62,20 @@ pub fn plant(
     if let Some(t) = p.peer_timeout {
         opts.peer_timeout = t;
     }
-    let ep = Endpoint::open(prefix, "plant").map_err(ipc)?;
-    serve(&ep, &mut backend, &opts, stop).map_err(|e| RunError::Transport(e.to_string()))
+    let ep = Endpoint::open(prefix, "plant")?;
+    Ok(serve(&ep, &mut backend, &opts, stop)?)
 }
 
-/// `servo controller`: runs the controller of `cfg` against the plant of run `prefix` until
+/// `servo controller`: runs the controller of `plan` against the plant of run `prefix` until
 /// the plant closes the run. `stop` (Ctrl-C) asks the plant to stop. Returns the ticks run.
-pub fn controller(cfg: &Loaded, prefix: &str, stop: &AtomicBool) -> Result<u64, RunError> {
-    cfg.config.validate(cfg)?;
-    let mut servo = ServoLoop::new(cfg)?;
-    let ep = Endpoint::open(prefix, "controller").map_err(ipc)?;
-    let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT).map_err(ipc)?;
-    let telemetry_pub = ep
-        .publisher::<TelemetryBlock>(leaf::TELEMETRY)
-        .map_err(ipc)?;
-    let control_sub = ep.subscriber::<Control>(leaf::CONTROL).map_err(ipc)?;
-    let health_pub = ep.publisher::<Health>(leaf::HEALTH).map_err(ipc)?;
-    let stopper = ControlSender::new(&ep).map_err(ipc)?;
+pub fn controller(plan: &Plan, prefix: &str, stop: &AtomicBool) -> Result<u64, RunError> {
+    let mut servo = ServoLoop::new(plan)?;
+    let ep = Endpoint::open(prefix, "controller")?;
+    let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;
+    let telemetry_pub = ep.publisher::<TelemetryBlock>(leaf::TELEMETRY)?;
+    let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
+    let health_pub = ep.publisher::<Health>(leaf::HEALTH)?;
+    let stopper = ControlSender::new(&ep)?;
     let mut telemetry = BlockWriter::<TelemetryBlock>::default();
     let mut health = Health {
         role: role::CONTROLLER,
@@ -109,7 +87,7 @@ pub fn controller(cfg: &Loaded, prefix: &str, stop: &AtomicBool) -> Result<u64, 
     let result = loop {
         let s = match link.read() {
             Ok(s) => s,
-            Err(e) => break Err(RunError::PlantLost(e.to_string())),
+            Err(e) => break Err(RunError::PlantLost(e)),
         };
         if s.seq == 0 {
             // Tick 0 is untimed (see daq_io::serve): set up every connection now.
@@ -123,7 +101,7 @@ pub fn controller(cfg: &Loaded, prefix: &str, stop: &AtomicBool) -> Result<u64, 
         }
         let Some(cmd) = cmd else { break Ok(s.seq) };
         if let Err(e) = link.write(cmd) {
-            break Err(RunError::Transport(e.to_string()));
+            break Err(RunError::PlantLost(e));
         }
         if s.seq.is_multiple_of(2048) {
             while let Some(c) = take(&control_sub) {
@@ -155,7 +133,7 @@ pub fn controller(cfg: &Loaded, prefix: &str, stop: &AtomicBool) -> Result<u64, 
         state::FAULTED
     };
     daq_io::ipc::send(&health_pub, health);
-    let service = ep.service::<TelemetryBlock>(leaf::TELEMETRY).map_err(ipc)?;
+    let service = ep.service::<TelemetryBlock>(leaf::TELEMETRY)?;
     daq_io::ipc::linger(&service, Duration::from_secs(5));
     result
 }
@@ -190,11 +168,11 @@ impl Joiner {
 
     /// Frames complete so far; with `finished`, also the plant's ticks that have no
     /// telemetry (the controller was lost): recorded from the truth alone.
-    fn drain(&mut self, finished: bool, mut out: impl FnMut(recorder::Frame)) {
+    fn drain(&mut self, finished: bool, mut out: impl FnMut(Frame)) {
         loop {
             match (self.telemetry.front(), self.truth.front()) {
                 (Some(a), Some(b)) if a.seq == b.seq => {
-                    out(frame(a, b));
+                    out(Frame::join(a, b));
                     self.telemetry.pop_front();
                     self.truth.pop_front();
                 }
@@ -207,7 +185,7 @@ impl Joiner {
                         time_s: b.time_s,
                         ..Default::default()
                     };
-                    out(frame(&t, b));
+                    out(Frame::join(&t, b));
                     self.truth_only += 1;
                     self.truth.pop_front();
                 }
@@ -220,22 +198,21 @@ impl Joiner {
 /// `servo record`: records run `prefix` (telemetry joined with truth, tick by tick) to `out`
 /// and returns the run's summary, with the plant's overruns, latency and faults.
 pub fn record(
-    cfg: &Loaded,
+    plan: &Plan,
     prefix: &str,
     out: Option<PathBuf>,
     realtime: bool,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Summary, RunError> {
-    let c = &cfg.config;
-    c.validate(cfg)?;
-    let description = crate::controller::Controller::build(cfg)?.description;
-    let ep = Endpoint::open(prefix, "recorder").map_err(ipc)?;
-    let tap = Tap::new(&ep).map_err(ipc)?;
+    let c = &plan.config;
+    let description = plan.controller.description.clone();
+    let ep = Endpoint::open(prefix, "recorder")?;
+    let tap = Tap::new(&ep)?;
     let mut rec = match &out {
         // Uncompressed: this process shares the cores with two busy-polling ones.
         Some(path) => Some(Recorder::create_with(
             path,
-            metadata(cfg),
+            metadata(c),
             WhenFull::Wait,
             Chunks::Raw,
         )?),
@@ -248,7 +225,7 @@ pub fn record(
     let (mut telemetry_end, mut truth_end, mut plant_fault) = (false, false, false);
     let mut last_data: Option<Instant> = None;
     let waiting = Instant::now();
-    let mut push = |f: recorder::Frame| {
+    let mut push = |f: Frame| {
         summary.add(&f);
         if let Some(r) = &mut rec {
             // A writer failure comes out of finish() below.
@@ -292,9 +269,10 @@ pub fn record(
     }
     drop(tap);
     if last_data.is_none() {
-        return Err(RunError::Transport(format!(
-            "no plant or controller joined run {prefix} within {STARTUP_TIMEOUT:?}"
-        )));
+        return Err(RunError::NoPeers {
+            prefix: prefix.to_owned(),
+            waited_s: STARTUP_TIMEOUT.as_secs_f64(),
+        });
     }
     let stats = match rec {
         Some(r) => Some(r.finish()?),
@@ -313,6 +291,6 @@ pub fn record(
             faults: plant_health.faults,
             truth_only_ticks: join.truth_only,
         }),
-        ..meta(c, description)
+        ..RunMeta::of(c, description)
     }))
 }

@@ -1,37 +1,41 @@
 //! # runner
 //!
-//! One closed-loop run as a library: the configuration (TOML, thesis defaults, located
-//! errors), the controller from servo-core, the simulated stage from plant-sim, a pre-run
-//! stability check on the exact sampled loop, the recording (MCAP) and the summary. The
-//! `servo` binary is a thin shell over this; a DAQ daemon or a notebook can call it too.
+//! The closed-loop runtime as a library, built once from a resolved [`Plan`]: the
+//! configuration (TOML, thesis defaults, located errors), the controller from servo-core, the
+//! simulated stage from plant-sim behind daq-io's `Backend`, a pre-run stability check on the
+//! exact sampled loop, the recording (MCAP) and the summary — in one process ([`run`]) or as
+//! the plant, controller and recorder processes of a HIL run ([`hil`]). The offline studies
+//! live in the `studies` crate; the `servo` binary is a thin shell over both.
 //!
 //! ```no_run
-//! use runner::{config::Loaded, run::{run, RunOptions}};
+//! use runner::{config::Loaded, run::{run, RunOptions}, Plan};
 //! use std::sync::atomic::AtomicBool;
-//! let cfg = Loaded::default(); // thesis prototype, Chapter 7 PID, hold position, 1 s
+//! // thesis prototype, Chapter 7 PID, hold position, 1 s
+//! let plan = Plan::new(&Loaded::default())?;
 //! let stop = AtomicBool::new(false);
-//! let summary = run(&cfg, RunOptions { out: None, stop: &stop, progress: &mut |_, _| {} })?;
+//! let summary = run(&plan, RunOptions { out: None, stop: &stop, progress: &mut |_, _| {} })?;
 //! println!("{summary}");
-//! # Ok::<(), runner::run::RunError>(())
+//! # Ok::<(), runner::RunError>(())
 //! ```
 
-pub mod analysis;
+pub mod closed_loop;
 pub mod config;
 pub mod controller;
+pub mod controller_file;
+mod error;
 pub mod feedforward;
-pub mod form;
-pub mod frf;
 pub mod hil;
-pub mod identify;
-pub mod intermittent;
-pub mod machine;
+pub mod machining;
+pub mod plan;
 pub mod preview;
-pub mod report;
+pub mod recording;
 pub mod run;
 pub mod servo_loop;
-pub mod spindle;
-pub mod stiffness;
+pub mod sim_backend;
 pub mod summary;
-pub mod sweep;
-pub mod synth;
-pub mod tune;
+pub mod surface;
+
+pub use error::RunError;
+pub use plan::Plan;
+pub use servo_loop::ServoLoop;
+pub use sim_backend::SimBackend;

@@ -1,102 +1,15 @@
-//! The two halves of a tick, shared by the in-process run and the HIL processes so both
-//! compute bit-identical results: [`SimBackend`] (plant-sim behind daq-io's [`Backend`]) and
-//! [`ServoLoop`] (reference + controller → command and telemetry).
+//! The controller's half of a tick, shared by the in-process run and the HIL controller
+//! process so both compute bit-identical results: reference (generator or machined surface,
+//! with preview) + feedforward + controller → command and telemetry.
 
-use crate::config::{ConfigError, FeedforwardKind, Loaded, Scenario};
+use crate::config::{ConfigError, Scenario};
 use crate::controller::Controller;
-use crate::machine::{SurfaceReference, Workpiece};
+use crate::feedforward::Feedforward;
+use crate::machining::SurfaceReference;
+use crate::plan::Plan;
 use crate::preview::{Window, MAX_PREVIEW};
-use crate::run::RunError;
-use crate::summary::SATURATED;
-use daq_io::{flags, Backend, Command, Sensor, Telemetry, Truth};
-use plant_sim::Simulator;
-use recorder::Frame;
+use daq_io::{flags, Command, Sensor, Telemetry};
 use servo_core::{Block, ChirpConfig, SineConfig, StepConfig, Sweep};
-
-/// The simulated stage as a daq-io backend (keeps the last step's truth), with the part on
-/// the spindle when machining.
-pub struct SimBackend {
-    sim: Simulator,
-    truth: Truth,
-    workpiece: Option<Workpiece>,
-    tick: u64,
-}
-
-impl SimBackend {
-    /// Wraps `sim` (no spindle).
-    pub fn new(sim: Simulator) -> Self {
-        SimBackend {
-            sim,
-            truth: Truth::default(),
-            workpiece: None,
-            tick: 0,
-        }
-    }
-
-    /// The stage of a run of `cfg`: its seed and cutting profile, and the spindle and part of
-    /// a machining scenario.
-    pub fn for_run(cfg: &Loaded) -> Result<Self, RunError> {
-        let c = &cfg.config;
-        let sim = Simulator::new(&c.plant, c.run.seed, &c.scenario.cutting())
-            .map_err(|e| crate::run::plant_error(e, cfg))?;
-        let workpiece = match &c.scenario {
-            Scenario::Machine(m) => Some(Workpiece::new(m, m.surface.load(cfg)?, sim.period_s())),
-            _ => None,
-        };
-        Ok(SimBackend {
-            workpiece,
-            ..SimBackend::new(sim)
-        })
-    }
-
-    /// The simulator.
-    pub fn sim(&self) -> &Simulator {
-        &self.sim
-    }
-}
-
-impl Backend for SimBackend {
-    #[inline]
-    fn step(&mut self, dac_v: f64) -> Sensor {
-        let force = self
-            .workpiece
-            .as_ref()
-            .map_or(0.0, |w| w.cutting_force_n(self.tick));
-        let (s, t) = self.sim.step_with_force(dac_v, force);
-        self.tick += 1;
-        self.truth = Truth {
-            seq: 0,
-            time_s: s.time_s,
-            tool_m: t.tool_m,
-            gap_m: t.gap_m,
-            motor_force_n: t.motor_force_n,
-            cutting_force_n: t.cutting_force_n,
-            coil_current_a: t.coil_current_a,
-            current_noise_a: t.current_noise_a,
-            base_m: t.base_m,
-            sensor_noise_v: t.sensor_noise_v,
-            dac_v: t.dac_v,
-            flags: 0,
-            reserved: 0,
-        };
-        Sensor {
-            seq: 0,
-            time_s: s.time_s,
-            gap_v: s.gap_v,
-            accel_v: s.accel_v,
-            encoder_count: self
-                .workpiece
-                .as_ref()
-                .map_or(0, |w| w.encoder_count(self.tick)),
-            flags: s.flags,
-            reserved: 0,
-        }
-    }
-
-    fn truth(&self) -> Option<Truth> {
-        Some(self.truth)
-    }
-}
 
 /// Where the desired trajectory comes from (m, one sample per tick).
 enum Source {
@@ -106,10 +19,10 @@ enum Source {
 }
 
 impl Source {
-    fn new(cfg: &Loaded) -> Result<Self, ConfigError> {
-        let c = &cfg.config;
+    fn new(plan: &Plan) -> Result<Self, ConfigError> {
+        let c = &plan.config;
         let (period, duration) = (c.plant.period_s(), c.run.duration_s);
-        let scenario = |e: servo_core::Error| cfg.invalid("scenario", e, "see the message");
+        let scenario = |e: servo_core::Error| plan.origin.invalid("scenario", e, "see the message");
         Ok(match &c.scenario {
             Scenario::Hold | Scenario::IntermittentCut { .. } => Source::Zero,
             Scenario::Sine {
@@ -148,9 +61,15 @@ impl Source {
                 .try_build(period)
                 .map_err(scenario)?,
             )),
-            Scenario::Machine(m) => Source::Surface(Box::new(
-                SurfaceReference::new(m, m.surface.load(cfg)?, period).map_err(scenario)?,
-            )),
+            Scenario::Machine(m) => {
+                let surface = plan
+                    .surface
+                    .clone()
+                    .expect("a machining plan has its surface");
+                Source::Surface(Box::new(
+                    SurfaceReference::new(m, surface, period).map_err(scenario)?,
+                ))
+            }
         })
     }
 
@@ -191,57 +110,6 @@ impl Source {
     }
 }
 
-/// Sections of the largest ZPETC filter the loop runs.
-pub const ZPETC_SECTIONS: usize = 12;
-
-/// The feedforward of [`ServoLoop`].
-enum Feedforward {
-    None,
-    /// Stage-model inverse on finite differences of the window (V).
-    Model(servo_core::Feedforward),
-    /// Reshaped reference (m).
-    Zpetc(Box<servo_core::Zpetc<ZPETC_SECTIONS>>),
-}
-
-impl Feedforward {
-    fn new(cfg: &Loaded) -> Result<(Self, usize), RunError> {
-        let c = &cfg.config;
-        Ok(match c.controller.feedforward {
-            FeedforwardKind::None => (Feedforward::None, 0),
-            FeedforwardKind::Model => {
-                let (st, a) = (&c.plant.stage, &c.plant.actuator);
-                let ff = servo_core::FeedforwardConfig {
-                    mass_kg: st.suspended_mass_kg(),
-                    damping_n_s_per_m: st.c2_n_s_per_m,
-                    stiffness_n_per_m: st.k2_n_per_m,
-                    newton_per_unit: a.current_gain_a_per_v * a.kt_n_per_a,
-                    limits: servo_core::Limits::try_new(
-                        -c.controller.limit_v,
-                        c.controller.limit_v,
-                    )
-                    .map_err(|e| cfg.invalid("controller.limit_v", e, "(0, 10] V"))?,
-                }
-                .try_build()
-                .map_err(|e| cfg.invalid("plant", e, "a valid stage for feedforward"))?;
-                (Feedforward::Model(ff), 1)
-            }
-            FeedforwardKind::Zpetc | FeedforwardKind::ZpetcSensor => {
-                let z = crate::feedforward::zpetc(cfg)?;
-                let preview = z.preview();
-                (Feedforward::Zpetc(Box::new(z)), preview)
-            }
-        })
-    }
-
-    fn faulted(&self) -> bool {
-        match self {
-            Feedforward::None => false,
-            Feedforward::Model(f) => f.faulted(),
-            Feedforward::Zpetc(z) => z.faulted(),
-        }
-    }
-}
-
 /// The controller's half of a tick: reads tick k's sample, returns tick k's command and the
 /// telemetry of tick k−1 (what the sample at its end showed). A non-finite reading latches the
 /// controller's fault: 0 V out and [`flags::FAULT_CONTROLLER`] on the command and telemetry.
@@ -263,12 +131,13 @@ pub struct ServoLoop {
 }
 
 impl ServoLoop {
-    /// Builds the controller, reference and feedforward of `cfg`.
-    pub fn new(cfg: &Loaded) -> Result<Self, RunError> {
-        let c = &cfg.config;
-        let controller = Controller::build(cfg)?;
-        let source = Source::new(cfg)?;
-        let (feedforward, preview) = Feedforward::new(cfg)?;
+    /// The controller, reference and feedforward of `plan`, in their initial state.
+    pub fn new(plan: &Plan) -> Result<Self, ConfigError> {
+        let c = &plan.config;
+        let controller = plan.controller.clone();
+        let source = Source::new(plan)?;
+        let feedforward = plan.feedforward.clone();
+        let preview = feedforward.preview();
         let rate = c.plant.timing.servo_rate_hz;
         let smoothing = c.controller.smoothing_hz;
         let half = if smoothing > 0.0 {
@@ -277,7 +146,7 @@ impl ServoLoop {
             0
         };
         let window = Window::new(preview, half).ok_or_else(|| {
-            cfg.invalid(
+            plan.origin.invalid(
                 "controller.smoothing_hz",
                 smoothing,
                 &format!(
@@ -334,8 +203,8 @@ impl ServoLoop {
         let faulted = self.last_fault;
         let telemetry = (s.seq > 0).then(|| {
             let measured = s.gap_v / self.sensitivity;
-            let saturated = self.last_u.abs() >= self.controller.limit_v
-                || s.flags & plant_sim::sim::flags::DAC_CLIPPED != 0;
+            let saturated =
+                self.last_u.abs() >= self.controller.limit_v || s.flags & flags::DAC_CLIPPED != 0;
             Telemetry {
                 seq: s.seq - 1,
                 time_s: s.time_s,
@@ -345,7 +214,7 @@ impl ServoLoop {
                 control_v: self.last_u,
                 accel_m_s2: s.accel_v * self.accel_scale,
                 flags: (s.flags & !flags::END)
-                    | if saturated { SATURATED } else { 0 }
+                    | if saturated { flags::SATURATED } else { 0 }
                     | if faulted { flags::FAULT_CONTROLLER } else { 0 },
                 reserved: 0,
             }
@@ -390,31 +259,5 @@ impl ServoLoop {
             reserved: 0,
         };
         (Some(command), telemetry)
-    }
-}
-
-/// The recorded frame of one tick: the controller's telemetry joined with the plant's truth.
-pub fn frame(t: &Telemetry, truth: &Truth) -> Frame {
-    Frame {
-        time_ns: (t.time_s * 1e9).round() as u64,
-        telemetry: recorder::Telemetry {
-            reference_m: t.reference_m as f32,
-            measured_m: t.measured_m as f32,
-            following_error_m: t.following_error_m as f32,
-            control_v: t.control_v as f32,
-            accel_m_s2: t.accel_m_s2 as f32,
-            flags: (t.flags | truth.flags) as f32,
-        },
-        truth: recorder::Truth {
-            tool_m: truth.tool_m as f32,
-            true_error_m: (truth.tool_m - t.reference_m) as f32,
-            gap_m: truth.gap_m as f32,
-            motor_force_n: truth.motor_force_n as f32,
-            cutting_force_n: truth.cutting_force_n as f32,
-            coil_current_a: truth.coil_current_a as f32,
-            current_noise_a: truth.current_noise_a as f32,
-            base_m: truth.base_m as f32,
-            sensor_noise_v: truth.sensor_noise_v as f32,
-        },
     }
 }

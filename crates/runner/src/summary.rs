@@ -1,12 +1,11 @@
 //! The run summary a precision engineer reads at a glance, computed from the recorded frames
 //! (so `servo inspect` recomputes exactly the same numbers from the file).
 
+use crate::config::RunConfig;
+use daq_io::Latency;
 use recorder::Frame;
 use serde::{Deserialize, Serialize};
 use std::fmt;
-
-/// Telemetry flag set by the runner when the command was at its limit or the DAC clipped.
-pub const SATURATED: u32 = 1 << 8;
 
 /// RMS, peak-to-valley and mean of a signal.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -21,7 +20,7 @@ pub struct Stats {
 
 /// Running RMS, peak-to-valley and mean.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Acc {
+pub struct Acc {
     n: u64,
     sum: f64,
     sum_sq: f64,
@@ -42,7 +41,8 @@ impl Default for Acc {
 }
 
 impl Acc {
-    pub(crate) fn add(&mut self, x: f64) {
+    /// Adds one value.
+    pub fn add(&mut self, x: f64) {
         self.n += 1;
         self.sum += x;
         self.sum_sq += x * x;
@@ -50,7 +50,8 @@ impl Acc {
         self.max = self.max.max(x);
     }
 
-    pub(crate) fn stats(&self) -> Stats {
+    /// The statistics so far.
+    pub fn stats(&self) -> Stats {
         let n = self.n.max(1) as f64;
         Stats {
             rms: (self.sum_sq / n).sqrt(),
@@ -99,11 +100,10 @@ impl SummaryBuilder {
         self.truth.add(f.truth.true_error_m as f64);
         self.control.add(f.telemetry.control_v as f64);
         let flags = f.telemetry.flags as u32;
-        if flags & SATURATED != 0 {
+        if flags & daq_io::flags::SATURATED != 0 {
             self.saturated += 1;
         }
-        if flags & (plant_sim::sim::flags::GAP_CLIPPED | plant_sim::sim::flags::ACCEL_CLIPPED) != 0
-        {
+        if flags & (daq_io::flags::GAP_CLIPPED | daq_io::flags::ACCEL_CLIPPED) != 0 {
             self.adc_clipped += 1;
         }
     }
@@ -148,7 +148,7 @@ pub struct RunMeta {
     /// Closed-loop spectral radius checked before the run.
     pub spectral_radius: Option<f64>,
     /// Multi-process (HIL) facts: overruns, latency, faults.
-    pub hil: Option<crate::hil::HilMeta>,
+    pub hil: Option<HilMeta>,
 }
 
 /// The summary of a run.
@@ -262,5 +262,40 @@ impl fmt::Display for Summary {
             }
         }
         Ok(())
+    }
+}
+
+/// What the plant and controller reported about a HIL run (in the summary).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HilMeta {
+    /// Paced to the wall clock (false: lockstep).
+    pub realtime: bool,
+    /// Late commands (real time: the DAC held its value).
+    pub overruns: u64,
+    /// Round trip sensor → command as the plant measured it, ns.
+    pub latency: Latency,
+    /// Fault bits ([`daq_io::flags`]) the plant raised.
+    pub faults: u32,
+    /// Ticks recorded from the plant's truth alone (no telemetry: controller lost).
+    pub truth_only_ticks: u64,
+}
+
+impl RunMeta {
+    /// The facts every summary of a run of `c` shares; the live ones (wall time, recording, HIL)
+    /// unset.
+    pub fn of(c: &RunConfig, controller: String) -> RunMeta {
+        RunMeta {
+            servo_rate_hz: c.plant.timing.servo_rate_hz,
+            seed: c.run.seed,
+            settle_s: c.run.settle(),
+            controller,
+            scenario: c.scenario.name().into(),
+            wall_s: None,
+            interrupted: false,
+            recorded_messages: None,
+            dropped_frames: None,
+            spectral_radius: None,
+            hil: None,
+        }
     }
 }

@@ -1,0 +1,326 @@
+//! Argument groups shared by several commands. Each command flattens only the groups it uses,
+//! so a flag it would ignore is a clap error, not a silent no-op. Each group applies itself on
+//! top of the configuration: defaults, then the `--config` file, then the flags.
+
+use clap::Args;
+use plant_sim::params::NoiseParams;
+use runner::config::presets::{ScenarioKind, ScenarioValues, StagePreset};
+use runner::config::{ConfigError, ControllerKind, FeedforwardKind, Loaded};
+use std::path::PathBuf;
+
+/// The stage and where the configuration comes from (every command that models the loop).
+#[derive(Args, Debug, Clone)]
+pub struct PlantArgs {
+    /// TOML configuration file (see `servo config --dump` for every key).
+    #[arg(short, long)]
+    pub config: Option<PathBuf>,
+    /// Servo (loop) rate in Hz.
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Stage preset (replaces [plant.stage]).
+    #[arg(long, value_enum)]
+    pub mass: Option<StagePreset>,
+    /// Noise sources on: comma list of sensor,current,base,accel, or `none` / `all`.
+    #[arg(long)]
+    pub noise: Option<String>,
+}
+
+impl PlantArgs {
+    /// The configuration: defaults, then the file, then these flags.
+    pub fn load(&self) -> Result<Loaded, ConfigError> {
+        let mut l = match &self.config {
+            Some(p) => Loaded::from_file(p)?,
+            None => Loaded::default(),
+        };
+        let c = &mut l.config;
+        set(&mut c.plant.timing.servo_rate_hz, self.rate);
+        if let Some(m) = self.mass {
+            c.plant.stage = m.params();
+        }
+        if let Some(list) = &self.noise {
+            c.plant.noise = noise_from(list, c.plant.noise).map_err(|bad| {
+                l.origin
+                    .invalid("--noise", bad, "sensor,current,base,accel | all | none")
+            })?;
+        }
+        Ok(l)
+    }
+}
+
+/// The simulated run's length and noise seed.
+#[derive(Args, Debug, Clone)]
+pub struct RunLengthArgs {
+    /// Simulated duration in s.
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Noise seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+}
+
+impl RunLengthArgs {
+    /// Applies the flags.
+    pub fn apply(&self, l: &mut Loaded) {
+        set(&mut l.config.run.duration_s, self.duration);
+        set(&mut l.config.run.seed, self.seed);
+    }
+}
+
+/// The acceleration loop's settings (§7.4).
+#[derive(Args, Debug, Clone)]
+pub struct AccelArgs {
+    /// Scale the PID gains by 1/Kg with acceleration feedback (§7.4.1).
+    #[arg(long)]
+    pub kg_scaling: bool,
+    /// Corner of the acceleration shaping filter Ha in Hz (0: none).
+    #[arg(long)]
+    pub accel_filter_hz: Option<f64>,
+    /// Order of Ha: 1 or 2.
+    #[arg(long)]
+    pub accel_filter_order: Option<u8>,
+}
+
+impl AccelArgs {
+    /// Applies the flags.
+    pub fn apply(&self, l: &mut Loaded) {
+        let c = &mut l.config.controller;
+        c.kg_scaling |= self.kg_scaling;
+        set(&mut c.accel_filter_hz, self.accel_filter_hz);
+        set(&mut c.accel_filter_order, self.accel_filter_order);
+    }
+}
+
+/// The feedback controller.
+#[derive(Args, Debug, Clone)]
+pub struct ControllerArgs {
+    /// Controller.
+    #[arg(long, value_enum)]
+    pub controller: Option<ControllerKind>,
+    /// Acceleration feedback gain Ka (V/V), for --controller accel.
+    #[arg(long)]
+    pub ka: Option<f64>,
+    /// Controller file for --controller ss (relative to the working directory).
+    #[arg(long)]
+    pub ss_file: Option<PathBuf>,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub accel: AccelArgs,
+}
+
+impl ControllerArgs {
+    /// Applies the flags.
+    pub fn apply(&self, l: &mut Loaded) {
+        let c = &mut l.config.controller;
+        set(&mut c.kind, self.controller);
+        set(&mut c.ka, self.ka);
+        if let Some(p) = &self.ss_file {
+            c.ss_file = Some(std::env::current_dir().map_or(p.clone(), |d| d.join(p)));
+        }
+        self.accel.apply(l);
+    }
+}
+
+/// Feedforward from the reference.
+#[derive(Args, Debug, Clone)]
+pub struct FeedforwardArgs {
+    /// Feedforward from the reference.
+    #[arg(long, value_enum)]
+    pub feedforward: Option<FeedforwardKind>,
+    /// Zero-phase smoothing of the previewed reference in Hz (Hann window; 0 = off), for
+    /// surfaces with kinks or steps.
+    #[arg(long)]
+    pub smoothing_hz: Option<f64>,
+}
+
+impl FeedforwardArgs {
+    /// Applies the flags.
+    pub fn apply(&self, l: &mut Loaded) {
+        let c = &mut l.config.controller;
+        set(&mut c.feedforward, self.feedforward);
+        set(&mut c.smoothing_hz, self.smoothing_hz);
+    }
+}
+
+/// What the stage is asked to do.
+#[derive(Args, Debug, Clone)]
+pub struct ScenarioArgs {
+    /// Scenario.
+    #[arg(long, value_enum)]
+    pub scenario: Option<ScenarioKind>,
+    /// Reference amplitude in m (sine, step, chirp).
+    #[arg(long)]
+    pub amplitude: Option<f64>,
+    /// Sine frequency, or chirp start frequency, in Hz.
+    #[arg(long)]
+    pub frequency: Option<f64>,
+    /// Chirp end frequency in Hz.
+    #[arg(long)]
+    pub f_end: Option<f64>,
+    /// Cutting force in N (intermittent-cut).
+    #[arg(long)]
+    pub force: Option<f64>,
+    /// Spindle speed in rpm (intermittent-cut, machine).
+    #[arg(long)]
+    pub rpm: Option<f64>,
+}
+
+impl ScenarioArgs {
+    /// Applies the flags (after the run length: a step sits at 20 % of the run).
+    pub fn apply(&self, l: &mut Loaded) {
+        let c = &mut l.config;
+        if let Some(kind) = self.scenario {
+            let values = ScenarioValues {
+                amplitude_m: self.amplitude,
+                frequency_hz: self.frequency,
+                f_end_hz: self.f_end,
+                force_n: self.force,
+                spindle_rpm: self.rpm,
+            };
+            c.scenario = kind.scenario(&values, c.run.duration_s);
+        }
+        if let runner::config::Scenario::Machine(m) = &mut c.scenario {
+            set(&mut m.spindle_rpm, self.rpm);
+        }
+    }
+}
+
+/// Everything that describes one closed-loop run (`run`, `config` and the HIL processes).
+#[derive(Args, Debug, Clone)]
+pub struct RunArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub plant: PlantArgs,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub length: RunLengthArgs,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub controller: ControllerArgs,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub feedforward: FeedforwardArgs,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub scenario: ScenarioArgs,
+}
+
+impl RunArgs {
+    /// The run's configuration.
+    pub fn load(&self) -> Result<Loaded, ConfigError> {
+        let mut l = self.plant.load()?;
+        self.length.apply(&mut l);
+        self.controller.apply(&mut l);
+        self.feedforward.apply(&mut l);
+        self.scenario.apply(&mut l);
+        Ok(l)
+    }
+}
+
+/// Overrides `field` with a command-line `flag` when one was given.
+pub fn set<T>(field: &mut T, flag: Option<T>) {
+    if let Some(v) = flag {
+        *field = v;
+    }
+}
+
+fn noise_from(list: &str, mut n: NoiseParams) -> Result<NoiseParams, String> {
+    let all = |n: &mut NoiseParams, on| (n.sensor, n.current, n.base, n.accel) = (on, on, on, on);
+    all(&mut n, false);
+    for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        match item {
+            "none" => all(&mut n, false),
+            "all" => all(&mut n, true),
+            "sensor" => n.sensor = true,
+            "current" => n.current = true,
+            "base" => n.base = true,
+            "accel" => n.accel = true,
+            other => return Err(other.to_string()),
+        }
+    }
+    Ok(n)
+}
+
+/// Where a run's recording and summary go.
+#[derive(Args, Debug, Clone)]
+pub struct RecordingArgs {
+    /// Output MCAP file.
+    #[arg(short, long, default_value = "run.mcap")]
+    pub out: PathBuf,
+    /// Do not write a file (summary only).
+    #[arg(long)]
+    pub no_record: bool,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+impl RecordingArgs {
+    /// The file to write, if any.
+    pub fn out(&self) -> Option<PathBuf> {
+        (!self.no_record).then(|| self.out.clone())
+    }
+}
+
+/// Options of the HIL processes.
+#[derive(Args, Debug, Clone)]
+pub struct HilArgs {
+    /// Run prefix of the iceoryx2 services (`fts-servo/<prefix>/…`): runs with different
+    /// prefixes never interfere. `servo run --hil` picks `run-<pid>`.
+    #[arg(long)]
+    pub prefix: Option<String>,
+    /// Pace ticks to the wall clock at the servo rate (late commands are overruns; the DAC
+    /// holds its last value). Default: lockstep, as fast as possible, bit-identical to `servo run`.
+    #[arg(long, conflicts_with = "lockstep")]
+    pub realtime: bool,
+    /// Lockstep pacing (the default).
+    #[arg(long)]
+    pub lockstep: bool,
+}
+
+impl HilArgs {
+    /// Lockstep or real time.
+    pub fn pacing(&self) -> daq_io::serve::Pacing {
+        if self.realtime {
+            daq_io::serve::Pacing::RealTime
+        } else {
+            daq_io::serve::Pacing::Lockstep
+        }
+    }
+
+    /// The run prefix a HIL process joins (required there).
+    pub fn prefix(&self) -> Result<String, ConfigError> {
+        self.prefix.clone().ok_or_else(|| {
+            runner::config::Origin::default().invalid(
+                "--prefix",
+                "(missing)",
+                "the run's service prefix, e.g. --prefix bench",
+            )
+        })
+    }
+}
+
+/// How long the plant waits for a silent controller before the safe state.
+#[derive(Args, Debug, Clone)]
+pub struct PeerTimeoutArgs {
+    /// Controller silence after which the plant declares it lost and drives zero current, ms
+    /// (default 200 lockstep, 0.5 real time; > 0).
+    #[arg(long)]
+    pub peer_timeout_ms: Option<f64>,
+}
+
+impl PeerTimeoutArgs {
+    /// The timeout, checked.
+    pub fn timeout(&self) -> Result<Option<std::time::Duration>, ConfigError> {
+        match self.peer_timeout_ms {
+            Some(t) if !(t > 0.0 && t < 1e7) => Err(runner::config::Origin::default().invalid(
+                "--peer-timeout-ms",
+                t,
+                "0 < t < 1e7 ms",
+            )),
+            t => Ok(t.map(|t| std::time::Duration::from_secs_f64(t * 1e-3))),
+        }
+    }
+}

@@ -1,0 +1,141 @@
+//! `servo budget`: the loop's error budget, and the bandwidth sweep of Fig 5-14.
+
+use crate::args::{ControllerArgs, PlantArgs};
+use crate::output::{points_bar, print_json, print_margins, print_written, CliError};
+use clap::Args;
+use runner::Plan;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use studies::budget::Budget;
+use studies::sweep::{self, Sweep, THESIS_BANDWIDTHS_HZ};
+use studies::StudyError;
+
+/// Error budget of the loop: per-source RMS and PSD, CAS, bandwidth sweep (thesis §5.7.2).
+///
+/// Eq 5-13..5-17: each noise source's RMS and PSD in the following error (what the sensor
+/// reports) and the true tool error, their CAS; with --sweep the RMS errors against
+/// closed-loop bandwidth for both stage masses (Fig 5-14).
+/// Example: servo budget --mass heavy --sweep --validate 1
+#[derive(Args, Debug)]
+pub struct BudgetCmd {
+    #[command(flatten)]
+    plant: PlantArgs,
+    #[command(flatten)]
+    controller: ControllerArgs,
+    /// Sweep the closed-loop bandwidth (the PID gains scaled) for the 0.075 and 0.175 kg stages.
+    #[arg(long)]
+    sweep: bool,
+    /// Bandwidths of the sweep in Hz (default: Fig 5-14's).
+    #[arg(long, value_delimiter = ',')]
+    bandwidths: Option<Vec<f64>>,
+    /// Also simulate every sweep point for this many seconds and print both.
+    #[arg(long, requires = "sweep")]
+    validate: Option<f64>,
+    /// Noise seed of the --validate simulations.
+    #[arg(long, requires = "validate")]
+    seed: Option<u64>,
+    /// Output directory for CSV, JSON, PNG and SVG.
+    #[arg(long, default_value = "budget")]
+    out_dir: PathBuf,
+    /// Frequency points of the spectra (log-spaced, 1 Hz to Nyquist).
+    #[arg(long, default_value_t = 2000)]
+    points: usize,
+    /// Print the budget (and the sweeps) as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl BudgetCmd {
+    /// Computes, writes and prints.
+    pub fn exec(&self) -> Result<ExitCode, CliError> {
+        let mut l = self.plant.load()?;
+        self.controller.apply(&mut l);
+        crate::args::set(&mut l.config.run.seed, self.seed);
+        let plan = Plan::new(&l)?;
+        let b = Budget::new(&plan.closed_loop, self.points.max(16)).map_err(StudyError::from)?;
+        let stage = &plan.config.plant.stage;
+        let title = format!(
+            "{}, {:.3} kg stage",
+            plan.controller.description,
+            stage.m1_kg + stage.m2_kg
+        );
+        let written =
+            studies::budget::report::write(&b, &title, &self.out_dir).map_err(StudyError::from)?;
+        let sweeps = if self.sweep {
+            Some(self.sweeps(&plan)?)
+        } else {
+            None
+        };
+        if self.json {
+            print_json(&serde_json::json!({ "budget": b, "sweeps": sweeps }));
+            return Ok(ExitCode::SUCCESS);
+        }
+        print_budget(&plan, &b, &title);
+        print_written(&written);
+        if let Some(s) = &sweeps {
+            print_sweeps(s, self.validate.is_some());
+            print_written(&sweep::report::write(s, &self.out_dir).map_err(StudyError::from)?);
+        }
+        Ok(ExitCode::SUCCESS)
+    }
+
+    fn sweeps(&self, plan: &Plan) -> Result<Vec<Sweep>, StudyError> {
+        let targets = self
+            .bandwidths
+            .clone()
+            .unwrap_or(THESIS_BANDWIDTHS_HZ.to_vec());
+        let bar = points_bar(2 * targets.len(), "sweeping", "points");
+        let sweeps = sweep::thesis_sweeps(plan, &targets, self.validate, &mut |done, _| {
+            bar.set_position(done as u64)
+        });
+        bar.finish_and_clear();
+        sweeps
+    }
+}
+
+fn print_budget(plan: &Plan, b: &Budget, title: &str) {
+    println!("Error budget (thesis §5.7.2): {title}");
+    println!(
+        "  closed-loop bandwidth {:.1} Hz; RMS in nm, sources independent (powers add)",
+        b.bandwidth_hz
+    );
+    print_margins(plan);
+    println!("  {:<14} {:>10} {:>10}", "source", "following", "true");
+    for c in &b.contributions {
+        println!(
+            "  {:<14} {:>10.4} {:>10.4}",
+            c.source,
+            c.following_rms_m * 1e9,
+            c.true_rms_m * 1e9
+        );
+    }
+    println!(
+        "  {:<14} {:>10.4} {:>10.4}",
+        "total",
+        b.following_rms_m * 1e9,
+        b.true_rms_m * 1e9
+    );
+}
+
+fn print_sweeps(results: &[Sweep], validated: bool) {
+    println!(
+        "Bandwidth sweep (thesis Fig 5-14), PID gains scaled; RMS in nm (predicted{})",
+        if validated { " / simulated" } else { "" }
+    );
+    for s in results {
+        for p in &s.points {
+            let sim = |v: Option<f64>| v.map_or(String::new(), |x| format!(" / {:.3}", x * 1e9));
+            println!(
+                "  {} {:>7.1} Hz (×{:.3}): following {:.3}{}   true {:.3}{}",
+                s.label,
+                p.bandwidth_hz,
+                p.gain_scale,
+                p.predicted_following_m * 1e9,
+                sim(p.simulated_following_m),
+                p.predicted_true_m * 1e9,
+                sim(p.simulated_true_m)
+            );
+        }
+        println!("  {}: lowest following error at {:.0} Hz, lowest true error at {:.0} Hz (thesis: 874 Hz for 0.075 kg, 468 Hz for 0.175 kg)", s.label, s.optimum_following_hz, s.optimum_true_hz);
+    }
+}

@@ -1,0 +1,172 @@
+//! `servo machine`: cut a freeform surface in simulation and report the form error.
+
+use super::run::with_progress;
+use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs, RecordingArgs, RunLengthArgs};
+use crate::output::{print_json, print_summary, print_written, CliError};
+use clap::Args;
+use runner::config::presets::{ImageMap, SurfacePreset};
+use runner::config::{FeedforwardKind, Machining, Scenario};
+use runner::Plan;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use studies::form::{self, FormReport};
+
+/// Machine a freeform surface in simulation (thesis Ch. 8) and show the form error.
+///
+/// Cuts the facing spiral over `--radius-range` with the spindle synchronised to the servo
+/// (encoder → angle → surface height per tick, §8.3), cutting force on, and writes the
+/// recording (MCAP), `machine.json` (form error PV/RMS, machined grid amplitude, following
+/// error), `form_map.csv`, `trajectory.csv` and pictures into `--out-dir`.
+/// Example: servo machine --surface sinusoidal-grid --feedforward zpetc
+#[derive(Args, Debug)]
+pub struct MachineCmd {
+    #[command(flatten)]
+    plant: PlantArgs,
+    #[command(flatten)]
+    length: RunLengthArgs,
+    #[command(flatten)]
+    controller: ControllerArgs,
+    #[command(flatten)]
+    feedforward: FeedforwardArgs,
+    #[command(flatten)]
+    recording: RecordingArgs,
+    /// Surface (default: the configured one, else the sinusoidal grid of Table 8-5).
+    #[arg(long, value_enum)]
+    surface: Option<SurfacePreset>,
+    /// Greyscale PNG height map for --surface image.
+    #[arg(long)]
+    image: Option<PathBuf>,
+    /// Pixel edge of the height map in m.
+    #[arg(long, default_value_t = 20e-6)]
+    pixel_m: f64,
+    /// Height of a white pixel in m (Table 8-6: 5 µm).
+    #[arg(long, default_value_t = 5e-6)]
+    depth_range_m: f64,
+    /// Spindle speed in rpm (default: the surface's thesis speed).
+    #[arg(long)]
+    rpm: Option<f64>,
+    /// The band to cut, `inner:outer` radius in m (the tool moves inward from `outer`).
+    #[arg(long, default_value = "24.95e-3:25e-3")]
+    radius_range: String,
+    /// Radial feed per revolution in m (5e-6, Tables 8-4..8-6).
+    #[arg(long)]
+    feed: Option<f64>,
+    /// Cut from a flat blank in one pass (the depth of cut and the force follow the
+    /// surface) instead of a finishing pass of constant depth over a pre-shaped part.
+    #[arg(long)]
+    flat_blank: bool,
+    /// Directory for the analysis files.
+    #[arg(long, default_value = "machine")]
+    out_dir: PathBuf,
+}
+
+/// `inner:outer` in m.
+fn radius_range(text: &str) -> Option<(f64, f64)> {
+    let (a, b) = text.split_once(':')?;
+    let (inner, outer) = (a.trim().parse::<f64>().ok()?, b.trim().parse::<f64>().ok()?);
+    (inner >= 0.0 && outer > inner && outer <= 1.0).then_some((inner, outer))
+}
+
+impl MachineCmd {
+    /// Cuts, analyses, writes and prints.
+    pub fn exec(&self) -> Result<ExitCode, CliError> {
+        let mut l = self.plant.load()?;
+        self.length.apply(&mut l);
+        self.controller.apply(&mut l);
+        self.feedforward.apply(&mut l);
+        let Some((inner, outer)) = radius_range(&self.radius_range) else {
+            return Err(l
+                .origin
+                .invalid(
+                    "--radius-range",
+                    &self.radius_range,
+                    "inner:outer in m, 0 ≤ inner < outer ≤ 1",
+                )
+                .into());
+        };
+        let mut m = match &l.config.scenario {
+            Scenario::Machine(m) => m.clone(),
+            _ => Machining::default(),
+        };
+        if let Some(preset) = self.surface {
+            m.surface = preset.surface(ImageMap {
+                path: self.image.clone().unwrap_or_default(),
+                pixel_m: self.pixel_m,
+                depth_range_m: self.depth_range_m,
+            });
+            m.spindle_rpm = preset.spindle_rpm();
+        }
+        crate::args::set(&mut m.spindle_rpm, self.rpm);
+        crate::args::set(&mut m.feed_m_per_rev, self.feed);
+        if self.flat_blank {
+            m.finish_depth_m = None;
+        }
+        m.start_radius_m = outer;
+        if self.length.duration.is_none() {
+            l.config.run.duration_s = m.duration_to(inner);
+        }
+        l.config.scenario = Scenario::Machine(m);
+        let plan = Plan::new(&l)?;
+        let rec = &self.recording;
+        let (summary, analysis) =
+            with_progress(rec, "machining", |opts| form::run_machining(&plan, opts))?;
+        let title = format!(
+            "{}, {}",
+            summary.meta.controller,
+            match plan.config.controller.feedforward {
+                FeedforwardKind::None => "no feedforward",
+                FeedforwardKind::Model => "model feedforward",
+                FeedforwardKind::Zpetc => "ZPETC feedforward (tool)",
+                FeedforwardKind::ZpetcSensor => "ZPETC feedforward (sensor)",
+            }
+        );
+        let written = form::report::write(&analysis, &title, &self.out_dir)
+            .map_err(studies::StudyError::from)?;
+        let report = analysis.report();
+        if rec.json {
+            print_json(&report);
+            return Ok(ExitCode::SUCCESS);
+        }
+        print_summary(&summary, false);
+        print_form(&report);
+        if summary.saturated_ticks > 0 && plan.config.controller.smoothing_hz == 0.0 {
+            println!(
+                "  note: the DAC saturated for {} ticks: the surface has kinks or steps the loop cannot follow; try --smoothing-hz 5000",
+                summary.saturated_ticks
+            );
+        }
+        if let Some(o) = rec.out() {
+            println!("  wrote {}", o.display());
+        }
+        print_written(&written);
+        Ok(ExitCode::SUCCESS)
+    }
+}
+
+/// The form report of a machining run, in a few lines.
+pub fn print_form(report: &FormReport) {
+    let nm = |v: f64| v * 1e9;
+    println!(
+        "  machined band {:.3}–{:.3} mm ({:.1} revolutions)",
+        report.band_m[0] * 1e3,
+        report.band_m[1] * 1e3,
+        report.revolutions
+    );
+    println!(
+        "  form error (tool − design): RMS {:.1} nm, PV {:.1} nm, max |e| {:.1} nm",
+        nm(report.form_error_m.rms),
+        nm(report.form_error_m.pv),
+        nm(report.max_abs_form_error_m)
+    );
+    if let Some(g) = report.grid {
+        println!(
+            "  grid peak-to-valley: X {:.3} µm, Y {:.3} µm (nominal {:.3} µm; thesis edge 11.18 µm without feedforward)",
+            g.machined_pv_x_m * 1e6,
+            g.machined_pv_y_m * 1e6,
+            g.nominal_pv_x_m * 1e6
+        );
+    }
+    if let Some(f) = report.max_motion_frequency_hz {
+        println!("  fastest tool motion {f:.0} Hz at the outer radius");
+    }
+}

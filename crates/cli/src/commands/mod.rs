@@ -1,0 +1,16 @@
+//! One module per `servo` subcommand: its flags (clap) and what it does with the libraries.
+
+pub mod budget;
+pub mod config;
+pub mod frf;
+pub mod hil;
+pub mod identify;
+pub mod inspect;
+pub mod intermittent;
+pub mod machine;
+pub mod run;
+pub mod run_hil;
+pub mod spindle_errors;
+pub mod stiffness;
+pub mod synth;
+pub mod tune;

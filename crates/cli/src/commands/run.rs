@@ -1,0 +1,76 @@
+//! `servo run`: the closed loop in process, or (`--hil`) as three processes.
+
+use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs, RunArgs};
+use crate::interrupt::stop_flag;
+use crate::output::{print_summary, tick_bar, CliError};
+use clap::Args;
+use runner::run::{run, RunOptions};
+use runner::{Plan, RunError};
+use std::process::ExitCode;
+
+/// Run the closed loop against the simulated stage and record it to MCAP.
+///
+/// With no options: the thesis stage, the Chapter 7 PID at 199.6 kHz, sensor and current
+/// noise and base vibration on, holding position for 1 s, recorded to ./run.mcap.
+/// Example: servo run --mass heavy --scenario sine --amplitude 2e-6 --frequency 200
+#[derive(Args, Debug)]
+pub struct Run {
+    #[command(flatten)]
+    run: RunArgs,
+    #[command(flatten)]
+    recording: RecordingArgs,
+    /// Run plant, controller and recorder as three processes over iceoryx2 shared memory
+    /// (`servo plant`, `servo controller`, `servo record`); same summary.
+    #[arg(long)]
+    hil: bool,
+    #[command(flatten)]
+    hil_args: HilArgs,
+    #[command(flatten)]
+    timeout: PeerTimeoutArgs,
+}
+
+impl Run {
+    /// Runs it; the exit code is the first failing HIL child's.
+    pub fn exec(&self) -> Result<ExitCode, CliError> {
+        let plan = Plan::new(&self.run.load()?)?;
+        let rec = &self.recording;
+        let (summary, code) = if self.hil {
+            super::run_hil::run(&plan, &self.hil_args, &self.timeout, rec)?
+        } else {
+            let summary = with_progress(rec, "simulating", |opts| run(&plan, opts))?;
+            (summary, ExitCode::SUCCESS)
+        };
+        print_summary(&summary, rec.json);
+        if let (Some(o), false) = (rec.out(), rec.json) {
+            println!(
+                "  wrote {} (open it in Foxglove: topics /telemetry and /truth)",
+                o.display()
+            );
+        }
+        Ok(code)
+    }
+}
+
+/// Runs `f` with the recording, Ctrl-C stop flag and progress bar (labelled `what`) of `rec`.
+pub fn with_progress<T, E>(
+    rec: &RecordingArgs,
+    what: &str,
+    f: impl FnOnce(RunOptions<'_>) -> Result<T, E>,
+) -> Result<T, E>
+where
+    E: From<RunError>,
+{
+    let stop = stop_flag();
+    let bar = tick_bar(rec.quiet, what);
+    let mut progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let result = f(RunOptions {
+        out: rec.out(),
+        stop: &stop,
+        progress: &mut progress,
+    });
+    bar.finish_and_clear();
+    result
+}

@@ -1,0 +1,143 @@
+//! What the commands print: errors with their causes and the exit code that says how a
+//! command ended, JSON, progress bars, the files a study wrote, margins.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use runner::config::ConfigError;
+use runner::RunError;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use studies::StudyError;
+
+/// Why a command failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// Configuration or a flag out of range.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// Building or running the loop.
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// A study.
+    #[error(transparent)]
+    Study(#[from] StudyError),
+    /// Writing an output file.
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// Starting or supervising the HIL processes.
+    #[error("{0}")]
+    Processes(String),
+}
+
+impl CliError {
+    /// 2 for what the user can fix before running (bad input, a controller that would make
+    /// the loop unstable), 1 for failures while running.
+    pub fn exit_code(&self) -> u8 {
+        let input = |r: &RunError| matches!(r, RunError::Config(_) | RunError::Unstable { .. });
+        match self {
+            CliError::Config(_) => 2,
+            CliError::Run(r) | CliError::Study(StudyError::Run(r)) if input(r) => 2,
+            CliError::Study(StudyError::Config(_)) => 2,
+            _ => 1,
+        }
+    }
+}
+
+/// Prints `e` with its chain of causes (`error: writing x: I/O error: No space left…`) and
+/// returns exit code `code`.
+pub fn fail(e: &dyn std::error::Error, code: u8) -> ExitCode {
+    let mut msg = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !msg.contains(&text) {
+            msg = format!("{msg}: {text}");
+        }
+        cause = c.source();
+    }
+    eprintln!("error: {msg}");
+    ExitCode::from(code)
+}
+
+/// Prints any result as pretty JSON (everything printed serialises).
+pub fn print_json(value: &impl serde::Serialize) {
+    println!(
+        "{}",
+        serde_json::to_string_pretty(value).expect("results serialise")
+    );
+}
+
+/// A progress bar with `template` (indicatif; hidden with `quiet`).
+pub fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(len)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(template)
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+/// A progress bar over ticks labelled `what`.
+pub fn tick_bar(quiet: bool, what: &str) -> ProgressBar {
+    bar(
+        quiet,
+        0,
+        &format!("{{spinner}} {what} [{{bar:40}}] {{percent:>3}}% {{elapsed_precise}} ETA {{eta}}"),
+    )
+}
+
+/// A progress bar over `len` study points labelled `what` (`unit`: what a point is).
+pub fn points_bar(len: usize, what: &str, unit: &str) -> ProgressBar {
+    bar(
+        false,
+        len as u64,
+        &format!("{{spinner}} {what} [{{bar:40}}] {{pos}}/{{len}} {unit} {{elapsed_precise}}"),
+    )
+}
+
+/// The files a study wrote, and why its plots were skipped if they were.
+pub fn print_written(w: &studies::report::Written) {
+    let names: Vec<String> = w.files.iter().map(|p| p.display().to_string()).collect();
+    println!("  wrote {}", names.join(", "));
+    if let Some(n) = &w.note {
+        println!("  note: {n}");
+    }
+}
+
+/// The loop's margins in one line.
+pub fn print_margins(plan: &runner::Plan) {
+    match studies::margins::loop_margins(plan) {
+        Ok(m) => {
+            let f = |v: Option<f64>, unit: &str| {
+                v.map_or("–".to_string(), |x| format!("{x:.1} {unit}"))
+            };
+            println!(
+                "  margins (loop broken at the DAC): phase {} at {}, gain {} at {}, lower gain {}",
+                f(m.phase_margin_deg, "°"),
+                f(m.gain_crossover_hz, "Hz"),
+                f(m.gain_margin_db, "dB"),
+                f(m.phase_crossover_hz, "Hz"),
+                f(m.lower_gain_margin_db, "dB")
+            );
+        }
+        Err(e) => println!("  margins: {e}"),
+    }
+}
+
+/// A run's summary, as text or JSON.
+pub fn print_summary(s: &runner::summary::Summary, json: bool) {
+    if json {
+        print_json(s);
+    } else {
+        print!("{s}");
+    }
+}

@@ -1,0 +1,26 @@
+//! # lti
+//!
+//! The linear-systems numerics that both the simulated stage (`plant-sim`) and the design
+//! tools (`design`, `studies`) stand on, with no plotting or optimisation dependencies:
+//!
+//! | module | what |
+//! |---|---|
+//! | [`state_space`] | continuous/discrete state space, frequency response, balancing, poles |
+//! | [`discretise`] | `expm`, zero-order hold, the delayed hold of DESIGN.md "Time and delay", Tustin |
+//! | [`lyapunov`] | the discrete Lyapunov equation (exact variances of sampled loops) |
+//! | [`riccati`] | continuous and discrete algebraic Riccati equations |
+//! | [`reduce`] | balanced truncation |
+//! | [`interconnect`] | named-signal block interconnection (the four-mass stage is built with it) |
+//! | [`spectral`] | log grids, exact-bin DFT, Welch PSD, H1 FRF and coherence, CAS |
+
+pub mod discretise;
+pub mod interconnect;
+pub mod lyapunov;
+pub mod reduce;
+pub mod riccati;
+pub mod spectral;
+pub mod state_space;
+
+pub use discretise::{c2d_tustin, expm, zoh, DelayedZoh};
+pub use lyapunov::dlyap;
+pub use state_space::{eigenvalues, LtiError, StateSpace};

@@ -1,0 +1,242 @@
+//! The sampled closed loop (the simulator's exact linear tick + the controller's realisation)
+//! as one discrete state space: stability, frequency responses, bandwidth. The error budget
+//! built on it lives in the `studies` crate.
+
+use crate::controller::LinearController;
+use lti::{LtiError, StateSpace};
+use nalgebra::DMatrix;
+use plant_sim::LinearTick;
+
+/// Inputs of [`ClosedLoop::sys`].
+pub mod input {
+    /// Reference position in m.
+    pub const REFERENCE_M: usize = 0;
+    /// Sensor noise on the averaged gap reading, V (per-tick white).
+    pub const SENSOR_NOISE_V: usize = 1;
+    /// Cutting force on the tool in N.
+    pub const CUTTING_FORCE_N: usize = 2;
+    /// Unit white input of the current-noise filter.
+    pub const W_CURRENT: usize = 3;
+    /// Unit white input of the base-vibration filter.
+    pub const W_BASE: usize = 4;
+    /// Unit white input of the accelerometer-noise filter.
+    pub const W_ACCEL: usize = 5;
+    /// Disturbance added to the controller output, V (the FRF injection point, §5.7.5).
+    pub const CONTROL_DISTURBANCE_V: usize = 6;
+    /// Error on the averaged accelerometer reading, V (its ADC quantisation).
+    pub const ACCEL_READING_V: usize = 7;
+    /// Count.
+    pub const COUNT: usize = 8;
+}
+
+/// Outputs of [`ClosedLoop::sys`].
+pub mod output {
+    /// Following error `r − measured` in m (what the sensor reports).
+    pub const FOLLOWING_ERROR_M: usize = 0;
+    /// True tool error `tool − r` in m (at the end of the tick).
+    pub const TRUE_ERROR_M: usize = 1;
+    /// Controller output (DAC command) in V.
+    pub const CONTROL_V: usize = 2;
+    /// Measured position `gap_v / S_capa` in m.
+    pub const MEASURED_M: usize = 3;
+    /// Tool position relative to the frame in m.
+    pub const TOOL_M: usize = 4;
+    /// Count.
+    pub const COUNT: usize = 5;
+}
+
+/// The sampled closed loop.
+#[derive(Debug, Clone)]
+pub struct ClosedLoop {
+    /// Discrete state space (period `period_s`): inputs [`input`], outputs [`output`].
+    pub sys: StateSpace,
+    /// Servo period in s.
+    pub period_s: f64,
+    /// Per-tick variance of each input of [`SOURCES`], in that order.
+    pub noise_variance: [f64; 7],
+}
+
+impl ClosedLoop {
+    /// Closes the loop around `plant` with `ctrl`; `sensitivity_v_per_m` converts the gap
+    /// reading to metres (the reference enters the controller as `S·r`).
+    ///
+    /// State `[x, u[k−1], controller state, last sample (gap, accel)]`; at tick k
+    /// `u = C c + D (y − [S r, 0]) + d_u`.
+    pub fn new(
+        plant: &LinearTick,
+        ctrl: &LinearController,
+        sensitivity_v_per_m: f64,
+        period_s: f64,
+    ) -> Self {
+        let s = sensitivity_v_per_m;
+        let (n, nc) = (plant.phi.nrows(), ctrl.a.nrows());
+        let (iu, ic, iy) = (n, n + 1, n + 1 + nc);
+        let size = iy + 2;
+        let m = input::COUNT;
+        // u as rows over the state and over the inputs.
+        let mut u_z = DMatrix::zeros(1, size);
+        u_z.view_mut((0, ic), (1, nc)).copy_from(&ctrl.c);
+        u_z.view_mut((0, iy), (1, 2)).copy_from(&ctrl.d);
+        let mut u_in = DMatrix::zeros(1, m);
+        u_in[(0, input::REFERENCE_M)] = -ctrl.d[(0, 0)] * s;
+        u_in[(0, input::CONTROL_DISTURBANCE_V)] = 1.0;
+        // Plant inputs other than the command, mapped from the loop inputs (f_cut, w…).
+        let held = |g: &DMatrix<f64>| {
+            let mut out = DMatrix::zeros(g.nrows(), m);
+            for (k, col) in [
+                input::CUTTING_FORCE_N,
+                input::W_CURRENT,
+                input::W_BASE,
+                input::W_ACCEL,
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                out.column_mut(col).copy_from(&g.column(2 + k));
+            }
+            out
+        };
+        let mut a = DMatrix::zeros(size, size);
+        let mut b = DMatrix::zeros(size, m);
+        // x⁺ = Φx + g0 u_prev + g1 u + g_held w
+        a.view_mut((0, 0), (n, n)).copy_from(&plant.phi);
+        a.view_mut((0, iu), (n, 1)).copy_from(&plant.g.column(0));
+        a.view_mut((0, 0), (n, size))
+            .zip_apply(&(plant.g.column(1) * &u_z), |x, y| *x += y);
+        b.view_mut((0, 0), (n, m))
+            .copy_from(&(plant.g.column(1) * &u_in + held(&plant.g)));
+        // u_prev⁺ = u
+        a.view_mut((iu, 0), (1, size)).copy_from(&u_z);
+        b.view_mut((iu, 0), (1, m)).copy_from(&u_in);
+        // c⁺ = A c + B (y − [S r, 0])
+        a.view_mut((ic, ic), (nc, nc)).copy_from(&ctrl.a);
+        a.view_mut((ic, iy), (nc, 2)).copy_from(&ctrl.b);
+        b.view_mut((ic, input::REFERENCE_M), (nc, 1))
+            .copy_from(&(ctrl.b.column(0) * -s));
+        // y⁺ = y_x x + y0 u_prev + y1 u + y_held w + [n_s, 0]
+        a.view_mut((iy, 0), (2, n)).copy_from(&plant.y_x);
+        a.view_mut((iy, iu), (2, 1))
+            .copy_from(&plant.y_in.column(0));
+        a.view_mut((iy, 0), (2, size))
+            .zip_apply(&(plant.y_in.column(1) * &u_z), |x, y| *x += y);
+        b.view_mut((iy, 0), (2, m))
+            .copy_from(&(plant.y_in.column(1) * &u_in + held(&plant.y_in)));
+        b[(iy, input::SENSOR_NOISE_V)] = 1.0;
+        b[(iy + 1, input::ACCEL_READING_V)] = 1.0;
+        // Outputs.
+        let mut c = DMatrix::zeros(output::COUNT, size);
+        let mut d = DMatrix::zeros(output::COUNT, m);
+        c[(output::FOLLOWING_ERROR_M, iy)] = -1.0 / s;
+        d[(output::FOLLOWING_ERROR_M, input::REFERENCE_M)] = 1.0;
+        c[(output::MEASURED_M, iy)] = 1.0 / s;
+        c.row_mut(output::CONTROL_V).copy_from(&u_z);
+        d.row_mut(output::CONTROL_V).copy_from(&u_in);
+        // tool at the tick end = t_x x + t0 u_prev + t1 u + t_held w
+        let tool_z = {
+            let mut r = DMatrix::zeros(1, size);
+            r.view_mut((0, 0), (1, n)).copy_from(&plant.t_x.row(0));
+            r[(0, iu)] = plant.t_in[(0, 0)];
+            r + &u_z * plant.t_in[(0, 1)]
+        };
+        let tool_in = &u_in * plant.t_in[(0, 1)] + held(&plant.t_in.rows(0, 1).into_owned());
+        c.row_mut(output::TOOL_M).copy_from(&tool_z);
+        d.row_mut(output::TOOL_M).copy_from(&tool_in);
+        c.row_mut(output::TRUE_ERROR_M).copy_from(&tool_z);
+        d.row_mut(output::TRUE_ERROR_M).copy_from(&tool_in);
+        d[(output::TRUE_ERROR_M, input::REFERENCE_M)] -= 1.0;
+        let [wc, wb, wa] = plant.white_variance;
+        let adc = plant.adc_quantisation_variance;
+        ClosedLoop {
+            sys: StateSpace { a, b, c, d },
+            period_s,
+            noise_variance: [
+                plant.sensor_noise_variance,
+                wc,
+                wb,
+                wa,
+                adc,
+                adc,
+                plant.dac_quantisation_variance,
+            ],
+        }
+    }
+
+    /// Largest closed-loop pole magnitude (< 1: stable).
+    pub fn spectral_radius(&self) -> f64 {
+        self.sys
+            .poles()
+            .iter()
+            .map(|p| p.norm())
+            .fold(0.0, f64::max)
+    }
+
+    /// The plant of `sim` alone, no controller (the DAC command enters as
+    /// [`input::CONTROL_DISTURBANCE_V`]); None for the `coil` current-loop model, which has no
+    /// linear tick.
+    pub fn open(sim: &plant_sim::Simulator, sensitivity_v_per_m: f64) -> Option<ClosedLoop> {
+        Some(ClosedLoop::new(
+            &sim.linear_tick()?,
+            &LinearController::none(),
+            sensitivity_v_per_m,
+            sim.period_s(),
+        ))
+    }
+
+    /// Measured position (m) per volt added to the controller output, at `f_hz` (the plant
+    /// alone for [`ClosedLoop::open`]).
+    pub fn command_response(&self, f_hz: f64) -> Result<num_complex::Complex64, LtiError> {
+        self.response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f_hz)
+    }
+
+    /// `H(e^{j2πfT})` from `input` to `output`.
+    pub fn response(
+        &self,
+        output: usize,
+        input: usize,
+        f_hz: f64,
+    ) -> Result<num_complex::Complex64, LtiError> {
+        Ok(self.sys.freq_response_discrete(f_hz, self.period_s)?[(output, input)])
+    }
+
+    /// −3 dB bandwidth of reference → measured position in Hz (first crossing below
+    /// 1/√2 of the low-frequency gain, refined by bisection), or Nyquist if none.
+    pub fn bandwidth_hz(&self) -> Result<f64, LtiError> {
+        let nyquist = 0.5 / self.period_s;
+        let gain = |f: f64| {
+            self.response(output::MEASURED_M, input::REFERENCE_M, f)
+                .map(|h| h.norm())
+        };
+        let target = gain(1e-3)? / 2f64.sqrt();
+        let (mut lo, mut f) = (1e-3, 1.0);
+        while f < nyquist {
+            if gain(f)? < target {
+                let mut hi = f;
+                for _ in 0..60 {
+                    let mid = (lo * hi).sqrt();
+                    if gain(mid)? < target {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                return Ok(hi);
+            }
+            lo = f;
+            f *= 1.02;
+        }
+        Ok(nyquist)
+    }
+}
+
+/// The noise sources of the budget and their loop inputs, in [`ClosedLoop::noise_variance`]
+/// order: the thesis's three (sensor, current, base), the accelerometer (§7.5.2), and the
+/// converters' quantisation (white, `LSB²/12`, averaged over the oversampled conversions).
+pub const SOURCES: [(&str, usize); 7] = [
+    ("sensor", input::SENSOR_NOISE_V),
+    ("current", input::W_CURRENT),
+    ("base", input::W_BASE),
+    ("accelerometer", input::W_ACCEL),
+    ("adc gap", input::SENSOR_NOISE_V),
+    ("adc accel", input::ACCEL_READING_V),
+    ("dac", input::CONTROL_DISTURBANCE_V),
+];

@@ -1,0 +1,172 @@
+//! The machining scenario as configured (`[scenario] kind = "machine"`, thesis Ch. 8): the
+//! surface, the spindle and the tool path. Data and range checks only; the surface is loaded
+//! by `crate::surface` and cut by `crate::machining`.
+
+use super::origin::{ConfigError, Origin};
+use serde::{Deserialize, Serialize};
+use servo_core::Spiral;
+use std::f64::consts::TAU;
+use std::path::PathBuf;
+
+/// A surface as configured (`[scenario.surface]`, `kind = …`). Heights in m, positive away
+/// from the workpiece (the tool follows the height).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum SurfaceConfig {
+    /// `z = Ax sin(2πx/λx) + Ay sin(2πy/λy)` (§8.5.4; Table 8-5: ±5 µm, 1 mm).
+    SinusoidalGrid {
+        /// Amplitude along X in m.
+        ax_m: f64,
+        /// Amplitude along Y in m.
+        ay_m: f64,
+        /// Wavelength along X in m.
+        lambda_x_m: f64,
+        /// Wavelength along Y in m.
+        lambda_y_m: f64,
+    },
+    /// Square array of concave spherical lenslets (§8.5.3; Table 8-4: R 100 mm, L 2 mm).
+    BeamIntegrator {
+        /// Sphere radius in m.
+        radius_m: f64,
+        /// Cell pitch in m.
+        pitch_m: f64,
+    },
+    /// `z = A sin(nθ)` (§8.5.2).
+    MicroLenslet {
+        /// Amplitude in m.
+        amplitude_m: f64,
+        /// Oscillations per revolution.
+        per_revolution: f64,
+    },
+    /// A greyscale image (PNG) as a height map, centred on the spindle axis (§8.5.5).
+    Image {
+        /// PNG file, relative to the config file.
+        path: PathBuf,
+        /// Pixel edge in m.
+        pixel_m: f64,
+        /// Height of a white pixel in m (Table 8-6: 5 µm).
+        depth_range_m: f64,
+    },
+}
+
+impl SurfaceConfig {
+    /// The sinusoidal grid of Table 8-5.
+    pub const THESIS_GRID: SurfaceConfig = SurfaceConfig::SinusoidalGrid {
+        ax_m: 5e-6,
+        ay_m: 5e-6,
+        lambda_x_m: 1e-3,
+        lambda_y_m: 1e-3,
+    };
+
+    /// The beam integrator of Table 8-4.
+    pub const THESIS_BEAM: SurfaceConfig = SurfaceConfig::BeamIntegrator {
+        radius_m: 0.1,
+        pitch_m: 2e-3,
+    };
+}
+
+/// The machining scenario (`[scenario] kind = "machine"`): a facing spiral over a freeform
+/// surface at constant spindle speed. Defaults: thesis Table 8-5 at the edge of the 50 mm part.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Machining {
+    /// The surface.
+    pub surface: SurfaceConfig,
+    /// Spindle speed in rpm (Table 8-5: 60).
+    pub spindle_rpm: f64,
+    /// Encoder pulses per revolution (§8.3: 80 000).
+    pub pulses_per_rev: u64,
+    /// Radial feed per revolution in m (5e-6).
+    pub feed_m_per_rev: f64,
+    /// Radius where the cut starts, in m (the tool moves inward; 25e-3: the part's edge).
+    pub start_radius_m: f64,
+    /// Cutting force per metre of depth of cut in N/m (★ 4e5: 2 N at 5 µm, §5.7.5/§3.2).
+    pub cutting_n_per_m: f64,
+    /// Depth of cut of a finishing pass over a part a roughing pass already shaped, in m
+    /// (★ 2e-6: a constant chip, so a constant force). Absent: a single pass from a flat blank
+    /// whose face is the surface's highest point, so the depth of cut (and the force) follows
+    /// the surface — the worst case for the servo.
+    pub finish_depth_m: Option<f64>,
+    /// Bandwidth of the controller's encoder tracking loop in Hz (10).
+    pub tracker_bandwidth_hz: f64,
+}
+
+impl Default for Machining {
+    fn default() -> Self {
+        Machining {
+            surface: SurfaceConfig::THESIS_GRID,
+            spindle_rpm: 60.0,
+            pulses_per_rev: 80_000,
+            feed_m_per_rev: 5e-6,
+            start_radius_m: 25e-3,
+            cutting_n_per_m: 4e5,
+            finish_depth_m: Some(2e-6),
+            tracker_bandwidth_hz: 10.0,
+        }
+    }
+}
+
+impl Machining {
+    /// Spindle speed in rad/s.
+    pub fn rad_per_s(&self) -> f64 {
+        self.spindle_rpm * TAU / 60.0
+    }
+
+    /// The tool path.
+    pub fn spiral(&self) -> Spiral {
+        Spiral {
+            start_radius_m: self.start_radius_m,
+            feed_m_per_rev: self.feed_m_per_rev,
+        }
+    }
+
+    /// Seconds to cut from `start_radius_m` in to `end_radius_m`.
+    pub fn duration_to(&self, end_radius_m: f64) -> f64 {
+        (self.start_radius_m - end_radius_m) / self.feed_m_per_rev * 60.0 / self.spindle_rpm
+    }
+
+    /// Checks the values (the surface is checked when loaded).
+    pub fn validate(&self, at: &Origin) -> Result<(), ConfigError> {
+        let check = |key: &str, v: f64, lo: f64, hi: f64, unit: &str| {
+            if v > lo && v <= hi {
+                Ok(())
+            } else {
+                Err(at.invalid(
+                    &format!("scenario.{key}"),
+                    v,
+                    &format!("({lo}, {hi}] {unit}"),
+                ))
+            }
+        };
+        check("spindle_rpm", self.spindle_rpm, 0.0, 1e4, "rpm")?;
+        check(
+            "pulses_per_rev",
+            self.pulses_per_rev as f64,
+            0.0,
+            1e9,
+            "pulses",
+        )?;
+        check("feed_m_per_rev", self.feed_m_per_rev, 0.0, 1e-3, "m")?;
+        check("start_radius_m", self.start_radius_m, 0.0, 1.0, "m")?;
+        check(
+            "tracker_bandwidth_hz",
+            self.tracker_bandwidth_hz,
+            0.0,
+            1e3,
+            "Hz",
+        )?;
+        if let Some(d) = self.finish_depth_m {
+            if !(0.0..=1e-3).contains(&d) {
+                return Err(at.invalid("scenario.finish_depth_m", d, "[0, 1e-3] m"));
+            }
+        }
+        if !(self.cutting_n_per_m >= 0.0 && self.cutting_n_per_m <= 1e9) {
+            return Err(at.invalid(
+                "scenario.cutting_n_per_m",
+                self.cutting_n_per_m,
+                "[0, 1e9] N/m",
+            ));
+        }
+        Ok(())
+    }
+}

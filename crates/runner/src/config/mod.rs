@@ -1,0 +1,396 @@
+//! The one configuration of a run (TOML), every default the thesis prototype, and errors that
+//! name the file, line, key and allowed range.
+
+mod machining;
+mod origin;
+pub mod presets;
+
+pub use machining::{Machining, SurfaceConfig};
+pub use origin::{line_of, ConfigError, Origin};
+
+use plant_sim::cutting::CuttingProfile;
+use plant_sim::PlantParams;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunConfig {
+    /// Duration, seed, statistics window.
+    pub run: RunSection,
+    /// What the stage is asked to do.
+    pub scenario: Scenario,
+    /// The controller.
+    pub controller: ControllerConfig,
+    /// The simulated stage (timing.servo_rate_hz is the loop rate).
+    pub plant: PlantParams,
+}
+
+/// Run length and statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunSection {
+    /// Simulated time in s.
+    pub duration_s: f64,
+    /// Noise seed.
+    pub seed: u64,
+    /// Statistics start after this many seconds (the loop and the slow noise filters settle);
+    /// unset: 10 % of the duration, at most 0.1 s.
+    pub settle_s: Option<f64>,
+}
+
+impl RunSection {
+    /// The statistics window start in s.
+    pub fn settle(&self) -> f64 {
+        self.settle_s.unwrap_or((0.1 * self.duration_s).min(0.1))
+    }
+}
+
+impl Default for RunSection {
+    fn default() -> Self {
+        RunSection {
+            duration_s: 1.0,
+            seed: 1,
+            settle_s: None,
+        }
+    }
+}
+
+/// What the stage is asked to do (reference in m, positive away from the workpiece).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Scenario {
+    /// Hold position at 0 (the thesis's positioning-stability test, §5.7.3).
+    #[default]
+    Hold,
+    /// A sine reference.
+    Sine {
+        /// Amplitude in m.
+        amplitude_m: f64,
+        /// Frequency in Hz.
+        frequency_hz: f64,
+    },
+    /// A step reference.
+    Step {
+        /// Step height in m.
+        amplitude_m: f64,
+        /// Time of the step in s.
+        at_s: f64,
+    },
+    /// An exponential chirp over the whole run.
+    Chirp {
+        /// Amplitude in m.
+        amplitude_m: f64,
+        /// Start frequency in Hz.
+        f_start_hz: f64,
+        /// End frequency in Hz.
+        f_end_hz: f64,
+    },
+    /// Cut a freeform surface along the facing spiral (Ch. 8): the reference is the surface
+    /// height under the tool, from the encoder count (see [`Machining`]).
+    Machine(Machining),
+    /// Hold position during the intermittent cut of §7.6.
+    IntermittentCut {
+        /// Cutting force in N (★ 1 N).
+        force_n: f64,
+        /// Spindle speed in rpm (250, Table 7-3).
+        spindle_rpm: f64,
+    },
+}
+
+impl Scenario {
+    /// The scenario's kind as written in the config (`kind = "…"`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Scenario::Hold => "hold",
+            Scenario::Sine { .. } => "sine",
+            Scenario::Step { .. } => "step",
+            Scenario::Chirp { .. } => "chirp",
+            Scenario::Machine(_) => "machine",
+            Scenario::IntermittentCut { .. } => "intermittent-cut",
+        }
+    }
+
+    /// The cutting profile this scenario applies.
+    pub fn cutting(&self) -> CuttingProfile {
+        match *self {
+            Scenario::IntermittentCut {
+                force_n,
+                spindle_rpm,
+            } => CuttingProfile::IntermittentCut {
+                force_n,
+                spindle_rpm,
+            },
+            _ => CuttingProfile::None,
+        }
+    }
+}
+
+/// Controller kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum ControllerKind {
+    /// Position PID (eq 7-8) on the capacitive sensor.
+    #[default]
+    Pid,
+    /// PID plus acceleration feedback `− Ha(Ka·a)` (Fig 7-6).
+    Accel,
+    /// A discrete state-space controller from `ss_file`.
+    Ss,
+}
+
+/// PID gains on sensor volts (V/V), thesis §7.5.3 by default.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PidGains {
+    /// Proportional gain (V/V).
+    pub kp: f64,
+    /// Integral gain (1/s).
+    pub ki: f64,
+    /// Derivative gain (s).
+    pub kd: f64,
+    /// Derivative filter time constant (s).
+    pub tf_s: f64,
+}
+
+impl Default for PidGains {
+    fn default() -> Self {
+        let p = servo_core::PidConfig::THESIS_CH7;
+        PidGains {
+            kp: p.kp,
+            ki: p.ki,
+            kd: p.kd,
+            tf_s: p.tf_s,
+        }
+    }
+}
+
+/// The controller.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControllerConfig {
+    /// `pid`, `accel` or `ss`.
+    pub kind: ControllerKind,
+    /// Position PID gains (for `pid` and `accel`).
+    pub pid: PidGains,
+    /// Acceleration gain Ka (V/V on accelerometer volts), for `accel` (§7.5: 0, 0.5, 1, 4).
+    pub ka: f64,
+    /// Multiply the PID gains by 1/Kg (§7.4.1) so reference tracking stays unchanged.
+    pub kg_scaling: bool,
+    /// Corner of the acceleration shaping filter Ha in Hz; 0 = none.
+    pub accel_filter_hz: f64,
+    /// Order of Ha: 1 (first-order low pass: the inner acceleration loop keeps its phase, so
+    /// large Ka stays stable) or 2 (Butterworth).
+    pub accel_filter_order: u8,
+    /// Controller file for `ss` (TOML: sample_rate_hz, a, b, c, d), relative to the config file.
+    pub ss_file: Option<PathBuf>,
+    /// Output limit ±V (the ±10 V DAC).
+    pub limit_v: f64,
+    /// Feedforward from the reference: `none`, `model` (the stage's inverse
+    /// `m·r̈ + c·ṙ + k·r` added to the output, one tick of preview) or `zpetc` / `zpetc-sensor`
+    /// (zero-phase-error tracking of the whole loop to the tool / to the sensor reading,
+    /// designed from the sampled closed-loop model, with the preview it needs; thesis §9.3.1's
+    /// missing feedforward).
+    pub feedforward: FeedforwardKind,
+    /// Zero-phase smoothing of the previewed trajectory before the controller and the
+    /// feedforward, in Hz: a Hann window of `rate / smoothing_hz` ticks (about its −6 dB
+    /// point), adding half of it to the preview. For surfaces with kinks or steps (beam
+    /// integrator, images) whose exact inverse would saturate the DAC; 0 = off.
+    pub smoothing_hz: f64,
+}
+
+/// Feedforward kinds (see [`ControllerConfig::feedforward`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum FeedforwardKind {
+    /// Feedback only (the thesis's experiments).
+    #[default]
+    None,
+    /// Velocity, acceleration and stiffness feedforward from the stage model.
+    Model,
+    /// Zero-phase-error tracking controller (Tomizuka) with preview, inverting the loop from
+    /// reference to the true tool position (the form is right; the sensor shows its own lag).
+    Zpetc,
+    /// The same, inverting the loop from reference to the sensor reading (what a machine's own
+    /// FRF measurement gives: the following error vanishes, the tool leads by the sensor lag).
+    ZpetcSensor,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        ControllerConfig {
+            kind: ControllerKind::Pid,
+            pid: PidGains::default(),
+            ka: 0.0,
+            kg_scaling: false,
+            accel_filter_hz: 0.0,
+            accel_filter_order: 2,
+            ss_file: None,
+            limit_v: 10.0,
+            feedforward: FeedforwardKind::None,
+            smoothing_hz: 0.0,
+        }
+    }
+}
+
+/// A configuration and where it came from (for error locations and relative paths).
+#[derive(Debug, Clone, Default)]
+pub struct Loaded {
+    /// The configuration.
+    pub config: RunConfig,
+    /// The file it was read from, if any.
+    pub origin: Origin,
+}
+
+impl Loaded {
+    /// Reads and parses `path` (unknown keys are errors).
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let config = toml::from_str(&text).map_err(|e| ConfigError::Parse {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+        Ok(Loaded {
+            config,
+            origin: Origin {
+                path: Some(path.to_owned()),
+                text: Some(text),
+            },
+        })
+    }
+}
+
+impl RunConfig {
+    /// Servo ticks in the run: duration × servo rate.
+    pub fn ticks(&self) -> u64 {
+        (self.run.duration_s * self.plant.timing.servo_rate_hz).round() as u64
+    }
+
+    /// The resolved configuration as TOML.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("the configuration always serialises")
+    }
+
+    /// Checks the run-level values (plant and controller values are checked when built).
+    pub fn validate(&self, at: &Origin) -> Result<(), ConfigError> {
+        let r = &self.run;
+        if !(r.duration_s > 0.0 && r.duration_s <= 3600.0) {
+            return Err(at.invalid("run.duration_s", r.duration_s, "(0, 3600] s"));
+        }
+        if !(r.settle() >= 0.0 && r.settle() < r.duration_s) {
+            return Err(at.invalid("run.settle_s", r.settle(), "[0, run.duration_s) s"));
+        }
+        let rate = self.plant.timing.servo_rate_hz;
+        if !(1e2..=2e6).contains(&rate) {
+            return Err(at.invalid("plant.timing.servo_rate_hz", rate, "[100, 2e6] Hz"));
+        }
+        let nyquist = rate / 2.0;
+        let amp = |key: &str, a: f64| {
+            if a.is_finite() && a.abs() <= 1e-3 {
+                Ok(())
+            } else {
+                Err(at.invalid(key, a, "[-1e-3, 1e-3] m"))
+            }
+        };
+        let freq = |key: &str, f: f64| {
+            if f > 0.0 && f < nyquist {
+                Ok(())
+            } else {
+                Err(at.invalid(key, f, &format!("(0, {nyquist}) Hz")))
+            }
+        };
+        match &self.scenario {
+            Scenario::Hold => {}
+            Scenario::Sine {
+                amplitude_m,
+                frequency_hz,
+            } => {
+                amp("scenario.amplitude_m", *amplitude_m)?;
+                freq("scenario.frequency_hz", *frequency_hz)?;
+            }
+            Scenario::Step { amplitude_m, at_s } => {
+                amp("scenario.amplitude_m", *amplitude_m)?;
+                if !(*at_s >= 0.0 && *at_s < r.duration_s) {
+                    return Err(at.invalid("scenario.at_s", at_s, "[0, run.duration_s) s"));
+                }
+            }
+            Scenario::Chirp {
+                amplitude_m,
+                f_start_hz,
+                f_end_hz,
+            } => {
+                amp("scenario.amplitude_m", *amplitude_m)?;
+                freq("scenario.f_start_hz", *f_start_hz)?;
+                freq("scenario.f_end_hz", *f_end_hz)?;
+            }
+            Scenario::Machine(m) => m.validate(at)?,
+            Scenario::IntermittentCut {
+                force_n,
+                spindle_rpm,
+            } => {
+                if !(force_n.is_finite() && force_n.abs() <= 100.0) {
+                    return Err(at.invalid("scenario.force_n", force_n, "[-100, 100] N"));
+                }
+                if !(*spindle_rpm > 0.0 && *spindle_rpm <= 1e5) {
+                    return Err(at.invalid("scenario.spindle_rpm", spindle_rpm, "(0, 1e5] rpm"));
+                }
+            }
+        }
+        let c = &self.controller;
+        if !(c.limit_v > 0.0 && c.limit_v <= 10.0) {
+            return Err(at.invalid("controller.limit_v", c.limit_v, "(0, 10] V (the DAC range)"));
+        }
+        if !(c.ka >= 0.0 && c.ka <= 1e3) {
+            return Err(at.invalid("controller.ka", c.ka, "[0, 1000] V/V"));
+        }
+        if !(c.accel_filter_hz == 0.0 || (c.accel_filter_hz > 0.0 && c.accel_filter_hz < nyquist)) {
+            return Err(at.invalid(
+                "controller.accel_filter_hz",
+                c.accel_filter_hz,
+                &format!("0 (none) or (0, {nyquist}) Hz"),
+            ));
+        }
+        if !(1..=2).contains(&c.accel_filter_order) {
+            return Err(at.invalid(
+                "controller.accel_filter_order",
+                c.accel_filter_order,
+                "1 or 2",
+            ));
+        }
+        if !(c.smoothing_hz == 0.0 || (c.smoothing_hz > 0.0 && c.smoothing_hz < nyquist)) {
+            return Err(at.invalid(
+                "controller.smoothing_hz",
+                c.smoothing_hz,
+                &format!("0 (off) or (0, {nyquist}) Hz"),
+            ));
+        }
+        if c.kind == ControllerKind::Ss && c.ss_file.is_none() {
+            return Err(at.invalid(
+                "controller.ss_file",
+                "(missing)",
+                "a controller file for kind = \"ss\"",
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_round_trip_through_toml() {
+        let c = RunConfig::default();
+        let back: RunConfig = toml::from_str(&c.to_toml()).unwrap();
+        assert_eq!(back, c);
+        assert_eq!(c.plant.timing.servo_rate_hz, 199_600.0);
+        assert_eq!(c.controller.pid.kp, 1.65);
+    }
+}

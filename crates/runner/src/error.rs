@@ -1,0 +1,55 @@
+//! What can stop a run from being built or from running, each failure named.
+
+use crate::config::ConfigError;
+use crate::feedforward::FeedforwardError;
+use std::path::PathBuf;
+
+/// Run errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RunError {
+    /// Configuration (file, key, allowed range).
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The simulator could not be built (a cutting profile it cannot apply; parameter errors
+    /// are reported as [`RunError::Config`] at their key).
+    #[error("plant: {0}")]
+    Sim(plant_sim::sim::SimError),
+    /// The controller and the plant form an unstable loop.
+    #[error("the closed loop is unstable (spectral radius {radius:.6} ≥ 1) with {controller}: lower the gains or check the controller file; nothing was run")]
+    Unstable {
+        /// Largest closed-loop eigenvalue magnitude.
+        radius: f64,
+        /// Controller description.
+        controller: String,
+    },
+    /// The ZPETC feedforward could not be designed for this loop.
+    #[error(transparent)]
+    Feedforward(#[from] FeedforwardError),
+    /// Recording.
+    #[error(transparent)]
+    Record(#[from] recorder::RecordError),
+    /// Reading a recording.
+    #[error(transparent)]
+    Read(#[from] recorder::ReadError),
+    /// A shared-memory resource of the run could not be opened or used.
+    #[error("transport: {0}")]
+    Ipc(#[from] daq_io::ipc::IpcError),
+    /// The plant side of a HIL run failed.
+    #[error("plant process: {0}")]
+    Serve(#[from] daq_io::serve::ServeError),
+    /// No plant or controller published on the run's services in time.
+    #[error("no plant or controller joined run {prefix} within {waited_s} s")]
+    NoPeers {
+        /// Run prefix.
+        prefix: String,
+        /// Seconds waited.
+        waited_s: f64,
+    },
+    /// The controller lost its plant.
+    #[error("{0}; the controller stopped")]
+    PlantLost(daq_io::DaqError),
+    /// A recording without the metadata `servo run` writes.
+    #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
+    NotARun(PathBuf),
+}

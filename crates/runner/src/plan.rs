@@ -1,0 +1,169 @@
+//! A run resolved once: the configuration validated, relative paths resolved against the
+//! config file's folder, the surface and the controller file loaded, and the simulator, the
+//! controller, the sampled closed loop and the feedforward built. Everything at run time (the
+//! in-process loop, each HIL process, every study) is built from a [`Plan`], never from the
+//! raw configuration.
+
+use crate::closed_loop::ClosedLoop;
+use crate::config::{ControllerConfig, Loaded, Origin, RunConfig, Scenario};
+use crate::controller::Controller;
+use crate::error::RunError;
+use crate::feedforward::Feedforward;
+use crate::surface::LoadedSurface;
+use plant_sim::model::ModelError;
+use plant_sim::params::CurrentLoopModel;
+use plant_sim::sim::SimError;
+use plant_sim::Simulator;
+
+/// A run, resolved and built.
+#[derive(Clone)]
+pub struct Plan {
+    /// The validated configuration; `controller.ss_file` and image paths are absolute or
+    /// relative to the working directory (resolved against the config file's folder).
+    pub config: RunConfig,
+    /// Where the configuration came from (for located errors).
+    pub origin: Origin,
+    /// The simulated stage at tick 0 (seeded, with the scenario's cutting profile).
+    pub sim: Simulator,
+    /// The controller in its initial state.
+    pub controller: Controller,
+    /// The sampled closed loop of `sim` and `controller` (a `coil` current loop linearised as
+    /// the ideal loop of eq 5-9).
+    pub closed_loop: ClosedLoop,
+    /// The machined surface, for a machining scenario.
+    pub surface: Option<LoadedSurface>,
+    /// The feedforward in its initial state.
+    pub feedforward: Feedforward,
+}
+
+impl Plan {
+    /// Validates and builds the run of `loaded`.
+    pub fn new(loaded: &Loaded) -> Result<Self, RunError> {
+        let origin = loaded.origin.clone();
+        let mut config = loaded.config.clone();
+        config.validate(&origin)?;
+        resolve_paths(&mut config, &origin);
+        let sim = Simulator::new(&config.plant, config.run.seed, &config.scenario.cutting())
+            .map_err(|e| plant_error(e, &origin))?;
+        let surface = match &config.scenario {
+            Scenario::Machine(m) => Some(LoadedSurface::load(&m.surface, &origin)?),
+            _ => None,
+        };
+        Plan::assemble(config, origin, sim, surface)
+    }
+
+    /// The same run with another controller (the stage, its noise and the surface reused;
+    /// a controller file path is taken as it is, like the plan's own resolved paths).
+    pub fn with_controller(&self, controller: ControllerConfig) -> Result<Self, RunError> {
+        let mut config = self.config.clone();
+        config.controller = controller;
+        config.validate(&self.origin)?;
+        Plan::assemble(
+            config,
+            self.origin.clone(),
+            self.sim.clone(),
+            self.surface.clone(),
+        )
+    }
+
+    /// The same run for `duration_s` seconds of simulated time (everything else reused).
+    pub fn with_duration(&self, duration_s: f64) -> Result<Self, RunError> {
+        let mut plan = self.clone();
+        plan.config.run.duration_s = duration_s;
+        plan.config.validate(&plan.origin)?;
+        Ok(plan)
+    }
+
+    fn assemble(
+        config: RunConfig,
+        origin: Origin,
+        sim: Simulator,
+        surface: Option<LoadedSurface>,
+    ) -> Result<Self, RunError> {
+        let controller = Controller::build(&config, &origin)?;
+        let closed_loop = closed_loop_of(&config, &origin, &sim, &controller)?;
+        let feedforward = Feedforward::build(&config, &origin, &closed_loop)?;
+        Ok(Plan {
+            config,
+            origin,
+            sim,
+            controller,
+            closed_loop,
+            surface,
+            feedforward,
+        })
+    }
+
+    /// The spectral radius of the sampled closed loop, or [`RunError::Unstable`] when it is
+    /// ≥ 1 (the pre-run check of every run).
+    pub fn check_stable(&self) -> Result<f64, RunError> {
+        let radius = self.closed_loop.spectral_radius();
+        if radius >= 1.0 {
+            return Err(RunError::Unstable {
+                radius,
+                controller: self.controller.description.clone(),
+            });
+        }
+        Ok(radius)
+    }
+
+    /// Servo ticks in the run.
+    pub fn ticks(&self) -> u64 {
+        self.config.ticks()
+    }
+
+    /// Servo period in s.
+    pub fn period_s(&self) -> f64 {
+        self.config.plant.period_s()
+    }
+}
+
+/// Makes the config's relative paths relative to the working directory (they are written
+/// relative to the config file).
+fn resolve_paths(config: &mut RunConfig, at: &Origin) {
+    if let Some(p) = &mut config.controller.ss_file {
+        *p = at.resolve(p);
+    }
+    if let Scenario::Machine(m) = &mut config.scenario {
+        if let crate::config::SurfaceConfig::Image { path, .. } = &mut m.surface {
+            *path = at.resolve(path);
+        }
+    }
+}
+
+/// Plant parameter errors located at their `plant.…` key in the config file.
+pub fn plant_error(e: SimError, at: &Origin) -> RunError {
+    match e {
+        SimError::Model(ModelError::Parameter { key, value, range }) => {
+            at.invalid(&format!("plant.{key}"), value, &range).into()
+        }
+        other => RunError::Sim(other),
+    }
+}
+
+/// The sampled closed loop of `sim` with `ctrl` (the `coil` current model is linearised as
+/// the ideal loop of eq 5-9).
+fn closed_loop_of(
+    config: &RunConfig,
+    at: &Origin,
+    sim: &Simulator,
+    ctrl: &Controller,
+) -> Result<ClosedLoop, RunError> {
+    let linear = match sim.linear_tick() {
+        Some(l) => l,
+        None => {
+            let mut ideal = config.plant;
+            ideal.actuator.model = CurrentLoopModel::Ideal;
+            Simulator::new(&ideal, 0, &Default::default())
+                .map_err(|e| plant_error(e, at))?
+                .linear_tick()
+                .expect("ideal model")
+        }
+    };
+    Ok(ClosedLoop::new(
+        &linear,
+        &ctrl.linear,
+        config.plant.capa.sensitivity_v_per_m,
+        sim.period_s(),
+    ))
+}

@@ -1,0 +1,115 @@
+//! The error budget of a loop (thesis §5.7.2, eq 5-13..5-17): per-source PSDs of the
+//! following error and of the true error, their CAS, and exact RMS values from the discrete
+//! Lyapunov equation of the sampled closed loop.
+
+pub mod report;
+
+use lti::spectral::cas;
+use lti::{dlyap, LtiError, StateSpace};
+use nalgebra::DMatrix;
+use runner::closed_loop::{output, ClosedLoop, SOURCES};
+use serde::Serialize;
+
+/// One source's share of the errors.
+#[derive(Debug, Clone, Serialize)]
+pub struct Contribution {
+    /// Source name.
+    pub source: String,
+    /// Its RMS following error in m.
+    pub following_rms_m: f64,
+    /// Its RMS true error in m.
+    pub true_rms_m: f64,
+}
+
+/// The error budget of a loop (§5.7.2).
+#[derive(Debug, Clone, Serialize)]
+pub struct Budget {
+    /// Closed-loop −3 dB bandwidth in Hz.
+    pub bandwidth_hz: f64,
+    /// Per-source RMS (exact: discrete Lyapunov).
+    pub contributions: Vec<Contribution>,
+    /// Total RMS following error in m (sources are independent: powers add, eq 5-15).
+    pub following_rms_m: f64,
+    /// Total RMS true error in m (eq 5-14).
+    pub true_rms_m: f64,
+    /// Frequency grid in Hz for the spectra.
+    pub freq_hz: Vec<f64>,
+    /// Following-error PSD per source, m²/Hz (one-sided), `[source][frequency]`.
+    pub following_psd: Vec<Vec<f64>>,
+    /// True-error PSD per source, m²/Hz.
+    pub true_psd: Vec<Vec<f64>>,
+    /// CAS of the total following error, m (eq 5-16).
+    pub following_cas: Vec<f64>,
+    /// CAS of the total true error, m.
+    pub true_cas: Vec<f64>,
+}
+
+/// Output variance caused by one white input of per-tick variance `var`.
+fn variance(sys: &StateSpace, out: usize, inp: usize, var: f64) -> Result<f64, LtiError> {
+    if var == 0.0 {
+        return Ok(0.0);
+    }
+    let b = sys.b.column(inp);
+    let (p, _) = dlyap(&sys.a, &(b * b.transpose() * var))?;
+    let c = sys.c.row(out);
+    let d = sys.d[(out, inp)];
+    Ok((c * p * c.transpose())[(0, 0)] + d * d * var)
+}
+
+impl Budget {
+    /// The budget of `cl` on a log grid of `points` frequencies from 1 Hz to Nyquist.
+    pub fn new(cl: &ClosedLoop, points: usize) -> Result<Self, LtiError> {
+        let fs = 1.0 / cl.period_s;
+        let nyquist = fs / 2.0;
+        let freq_hz = lti::spectral::log_space(1.0, nyquist, points);
+        let mut contributions = Vec::new();
+        let (mut following_psd, mut true_psd) = (Vec::new(), Vec::new());
+        let responses: Vec<DMatrix<num_complex::Complex64>> = freq_hz
+            .iter()
+            .map(|&f| cl.sys.freq_response_discrete(f, cl.period_s))
+            .collect::<Result<_, _>>()?;
+        for (k, (name, inp)) in SOURCES.iter().enumerate() {
+            let var = cl.noise_variance[k];
+            // White per-tick variance σ² ↔ one-sided PSD 2σ²/fs.
+            let scale = 2.0 * var / fs;
+            let psd = |out: usize| {
+                responses
+                    .iter()
+                    .map(|h| h[(out, *inp)].norm_sqr() * scale)
+                    .collect::<Vec<f64>>()
+            };
+            following_psd.push(psd(output::FOLLOWING_ERROR_M));
+            true_psd.push(psd(output::TRUE_ERROR_M));
+            contributions.push(Contribution {
+                source: name.to_string(),
+                following_rms_m: variance(&cl.sys, output::FOLLOWING_ERROR_M, *inp, var)?.sqrt(),
+                true_rms_m: variance(&cl.sys, output::TRUE_ERROR_M, *inp, var)?.sqrt(),
+            });
+        }
+        let total = |psds: &Vec<Vec<f64>>| {
+            (0..freq_hz.len())
+                .map(|i| psds.iter().map(|p| p[i]).sum())
+                .collect::<Vec<f64>>()
+        };
+        let following_cas = cas(&freq_hz, &total(&following_psd));
+        let true_cas = cas(&freq_hz, &total(&true_psd));
+        let rss = |f: fn(&Contribution) -> f64| {
+            contributions
+                .iter()
+                .map(|c| f(c).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        Ok(Budget {
+            bandwidth_hz: cl.bandwidth_hz()?,
+            following_rms_m: rss(|c| c.following_rms_m),
+            true_rms_m: rss(|c| c.true_rms_m),
+            contributions,
+            freq_hz,
+            following_psd,
+            true_psd,
+            following_cas,
+            true_cas,
+        })
+    }
+}

@@ -1,0 +1,65 @@
+//! What can make a study fail, naming the part that failed.
+
+use runner::config::ConfigError;
+use runner::RunError;
+use std::path::PathBuf;
+
+/// Study errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum StudyError {
+    /// Configuration or a study parameter out of range (file, key, allowed range).
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// Building or running the loop.
+    #[error(transparent)]
+    Run(#[from] RunError),
+    /// The linear model of the loop (a frequency response, a Lyapunov equation).
+    #[error("loop model: {0}")]
+    Model(#[from] lti::LtiError),
+    /// A spectral estimate.
+    #[error("spectral estimate: {0}")]
+    Spectral(#[from] lti::spectral::SpectralError),
+    /// The continuous plant model could not be built.
+    #[error("plant model: {0}")]
+    PlantModel(#[from] plant_sim::model::ModelError),
+    /// The study needs the sampled linear plant, which the `coil` current-loop model lacks.
+    #[error("{what} needs the ideal current-loop model (plant.actuator.model = \"ideal\")")]
+    NeedsLinearPlant {
+        /// The study.
+        what: &'static str,
+    },
+    /// H2 synthesis found no controller.
+    #[error("H2 synthesis: {0}")]
+    Synthesis(#[from] design::h2::H2Error),
+    /// Balanced truncation of a controller.
+    #[error("controller reduction (needs a stable controller): {0}")]
+    Reduction(lti::LtiError),
+    /// PID tuning found no solution.
+    #[error(transparent)]
+    Tuning(#[from] design::tune::TuneError),
+    /// No scaling of the configured PID satisfies the tuning bounds to start from.
+    #[error("no scaling of the configured PID is stable with |S| ≤ {ms}, |T| ≤ {mt}: raise --ms or --mt")]
+    NoTuningStart {
+        /// Sensitivity bound.
+        ms: f64,
+        /// Complementary sensitivity bound.
+        mt: f64,
+    },
+    /// Grey-box identification failed.
+    #[error("identification: {0}")]
+    Identification(#[from] design::identify::IdentifyError),
+    /// A measured FRF file that cannot be used.
+    #[error("{}:{line}: {what}", path.display())]
+    FrfFile {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What is wrong.
+        what: String,
+    },
+    /// Writing results.
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
+}

@@ -1,0 +1,259 @@
+//! What the white-light interferometer would show after a machining run (thesis §8.5): the
+//! form error (true tool position minus design surface, where the tool was) as statistics and
+//! as a map over the machined band, the machined amplitude of a sinusoidal grid (Fig 8-23's
+//! peak-to-valley), and a segment of commanded vs true tool trajectory (Figs 8-15, 8-20).
+
+pub mod report;
+
+use crate::error::StudyError;
+use nalgebra::{SMatrix, SVector};
+use recorder::Frame;
+use runner::config::{ConfigError, Loaded, Machining, RunConfig, Scenario};
+use runner::machining::SpiralCut;
+use runner::run::{run_with, RunOptions};
+use runner::summary::{Acc, Stats, Summary};
+use runner::surface::LoadedSurface;
+use runner::Plan;
+use serde::Serialize;
+use servo_core::surface::SinusoidalGrid;
+use std::f64::consts::TAU;
+
+/// Angular bins of the form-error map per revolution (0.1°).
+pub const MAP_COLUMNS: usize = 3600;
+
+/// Length of the recorded trajectory segment in s.
+pub const SEGMENT_S: f64 = 0.02;
+
+/// The machined amplitude of a sinusoidal grid (least-squares fit of the true tool position
+/// to the grid's sine and cosine terms over the band, so phase lag does not count).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct GridAmplitude {
+    /// Designed peak-to-valley along X, `2·Ax`, in m (Table 8-5: 10 µm).
+    pub nominal_pv_x_m: f64,
+    /// Machined peak-to-valley along X in m (thesis, edge, no feedforward: 11.18 µm).
+    pub machined_pv_x_m: f64,
+    /// Designed peak-to-valley along Y in m.
+    pub nominal_pv_y_m: f64,
+    /// Machined peak-to-valley along Y in m.
+    pub machined_pv_y_m: f64,
+}
+
+/// The result of a machining run.
+#[derive(Debug, Clone, Serialize)]
+pub struct FormReport {
+    /// Innermost and outermost radius of the evaluated band in m.
+    pub band_m: [f64; 2],
+    /// Spindle revolutions evaluated.
+    pub revolutions: f64,
+    /// Highest tool-motion frequency of the X term in the band, `r·ω/λx`, in Hz (grids).
+    pub max_motion_frequency_hz: Option<f64>,
+    /// Form error `tool − design` in m over the band; `rms` with the mean (piston: the tool
+    /// shank's static compression under a constant cutting force) removed, as a form
+    /// measurement reports it.
+    pub form_error_m: Stats,
+    /// Largest |form error − mean| in m (the transition overshoot of §8.5.3).
+    pub max_abs_form_error_m: f64,
+    /// Following error `reference − measured` in m (what the capacitive sensor shows).
+    pub following_error_m: Stats,
+    /// Machined amplitude, for a sinusoidal grid.
+    pub grid: Option<GridAmplitude>,
+    /// Largest cutting force in N.
+    pub max_cutting_force_n: f64,
+}
+
+/// One row of the trajectory segment.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct SegmentRow {
+    /// Time in s.
+    pub time_s: f64,
+    /// Commanded (design) height in m.
+    pub reference_m: f64,
+    /// True tool position in m.
+    pub tool_m: f64,
+    /// Measured position in m.
+    pub measured_m: f64,
+    /// Cutting force in N.
+    pub cutting_force_n: f64,
+}
+
+/// Accumulates a [`FormReport`], the form-error map and the segment, frame by frame.
+pub struct FormAnalysis {
+    cut: SpiralCut,
+    grid: Option<SinusoidalGrid>,
+    rad_per_s: f64,
+    settle_s: f64,
+    form: Acc,
+    range: (f64, f64),
+    following: Acc,
+    max_force: f64,
+    first_theta: Option<f64>,
+    last_theta: f64,
+    rows: usize,
+    map_sum: Vec<f64>,
+    map_count: Vec<u32>,
+    fit_ata: SMatrix<f64, 5, 5>,
+    fit_atb: SVector<f64, 5>,
+    segment_from: Option<f64>,
+    segment: Vec<SegmentRow>,
+}
+
+impl FormAnalysis {
+    /// The analysis of a run of `c` cutting `surface` as `m` says.
+    pub fn new(c: &RunConfig, m: &Machining, surface: LoadedSurface) -> Self {
+        let revolutions = c.run.duration_s * m.spindle_rpm / 60.0;
+        let rows = ((revolutions - 1e-9).ceil() as usize).max(1);
+        FormAnalysis {
+            grid: match surface {
+                LoadedSurface::Grid(g) => Some(g),
+                _ => None,
+            },
+            cut: SpiralCut::new(m, surface),
+            rad_per_s: m.rad_per_s(),
+            settle_s: c.run.settle(),
+            form: Acc::default(),
+            range: (f64::INFINITY, f64::NEG_INFINITY),
+            following: Acc::default(),
+            max_force: 0.0,
+            first_theta: None,
+            last_theta: 0.0,
+            rows,
+            map_sum: vec![0.0; rows * MAP_COLUMNS],
+            map_count: vec![0; rows * MAP_COLUMNS],
+            fit_ata: SMatrix::zeros(),
+            fit_atb: SVector::zeros(),
+            segment_from: None,
+            segment: Vec::new(),
+        }
+    }
+
+    /// Adds one recorded frame (the tool position at the frame's time).
+    pub fn add(&mut self, f: &Frame) {
+        let t = f.time_ns as f64 * 1e-9;
+        if t < self.settle_s {
+            return;
+        }
+        let theta = self.rad_per_s * t;
+        let design = self.cut.height_m(theta);
+        let tool = f.truth.tool_m as f64;
+        let e = tool - design;
+        self.form.add(e);
+        self.range = (self.range.0.min(e), self.range.1.max(e));
+        self.following.add(f.telemetry.following_error_m as f64);
+        self.max_force = self.max_force.max(f.truth.cutting_force_n.abs() as f64);
+        self.first_theta.get_or_insert(theta);
+        self.last_theta = theta;
+        let turns = theta / TAU;
+        let row = (turns.floor() as usize).min(self.rows - 1);
+        let col = ((turns.fract() * MAP_COLUMNS as f64) as usize).min(MAP_COLUMNS - 1);
+        self.map_sum[row * MAP_COLUMNS + col] += e;
+        self.map_count[row * MAP_COLUMNS + col] += 1;
+        if let Some(g) = &self.grid {
+            let r = self.cut.radius_m(theta);
+            let (x, y) = (r * theta.cos(), r * theta.sin());
+            let (px, py) = (TAU * x / g.lambda_x_m, TAU * y / g.lambda_y_m);
+            let a = SVector::<f64, 5>::from([px.sin(), px.cos(), py.sin(), py.cos(), 1.0]);
+            self.fit_ata += a * a.transpose();
+            self.fit_atb += a * tool;
+        }
+        // The segment: from the first quarter turn after settling (fastest X motion there).
+        let from = *self.segment_from.get_or_insert_with(|| {
+            let quarter = (turns - 0.25).ceil() + 0.25;
+            quarter * TAU / self.rad_per_s - SEGMENT_S / 2.0
+        });
+        if t >= from && t < from + SEGMENT_S {
+            self.segment.push(SegmentRow {
+                time_s: t,
+                reference_m: f.telemetry.reference_m as f64,
+                tool_m: tool,
+                measured_m: f.telemetry.measured_m as f64,
+                cutting_force_n: f.truth.cutting_force_n as f64,
+            });
+        }
+    }
+
+    /// The report.
+    pub fn report(&self) -> FormReport {
+        let (first, last) = (self.first_theta.unwrap_or(0.0), self.last_theta);
+        let outer = self.cut.radius_m(first);
+        let grid = self.grid.and_then(|g| {
+            self.fit_ata.try_inverse().map(|inv| {
+                let c = inv * self.fit_atb;
+                GridAmplitude {
+                    nominal_pv_x_m: 2.0 * g.ax_m.abs(),
+                    machined_pv_x_m: 2.0 * c[0].hypot(c[1]),
+                    nominal_pv_y_m: 2.0 * g.ay_m.abs(),
+                    machined_pv_y_m: 2.0 * c[2].hypot(c[3]),
+                }
+            })
+        });
+        let form = self.form.stats();
+        FormReport {
+            band_m: [self.cut.radius_m(last), outer],
+            revolutions: (last - first) / TAU,
+            max_motion_frequency_hz: self.grid.map(|g| outer * self.rad_per_s / g.lambda_x_m),
+            form_error_m: Stats {
+                rms: (form.rms * form.rms - form.mean * form.mean)
+                    .max(0.0)
+                    .sqrt(),
+                ..form
+            },
+            max_abs_form_error_m: (self.range.1 - form.mean)
+                .max(form.mean - self.range.0)
+                .max(0.0),
+            following_error_m: self.following.stats(),
+            grid,
+            max_cutting_force_n: self.max_force,
+        }
+    }
+
+    /// The form-error map: mean error per 0.1° bin and revolution (m; NaN where the run did
+    /// not pass), row 0 the first (outermost) revolution.
+    pub fn map(&self) -> (usize, Vec<f64>) {
+        let values = self
+            .map_sum
+            .iter()
+            .zip(&self.map_count)
+            .map(|(&s, &n)| if n > 0 { s / n as f64 } else { f64::NAN })
+            .collect();
+        (self.rows, values)
+    }
+
+    /// The recorded trajectory segment.
+    pub fn segment(&self) -> &[SegmentRow] {
+        &self.segment
+    }
+}
+
+/// Runs the machining scenario of `plan` (recording as `opts` says) and analyses every frame.
+pub fn run_machining(
+    plan: &Plan,
+    opts: RunOptions<'_>,
+) -> Result<(Summary, FormAnalysis), StudyError> {
+    let (Scenario::Machine(m), Some(surface)) = (&plan.config.scenario, &plan.surface) else {
+        return Err(plan
+            .origin
+            .invalid(
+                "scenario.kind",
+                "(not machine)",
+                "\"machine\" for a machining run",
+            )
+            .into());
+    };
+    let mut analysis = FormAnalysis::new(&plan.config, m, surface.clone());
+    let summary = run_with(plan, opts, |f| analysis.add(f))?;
+    Ok((summary, analysis))
+}
+
+/// The form analysis of a machining recording of `loaded` (None for other scenarios).
+pub fn from_recording(
+    loaded: &Loaded,
+    rec: &recorder::Recording,
+) -> Result<Option<FormAnalysis>, ConfigError> {
+    let Scenario::Machine(m) = &loaded.config.scenario else {
+        return Ok(None);
+    };
+    let surface = LoadedSurface::load(&m.surface, &loaded.origin)?;
+    let mut a = FormAnalysis::new(&loaded.config, m, surface);
+    rec.frames.iter().for_each(|f| a.add(f));
+    Ok(Some(a))
+}

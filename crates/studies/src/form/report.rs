@@ -1,0 +1,119 @@
+//! `machine.json`, `form_map.csv`, `trajectory.csv`, the form-error map and the trajectory plots of a machining run.
+
+use super::MAP_COLUMNS;
+use crate::plot::{self, Figure, Series};
+use crate::report::{plots, to_json, write_files, ReportError, Written};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Picture columns of the form-error map (the data keep every 0.1° bin).
+const MAP_PICTURE_COLUMNS: usize = 720;
+
+/// `machine.json` (the [`FormReport`](super::FormReport)), `form_map.csv`,
+/// `trajectory.csv`, and the pictures `form_error_map`, `trajectory`, `trajectory_error`
+/// (PNG + SVG).
+pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written, ReportError> {
+    let report = a.report();
+    let (rows, values) = a.map();
+    let [inner, outer] = report.band_m;
+    let ring = (outer - inner) / report.revolutions.max(1e-9);
+    let mut map_csv = String::from("revolution,radius_m,angle_deg,form_error_m\n");
+    for (i, v) in values.iter().enumerate().filter(|(_, v)| v.is_finite()) {
+        let (r, c) = (i / MAP_COLUMNS, i % MAP_COLUMNS);
+        let angle = (c as f64 + 0.5) * 360.0 / MAP_COLUMNS as f64;
+        let radius = outer - ring * (r as f64 + (c as f64 + 0.5) / MAP_COLUMNS as f64);
+        writeln!(map_csv, "{r},{radius:.9e},{angle:.2},{v:.6e}").unwrap();
+    }
+    let mut seg_csv = String::from("time_s,reference_m,tool_m,measured_m,cutting_force_n\n");
+    for s in a.segment() {
+        writeln!(
+            seg_csv,
+            "{:.9},{:.6e},{:.6e},{:.6e},{:.6e}",
+            s.time_s, s.reference_m, s.tool_m, s.measured_m, s.cutting_force_n
+        )
+        .unwrap();
+    }
+    let mut out = write_files(
+        dir,
+        &[
+            ("form_map.csv", &map_csv),
+            ("machine.json", &to_json(&report)),
+            ("trajectory.csv", &seg_csv),
+        ],
+    )?;
+    // The map picture: rows = revolutions (outermost at the top), columns merged to 0.5°.
+    let merge = MAP_COLUMNS / MAP_PICTURE_COLUMNS;
+    let picture: Vec<f64> = (0..rows)
+        .rev()
+        .flat_map(|r| {
+            let row = &values[r * MAP_COLUMNS..(r + 1) * MAP_COLUMNS];
+            row.chunks(merge)
+                .map(|c| {
+                    let (s, n) = c
+                        .iter()
+                        .filter(|v| v.is_finite())
+                        .fold((0.0, 0), |(s, n), v| (s + v * 1e9, n + 1));
+                    if n > 0 {
+                        s / n as f64
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect::<Vec<f64>>()
+        })
+        .collect();
+    let map = plot::Map {
+        title: format!("Form error, tool − design (nm) — {title}"),
+        x_label: "spindle angle (°)".into(),
+        y_label: "radius (mm)".into(),
+        x: (0.0, 360.0),
+        y: ((outer - ring * rows as f64) * 1e3, outer * 1e3),
+        cols: MAP_PICTURE_COLUMNS,
+        values: picture,
+    };
+    let ms: Vec<f64> = a.segment().iter().map(|s| s.time_s * 1e3).collect();
+    let um = |f: fn(&super::SegmentRow) -> f64| -> Vec<f64> {
+        a.segment().iter().map(|s| f(s) * 1e6).collect()
+    };
+    let nm = |f: fn(&super::SegmentRow) -> f64| -> Vec<f64> {
+        a.segment().iter().map(|s| f(s) * 1e9).collect()
+    };
+    let series = |label: &str, y: Vec<f64>| Series::line(label, ms.clone(), y);
+    let trajectory = Figure {
+        title: format!("Tool trajectory (thesis Figs 8-15, 8-20) — {title}"),
+        x_label: "time (ms)".into(),
+        y_label: "height (µm)".into(),
+        log_x: false,
+        log_y: false,
+        series: vec![
+            series("command (design surface)", um(|s| s.reference_m)),
+            series("true tool", um(|s| s.tool_m)),
+        ],
+    };
+    let errors = Figure {
+        title: format!("Tool errors along the segment — {title}"),
+        x_label: "time (ms)".into(),
+        y_label: "error (nm)".into(),
+        log_x: false,
+        log_y: false,
+        series: vec![
+            series("true tool − command", nm(|s| s.tool_m - s.reference_m)),
+            series(
+                "following error (command − measured)",
+                nm(|s| s.reference_m - s.measured_m),
+            ),
+        ],
+    };
+    out.note = plots(
+        &[(trajectory, "trajectory"), (errors, "trajectory_error")],
+        dir,
+        &mut out.files,
+    );
+    if out.note.is_none() {
+        match plot::write_map(&map, &dir.join("form_error_map")) {
+            Ok(paths) => out.files.extend(paths),
+            Err(e) => out.note = Some(e.to_string()),
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,91 @@
+//! `frf.csv`, `frf.json` and the Bode plot of a measured FRF beside its model.
+
+use crate::plot::{Figure, Series};
+use crate::report::{data, plots, ReportError, Written};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// `frf.csv`, `frf.json`, `bode_magnitude.{png,svg}`, `bode_phase.{png,svg}`.
+pub fn write(
+    points: &[super::FrfPoint],
+    model: &[(f64, num_complex::Complex64)],
+    title: &str,
+    dir: &Path,
+) -> Result<Written, ReportError> {
+    let mut csv = String::from("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped\n");
+    for p in points {
+        writeln!(
+            csv,
+            "{:.6},{:.6e},{:.4},{:.6},{:.6e},{:.4},{}",
+            p.freq_hz,
+            p.magnitude,
+            p.phase_deg,
+            p.coherence,
+            p.model_magnitude,
+            p.model_phase_deg,
+            p.clipped
+        )
+        .unwrap();
+    }
+    let mut out = data(dir, "frf", &csv, points)?;
+    let f: Vec<f64> = points.iter().map(|p| p.freq_hz).collect();
+    let mf: Vec<f64> = model.iter().map(|m| m.0).collect();
+    let model_series = |y: Vec<f64>| Series::line("model (sampled loop)", mf.clone(), y);
+    let series = |get: fn(&super::FrfPoint) -> f64, label: &str, pts: bool| Series {
+        label: label.into(),
+        x: f.clone(),
+        y: points.iter().map(get).collect(),
+        points: pts,
+    };
+    let mag = Figure {
+        title: format!("{title}: magnitude"),
+        x_label: "frequency (Hz)".into(),
+        y_label: "|H| (µm/V)".into(),
+        log_x: true,
+        log_y: true,
+        series: vec![
+            model_series(model.iter().map(|m| m.1.norm() * 1e6).collect()),
+            series(|p| p.magnitude * 1e6, "measured (stepped sine)", true),
+        ],
+    };
+    // Unwrap the model along its dense grid; place each measured phase on the same branch.
+    let mut unwrapped: Vec<f64> = Vec::with_capacity(model.len());
+    for m in model {
+        let mut p = m.1.arg().to_degrees();
+        if let Some(&prev) = unwrapped.last() {
+            p += 360.0 * ((prev - p) / 360.0).round();
+        }
+        unwrapped.push(p);
+    }
+    let branch = |f: f64, p: f64| {
+        let i = mf
+            .iter()
+            .position(|&x| x >= f)
+            .unwrap_or(mf.len().saturating_sub(1));
+        let reference = unwrapped.get(i).copied().unwrap_or(p);
+        p + 360.0 * ((reference - p) / 360.0).round()
+    };
+    let measured_phase = Series {
+        label: "measured (stepped sine)".into(),
+        x: f.clone(),
+        y: points
+            .iter()
+            .map(|p| branch(p.freq_hz, p.phase_deg))
+            .collect(),
+        points: true,
+    };
+    let phase = Figure {
+        title: format!("{title}: phase"),
+        x_label: "frequency (Hz)".into(),
+        y_label: "phase (°)".into(),
+        log_x: true,
+        log_y: false,
+        series: vec![model_series(unwrapped.clone()), measured_phase],
+    };
+    out.note = plots(
+        &[(mag, "bode_magnitude"), (phase, "bode_phase")],
+        dir,
+        &mut out.files,
+    );
+    Ok(out)
+}

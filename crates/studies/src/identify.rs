@@ -1,0 +1,171 @@
+//! `servo identify`: the Table 5-2 parameters of the four-mass stage (m1 + m2, k2, c2, m4, k4,
+//! c4) fitted to a measured open-loop FRF (DAC command → measured position, m/V, as
+//! `servo frf --loop open` writes it) with the simulator's exact sampled model as the grey box
+//! (delays, current loop, sensor filter known), by [`design::identify`].
+
+use crate::error::StudyError;
+use num_complex::Complex64;
+use plant_sim::params::StageParams;
+use plant_sim::Simulator;
+use runner::closed_loop::ClosedLoop;
+use runner::config::ConfigError;
+use runner::Plan;
+use std::path::Path;
+
+/// The identified parameters, in Table 5-2 order.
+pub const NAMES: [&str; 6] = [
+    "m1 + m2 kg",
+    "k2 N/m",
+    "c2 N·s/m",
+    "m4 kg",
+    "k4 N/m",
+    "c4 N·s/m",
+];
+
+/// Table 5-2 values of a stage.
+pub fn table_5_2(s: &StageParams) -> [f64; 6] {
+    [
+        s.m1_kg + s.m2_kg,
+        s.k2_n_per_m,
+        s.c2_n_s_per_m,
+        s.m4_kg,
+        s.k4_n_per_m,
+        s.c4_n_s_per_m,
+    ]
+}
+
+/// `base` with the Table 5-2 values `p` (m1 kept; m2 = `p[0]` − m1).
+pub fn with_table_5_2(base: &StageParams, p: &[f64]) -> StageParams {
+    StageParams {
+        m2_kg: p[0] - base.m1_kg,
+        k2_n_per_m: p[1],
+        c2_n_s_per_m: p[2],
+        m4_kg: p[3],
+        k4_n_per_m: p[4],
+        c4_n_s_per_m: p[5],
+        ..*base
+    }
+}
+
+/// The result of `servo identify`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Identified {
+    /// Parameter names and units ([`NAMES`]).
+    pub names: Vec<String>,
+    /// Fitted values.
+    pub fitted: Vec<f64>,
+    /// Relative 1σ uncertainty of each.
+    pub rel_std: Vec<f64>,
+    /// The starting (configured) values.
+    pub start: Vec<f64>,
+    /// MATLAB-style fit % on the complex response (thesis §5.5.3: 97.7 %).
+    pub fit_percent: f64,
+    /// Fit % on the relative residuals (what is minimised).
+    pub weighted_fit_percent: f64,
+    /// Levenberg–Marquardt iterations.
+    pub iterations: usize,
+    /// FRF points used.
+    pub points: usize,
+}
+
+/// Reads an FRF CSV with columns `freq_hz`, `magnitude_m_per_v`, `phase_deg` (others ignored;
+/// rows with `clipped = true` skipped).
+pub fn read_frf_csv(path: &Path) -> Result<(Vec<f64>, Vec<Complex64>), StudyError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let bad = |line: usize, what: &str| StudyError::FrfFile {
+        path: path.to_owned(),
+        line,
+        what: what.to_owned(),
+    };
+    let mut lines = text.lines().enumerate();
+    let header: Vec<&str> = lines
+        .next()
+        .map(|(_, h)| h.split(',').map(str::trim).collect())
+        .unwrap_or_default();
+    let col = |name: &str| {
+        header.iter().position(|h| *h == name).ok_or_else(|| {
+            bad(
+                1,
+                &format!("no column `{name}` (header: {})", header.join(",")),
+            )
+        })
+    };
+    let (cf, cm, cp) = (
+        col("freq_hz")?,
+        col("magnitude_m_per_v")?,
+        col("phase_deg")?,
+    );
+    let cc = header.iter().position(|h| *h == "clipped");
+    let (mut f, mut g) = (Vec::new(), Vec::new());
+    for (i, line) in lines {
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        if cells.len() < header.len() || line.trim().is_empty() {
+            continue;
+        }
+        if cc.is_some_and(|c| cells[c] == "true") {
+            continue;
+        }
+        let num = |c: usize| {
+            cells[c]
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| bad(i + 1, &format!("`{}` is not a number", cells[c])))
+        };
+        let (freq, mag, phase) = (num(cf)?, num(cm)?, num(cp)?);
+        if freq <= 0.0 || mag <= 0.0 {
+            return Err(bad(i + 1, "frequency and magnitude must be > 0"));
+        }
+        f.push(freq);
+        g.push(Complex64::from_polar(mag, phase.to_radians()));
+    }
+    if f.len() < 7 {
+        return Err(bad(
+            1,
+            &format!("{} usable rows; at least 7 needed", f.len()),
+        ));
+    }
+    Ok((f, g))
+}
+
+/// The model's open-loop response (m/V) at `freq_hz` for stage `stage` in `cfg`'s plant.
+fn open_loop(plan: &Plan, stage: StageParams, freq_hz: &[f64]) -> Result<Vec<Complex64>, String> {
+    let mut plant = plan.config.plant;
+    plant.stage = stage;
+    plant.actuator.model = plant_sim::params::CurrentLoopModel::Ideal;
+    let sim = Simulator::new(&plant, 0, &Default::default()).map_err(|e| e.to_string())?;
+    let open = ClosedLoop::open(&sim, plant.capa.sensitivity_v_per_m).ok_or("no linear model")?;
+    freq_hz
+        .iter()
+        .map(|&f| open.command_response(f).map_err(|e| e.to_string()))
+        .collect()
+}
+
+/// Fits the Table 5-2 parameters to `(freq_hz, measured)`, starting from `plan`'s stage, each
+/// bounded to a factor 4 around its start.
+pub fn identify(
+    plan: &Plan,
+    freq_hz: &[f64],
+    measured: &[Complex64],
+) -> Result<Identified, StudyError> {
+    let base = plan.config.plant.stage;
+    let start = table_5_2(&base);
+    let mut lower = start.map(|v| v / 4.0);
+    lower[0] = lower[0].max(1.05 * base.m1_kg);
+    let upper = start.map(|v| v * 4.0);
+    let mut model = |p: &[f64]| open_loop(plan, with_table_5_2(&base, p), freq_hz);
+    let f = design::identify::fit(&mut model, measured, &start, &lower, &upper, 200)?;
+    Ok(Identified {
+        names: NAMES.iter().map(|s| s.to_string()).collect(),
+        fitted: f.params,
+        rel_std: f.rel_std,
+        start: start.to_vec(),
+        fit_percent: f.fit_percent,
+        weighted_fit_percent: f.weighted_fit_percent,
+        iterations: f.iterations,
+        points: freq_hz.len(),
+    })
+}

@@ -1,0 +1,88 @@
+//! How every study writes its results: data first (CSV with a header naming column and
+//! unit, JSON), pictures second (PNG + SVG), all in one output directory. Each study's own
+//! `report` module decides what goes in them.
+
+use crate::plot::{self, Figure};
+use std::path::{Path, PathBuf};
+
+/// Report errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReportError {
+    /// Writing a file failed.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+}
+
+pub(crate) fn write_file(path: PathBuf, text: &str) -> Result<PathBuf, ReportError> {
+    std::fs::write(&path, text).map_err(|source| ReportError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    Ok(path)
+}
+
+/// Creates `dir` and writes `files` (file name, contents) into it.
+pub(crate) fn write_files(dir: &Path, files: &[(&str, &str)]) -> Result<Written, ReportError> {
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    Ok(Written {
+        files: files
+            .iter()
+            .map(|(name, text)| write_file(dir.join(name), text))
+            .collect::<Result<_, _>>()?,
+        note: None,
+    })
+}
+
+/// Pretty JSON of an analysis result.
+pub(crate) fn to_json<T: serde::Serialize + ?Sized>(value: &T) -> String {
+    serde_json::to_string_pretty(value).expect("analysis results serialise")
+}
+
+/// Creates `dir` and writes the data files `<stem>.csv` and `<stem>.json`.
+pub(crate) fn data<T: serde::Serialize + ?Sized>(
+    dir: &Path,
+    stem: &str,
+    csv: &str,
+    json: &T,
+) -> Result<Written, ReportError> {
+    write_files(
+        dir,
+        &[
+            (&format!("{stem}.csv"), csv),
+            (&format!("{stem}.json"), &to_json(json)),
+        ],
+    )
+}
+
+/// Writes the plots, or returns the reason they were skipped (no font) as a note.
+pub(crate) fn plots(
+    figs: &[(Figure, &str)],
+    dir: &Path,
+    written: &mut Vec<PathBuf>,
+) -> Option<String> {
+    for (fig, stem) in figs {
+        match plot::write(fig, &dir.join(stem)) {
+            Ok(paths) => written.extend(paths),
+            Err(e) => return Some(e.to_string()),
+        }
+    }
+    None
+}
+
+/// Files written, and a note if plots were skipped.
+#[derive(Debug, Default)]
+pub struct Written {
+    /// Paths written.
+    pub files: Vec<PathBuf>,
+    /// Why plots were skipped, if they were.
+    pub note: Option<String>,
+}

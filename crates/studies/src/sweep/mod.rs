@@ -1,0 +1,175 @@
+//! The bandwidth sweep of thesis Fig 5-14: the PID scaled to each closed-loop bandwidth, the
+//! predicted RMS following and true errors from the budget, optionally checked against
+//! time-domain runs, and the optimum marked.
+
+pub mod report;
+
+use crate::budget::Budget;
+use crate::error::StudyError;
+use plant_sim::params::StageParams;
+use runner::run::run_to_end;
+use runner::Plan;
+use serde::Serialize;
+
+/// One bandwidth of the sweep.
+#[derive(Debug, Clone, Serialize)]
+pub struct SweepPoint {
+    /// Requested bandwidth in Hz.
+    pub target_hz: f64,
+    /// Achieved −3 dB bandwidth in Hz.
+    pub bandwidth_hz: f64,
+    /// Factor on the configured PID gains.
+    pub gain_scale: f64,
+    /// Predicted RMS following error in m.
+    pub predicted_following_m: f64,
+    /// Predicted RMS true error in m.
+    pub predicted_true_m: f64,
+    /// Simulated RMS following error in m (when validated).
+    pub simulated_following_m: Option<f64>,
+    /// Simulated RMS true error in m.
+    pub simulated_true_m: Option<f64>,
+}
+
+/// A sweep for one configuration.
+#[derive(Debug, Clone, Serialize)]
+pub struct Sweep {
+    /// Label (e.g. the mass).
+    pub label: String,
+    /// Points in bandwidth order.
+    pub points: Vec<SweepPoint>,
+    /// Bandwidth of the smallest predicted following error, Hz.
+    pub optimum_following_hz: f64,
+    /// Bandwidth of the smallest predicted true error, Hz.
+    pub optimum_true_hz: f64,
+}
+
+/// The bandwidths of Fig 5-14's sweep, Hz (with the thesis's optima 468 and 874 Hz).
+pub const THESIS_BANDWIDTHS_HZ: [f64; 10] = [
+    200.0, 300.0, 400.0, 468.0, 600.0, 750.0, 874.0, 1000.0, 1200.0, 1450.0,
+];
+
+/// The two stages of Fig 5-14 and their labels.
+pub const THESIS_STAGES: [(&str, StageParams); 2] = [
+    ("0.075 kg", StageParams::THESIS),
+    ("0.175 kg", StageParams::THESIS_HEAVY),
+];
+
+/// `plan` with its PID gains scaled by `k`.
+fn scaled(plan: &Plan, k: f64) -> Result<Plan, StudyError> {
+    let mut c = plan.config.controller.clone();
+    let p = &mut c.pid;
+    (p.kp, p.ki, p.kd) = (p.kp * k, p.ki * k, p.kd * k);
+    Ok(plan.with_controller(c)?)
+}
+
+/// The gain scale giving bandwidth `target_hz`: a log scan from 1/100 to 100 finds the first
+/// pair of neighbouring *stable* gains that bracket the target (very low gains can be
+/// unstable too, so plain bisection would be misled), then bisection refines it. `None` when no
+/// stable gain reaches the target.
+pub fn scale_for_bandwidth(plan: &Plan, target_hz: f64) -> Result<Option<(f64, f64)>, StudyError> {
+    let bw = |k: f64| -> Result<Option<f64>, StudyError> {
+        let cl = scaled(plan, k)?.closed_loop;
+        Ok((cl.spectral_radius() < 1.0).then(|| cl.bandwidth_hz().unwrap_or(0.0)))
+    };
+    let grid: Vec<f64> = (0..=48)
+        .map(|i| 0.01 * 10f64.powf(i as f64 / 12.0))
+        .collect();
+    let mut prev: Option<(f64, f64)> = None;
+    for &k in &grid {
+        let here = bw(k)?;
+        if let (Some((k0, b0)), Some(b1)) = (prev, here) {
+            if b0 < target_hz && b1 >= target_hz {
+                let (mut lo, mut hi) = (k0, k);
+                for _ in 0..30 {
+                    let mid = (lo * hi).sqrt();
+                    match bw(mid)? {
+                        Some(b) if b < target_hz => lo = mid,
+                        Some(_) => hi = mid,
+                        None => break,
+                    }
+                }
+                let k = (lo * hi).sqrt();
+                return Ok(bw(k)?.map(|b| (k, b)));
+            }
+        }
+        prev = here.map(|b| (k, b));
+    }
+    Ok(None)
+}
+
+/// Runs the sweep over `targets_hz`; with `simulate_s`, each point is also simulated for that
+/// long (seeded as in `plan`). `progress` gets (done, total) points.
+pub fn sweep(
+    plan: &Plan,
+    label: &str,
+    targets_hz: &[f64],
+    simulate_s: Option<f64>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Sweep, StudyError> {
+    let mut points = Vec::new();
+    for (i, &target) in targets_hz.iter().enumerate() {
+        progress(i, targets_hz.len());
+        let Some((k, bw)) = scale_for_bandwidth(plan, target)? else {
+            continue; // no stable gain reaches this bandwidth
+        };
+        let at = scaled(plan, k)?;
+        let budget = Budget::new(&at.closed_loop, 64)?;
+        let (mut sf, mut st) = (None, None);
+        if let Some(d) = simulate_s {
+            let s = run_to_end(&at.with_duration(d)?)?;
+            (sf, st) = (Some(s.following_error_m.rms), Some(s.true_error_m.rms));
+        }
+        points.push(SweepPoint {
+            target_hz: target,
+            bandwidth_hz: bw,
+            gain_scale: k,
+            predicted_following_m: budget.following_rms_m,
+            predicted_true_m: budget.true_rms_m,
+            simulated_following_m: sf,
+            simulated_true_m: st,
+        });
+    }
+    progress(targets_hz.len(), targets_hz.len());
+    let best = |f: fn(&SweepPoint) -> f64| {
+        points
+            .iter()
+            .min_by(|a, b| f(a).total_cmp(&f(b)))
+            .map_or(f64::NAN, |p| p.bandwidth_hz)
+    };
+    Ok(Sweep {
+        label: label.to_owned(),
+        optimum_following_hz: best(|p| p.predicted_following_m),
+        optimum_true_hz: best(|p| p.predicted_true_m),
+        points,
+    })
+}
+
+/// Fig 5-14: the sweep of `plan`'s controller over `targets_hz` for both thesis stages
+/// ([`THESIS_STAGES`]); `progress` gets (done, total) points over both.
+pub fn thesis_sweeps(
+    plan: &Plan,
+    targets_hz: &[f64],
+    simulate_s: Option<f64>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<Sweep>, StudyError> {
+    let total = THESIS_STAGES.len() * targets_hz.len();
+    THESIS_STAGES
+        .iter()
+        .enumerate()
+        .map(|(i, (label, stage))| {
+            let mut loaded = runner::config::Loaded {
+                config: plan.config.clone(),
+                origin: plan.origin.clone(),
+            };
+            loaded.config.plant.stage = *stage;
+            let offset = i * targets_hz.len();
+            sweep(
+                &Plan::new(&loaded)?,
+                label,
+                targets_hz,
+                simulate_s,
+                &mut |done, _| progress(offset + done, total),
+            )
+        })
+        .collect()
+}

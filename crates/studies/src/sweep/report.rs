@@ -1,0 +1,75 @@
+//! `sweep.csv`, `sweep.json` and the bandwidth-sweep plot (Fig 5-14).
+
+use super::Sweep;
+use crate::plot::{Figure, Series};
+use crate::report::{data, plots, ReportError, Written};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// `sweep.csv`, `sweep.json`, `sweep.{png,svg}` (thesis Fig 5-14).
+pub fn write(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
+    let mut csv = String::from("label,target_hz,bandwidth_hz,gain_scale,predicted_following_m,predicted_true_m,simulated_following_m,simulated_true_m\n");
+    for s in sweeps {
+        for p in &s.points {
+            let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6e}"));
+            writeln!(
+                csv,
+                "{},{:.1},{:.3},{:.6},{:.6e},{:.6e},{},{}",
+                s.label,
+                p.target_hz,
+                p.bandwidth_hz,
+                p.gain_scale,
+                p.predicted_following_m,
+                p.predicted_true_m,
+                opt(p.simulated_following_m),
+                opt(p.simulated_true_m)
+            )
+            .unwrap();
+        }
+    }
+    let mut out = data(dir, "sweep", &csv, sweeps)?;
+    let mut series = Vec::new();
+    for s in sweeps {
+        let bw: Vec<f64> = s.points.iter().map(|p| p.bandwidth_hz).collect();
+        let nm = |f: fn(&super::SweepPoint) -> Option<f64>| {
+            s.points
+                .iter()
+                .map(|p| f(p).map_or(f64::NAN, |v| v * 1e9))
+                .collect::<Vec<f64>>()
+        };
+        series.push(Series::line(
+            format!("{} following, predicted", s.label),
+            bw.clone(),
+            nm(|p| Some(p.predicted_following_m)),
+        ));
+        series.push(Series::line(
+            format!("{} true, predicted", s.label),
+            bw.clone(),
+            nm(|p| Some(p.predicted_true_m)),
+        ));
+        if s.points.iter().any(|p| p.simulated_following_m.is_some()) {
+            series.push(Series {
+                label: format!("{} following, simulated", s.label),
+                x: bw.clone(),
+                y: nm(|p| p.simulated_following_m),
+                points: true,
+            });
+            series.push(Series {
+                label: format!("{} true, simulated", s.label),
+                x: bw,
+                y: nm(|p| p.simulated_true_m),
+                points: true,
+            });
+        }
+    }
+    let fig = Figure {
+        title: "RMS error against closed-loop bandwidth (thesis Fig 5-14)".into(),
+        x_label: "closed-loop −3 dB bandwidth (Hz)".into(),
+        y_label: "RMS error (nm)".into(),
+        log_x: true,
+        log_y: false,
+        series,
+    };
+    out.note = plots(&[(fig, "sweep")], dir, &mut out.files);
+    Ok(out)
+}
