@@ -126,15 +126,15 @@ fn round_trip_socket() -> LatencyHistogram {
     h
 }
 
-fn bench_config() -> Loaded {
+fn bench_plan() -> runner::Plan {
     let mut cfg = Loaded::default();
     cfg.config.run.duration_s = LOCKSTEP_S;
-    cfg
+    runner::Plan::new(&cfg).unwrap()
 }
 
 /// (ticks, wall seconds) of the full loop across processes, and of the in-process loop.
 fn lockstep_rate() -> ((u64, f64), (u64, f64)) {
-    let cfg = bench_config();
+    let plan = bench_plan();
     let prefix = format!("bench-ls-{}", std::process::id());
     let mut child = peer("controller", &prefix);
     let stop = AtomicBool::new(false);
@@ -144,10 +144,10 @@ fn lockstep_rate() -> ((u64, f64), (u64, f64)) {
         wait_for_start: false,
         peer_timeout: None,
     };
-    let r = runner::hil::plant(&cfg, &prefix, &options, &stop).unwrap();
+    let r = runner::hil::plant(&plan, &prefix, &options, &stop).unwrap();
     child.wait().unwrap();
     let start = Instant::now();
-    let s = runner::run::run_to_end(&cfg).unwrap();
+    let s = runner::run::run_to_end(&plan).unwrap();
     (
         (r.ticks, r.wall_s),
         (s.ticks, start.elapsed().as_secs_f64()),
@@ -175,7 +175,7 @@ fn main() {
         Ok("socket") => return echo_socket(&arg()),
         Ok("controller") => {
             let stop = AtomicBool::new(false);
-            runner::hil::controller(&bench_config(), &arg(), &stop).unwrap();
+            runner::hil::controller(&bench_plan(), &arg(), &stop).unwrap();
             return;
         }
         _ => {}

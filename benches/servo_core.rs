@@ -157,7 +157,10 @@ fn zpetc(c: &mut Criterion) {
         },
         ..Default::default()
     };
-    let mut z = runner::feedforward::zpetc(&cfg).unwrap();
+    let plan = runner::Plan::new(&cfg).unwrap();
+    let mut z =
+        runner::feedforward::zpetc(&plan.closed_loop, runner::config::FeedforwardKind::Zpetc)
+            .unwrap();
     let mut y = 0.0;
     c.bench_function("zpetc/12_sections", |b| {
         b.iter(|| {

@@ -12,10 +12,11 @@ fn synthesis(c: &mut Criterion) {
     cfg.config.plant = plant_sim::PlantParams::heavy();
     cfg.config.plant.noise.accel = false;
     cfg.config.plant.timing.servo_rate_hz = 20_000.0;
+    let plan = runner::Plan::new(&cfg).unwrap();
     let mut group = c.benchmark_group("synthesis");
     group.sample_size(10);
     group.bench_function("h2_27_states", |b| {
-        b.iter(|| runner::synth::h2_design(&cfg, 1.0).unwrap())
+        b.iter(|| studies::synth::h2_design(&plan, 1.0).unwrap())
     });
     // Baseline: one control DARE of the same (25-state) plant.
     let sim = plant_sim::Simulator::new(&cfg.config.plant, 0, &Default::default()).unwrap();

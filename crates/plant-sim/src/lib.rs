@@ -5,6 +5,7 @@
 //! transport delay, coloured noise and cutting forces; and the spindle metrology rig of
 //! Appendix D (artefact, spindle error motion, probes). See `README.md` for the calibration.
 
+mod coil_loop;
 pub mod convert;
 pub mod cutting;
 pub mod impedance;
@@ -12,6 +13,7 @@ pub mod metrology;
 pub mod model;
 pub mod params;
 pub mod sim;
+mod tick_matrix;
 
 pub use model::PlantModel;
 pub use params::PlantParams;

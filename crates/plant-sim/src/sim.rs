@@ -8,10 +8,12 @@
 //! matrix computed once from matrix exponentials; [`Simulator::step`] is a few dense
 //! matrix-vector products and allocates nothing.
 
+use crate::coil_loop::CoilLoop;
 use crate::convert::Quantizer;
 use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
 use crate::model::{input, output, ModelError, PlantModel};
-use crate::params::{rad, CurrentLoopModel, PlantParams};
+use crate::params::{CurrentLoopModel, PlantParams};
+use crate::tick_matrix::TickMatrix;
 use daq_io::flags;
 use lti::zoh;
 use nalgebra::DMatrix;
@@ -194,158 +196,6 @@ fn command_intervals(p: &PlantParams) -> Vec<(f64, f64)> {
             grid(0.0, tau, before)
                 .chain(grid(tau, t, n - before))
                 .collect()
-        }
-    }
-}
-
-/// The R-L coil and its analog PI current controller (§4.6.3), integrated by RK4 sub-steps.
-/// The PI integral corner cancels the coil pole `R/L`, so the unsaturated loop is first order
-/// at `loop_bandwidth_hz`; the amplifier clips at the bus voltage (the integrator then holds)
-/// and the reference at the peak current.
-#[derive(Debug, Clone)]
-struct CoilLoop {
-    kp: f64,
-    ki: f64,
-    r: f64,
-    l: f64,
-    bus: f64,
-    peak: f64,
-    gain: f64,
-    kt: f64,
-    /// Coil current in A and PI integrator output in V.
-    i: f64,
-    q: f64,
-    /// Row giving the coil velocity `v2 − v3` from the state (balanced coordinates).
-    velocity_row: Vec<f64>,
-    /// Sub-steps before the delay (they use the previous reference).
-    before_delay: usize,
-}
-
-impl CoilLoop {
-    fn new(p: &PlantParams, velocity_row: Vec<f64>, before_delay: usize) -> Self {
-        let c = &p.actuator.coil;
-        let r = c.resistance_ohm + c.sense_resistance_ohm;
-        let kp = c.inductance_h * rad(c.loop_bandwidth_hz);
-        CoilLoop {
-            kp,
-            ki: kp * r / c.inductance_h,
-            r,
-            l: c.inductance_h,
-            bus: c.bus_v,
-            peak: c.peak_a,
-            gain: p.actuator.current_gain_a_per_v,
-            kt: p.actuator.kt_n_per_a,
-            i: 0.0,
-            q: 0.0,
-            velocity_row,
-            before_delay,
-        }
-    }
-
-    /// `(di/dt, dq/dt)` for reference `r` (A) and coil velocity `v` (m/s).
-    #[inline]
-    fn deriv(&self, i: f64, q: f64, r: f64, v: f64) -> (f64, f64) {
-        let e = r - i;
-        let raw = self.kp * e + q;
-        let volts = raw.clamp(-self.bus, self.bus);
-        let winding_up = (raw > self.bus && e > 0.0) || (raw < -self.bus && e < 0.0);
-        let dq = if winding_up { 0.0 } else { self.ki * e };
-        ((volts - self.r * i - self.kt * v) / self.l, dq)
-    }
-
-    /// One RK4 step of `h` s; returns the mean current over it (trapezoid).
-    #[inline]
-    fn substep(&mut self, h: f64, r: f64, v: f64) -> f64 {
-        let (i0, q0) = (self.i, self.q);
-        let (a1, b1) = self.deriv(i0, q0, r, v);
-        let (a2, b2) = self.deriv(i0 + 0.5 * h * a1, q0 + 0.5 * h * b1, r, v);
-        let (a3, b3) = self.deriv(i0 + 0.5 * h * a2, q0 + 0.5 * h * b2, r, v);
-        let (a4, b4) = self.deriv(i0 + h * a3, q0 + h * b3, r, v);
-        self.i = i0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
-        self.q = q0 + h / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
-        0.5 * (i0 + self.i)
-    }
-
-    /// Integrates the tick; writes the mean current of each sub-step into `out`.
-    fn tick(
-        &mut self,
-        intervals: &[(f64, f64)],
-        u_prev: f64,
-        u_now: f64,
-        x: &[f64],
-        out: &mut [f64],
-    ) {
-        let v: f64 = self.velocity_row.iter().zip(x).map(|(a, b)| a * b).sum();
-        let reference = |u: f64| (self.gain * u).clamp(-self.peak, self.peak);
-        let (r_prev, r_now) = (reference(u_prev), reference(u_now));
-        for (j, (&(a, b), o)) in intervals.iter().zip(out.iter_mut()).enumerate() {
-            let r = if j < self.before_delay { r_prev } else { r_now };
-            *o = self.substep(b - a, r, v);
-        }
-    }
-}
-
-/// Rows of the tick matrix handled together, kept in registers; columns are split by index
-/// modulo 4 into separate accumulators (independent FMA chains).
-const ROW_GROUP: usize = 8;
-
-/// The whole tick as one affine map of `z = [x_k, command per interval, f_cut, w_i, w_g, w_a]`:
-/// rows `[x_{k+1} (n), ADC conversions (2 per conversion), truth (7)]`, stored column-major
-/// with the row count padded to a multiple of [`ROW_GROUP`] so the product is whole SIMD
-/// vectors whose accumulators stay in registers.
-#[derive(Debug, Clone)]
-struct TickMatrix {
-    rows: usize,
-    cols: Vec<f64>,
-}
-
-impl TickMatrix {
-    fn new(blocks: &[DMatrix<f64>]) -> Self {
-        let stacked = blocks.iter().map(|b| b.nrows()).sum::<usize>();
-        let rows = stacked.div_ceil(ROW_GROUP) * ROW_GROUP;
-        let ncols = blocks[0].ncols();
-        let mut cols = vec![0.0; rows * ncols];
-        let mut r0 = 0;
-        for b in blocks {
-            for (j, col) in cols.chunks_exact_mut(rows).enumerate() {
-                for i in 0..b.nrows() {
-                    col[r0 + i] = b[(i, j)];
-                }
-            }
-            r0 += b.nrows();
-        }
-        TickMatrix { rows, cols }
-    }
-
-    /// `out = M z` (`out.len() == rows`).
-    #[inline]
-    fn apply(&self, z: &[f64], out: &mut [f64]) {
-        let column = |j: usize, r0: usize| -> &[f64; ROW_GROUP] {
-            self.cols[j * self.rows + r0..][..ROW_GROUP]
-                .try_into()
-                .expect("padded rows")
-        };
-        for (g, block) in out.chunks_exact_mut(ROW_GROUP).enumerate() {
-            let r0 = g * ROW_GROUP;
-            let mut acc = [[0.0f64; ROW_GROUP]; 4];
-            let (quads, rest) = z.as_chunks::<4>();
-            for (q, zz) in quads.iter().enumerate() {
-                for (k, a) in acc.iter_mut().enumerate() {
-                    let c = column(4 * q + k, r0);
-                    for l in 0..ROW_GROUP {
-                        a[l] = c[l].mul_add(zz[k], a[l]);
-                    }
-                }
-            }
-            for (k, &zl) in rest.iter().enumerate() {
-                let c = column(4 * quads.len() + k, r0);
-                for l in 0..ROW_GROUP {
-                    acc[k][l] = c[l].mul_add(zl, acc[k][l]);
-                }
-            }
-            for (l, o) in block.iter_mut().enumerate() {
-                *o = (acc[0][l] + acc[1][l]) + (acc[2][l] + acc[3][l]);
-            }
         }
     }
 }

@@ -3,8 +3,8 @@
 
 use daq_io::{Backend, Sensor};
 use runner::config::{FeedforwardKind, Loaded, Scenario};
-use runner::machine::{Machining, SurfaceConfig};
-use runner::servo_loop::{ServoLoop, SimBackend};
+use runner::config::{Machining, SurfaceConfig};
+use runner::{Plan, ServoLoop, SimBackend};
 use stats_alloc::{Region, StatsAlloc, INSTRUMENTED_SYSTEM};
 use std::alloc::System;
 
@@ -24,8 +24,9 @@ fn machining_tick_allocates_nothing() {
             ..Machining::default()
         });
         cfg.config.controller.feedforward = ff;
-        let mut servo = ServoLoop::new(&cfg).unwrap();
-        let mut plant = SimBackend::for_run(&cfg).unwrap();
+        let plan = Plan::new(&cfg).unwrap();
+        let mut servo = ServoLoop::new(&plan).unwrap();
+        let mut plant = SimBackend::for_run(&plan);
         let mut sample = Sensor::default();
         // Warm up past the first tick (which fills the preview window).
         for _ in 0..10 {

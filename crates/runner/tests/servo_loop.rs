@@ -3,7 +3,7 @@
 
 use daq_io::{flags, Sensor};
 use runner::config::Loaded;
-use runner::servo_loop::ServoLoop;
+use runner::{Plan, ServoLoop};
 
 fn sample(seq: u64, gap_v: f64) -> Sensor {
     Sensor {
@@ -16,7 +16,7 @@ fn sample(seq: u64, gap_v: f64) -> Sensor {
 
 #[test]
 fn a_nan_reading_gives_zero_volts_and_a_fault_flag() {
-    let mut servo = ServoLoop::new(&Loaded::default()).unwrap();
+    let mut servo = ServoLoop::new(&Plan::new(&Loaded::default()).unwrap()).unwrap();
     let (c, _) = servo.tick(&sample(0, 0.01));
     let c = c.unwrap();
     assert!(c.dac_v != 0.0 && c.flags & flags::FAULT_CONTROLLER == 0);

@@ -42,6 +42,9 @@ pub struct FrfPoint {
     pub model_phase_deg: f64,
     /// The ADC clipped during the measurement (the point is not linear: lower the amplitude).
     pub clipped: bool,
+    /// Amplitude of the excitation at this frequency, V (stepped sine: per frequency; chirp:
+    /// constant).
+    pub excitation_v: f64,
 }
 
 impl FrfPoint {
@@ -190,6 +193,7 @@ impl Rig {
         h: Complex64,
         coherence: f64,
         clipped: bool,
+        excitation_v: f64,
     ) -> Result<FrfPoint, StudyError> {
         let m = self.model_at(f_hz)?;
         Ok(FrfPoint {
@@ -200,6 +204,7 @@ impl Rig {
             model_magnitude: m.norm(),
             model_phase_deg: m.arg().to_degrees(),
             clipped,
+            excitation_v,
         })
     }
 }
@@ -270,7 +275,15 @@ pub fn chirp(
     let frf = h1_welch(&u_rec, &y_rec, fs, &welch)?;
     (0..frf.freq_hz.len())
         .filter(|&k| (from_hz..=to_hz).contains(&frf.freq_hz[k]))
-        .map(|k| rig.point(frf.freq_hz[k], frf.h[k], frf.coherence[k], clipped))
+        .map(|k| {
+            rig.point(
+                frf.freq_hz[k],
+                frf.h[k],
+                frf.coherence[k],
+                clipped,
+                amplitude_v,
+            )
+        })
         .collect()
 }
 
@@ -316,7 +329,7 @@ pub fn stepped_sine(
             }
         }
         let (h, coherence) = h1_at_bin(&u_rec, &y_rec, periods_per_block as usize, s.blocks);
-        out.push(rig.point(seg.frequency_hz, h, coherence, clipped)?);
+        out.push(rig.point(seg.frequency_hz, h, coherence, clipped, sweep_cfg.amplitude)?);
     }
     progress(freqs_hz.len(), freqs_hz.len());
     Ok(out)

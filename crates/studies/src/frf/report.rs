@@ -12,18 +12,19 @@ pub fn write(
     title: &str,
     dir: &Path,
 ) -> Result<Written, ReportError> {
-    let mut csv = String::from("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped\n");
+    let mut csv = String::from("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v\n");
     for p in points {
         writeln!(
             csv,
-            "{:.6},{:.6e},{:.4},{:.6},{:.6e},{:.4},{}",
+            "{:.6},{:.6e},{:.4},{:.6},{:.6e},{:.4},{},{:.6e}",
             p.freq_hz,
             p.magnitude,
             p.phase_deg,
             p.coherence,
             p.model_magnitude,
             p.model_phase_deg,
-            p.clipped
+            p.clipped,
+            p.excitation_v
         )
         .unwrap();
     }

@@ -1,10 +1,13 @@
 //! Identification recovers the simulator's own Table 5-2 parameters (thesis §5.5.3) from an
 //! open-loop FRF measured on the running, noisy simulator by stepped sine, starting 20–40 % off.
 
+mod common;
+
+use common::plan;
 use num_complex::Complex64;
 use runner::config::Loaded;
-use runner::frf::{stepped_sine, FrfLoop, FrfSettings};
-use runner::identify::{identify, table_5_2, with_table_5_2};
+use studies::frf::{stepped_sine, FrfLoop, FrfSettings};
+use studies::identify::{identify, table_5_2, with_table_5_2};
 
 #[test]
 fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
@@ -13,8 +16,14 @@ fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
         .map(|i| 20.0 * (500.0f64).powf(i as f64 / 79.0))
         .collect();
     let settings = FrfSettings::for_loop(FrfLoop::Open);
-    let points =
-        stepped_sine(&truth_cfg, FrfLoop::Open, &freqs, &settings, &mut |_, _| {}).unwrap();
+    let points = stepped_sine(
+        &plan(&truth_cfg),
+        FrfLoop::Open,
+        &freqs,
+        &settings,
+        &mut |_, _| {},
+    )
+    .unwrap();
     let (f, g): (Vec<f64>, Vec<Complex64>) = points
         .iter()
         .filter(|p| !p.clipped)
@@ -30,7 +39,7 @@ fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
     let off = [1.3, 0.75, 1.4, 0.7, 1.25, 0.8];
     let start: Vec<f64> = truth.iter().zip(off).map(|(t, o)| t * o).collect();
     start_cfg.config.plant.stage = with_table_5_2(&truth_cfg.config.plant.stage, &start);
-    let id = identify(&start_cfg, &f, &g).unwrap();
+    let id = identify(&plan(&start_cfg), &f, &g).unwrap();
     println!(
         "fit {:.2} % ({:.2} % weighted), {} iterations",
         id.fit_percent, id.weighted_fit_percent, id.iterations

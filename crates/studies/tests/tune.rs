@@ -3,9 +3,12 @@
 //! the budget, and with the thesis PID's own robustness the optimiser finds at least its
 //! integral gain (Chapter 7, §7.5.3: Kp 1.65, Ki 562 s⁻¹, Kd 9.5e-4 s).
 
+mod common;
+
+use common::plan;
 use runner::config::Loaded;
 use runner::run::run_to_end;
-use runner::tune::tune;
+use studies::tune::tune;
 
 fn heavy() -> Loaded {
     let mut l = Loaded::default();
@@ -17,7 +20,7 @@ fn heavy() -> Loaded {
 #[test]
 fn tuned_pid_keeps_its_bounds_and_runs_as_predicted() {
     let cfg = heavy();
-    let r = tune(&cfg, 1000.0, 1.5, 1.3).unwrap();
+    let r = tune(&plan(&cfg), 1000.0, 1.5, 1.3).unwrap();
     let t = &r.tuned;
     assert!(
         t.max_sensitivity <= 1.5 * 1.01,
@@ -39,7 +42,7 @@ fn tuned_pid_keeps_its_bounds_and_runs_as_predicted() {
     let mut with = cfg.clone();
     with.config.controller.pid = r.pid;
     with.config.run.duration_s = 2.0;
-    let s = run_to_end(&with).unwrap();
+    let s = run_to_end(&plan(&with)).unwrap();
     let ratio = s.following_error_m.rms / t.following_rms_m;
     assert!(
         (ratio - 1.0).abs() < 0.1,
@@ -50,9 +53,9 @@ fn tuned_pid_keeps_its_bounds_and_runs_as_predicted() {
 #[test]
 fn with_the_thesis_robustness_the_integral_gain_is_at_least_the_thesis_one() {
     let cfg = Loaded::default(); // light stage, Chapter 7 PID
-    let thesis = tune(&cfg, 1000.0, 3.0, 3.0).unwrap().reference;
+    let thesis = tune(&plan(&cfg), 1000.0, 3.0, 3.0).unwrap().reference;
     let r = tune(
-        &cfg,
+        &plan(&cfg),
         0.99 * thesis.bandwidth_hz,
         thesis.max_sensitivity * 1.001,
         thesis.max_complementary * 1.001,

@@ -2,7 +2,7 @@
 //! form and spindle motion.
 
 use design::spindle::{harmonic_weighting, weights, THESIS_ANGLE_SETS};
-use runner::spindle::{study, SpindleStudy};
+use studies::spindle::{study, SpindleStudy};
 
 #[test]
 fn weights_cancel_the_motion_and_eccentricity_is_invisible() {

@@ -1,10 +1,12 @@
 //! The intermittent cut of thesis §7.6 for Ka = 0, 0.5, 1, 4 on the heavy stage with Kg-scaled
 //! PID gains and a first-order 300 Hz acceleration shaping filter.
 
-use runner::analysis::{input, output};
+mod common;
+
+use common::plan;
+use runner::closed_loop::{input, output};
 use runner::config::{ControllerKind, Loaded, Scenario};
-use runner::intermittent::study;
-use runner::run::closed_loop;
+use studies::intermittent::study;
 
 fn cfg() -> Loaded {
     let mut c = Loaded::default();
@@ -23,7 +25,7 @@ fn cfg() -> Loaded {
 
 /// Peak |following error| of the sampled closed loop's response to a force step of 1 N.
 fn linear_peak(c: &Loaded) -> f64 {
-    let (cl, _) = closed_loop(c).unwrap();
+    let cl = plan(c).closed_loop;
     let s = &cl.sys;
     let (b, cc) = (
         s.b.column(input::CUTTING_FORCE_N).into_owned(),
@@ -41,7 +43,7 @@ fn linear_peak(c: &Loaded) -> f64 {
 
 #[test]
 fn stiffer_with_acceleration_feedback_as_the_thesis_measured() {
-    let rows = study(&cfg(), &[0.0, 0.5, 1.0, 4.0]).unwrap();
+    let rows = study(&plan(&cfg()), &[0.0, 0.5, 1.0, 4.0]).unwrap();
     for w in rows.windows(2) {
         assert!(
             w[1].peak_following_error_m < w[0].peak_following_error_m,

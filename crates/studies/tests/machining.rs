@@ -1,13 +1,16 @@
 //! Machining a sinusoidal grid (thesis §8.5.4, Table 8-5) in simulation: the machined
 //! amplitude against the closed loop's analytic response, and what feedforward does to it.
 
-use runner::analysis::{input, output};
+mod common;
+
+use common::plan;
+use runner::closed_loop::{input, output};
+use runner::config::Machining;
 use runner::config::{FeedforwardKind, Loaded, Scenario};
-use runner::form::{run_machining, FormReport};
-use runner::machine::Machining;
-use runner::run::{closed_loop, RunOptions};
+use runner::run::RunOptions;
 use std::f64::consts::TAU;
 use std::sync::atomic::AtomicBool;
+use studies::form::{run_machining, FormReport};
 
 /// Three revolutions inward from `outer_m` at 60 rpm with feedforward `ff`.
 fn cfg(outer_m: f64, ff: FeedforwardKind) -> Loaded {
@@ -26,7 +29,7 @@ fn cfg(outer_m: f64, ff: FeedforwardKind) -> Loaded {
 fn machine(cfg: &Loaded) -> FormReport {
     let stop = AtomicBool::new(false);
     let (_, a) = run_machining(
-        cfg,
+        &plan(cfg),
         RunOptions {
             out: None,
             stop: &stop,
@@ -43,7 +46,7 @@ fn machine(cfg: &Loaded) -> FormReport {
 /// quasi-statically with the loop's gain and phase at f (conjugate for f < 0); the tool
 /// trajectory so predicted is fitted exactly as the machined one is.
 fn predicted_pv_x(cfg: &Loaded, r: f64) -> f64 {
-    let (cl, _) = closed_loop(cfg).unwrap();
+    let cl = plan(cfg).closed_loop;
     let t = |f: f64| {
         let h = cl
             .response(output::TOOL_M, input::REFERENCE_M, f.abs())
@@ -136,7 +139,7 @@ fn beam_integrator_transition_overshoot_shrinks_with_smoothed_zpetc() {
     let beam = |ff: FeedforwardKind, smoothing_hz: f64| {
         let mut c = cfg(25e-3, ff);
         if let Scenario::Machine(m) = &mut c.config.scenario {
-            m.surface = runner::machine::SurfaceConfig::THESIS_BEAM;
+            m.surface = runner::config::SurfaceConfig::THESIS_BEAM;
             m.spindle_rpm = 120.0;
         }
         c.config.run.duration_s = 1.0;

@@ -1,8 +1,11 @@
 //! The error budget (frequency domain, eq 5-13..5-17) against long seeded time-domain runs.
 
-use runner::analysis::Budget;
+mod common;
+
+use common::plan;
 use runner::config::Loaded;
-use runner::run::{closed_loop, run_to_end};
+use runner::run::run_to_end;
+use studies::budget::Budget;
 
 fn heavy_468() -> Loaded {
     let mut l = Loaded::default();
@@ -19,9 +22,9 @@ fn heavy_468() -> Loaded {
 #[test]
 fn budget_predicts_the_simulated_errors() {
     let cfg = heavy_468();
-    let (cl, _) = closed_loop(&cfg).unwrap();
+    let cl = plan(&cfg).closed_loop;
     let b = Budget::new(&cl, 2000).unwrap();
-    let s = run_to_end(&cfg).unwrap();
+    let s = run_to_end(&plan(&cfg)).unwrap();
     let (pf, pt) = (b.following_rms_m * 1e9, b.true_rms_m * 1e9);
     let (sf, st) = (s.following_error_m.rms * 1e9, s.true_error_m.rms * 1e9);
     println!(
@@ -53,8 +56,8 @@ fn sweep_predictions_match_simulation_for_both_masses() {
         let mut cfg = heavy_468();
         cfg.config.plant = plant;
         cfg.config.plant.noise.accel = false;
-        let s = runner::sweep::sweep(
-            &cfg,
+        let s = studies::sweep::sweep(
+            &plan(&cfg),
             label,
             &[300.0, 468.0, 700.0, 874.0, 1200.0],
             Some(2.0),
@@ -100,14 +103,14 @@ fn sweep_predictions_match_simulation_for_both_masses() {
 /// sampled loop within 0.5 dB and 3° wherever the coherence exceeds 0.99, open and closed loop.
 #[test]
 fn stepped_sine_frf_matches_the_model() {
-    use runner::frf::{stepped_sine, FrfLoop, FrfSettings};
+    use studies::frf::{stepped_sine, FrfLoop, FrfSettings};
     let cfg = Loaded::default();
     let freqs = [
         20.0, 82.0, 200.0, 420.0, 1000.0, 1645.0, 3000.0, 7748.0, 15000.0,
     ];
     for which in [FrfLoop::Open, FrfLoop::Closed] {
         let pts = stepped_sine(
-            &cfg,
+            &plan(&cfg),
             which,
             &freqs,
             &FrfSettings::for_loop(which),
@@ -144,13 +147,13 @@ fn stepped_sine_frf_matches_the_model() {
 /// series outside the loop) rises in proportion to the PID gain factor (§7.4.1).
 #[test]
 fn compliance_analytic_matches_sampled_loop() {
-    use runner::stiffness::compliance;
+    use studies::stiffness::compliance;
     let cfg = Loaded::default();
     let freqs: Vec<f64> = (0..60)
         .map(|i| 10f64 * 1000f64.powf(i as f64 / 59.0))
         .collect(); // 10 Hz … 10 kHz
     for kg in [false, true] {
-        let curves = compliance(&cfg, &[0.0, 0.5, 1.0, 4.0], kg, &freqs).unwrap();
+        let curves = compliance(&plan(&cfg), &[0.0, 0.5, 1.0, 4.0], kg, &freqs).unwrap();
         for c in &curves {
             let worst = c
                 .analytic_m_per_n
@@ -167,7 +170,7 @@ fn compliance_analytic_matches_sampled_loop() {
     // dominates the servo stiffness, so it rises by the gain factor (1 %).
     let mut heavy = Loaded::default();
     heavy.config.plant = plant_sim::PlantParams::heavy();
-    let curves = compliance(&heavy, &[0.0, 0.5], true, &[10.0]).unwrap();
+    let curves = compliance(&plan(&heavy), &[0.0, 0.5], true, &[10.0]).unwrap();
     assert!(curves[1].stable());
     let ratio = curves[0].sampled_m2_m_per_n[0] / curves[1].sampled_m2_m_per_n[0];
     assert!(
@@ -182,9 +185,9 @@ fn compliance_analytic_matches_sampled_loop() {
 /// exceeds 0.99 (most bins between 20 Hz and 5 kHz).
 #[test]
 fn chirp_frf_matches_the_model() {
-    use runner::frf::{chirp, FrfLoop};
+    use studies::frf::{chirp, FrfLoop};
     let pts = chirp(
-        &Loaded::default(),
+        &plan(&Loaded::default()),
         FrfLoop::Closed,
         (20.0, 5000.0),
         0.2,
@@ -214,13 +217,13 @@ fn chirp_frf_matches_the_model() {
 /// bandwidth in true RMS positioning error, on the simulator (long seeded runs).
 #[test]
 fn h2_at_20_khz_beats_the_pid() {
-    use runner::synth::h2_design;
+    use studies::synth::h2_design;
     let mut base = Loaded::default();
     base.config.plant = plant_sim::PlantParams::heavy();
     base.config.plant.noise.accel = false;
     base.config.plant.timing.servo_rate_hz = 20_000.0;
     base.config.run.duration_s = 3.0;
-    let design = h2_design(&base, 1.0).unwrap();
+    let design = h2_design(&plan(&base), 1.0).unwrap();
     assert!(design.spectral_radius < 1.0);
     let dir = std::env::temp_dir().join(format!("fts-h2-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -229,9 +232,9 @@ fn h2_at_20_khz_beats_the_pid() {
     let mut h2 = base.clone();
     h2.config.controller.kind = runner::config::ControllerKind::Ss;
     h2.config.controller.ss_file = Some(file);
-    let (cl, _) = closed_loop(&h2).unwrap();
+    let cl = plan(&h2).closed_loop;
     let bw = cl.bandwidth_hz().unwrap();
-    let run_it = |cfg: &Loaded| run_to_end(cfg).unwrap();
+    let run_it = |cfg: &Loaded| run_to_end(&plan(cfg)).unwrap();
     let h2_run = run_it(&h2);
     println!(
         "H2: bandwidth {bw:.0} Hz, true {:.3} nm, following {:.3} nm",
@@ -241,7 +244,7 @@ fn h2_at_20_khz_beats_the_pid() {
     // The PID scaled to the same bandwidth at 20 kHz, or as close as a stable PID gets.
     let reachable = [1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4]
         .iter()
-        .find_map(|f| runner::sweep::scale_for_bandwidth(&base, bw * f).unwrap());
+        .find_map(|f| studies::sweep::scale_for_bandwidth(&plan(&base), bw * f).unwrap());
     let (scale, pid_bw) = reachable.expect("a stable PID near that bandwidth");
     let mut pid = base.clone();
     let p = &mut pid.config.controller.pid;
@@ -258,16 +261,16 @@ fn h2_at_20_khz_beats_the_pid() {
     assert!(h2_run.true_error_m.rms < pid_run.true_error_m.rms);
     // Table 6-1 orders: the balanced-truncated 13- and 8-state controllers still stabilise the
     // loop and lose less than 5 % of the predicted true RMS error.
-    let full_true = runner::analysis::Budget::new(&cl, 64).unwrap().true_rms_m;
+    let full_true = studies::budget::Budget::new(&cl, 64).unwrap().true_rms_m;
     for order in [13, 8] {
         let (reduced, _, _) = design.reduced(order).unwrap();
         let f = dir.join(format!("h2_{order}.toml"));
         std::fs::write(&f, reduced.to_toml()).unwrap();
         let mut r = h2.clone();
         r.config.controller.ss_file = Some(f);
-        let (rcl, _) = closed_loop(&r).unwrap();
+        let rcl = plan(&r).closed_loop;
         assert!(rcl.spectral_radius() < 1.0, "order {order} destabilises");
-        let t = runner::analysis::Budget::new(&rcl, 64).unwrap().true_rms_m;
+        let t = studies::budget::Budget::new(&rcl, 64).unwrap().true_rms_m;
         assert!(
             t / full_true - 1.0 < 0.05,
             "order {order}: {t:e} vs {full_true:e}"
@@ -281,7 +284,7 @@ fn h2_at_20_khz_beats_the_pid() {
 #[test]
 fn gain_margin_predicts_the_stability_limit() {
     let cfg = Loaded::default();
-    let m = runner::run::loop_margins(&cfg).unwrap();
+    let m = studies::margins::loop_margins(&plan(&cfg)).unwrap();
     let gm = m.gain_margin_db.expect("a phase crossover below Nyquist");
     let pm = m.phase_margin_deg.expect("a gain crossover");
     let lower = m
@@ -303,7 +306,7 @@ fn gain_margin_predicts_the_stability_limit() {
         let mut c = cfg.clone();
         let p = &mut c.config.controller.pid;
         (p.kp, p.ki, p.kd) = (p.kp * k, p.ki * k, p.kd * k);
-        let (cl, _) = closed_loop(&c).unwrap();
+        let cl = plan(&c).closed_loop;
         assert_eq!(
             cl.spectral_radius() < 1.0,
             stable,
@@ -316,7 +319,7 @@ fn gain_margin_predicts_the_stability_limit() {
 /// Thesis eq 6-4: Ms = 1.2721 for ξ = 0.707 (§6.3.1).
 #[test]
 fn ms_of_eq_6_4_is_the_thesis_value() {
-    let ms = runner::synth::ms_for_damping(0.707);
+    let ms = studies::synth::ms_for_damping(0.707);
     assert!((ms - 1.2721).abs() < 5e-5, "Ms {ms}"); // thesis: 1.2721
 }
 
@@ -332,15 +335,15 @@ fn thesis_weighted_h2_stabilises_the_exact_loop() {
     std::fs::create_dir_all(&dir).unwrap();
     let mut bandwidths = Vec::new();
     for effort in [1e3, 1e4] {
-        let d = runner::synth::thesis_design(&cfg, &Default::default(), effort).unwrap();
+        let d = studies::synth::thesis_design(&plan(&cfg), &Default::default(), effort).unwrap();
         let f = dir.join(format!("thesis_{effort}.toml"));
         std::fs::write(&f, d.to_toml()).unwrap();
         let mut run_cfg = cfg.clone();
         run_cfg.config.controller.kind = runner::config::ControllerKind::Ss;
         run_cfg.config.controller.ss_file = Some(f);
-        let (cl, _) = closed_loop(&run_cfg).unwrap();
+        let cl = plan(&run_cfg).closed_loop;
         assert!(cl.spectral_radius() < 1.0, "ρ {effort}: unstable");
-        let m = runner::run::loop_margins(&run_cfg).unwrap();
+        let m = studies::margins::loop_margins(&plan(&run_cfg)).unwrap();
         bandwidths.push(Budget::new(&cl, 64).unwrap().bandwidth_hz);
         if effort == 1e3 {
             let crossover = m.gain_crossover_hz.unwrap_or(f64::NAN);
