@@ -6,7 +6,7 @@
 //! * CARE `AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0` by the matrix sign function of the
 //!   Hamiltonian (Newton iteration with determinant scaling, Byers' formula for `X`).
 //! * Continuous Lyapunov `AX + XAᵀ + Q = 0` by a Cayley transform onto
-//!   [`crate::lti::dlyap`].
+//!   [`crate::lyapunov::dlyap`].
 //!
 //! Each returns the solution with its relative residual and the stability of the closed loop,
 //! and a typed error when no stabilising solution exists.

@@ -22,7 +22,7 @@ pub fn metadata(c: &RunConfig) -> BTreeMap<String, String> {
     ])
 }
 
-/// A recording written by [`run`] and the configuration it was run with.
+/// A recording written by [`crate::run::run`] and the configuration it was run with.
 pub fn read_run(path: &Path) -> Result<(Loaded, recorder::Recording), RunError> {
     let rec = recorder::read(path)?;
     let text = rec
@@ -42,7 +42,7 @@ pub fn read_run(path: &Path) -> Result<(Loaded, recorder::Recording), RunError> 
     ))
 }
 
-/// Recomputes the summary of a recording written by [`run`].
+/// Recomputes the summary of a recording written by [`crate::run::run`].
 pub fn inspect(path: &Path) -> Result<Summary, RunError> {
     let (loaded, rec) = read_run(path)?;
     Ok(summarise(&loaded, &rec))
