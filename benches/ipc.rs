@@ -15,7 +15,6 @@ use runner::config::Loaded;
 use std::io::{Read, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::process::{Child, Command as Process};
-use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 const ROLE: &str = "FTS_IPC_BENCH_ROLE";
@@ -137,7 +136,7 @@ fn lockstep_rate() -> ((u64, f64), (u64, f64)) {
     let plan = bench_plan();
     let prefix = format!("bench-ls-{}", std::process::id());
     let mut child = peer("controller", &prefix);
-    let stop = AtomicBool::new(false);
+    let stop = runner::stop::StopRequest::new();
     let options = runner::hil::PlantOptions {
         pacing: daq_io::serve::Pacing::Lockstep,
         wait_for_recorder: false,
@@ -174,7 +173,7 @@ fn main() {
         Ok("echo") => return echo_iceoryx2(&arg()),
         Ok("socket") => return echo_socket(&arg()),
         Ok("controller") => {
-            let stop = AtomicBool::new(false);
+            let stop = runner::stop::StopRequest::new();
             runner::hil::controller(&bench_plan(), &arg(), &stop).unwrap();
             return;
         }

@@ -4,7 +4,7 @@
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use recorder::{Frame, Recorder, Telemetry, Truth, WhenFull};
+use recorder::{Frame, Overwrite, RecordOptions, Recorder, Telemetry, Truth};
 use std::collections::BTreeMap;
 use std::io::Write;
 
@@ -52,11 +52,15 @@ fn throughput(c: &mut Criterion) {
         .throughput(Throughput::Elements(FRAMES as u64));
     group.bench_function("mcap_zstd", |b| {
         b.iter(|| {
-            let mut r = Recorder::create(&path, BTreeMap::new(), WhenFull::Wait).unwrap();
+            let options = RecordOptions {
+                overwrite: Overwrite::Replace,
+                ..Default::default()
+            };
+            let mut r = Recorder::create(&path, BTreeMap::new(), options).unwrap();
             for f in &data {
                 r.push(*f).unwrap();
             }
-            r.finish().unwrap()
+            r.finish(BTreeMap::new()).unwrap()
         })
     });
     group.bench_function("raw_file_baseline", |b| {

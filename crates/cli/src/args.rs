@@ -240,12 +240,19 @@ fn noise_from(list: &str, mut n: NoiseParams) -> Result<NoiseParams, String> {
     Ok(n)
 }
 
+/// The default recording of `servo run` and the HIL recorder.
+pub const DEFAULT_RECORDING: &str = "run.mcap";
+
 /// Where a run's recording and summary go.
 #[derive(Args, Debug, Clone)]
 pub struct RecordingArgs {
-    /// Output MCAP file.
-    #[arg(short, long, default_value = "run.mcap")]
-    pub out: PathBuf,
+    /// Output MCAP file (default: run.mcap; `servo machine`: inside --out-dir). Written as
+    /// `<name>.<pid>.partial` and renamed when finished.
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    /// Replace an existing output file (otherwise the run does not start).
+    #[arg(long, conflicts_with = "no_record")]
+    pub overwrite: bool,
     /// Do not write a file (summary only).
     #[arg(long)]
     pub no_record: bool,
@@ -258,9 +265,9 @@ pub struct RecordingArgs {
 }
 
 impl RecordingArgs {
-    /// The file to write, if any.
-    pub fn out(&self) -> Option<PathBuf> {
-        (!self.no_record).then(|| self.out.clone())
+    /// The file to write, if any (`default` when --out is not given).
+    pub fn out(&self, default: &std::path::Path) -> Option<PathBuf> {
+        (!self.no_record).then(|| self.out.clone().unwrap_or_else(|| default.to_owned()))
     }
 }
 

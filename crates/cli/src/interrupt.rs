@@ -1,14 +1,44 @@
-//! Ctrl-C / SIGTERM as a stop flag the loop polls, so a run ends at a tick boundary with its
-//! recording finished.
+//! SIGINT, SIGTERM and SIGHUP as a stop request the loop polls, so a run ends at a tick
+//! boundary with its recording finished and the signal named as its end reason. A second
+//! SIGINT (Ctrl-C pressed again) ends the process at once, leaving the recording unfinished
+//! (`<name>.<pid>.partial`, recoverable by `servo inspect`).
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use nix::sys::signal::Signal;
+use runner::stop::StopRequest;
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+use signal_hook::flag;
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-/// A stop flag raised by Ctrl-C / SIGTERM (a second one is ignored: the file is being
-/// finished).
-pub fn stop_flag() -> Arc<AtomicBool> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+/// The stop request raised by SIGINT, SIGTERM or SIGHUP (it holds the signal's number).
+pub fn stop_on_signals() -> StopRequest {
+    let stop = StopRequest::new();
+    let cell = stop.shared();
+    // In this order: the shutdown checks whether an earlier SIGINT armed it, then arms it.
+    let armed = Arc::new(AtomicBool::new(false));
+    let _ = flag::register_conditional_shutdown(SIGINT, 128 + SIGINT, armed.clone());
+    let _ = flag::register(SIGINT, armed);
+    for signal in [SIGINT, SIGTERM, SIGHUP] {
+        let _ = flag::register_usize(signal, cell.clone(), signal as usize);
+    }
     stop
+}
+
+/// Environment variable naming the `servo run --hil` process that started this one.
+pub const PARENT_ENV: &str = "FTS_SERVO_PARENT";
+
+/// A HIL child started by `servo run --hil` asks the kernel for SIGTERM when its parent dies
+/// (so it never outlives it), and exits now if the parent is already gone.
+pub fn follow_parent() {
+    let Some(parent) = std::env::var(PARENT_ENV)
+        .ok()
+        .and_then(|p| p.parse::<i32>().ok())
+    else {
+        return;
+    };
+    let _ = nix::sys::prctl::set_pdeathsig(Signal::SIGTERM);
+    if nix::unistd::getppid().as_raw() != parent {
+        eprintln!("servo: the `servo run --hil` that started this process is gone; exiting");
+        std::process::exit(1);
+    }
 }

@@ -69,6 +69,7 @@ impl Command {
 fn main() -> ExitCode {
     // `servo … | head` must end quietly, not panic on a closed pipe.
     sigpipe::reset();
+    interrupt::follow_parent();
     let cli = Cli::parse();
     cli.command
         .exec()

@@ -16,7 +16,7 @@ use daq_io::ipc::{ControllerLink, Endpoint};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Backend, Command, Daq, Sensor};
 use plant_sim::convert::Quantizer;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
 /// Servo rate of the daemon, Hz.
@@ -126,13 +126,8 @@ fn main() {
             "; start a controller with the same --prefix"
         }
     );
-    let report = serve(
-        &ep,
-        &mut FakeHardware::new(),
-        &opts,
-        &AtomicBool::new(false),
-    )
-    .unwrap_or_else(|e| panic!("daq daemon: {e}"));
+    let report = serve(&ep, &mut FakeHardware::new(), &opts, &AtomicUsize::new(0))
+        .unwrap_or_else(|e| panic!("daq daemon: {e}"));
     let l = report.latency;
     println!(
         "  {} ticks in {:.3} s, {} overruns, faults {:#x}; round trip median {:.2} µs, p99.9 {:.2} µs",

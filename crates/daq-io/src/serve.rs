@@ -13,7 +13,7 @@
 use crate::contract::{command, flags, role, state, Command, Control, Health, Sensor, TruthBlock};
 use crate::ipc::{leaf, poll_until, take, BlockWriter, Endpoint, IpcError};
 use crate::{Backend, LatencyHistogram};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 /// How ticks are paced.
@@ -113,13 +113,13 @@ fn progress(health: &mut Health, ticks: u64, report: &ServeReport, t0: Instant) 
     health.wall_s = t0.elapsed().as_secs_f64();
 }
 
-/// Serves `backend` to the controller of run `ep` until `opts.ticks` commands, a STOP, `stop`,
-/// or a lost controller. Health is published every 2048 ticks and at the end.
+/// Serves `backend` to the controller of run `ep` until `opts.ticks` commands, a STOP, `stop`
+/// (nonzero: a signal number or any request to end), or a lost controller. Health is published every 2048 ticks and at the end.
 pub fn serve<B: Backend>(
     ep: &Endpoint,
     backend: &mut B,
     opts: &ServeOptions,
-    stop: &AtomicBool,
+    stop: &AtomicUsize,
 ) -> Result<ServeReport, ServeError> {
     let sensor_service = ep.service::<Sensor>(leaf::SENSOR)?;
     let truth_service = ep.service::<TruthBlock>(leaf::TRUTH)?;
@@ -147,7 +147,7 @@ pub fn serve<B: Backend>(
         if controller && recorder && started {
             break;
         }
-        if waiting.elapsed() > opts.startup_timeout || stop.load(Ordering::Relaxed) {
+        if waiting.elapsed() > opts.startup_timeout || stop.load(Ordering::Relaxed) != 0 {
             let who = match (controller, recorder) {
                 (false, _) => "controller",
                 (_, false) => "recorder",
@@ -245,7 +245,7 @@ pub fn serve<B: Backend>(
                     report.stopped = true;
                 }
             }
-            if stop.load(Ordering::Relaxed) {
+            if stop.load(Ordering::Relaxed) != 0 {
                 end_tick = end_tick.min(k);
                 report.stopped = true;
             }

@@ -7,7 +7,7 @@ use daq_io::{flags, Command, Daq, InProcess};
 
 mod common;
 use common::{prefix, truth_until_end, Lag};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
 /// A PI law on the gap reading; returns the commands it sent.
@@ -41,7 +41,7 @@ fn lockstep_over_shared_memory_equals_in_process() {
         let ep = Endpoint::open(&p2, "plant").unwrap();
         let mut opts = ServeOptions::new(ticks, 1e-5, Pacing::Lockstep);
         opts.wait_for_recorder = false;
-        serve(&ep, &mut Lag::default(), &opts, &AtomicBool::new(false)).unwrap()
+        serve(&ep, &mut Lag::default(), &opts, &AtomicUsize::new(0)).unwrap()
     });
     let ep = Endpoint::open(&p, "controller").unwrap();
     let mut link =
@@ -71,7 +71,7 @@ fn silent_controller_drives_zero_and_flags_the_fault() {
         let mut opts = ServeOptions::new(1_000_000, 1e-5, Pacing::Lockstep);
         opts.peer_timeout = Duration::from_millis(20);
         opts.safe_ticks = 50;
-        serve(&ep, &mut Lag::default(), &opts, &AtomicBool::new(false)).unwrap()
+        serve(&ep, &mut Lag::default(), &opts, &AtomicUsize::new(0)).unwrap()
     });
     // A controller that answers 100 ticks with 2 V, then goes silent.
     let cep = Endpoint::open(&p, "controller").unwrap();
@@ -108,7 +108,7 @@ fn a_plant_told_to_wait_starts_on_the_control_plane_start() {
         let mut opts = ServeOptions::new(ticks, 1e-5, Pacing::Lockstep);
         opts.wait_for_recorder = false;
         opts.wait_for_start = true;
-        serve(&ep, &mut Lag::default(), &opts, &AtomicBool::new(false)).unwrap()
+        serve(&ep, &mut Lag::default(), &opts, &AtomicUsize::new(0)).unwrap()
     });
     let ep = Endpoint::open(&p, "controller").unwrap();
     let mut link =

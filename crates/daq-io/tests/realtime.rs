@@ -4,7 +4,7 @@
 use daq_io::ipc::{ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Command, Daq};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
 mod common;
@@ -21,7 +21,7 @@ fn attempt(n: u32) -> Option<()> {
     let plant = std::thread::spawn(move || {
         let ep = Endpoint::open(&p2, "plant").unwrap();
         let opts = ServeOptions::new(1_000_000, period, Pacing::RealTime);
-        serve(&ep, &mut Lag::default(), &opts, &AtomicBool::new(false)).unwrap()
+        serve(&ep, &mut Lag::default(), &opts, &AtomicUsize::new(0)).unwrap()
     });
     // Answers the first 1000 samples with 2 V, then goes silent (as if killed).
     let cep = Endpoint::open(&p, "controller").unwrap();

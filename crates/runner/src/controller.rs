@@ -172,9 +172,13 @@ fn invalid(at: &Origin, key: &str, e: impl std::fmt::Display) -> ConfigError {
 
 impl Controller {
     /// Builds the controller of `config` (the plant section gives the rate, and the mass for
-    /// Kg scaling; a state-space controller is read from `controller.ss_file`, a path already
-    /// resolved). Errors are located in `at`.
-    pub fn build(config: &RunConfig, at: &Origin) -> Result<Self, ConfigError> {
+    /// Kg scaling; a state-space controller's matrices come from `file`, the loaded
+    /// `controller.ss_file`). Errors are located in `at`.
+    pub fn build(
+        config: &RunConfig,
+        at: &Origin,
+        file: Option<&ControllerFile>,
+    ) -> Result<Self, ConfigError> {
         let c = &config.controller;
         let period = 1.0 / config.plant.timing.servo_rate_hz;
         let limits = Limits::try_new(-c.limit_v, c.limit_v)
@@ -257,9 +261,15 @@ impl Controller {
                 }
             }
             ControllerKind::Ss => {
-                let path = c.ss_file.as_ref().expect("validated: ss needs ss_file");
-                let ControllerFile { m, n } =
-                    ControllerFile::load(path, config.plant.timing.servo_rate_hz)?;
+                let path = c.ss_file.clone().unwrap_or_default();
+                let ControllerFile { m, n } = file.ok_or_else(|| {
+                    at.invalid(
+                        "controller.ss_file",
+                        path.display(),
+                        "a controller file that was read",
+                    )
+                })?;
+                let (m, n) = (m.clone(), *n);
                 let tick = boxed_ss(&m, n, period, limits).ok_or_else(|| ConfigError::Invalid {
                     path: Some(path.clone()),
                     line: None,

@@ -38,17 +38,18 @@ pub struct ControllerFile {
 impl ControllerFile {
     /// Loads `path`, checking shapes, finiteness and that it was designed for `servo_rate_hz`.
     pub fn load(path: &Path, servo_rate_hz: f64) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
-        let file: SsFile = toml::from_str(&text).map_err(|e| ConfigError::Parse {
+        Self::parse(&crate::input_file::read_text(path)?, path, servo_rate_hz)
+    }
+
+    /// Parses the text of the controller file `path` (errors located there).
+    pub fn parse(text: &str, path: &Path, servo_rate_hz: f64) -> Result<Self, ConfigError> {
+        let file: SsFile = toml::from_str(text).map_err(|e| ConfigError::Parse {
             path: path.to_owned(),
             message: e.to_string(),
         })?;
         let at = Origin {
             path: Some(path.to_owned()),
-            text: Some(text),
+            text: Some(text.to_owned()),
         };
         let n = file.a.len();
         let shape = |key: &str, rows: &Vec<Vec<f64>>, r: usize, c: usize| {

@@ -49,6 +49,14 @@ pub enum RunError {
     /// The controller lost its plant.
     #[error("{0}; the controller stopped")]
     PlantLost(daq_io::DaqError),
+    /// An input file embedded in a recording does not match the SHA-256 the recording states.
+    #[error("{}: the embedded input {input} does not match its SHA-256 (the file was altered)", path.display())]
+    InputMismatch {
+        /// The recording.
+        path: PathBuf,
+        /// Attachment name.
+        input: String,
+    },
     /// A recording without the metadata `servo run` writes.
     #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
     NotARun(PathBuf),

@@ -13,15 +13,15 @@ use crate::plan::Plan;
 use crate::recording::metadata;
 use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
+use crate::stop::{EndReason, StopRequest};
 use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
 use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
-use recorder::{Chunks, Frame, Recorder, WhenFull};
+use recorder::{Chunks, Frame, Overwrite, RecordOptions, Recorder};
 use std::collections::VecDeque;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// How long a process waits for its peers to appear.
@@ -51,7 +51,7 @@ pub fn plant(
     plan: &Plan,
     prefix: &str,
     p: &PlantOptions,
-    stop: &AtomicBool,
+    stop: &StopRequest,
 ) -> Result<daq_io::serve::ServeReport, RunError> {
     let c = &plan.config;
     let mut backend = SimBackend::for_run(plan);
@@ -63,12 +63,12 @@ pub fn plant(
         opts.peer_timeout = t;
     }
     let ep = Endpoint::open(prefix, "plant")?;
-    Ok(serve(&ep, &mut backend, &opts, stop)?)
+    Ok(serve(&ep, &mut backend, &opts, stop.cell())?)
 }
 
 /// `servo controller`: runs the controller of `plan` against the plant of run `prefix` until
 /// the plant closes the run. `stop` (Ctrl-C) asks the plant to stop. Returns the ticks run.
-pub fn controller(plan: &Plan, prefix: &str, stop: &AtomicBool) -> Result<u64, RunError> {
+pub fn controller(plan: &Plan, prefix: &str, stop: &StopRequest) -> Result<u64, RunError> {
     let mut servo = ServoLoop::new(plan)?;
     let ep = Endpoint::open(prefix, "controller")?;
     let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;
@@ -109,7 +109,7 @@ pub fn controller(plan: &Plan, prefix: &str, stop: &AtomicBool) -> Result<u64, R
                     servo.set_gain_scale(c.value);
                 }
             }
-            if stop.load(Ordering::Relaxed) && !stop_sent {
+            if stop.is_set() && !stop_sent {
                 stop_sent = stopper
                     .send(Control {
                         command: command::STOP,
@@ -201,6 +201,7 @@ pub fn record(
     plan: &Plan,
     prefix: &str,
     out: Option<PathBuf>,
+    overwrite: bool,
     realtime: bool,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Summary, RunError> {
@@ -210,11 +211,19 @@ pub fn record(
     let tap = Tap::new(&ep)?;
     let mut rec = match &out {
         // Uncompressed: this process shares the cores with two busy-polling ones.
-        Some(path) => Some(Recorder::create_with(
+        Some(path) => Some(Recorder::create(
             path,
-            metadata(c),
-            WhenFull::Wait,
-            Chunks::Raw,
+            metadata(plan),
+            RecordOptions {
+                chunks: Chunks::Raw,
+                overwrite: if overwrite {
+                    Overwrite::Replace
+                } else {
+                    Overwrite::Refuse
+                },
+                inputs: plan.inputs.clone(),
+                ..Default::default()
+            },
         )?),
         None => None,
     };
@@ -274,14 +283,22 @@ pub fn record(
             waited_s: STARTUP_TIMEOUT.as_secs_f64(),
         });
     }
+    let ticks = summary.ticks();
+    let reason = if plant_fault {
+        EndReason::PeerLost
+    } else if ticks < total {
+        EndReason::Stopped
+    } else {
+        EndReason::Completed
+    };
     let stats = match rec {
-        Some(r) => Some(r.finish()?),
+        Some(r) => Some(r.finish(reason.record(ticks, ticks as f64 * plan.period_s()))?),
         None => None,
     };
-    let ticks = summary.ticks();
     Ok(summary.finish(RunMeta {
         wall_s: Some(plant_health.wall_s),
         interrupted: ticks < total,
+        end_reason: Some(reason.name().into()),
         recorded_messages: stats.map(|s| s.messages),
         dropped_frames: Some(join.dropped + stats.map_or(0, |s| s.dropped_frames)),
         hil: Some(HilMeta {

@@ -8,12 +8,12 @@
 //! live in the `studies` crate; the `servo` binary is a thin shell over both.
 //!
 //! ```no_run
-//! use runner::{config::Loaded, run::{run, RunOptions}, Plan};
-//! use std::sync::atomic::AtomicBool;
+//! use runner::{config::Loaded, run::{run, RunOptions}, stop::StopRequest, Plan};
 //! // thesis prototype, Chapter 7 PID, hold position, 1 s
 //! let plan = Plan::new(&Loaded::default())?;
-//! let stop = AtomicBool::new(false);
-//! let summary = run(&plan, RunOptions { out: None, stop: &stop, progress: &mut |_, _| {} })?;
+//! let stop = StopRequest::new();
+//! let opts = RunOptions { out: None, overwrite: false, stop: &stop, progress: &mut |_, _| {} };
+//! let summary = run(&plan, opts)?;
 //! println!("{summary}");
 //! # Ok::<(), runner::RunError>(())
 //! ```
@@ -25,6 +25,7 @@ pub mod controller_file;
 mod error;
 pub mod feedforward;
 pub mod hil;
+pub mod input_file;
 pub mod machining;
 pub mod plan;
 pub mod preview;
@@ -32,6 +33,7 @@ pub mod recording;
 pub mod run;
 pub mod servo_loop;
 pub mod sim_backend;
+pub mod stop;
 pub mod summary;
 pub mod surface;
 

@@ -5,15 +5,25 @@
 //! raw configuration.
 
 use crate::closed_loop::ClosedLoop;
-use crate::config::{ControllerConfig, Loaded, Origin, RunConfig, Scenario};
+use crate::config::{
+    ControllerConfig, ControllerKind, Loaded, Origin, RunConfig, Scenario, SurfaceConfig,
+};
 use crate::controller::Controller;
+use crate::controller_file::ControllerFile;
 use crate::error::RunError;
 use crate::feedforward::Feedforward;
+use crate::input_file::{read_input, read_text, MAX_IMAGE_BYTES};
 use crate::surface::LoadedSurface;
 use plant_sim::model::ModelError;
 use plant_sim::params::CurrentLoopModel;
 use plant_sim::sim::SimError;
 use plant_sim::Simulator;
+use recorder::Input;
+
+/// Attachment name of the controller file in a recording.
+pub const CONTROLLER_INPUT: &str = "controller.toml";
+/// Attachment name of the surface image in a recording.
+pub const SURFACE_INPUT: &str = "surface.png";
 
 /// A run, resolved and built.
 #[derive(Clone)]
@@ -34,6 +44,8 @@ pub struct Plan {
     pub surface: Option<LoadedSurface>,
     /// The feedforward in its initial state.
     pub feedforward: Feedforward,
+    /// The files the run read (controller file, surface image), to embed in its recording.
+    pub inputs: Vec<Input>,
 }
 
 impl Plan {
@@ -45,11 +57,32 @@ impl Plan {
         resolve_paths(&mut config, &origin);
         let sim = Simulator::new(&config.plant, config.run.seed, &config.scenario.cutting())
             .map_err(|e| plant_error(e, &origin))?;
+        let mut inputs = Vec::new();
         let surface = match &config.scenario {
-            Scenario::Machine(m) => Some(LoadedSurface::load(&m.surface, &origin)?),
+            Scenario::Machine(m) => {
+                let image = match &m.surface {
+                    SurfaceConfig::Image { path, .. } => {
+                        let bytes = read_input(path, MAX_IMAGE_BYTES).map_err(|e| {
+                            origin.invalid(
+                                "scenario.surface.path",
+                                path.display(),
+                                &format!("a readable PNG file ({e})"),
+                            )
+                        })?;
+                        inputs.push(Input {
+                            name: SURFACE_INPUT.into(),
+                            media_type: "image/png".into(),
+                            data: bytes,
+                        });
+                        inputs.last().map(|i| i.data.as_slice())
+                    }
+                    _ => None,
+                };
+                Some(LoadedSurface::load(&m.surface, &origin, image)?)
+            }
             _ => None,
         };
-        Plan::assemble(config, origin, sim, surface)
+        Plan::assemble(config, origin, sim, surface, inputs)
     }
 
     /// The same run with another controller (the stage, its noise and the surface reused;
@@ -58,11 +91,18 @@ impl Plan {
         let mut config = self.config.clone();
         config.controller = controller;
         config.validate(&self.origin)?;
+        let inputs = self
+            .inputs
+            .iter()
+            .filter(|i| i.name != CONTROLLER_INPUT)
+            .cloned()
+            .collect();
         Plan::assemble(
             config,
             self.origin.clone(),
             self.sim.clone(),
             self.surface.clone(),
+            inputs,
         )
     }
 
@@ -79,8 +119,23 @@ impl Plan {
         origin: Origin,
         sim: Simulator,
         surface: Option<LoadedSurface>,
+        mut inputs: Vec<Input>,
     ) -> Result<Self, RunError> {
-        let controller = Controller::build(&config, &origin)?;
+        let c = &config.controller;
+        let file = match (&c.kind, &c.ss_file) {
+            (ControllerKind::Ss, Some(path)) => {
+                let text = read_text(path)?;
+                let file = ControllerFile::parse(&text, path, config.plant.timing.servo_rate_hz)?;
+                inputs.push(Input {
+                    name: CONTROLLER_INPUT.into(),
+                    media_type: "application/toml".into(),
+                    data: text.into_bytes(),
+                });
+                Some(file)
+            }
+            _ => None,
+        };
+        let controller = Controller::build(&config, &origin, file.as_ref())?;
         let closed_loop = closed_loop_of(&config, &origin, &sim, &controller)?;
         let feedforward = Feedforward::build(&config, &origin, &closed_loop)?;
         Ok(Plan {
@@ -91,6 +146,7 @@ impl Plan {
             closed_loop,
             surface,
             feedforward,
+            inputs,
         })
     }
 
@@ -125,7 +181,7 @@ fn resolve_paths(config: &mut RunConfig, at: &Origin) {
         *p = at.resolve(p);
     }
     if let Scenario::Machine(m) = &mut config.scenario {
-        if let crate::config::SurfaceConfig::Image { path, .. } = &mut m.surface {
+        if let SurfaceConfig::Image { path, .. } = &mut m.surface {
             *path = at.resolve(path);
         }
     }

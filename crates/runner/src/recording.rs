@@ -1,17 +1,28 @@
-//! What a run's recording carries (the resolved configuration, version, seed, rate) and
-//! reading it back: the configuration a recording was made with, and its summary recomputed.
+//! What a run's recording carries, and reading it back in one streaming pass.
+//!
+//! The `run` metadata record holds the resolved configuration, the controller, the version,
+//! seed, rate and statistics window, and the SHA-256 of every input file; the inputs
+//! themselves are attachments. A recording is therefore self-contained: reading it never
+//! opens a path named inside it.
 
 use crate::config::{ConfigError, Loaded, RunConfig};
-use crate::controller::Controller;
 use crate::error::RunError;
+use crate::plan::Plan;
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
+use recorder::{FileState, Frame, ReadReport, Visit};
+use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// Metadata written into the recording.
-pub fn metadata(c: &RunConfig) -> BTreeMap<String, String> {
-    BTreeMap::from([
+/// The `run` metadata record of a run of `plan`.
+pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
+    let c = &plan.config;
+    let mut m = BTreeMap::from([
         ("config".to_string(), c.to_toml()),
+        (
+            "controller".to_string(),
+            plan.controller.description.clone(),
+        ),
         ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
         ("seed".to_string(), c.run.seed.to_string()),
         (
@@ -19,47 +30,189 @@ pub fn metadata(c: &RunConfig) -> BTreeMap<String, String> {
             c.plant.timing.servo_rate_hz.to_string(),
         ),
         ("settle_s".to_string(), c.run.settle().to_string()),
-    ])
+    ]);
+    for input in &plan.inputs {
+        m.insert(input_key(&input.name), sha256_hex(&input.data));
+    }
+    m
 }
 
-/// A recording written by [`crate::run::run`] and the configuration it was run with.
-pub fn read_run(path: &Path) -> Result<(Loaded, recorder::Recording), RunError> {
-    let rec = recorder::read(path)?;
-    let text = rec
-        .metadata
-        .get("config")
-        .ok_or_else(|| RunError::NotARun(path.to_owned()))?;
-    let cfg: RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
-        path: path.to_owned(),
-        message: e.to_string(),
-    })?;
-    Ok((
-        Loaded {
-            config: cfg,
-            origin: Default::default(),
-        },
-        rec,
-    ))
+/// The metadata key holding the SHA-256 of the input attachment `name`.
+fn input_key(name: &str) -> String {
+    format!("input.{name}.sha256")
 }
 
-/// Recomputes the summary of a recording written by [`crate::run::run`].
-pub fn inspect(path: &Path) -> Result<Summary, RunError> {
-    let (loaded, rec) = read_run(path)?;
-    Ok(summarise(&loaded, &rec))
+/// Lower-case hex SHA-256 of `data`.
+pub fn sha256_hex(data: &[u8]) -> String {
+    Sha256::digest(data)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
-/// The summary of the recording `rec` of a run of `loaded`.
-pub fn summarise(loaded: &Loaded, rec: &recorder::Recording) -> Summary {
-    let cfg = &loaded.config;
-    let mut b = SummaryBuilder::new(cfg.run.settle());
-    rec.frames.iter().for_each(|f| b.add(f));
-    let controller = Controller::build(cfg, &loaded.origin)
-        .map(|c| c.description)
-        .unwrap_or_else(|_| format!("{:?}", cfg.controller.kind));
-    let expected = cfg.ticks();
-    b.finish(RunMeta {
-        interrupted: (rec.frames.len() as u64) < expected,
-        recorded_messages: Some(rec.messages),
-        ..RunMeta::of(cfg, controller)
-    })
+/// What a recording says about its run, complete before its first frame.
+#[derive(Debug, Clone)]
+pub struct RunHeader {
+    /// The configuration it was run with (no origin: it came from the file).
+    pub loaded: Loaded,
+    /// The controller's description.
+    pub controller: String,
+    /// The embedded input files by attachment name, each checked against its SHA-256.
+    pub inputs: BTreeMap<String, Vec<u8>>,
+}
+
+/// What else reads the frames of a recording in the same pass (a study's analysis).
+pub trait FrameSink {
+    /// Called once, before the first frame.
+    fn header(&mut self, _header: &RunHeader) -> Result<(), RunError> {
+        Ok(())
+    }
+    /// Each frame.
+    fn frame(&mut self, _frame: &Frame) {}
+}
+
+/// Reading only the summary.
+impl FrameSink for () {}
+
+/// A recording read back.
+#[derive(Debug, Clone)]
+pub struct Inspected {
+    /// The summary recomputed from the frames.
+    pub summary: Summary,
+    /// The `end` record: how the run ended (empty for an unfinished file).
+    pub end: BTreeMap<String, String>,
+    /// Whether the file was complete, and how much was read.
+    pub read: ReadReport,
+}
+
+/// Streams the recording `path` of a run (constant memory), recomputing its summary and
+/// showing every frame to `sink`.
+pub fn inspect_with(path: &Path, sink: &mut impl FrameSink) -> Result<Inspected, RunError> {
+    let mut reader = RunReader {
+        path,
+        sink,
+        run: None,
+        end: BTreeMap::new(),
+        attachments: BTreeMap::new(),
+        state: None,
+        error: None,
+    };
+    let read = recorder::stream(path, &mut reader)?;
+    if let Some(e) = reader.error {
+        return Err(e);
+    }
+    let (header, builder) = match reader.state {
+        Some(state) => state,
+        None => {
+            let header = reader.header()?;
+            let builder = SummaryBuilder::new(header.loaded.config.run.settle());
+            reader.sink.header(&header)?;
+            (header, builder)
+        }
+    };
+    let cfg = &header.loaded.config;
+    let end = reader.end;
+    let completed = end.get("reason").is_some_and(|r| r == "completed");
+    let summary = builder.finish(RunMeta {
+        interrupted: !completed || builder.ticks() < cfg.ticks(),
+        recorded_messages: Some(read.messages),
+        end_reason: Some(match read.state {
+            FileState::Finished => end
+                .get("reason")
+                .cloned()
+                .unwrap_or_else(|| "unknown".into()),
+            _ => "unfinished".into(),
+        }),
+        ..RunMeta::of(cfg, header.controller.clone())
+    });
+    Ok(Inspected { summary, end, read })
+}
+
+/// Recomputes the summary of the recording `path`.
+pub fn inspect(path: &Path) -> Result<Inspected, RunError> {
+    inspect_with(path, &mut ())
+}
+
+/// The [`Visit`]or behind [`inspect_with`].
+struct RunReader<'a, S: FrameSink> {
+    path: &'a Path,
+    sink: &'a mut S,
+    run: Option<BTreeMap<String, String>>,
+    end: BTreeMap<String, String>,
+    attachments: BTreeMap<String, Vec<u8>>,
+    state: Option<(RunHeader, SummaryBuilder)>,
+    error: Option<RunError>,
+}
+
+impl<S: FrameSink> RunReader<'_, S> {
+    /// The header from the `run` record and the attachments read so far.
+    fn header(&self) -> Result<RunHeader, RunError> {
+        let not_a_run = || RunError::NotARun(self.path.to_owned());
+        let run = self.run.as_ref().ok_or_else(not_a_run)?;
+        let text = run.get("config").ok_or_else(not_a_run)?;
+        let config: RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: self.path.to_owned(),
+            message: e.to_string(),
+        })?;
+        let mut inputs = BTreeMap::new();
+        for (name, data) in &self.attachments {
+            let stated = run.get(&input_key(name));
+            if stated != Some(&sha256_hex(data)) {
+                return Err(RunError::InputMismatch {
+                    path: self.path.to_owned(),
+                    input: name.clone(),
+                });
+            }
+            inputs.insert(name.clone(), data.clone());
+        }
+        Ok(RunHeader {
+            controller: run
+                .get("controller")
+                .cloned()
+                .unwrap_or_else(|| format!("{:?}", config.controller.kind)),
+            loaded: Loaded {
+                config,
+                origin: Default::default(),
+            },
+            inputs,
+        })
+    }
+}
+
+impl<S: FrameSink> Visit for RunReader<'_, S> {
+    fn metadata(&mut self, name: &str, values: &BTreeMap<String, String>) {
+        match name {
+            "run" => self.run = Some(values.clone()),
+            "end" => self.end = values.clone(),
+            _ => {}
+        }
+    }
+
+    fn attachment(&mut self, name: &str, data: &[u8]) {
+        self.attachments.insert(name.to_owned(), data.to_vec());
+    }
+
+    fn frame(&mut self, frame: &Frame) {
+        if self.error.is_some() {
+            return;
+        }
+        if self.state.is_none() {
+            let started = self.header().and_then(|h| {
+                self.sink.header(&h)?;
+                let builder = SummaryBuilder::new(h.loaded.config.run.settle());
+                Ok((h, builder))
+            });
+            match started {
+                Ok(s) => self.state = Some(s),
+                Err(e) => {
+                    self.error = Some(e);
+                    return;
+                }
+            }
+        }
+        if let Some((_, builder)) = &mut self.state {
+            builder.add(frame);
+        }
+        self.sink.frame(frame);
+    }
 }

@@ -7,19 +7,22 @@ use crate::plan::Plan;
 use crate::recording::metadata;
 use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
+use crate::stop::{EndReason, StopRequest};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use daq_io::{Backend, Daq, InProcess};
-use recorder::{Frame, Recorder, WhenFull};
+use recorder::{Frame, Overwrite, RecordOptions, Recorder};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// How to run.
 pub struct RunOptions<'a> {
     /// Where to record (None: no recording).
     pub out: Option<PathBuf>,
-    /// Set to stop early (Ctrl-C); the recording is still finished.
-    pub stop: &'a AtomicBool,
+    /// Replace an existing recording at `out` (otherwise the run does not start).
+    pub overwrite: bool,
+    /// Set to stop early (a signal, a caller); the run ends at a tick boundary and the
+    /// recording is finished with the reason.
+    pub stop: &'a StopRequest,
     /// Called every few thousand ticks with (done, total).
     pub progress: &'a mut dyn FnMut(u64, u64),
 }
@@ -42,7 +45,19 @@ pub fn run_with(
     let mut servo = ServoLoop::new(plan)?;
     let description = plan.controller.description.clone();
     let mut recorder = match &opts.out {
-        Some(path) => Some(Recorder::create(path, metadata(c), WhenFull::Wait)?),
+        Some(path) => Some(Recorder::create(
+            path,
+            metadata(plan),
+            RecordOptions {
+                overwrite: if opts.overwrite {
+                    Overwrite::Replace
+                } else {
+                    Overwrite::Refuse
+                },
+                inputs: plan.inputs.clone(),
+                ..Default::default()
+            },
+        )?),
         None => None,
     };
     let total = c.ticks();
@@ -50,13 +65,13 @@ pub fn run_with(
     let start = Instant::now();
     let mut daq = InProcess::new(backend, total);
     let mut truth = daq_io::Truth::default();
-    let mut interrupted = false;
+    let mut reason = EndReason::Completed;
     loop {
         let s = daq.read().expect("in-process reads cannot fail");
         if s.seq.is_multiple_of(8192) {
             (opts.progress)(s.seq, total);
-            if opts.stop.load(Ordering::Relaxed) && s.flags & daq_io::flags::END == 0 {
-                interrupted = true;
+            if opts.stop.is_set() && s.flags & daq_io::flags::END == 0 {
+                reason = opts.stop.reason();
                 daq.stop();
                 continue;
             }
@@ -68,7 +83,9 @@ pub fn run_with(
             on_frame(&frame);
             if let Some(rec) = &mut recorder {
                 if rec.push(frame).is_err() {
-                    // The writer thread failed (disk full…): its error comes out of finish().
+                    // The writer thread failed (disk full…): the run ends here, safely (no
+                    // more commands); the error comes out of finish().
+                    reason = EndReason::WriteFailed;
                     break;
                 }
             }
@@ -79,13 +96,15 @@ pub fn run_with(
     }
     (opts.progress)(summary.ticks(), total);
     let wall = start.elapsed().as_secs_f64();
+    let simulated_s = summary.ticks() as f64 * plan.period_s();
     let stats = match recorder {
-        Some(r) => Some(r.finish()?),
+        Some(r) => Some(r.finish(reason.record(summary.ticks(), simulated_s))?),
         None => None,
     };
     Ok(summary.finish(RunMeta {
         wall_s: Some(wall),
-        interrupted,
+        interrupted: reason != EndReason::Completed,
+        end_reason: Some(reason.name().into()),
         recorded_messages: stats.map(|s| s.messages),
         dropped_frames: stats.map(|s| s.dropped_frames),
         spectral_radius: Some(radius),
@@ -101,11 +120,12 @@ pub fn run_to_end(plan: &Plan) -> Result<Summary, RunError> {
 
 /// [`run_to_end`], showing every frame to `on_frame` (see [`run_with`]).
 pub fn run_to_end_with(plan: &Plan, on_frame: impl FnMut(&Frame)) -> Result<Summary, RunError> {
-    let stop = AtomicBool::new(false);
+    let stop = StopRequest::new();
     run_with(
         plan,
         RunOptions {
             out: None,
+            overwrite: false,
             stop: &stop,
             progress: &mut |_, _| {},
         },

@@ -149,6 +149,9 @@ pub struct RunMeta {
     pub spectral_radius: Option<f64>,
     /// Multi-process (HIL) facts: overruns, latency, faults.
     pub hil: Option<HilMeta>,
+    /// How the run ended (`completed`, `stopped`, `interrupted`, `peer-lost`,
+    /// `write-failed`; `unfinished` for a recording that ends early).
+    pub end_reason: Option<String>,
 }
 
 /// The summary of a run.
@@ -200,7 +203,11 @@ impl fmt::Display for Summary {
             self.simulated_s,
             m.servo_rate_hz / 1e3,
             self.ticks,
-            if m.interrupted { ", INTERRUPTED" } else { "" },
+            match (&m.end_reason, m.interrupted) {
+                (Some(r), true) => format!(", ENDED EARLY: {r}"),
+                (None, true) => ", INTERRUPTED".to_string(),
+                _ => String::new(),
+            },
             m.settle_s
         )?;
         let nm = |s: &Stats| format!("RMS {:>8.3} nm   PV {:>8.3} nm", s.rms * 1e9, s.pv * 1e9);
@@ -296,6 +303,7 @@ impl RunMeta {
             dropped_frames: None,
             spectral_radius: None,
             hil: None,
+            end_reason: None,
         }
     }
 }

@@ -3,12 +3,18 @@
 use crate::config::{ConfigError, Origin, SurfaceConfig};
 use servo_core::surface::{BeamIntegrator, HeightMap, MicroLenslet, SinusoidalGrid, Surface};
 
+/// Largest height map, pixels (64 M: 64 MB of luminance).
+pub const MAX_PIXELS: u64 = 1 << 26;
+
 /// A PNG as row-major 8-bit luminance (Rec. 601 weights for colour images).
-fn read_grey_png(path: &std::path::Path) -> Result<(Vec<u8>, usize, usize), String> {
-    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
-    let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
+fn decode_grey_png(bytes: &[u8]) -> Result<(Vec<u8>, usize, usize), String> {
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
     decoder.set_transformations(png::Transformations::normalize_to_color8());
     let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
+    let (w, h) = (reader.info().width as u64, reader.info().height as u64);
+    if w * h > MAX_PIXELS {
+        return Err(format!("{w} × {h} pixels: at most {MAX_PIXELS}"));
+    }
     let mut buf = vec![0; reader.output_buffer_size()];
     let info = reader.next_frame(&mut buf).map_err(|e| e.to_string())?;
     let channels = info.color_type.samples();
@@ -83,9 +89,13 @@ impl Surface for LoadedSurface {
 }
 
 impl LoadedSurface {
-    /// Checks the values of `config` and loads its image, if any (the path relative to the
-    /// config file).
-    pub fn load(config: &SurfaceConfig, at: &Origin) -> Result<Self, ConfigError> {
+    /// Checks the values of `config` and decodes its image from `image` (the file's bytes,
+    /// read by the caller: the plan from the resolved path, a reader from the recording).
+    pub fn load(
+        config: &SurfaceConfig,
+        at: &Origin,
+        image: Option<&[u8]>,
+    ) -> Result<Self, ConfigError> {
         let key = |k: &str| format!("scenario.surface.{k}");
         let positive = |k: &str, v: f64, max: f64| {
             if v > 0.0 && v <= max {
@@ -147,11 +157,13 @@ impl LoadedSurface {
                 pixel_m,
                 depth_range_m,
             } => {
-                let file = at.resolve(path);
-                let (pixels, width, height_px) = read_grey_png(&file).map_err(|e| {
+                let bytes = image.ok_or_else(|| {
+                    at.invalid(&key("path"), path.display(), "an image file that was read")
+                })?;
+                let (pixels, width, height_px) = decode_grey_png(bytes).map_err(|e| {
                     at.invalid(
                         &key("path"),
-                        file.display(),
+                        path.display(),
                         &format!("a readable PNG ({e})"),
                     )
                 })?;

@@ -8,8 +8,8 @@ use runner::closed_loop::{input, output};
 use runner::config::Machining;
 use runner::config::{FeedforwardKind, Loaded, Scenario};
 use runner::run::RunOptions;
+use runner::stop::StopRequest;
 use std::f64::consts::TAU;
-use std::sync::atomic::AtomicBool;
 use studies::form::{run_machining, FormReport};
 
 /// Three revolutions inward from `outer_m` at 60 rpm with feedforward `ff`.
@@ -27,11 +27,12 @@ fn cfg(outer_m: f64, ff: FeedforwardKind) -> Loaded {
 }
 
 fn machine(cfg: &Loaded) -> FormReport {
-    let stop = AtomicBool::new(false);
+    let stop = StopRequest::new();
     let (_, a) = run_machining(
         &plan(cfg),
         RunOptions {
             out: None,
+            overwrite: false,
             stop: &stop,
             progress: &mut |_, _| {},
         },

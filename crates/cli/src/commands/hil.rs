@@ -1,8 +1,8 @@
 //! The HIL processes: `servo plant`, `servo controller`, `servo record`, and `servo ctl`, the
 //! control plane of a running run.
 
-use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs, RunArgs};
-use crate::interrupt::stop_flag;
+use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs, RunArgs, DEFAULT_RECORDING};
+use crate::interrupt::stop_on_signals;
 use crate::output::{print_summary, tick_bar, CliError};
 use clap::{Args, Subcommand};
 use daq_io::contract::command;
@@ -47,10 +47,10 @@ impl PlantCmd {
             wait_for_start: self.wait_start,
             peer_timeout: self.timeout.timeout()?,
         };
-        let stop = stop_flag();
+        let stop = stop_on_signals();
         let r = runner::hil::plant(&plan, &prefix, &options, &stop)?;
         if r.faults == 0 {
-            return Ok(ExitCode::SUCCESS);
+            return Ok(ExitCode::from(stop.reason().exit_code()));
         }
         eprintln!(
             "servo plant: FAULT — controller lost at tick {} (no command for {:?}); drove zero current for {} ticks and ended the run",
@@ -77,9 +77,9 @@ impl ControllerCmd {
     /// Runs until the plant closes the run.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let plan = Plan::new(&self.run.load()?)?;
-        let stop = stop_flag();
+        let stop = stop_on_signals();
         runner::hil::controller(&plan, &self.hil.prefix()?, &stop)?;
-        Ok(ExitCode::SUCCESS)
+        Ok(ExitCode::from(stop.reason().exit_code()))
     }
 }
 
@@ -102,10 +102,10 @@ impl RecordCmd {
         let plan = Plan::new(&self.run.load()?)?;
         let prefix = self.hil.prefix()?;
         let rec = &self.recording;
-        let out = rec.out();
-        // The recorder finishes the file whatever happens: Ctrl-C reaches the plant, which
+        let out = rec.out(DEFAULT_RECORDING.as_ref());
+        // The recorder finishes the file whatever happens: a signal reaches the plant, which
         // ends the run; the recorder sees the end (or the silence) and closes the file.
-        let _stop = stop_flag();
+        let _stop = stop_on_signals();
         let bar = tick_bar(rec.quiet, "recording");
         let mut progress = |done: u64, total: u64| {
             bar.set_length(total);
@@ -115,6 +115,7 @@ impl RecordCmd {
             &plan,
             &prefix,
             out.clone(),
+            rec.overwrite,
             self.hil.realtime,
             &mut progress,
         );

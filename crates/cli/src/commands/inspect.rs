@@ -1,15 +1,22 @@
-//! `servo inspect`: the summary of a recording, and the form report of a machining run.
+//! `servo inspect`: a recording read back in one streaming pass (constant memory): its
+//! summary recomputed, how the run ended, whether the file is complete, and the form report
+//! of a machining run (from the surface embedded in the file).
 
 use super::machine::print_form;
 use crate::output::{print_json, print_summary, CliError};
 use clap::Args;
+use recorder::FileState;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use studies::form::FormSink;
 
-/// Recompute and print the summary of a recording. Example: servo inspect run.mcap
+/// Recompute and print the summary of a recording, finished or not. Example: servo inspect run.mcap
+///
+/// Exit 0 for a complete or an unfinished (recovered) file, 1 when a record is corrupt (what
+/// precedes it is still printed).
 #[derive(Args, Debug)]
 pub struct InspectCmd {
-    /// The MCAP file written by `servo run`.
+    /// The MCAP file written by `servo run` (or its `.partial` file).
     file: PathBuf,
     /// Print the summary as JSON.
     #[arg(long)]
@@ -19,20 +26,27 @@ pub struct InspectCmd {
 impl InspectCmd {
     /// Reads, recomputes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let (loaded, rec) = runner::recording::read_run(&self.file)?;
-        let summary = runner::recording::summarise(&loaded, &rec);
-        let form = studies::form::from_recording(&loaded, &rec)?.map(|a| a.report());
+        let mut form = FormSink::default();
+        let i = runner::recording::inspect_with(&self.file, &mut form)?;
+        let report = form.analysis.map(|a| a.report());
+        let code = match i.read.state {
+            FileState::Corrupt { .. } => ExitCode::FAILURE,
+            _ => ExitCode::SUCCESS,
+        };
         if self.json {
-            match form {
-                Some(f) => print_json(&serde_json::json!({ "summary": summary, "form": f })),
-                None => print_json(&summary),
-            }
-            return Ok(ExitCode::SUCCESS);
+            print_json(&serde_json::json!({
+                "summary": i.summary,
+                "end": i.end,
+                "file": i.read.to_string(),
+                "form": report,
+            }));
+            return Ok(code);
         }
-        print_summary(&summary, false);
-        if let Some(f) = &form {
+        print_summary(&i.summary, false);
+        println!("  file                      {}", i.read);
+        if let Some(f) = &report {
             print_form(f);
         }
-        Ok(ExitCode::SUCCESS)
+        Ok(code)
     }
 }

@@ -2,6 +2,7 @@
 
 use super::run::with_progress;
 use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs, RecordingArgs, RunLengthArgs};
+use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, print_summary, print_written, CliError};
 use clap::Args;
 use runner::config::presets::{ImageMap, SurfacePreset};
@@ -108,8 +109,17 @@ impl MachineCmd {
         l.config.scenario = Scenario::Machine(m);
         let plan = Plan::new(&l)?;
         let rec = &self.recording;
-        let (summary, analysis) =
-            with_progress(rec, "machining", |opts| form::run_machining(&plan, opts))?;
+        let out = rec.out(&self.out_dir.join("machine.mcap"));
+        if out.is_some() {
+            std::fs::create_dir_all(&self.out_dir).map_err(|source| CliError::Write {
+                path: self.out_dir.clone(),
+                source,
+            })?;
+        }
+        let stop = stop_on_signals();
+        let (summary, analysis) = with_progress(rec, out.clone(), &stop, "machining", |opts| {
+            form::run_machining(&plan, opts)
+        })?;
         let title = format!(
             "{}, {}",
             summary.meta.controller,
@@ -123,9 +133,10 @@ impl MachineCmd {
         let written = form::report::write(&analysis, &title, &self.out_dir)
             .map_err(studies::StudyError::from)?;
         let report = analysis.report();
+        let code = ExitCode::from(stop.reason().exit_code());
         if rec.json {
             print_json(&report);
-            return Ok(ExitCode::SUCCESS);
+            return Ok(code);
         }
         print_summary(&summary, false);
         print_form(&report);
@@ -135,11 +146,11 @@ impl MachineCmd {
                 summary.saturated_ticks
             );
         }
-        if let Some(o) = rec.out() {
+        if let Some(o) = out {
             println!("  wrote {}", o.display());
         }
         print_written(&written);
-        Ok(ExitCode::SUCCESS)
+        Ok(code)
     }
 }
 

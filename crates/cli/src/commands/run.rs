@@ -1,10 +1,11 @@
 //! `servo run`: the closed loop in process, or (`--hil`) as three processes.
 
-use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs, RunArgs};
-use crate::interrupt::stop_flag;
+use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs, RunArgs, DEFAULT_RECORDING};
+use crate::interrupt::stop_on_signals;
 use crate::output::{print_summary, tick_bar, CliError};
 use clap::Args;
 use runner::run::{run, RunOptions};
+use runner::stop::StopRequest;
 use runner::{Plan, RunError};
 use std::process::ExitCode;
 
@@ -30,18 +31,23 @@ pub struct Run {
 }
 
 impl Run {
-    /// Runs it; the exit code is the first failing HIL child's.
+    /// Runs it; the exit code says how it ended (see [`runner::stop::EndReason::exit_code`];
+    /// with `--hil`, the first failing child's).
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let plan = Plan::new(&self.run.load()?)?;
         let rec = &self.recording;
+        let out = rec.out(DEFAULT_RECORDING.as_ref());
         let (summary, code) = if self.hil {
-            super::run_hil::run(&plan, &self.hil_args, &self.timeout, rec)?
+            super::run_hil::run(&plan, &self.hil_args, &self.timeout, rec, out.clone())?
         } else {
-            let summary = with_progress(rec, "simulating", |opts| run(&plan, opts))?;
-            (summary, ExitCode::SUCCESS)
+            let stop = stop_on_signals();
+            let summary = with_progress(rec, out.clone(), &stop, "simulating", |opts| {
+                run(&plan, opts)
+            })?;
+            (summary, ExitCode::from(stop.reason().exit_code()))
         };
         print_summary(&summary, rec.json);
-        if let (Some(o), false) = (rec.out(), rec.json) {
+        if let (Some(o), false) = (out, rec.json) {
             println!(
                 "  wrote {} (open it in Foxglove: topics /telemetry and /truth)",
                 o.display()
@@ -51,24 +57,26 @@ impl Run {
     }
 }
 
-/// Runs `f` with the recording, Ctrl-C stop flag and progress bar (labelled `what`) of `rec`.
+/// Runs `f` recording to `out` (as `rec` says), with `stop` and a progress bar labelled `what`.
 pub fn with_progress<T, E>(
     rec: &RecordingArgs,
+    out: Option<std::path::PathBuf>,
+    stop: &StopRequest,
     what: &str,
     f: impl FnOnce(RunOptions<'_>) -> Result<T, E>,
 ) -> Result<T, E>
 where
     E: From<RunError>,
 {
-    let stop = stop_flag();
     let bar = tick_bar(rec.quiet, what);
     let mut progress = |done: u64, total: u64| {
         bar.set_length(total);
         bar.set_position(done);
     };
     let result = f(RunOptions {
-        out: rec.out(),
-        stop: &stop,
+        out,
+        overwrite: rec.overwrite,
+        stop,
         progress: &mut progress,
     });
     bar.finish_and_clear();

@@ -2,7 +2,7 @@
 //! supervised from here, with the recorder's summary printed at the end.
 
 use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs};
-use crate::interrupt::stop_flag;
+use crate::interrupt::{stop_on_signals, PARENT_ENV};
 use crate::output::{tick_bar, CliError};
 use daq_io::contract::role;
 use daq_io::ipc::{leaf, take, Endpoint};
@@ -12,7 +12,6 @@ use runner::summary::Summary;
 use runner::{Plan, RunError};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ExitCode, Stdio};
-use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 /// Writes the plan's configuration (files made absolute) for the child processes.
@@ -43,6 +42,7 @@ fn spawn(args: &[&str], stdout: Stdio) -> Result<Child, CliError> {
         .args(args)
         .stdout(stdout)
         .stdin(Stdio::null())
+        .env(PARENT_ENV, std::process::id().to_string())
         .spawn()
         .map_err(|e| CliError::Processes(format!("cannot start `servo {}`: {e}", args[0])))
 }
@@ -55,10 +55,16 @@ pub fn run(
     hil: &HilArgs,
     timeout: &PeerTimeoutArgs,
     rec: &RecordingArgs,
+    out: Option<PathBuf>,
 ) -> Result<(Summary, ExitCode), CliError> {
     plan.check_stable()?;
     timeout.timeout()?;
-    let (realtime, out, quiet) = (hil.realtime, rec.out(), rec.quiet);
+    let (realtime, quiet) = (hil.realtime, rec.quiet);
+    if let (Some(o), false) = (&out, rec.overwrite) {
+        if o.exists() {
+            return Err(RunError::Record(recorder::RecordError::Exists { path: o.clone() }).into());
+        }
+    }
     let prefix = hil
         .prefix
         .clone()
@@ -77,13 +83,16 @@ pub fn run(
         Some(o) => record_args.extend(["--out", o]),
         None => record_args.push("--no-record"),
     }
+    if rec.overwrite {
+        record_args.push("--overwrite");
+    }
     // Subscribe before the children start: a subscriber joining mid-run makes the publishers
     // set up a connection inside a send, a sub-millisecond stall a real-time loop would feel.
     let ep = Endpoint::open(&prefix, "run").map_err(RunError::from)?;
     let health = ep
         .subscriber::<Health>(leaf::HEALTH)
         .map_err(RunError::from)?;
-    let stop = stop_flag();
+    let stop = stop_on_signals();
     let recorder = spawn(&record_args, Stdio::piped())?;
     let controller = spawn(
         &["controller", "--config", config, "--prefix", &prefix],
@@ -120,9 +129,17 @@ pub fn run(
                 codes.push((name.to_string(), status.code().unwrap_or(-1)));
             }
         }
-        // Ctrl-C reaches every child; if one hangs afterwards, end it.
-        if stop.load(Ordering::Relaxed) && stopped_at.is_none() {
+        // A stop (a terminal's Ctrl-C reaches the whole group; a supervisor signals only this
+        // process) is forwarded as SIGTERM to every child still running: each ends at a tick
+        // boundary and the recorder finishes the file. One that hangs is killed after 10 s.
+        if stop.is_set() && stopped_at.is_none() {
             stopped_at = Some(Instant::now());
+            for (name, child) in children.iter() {
+                if !codes.iter().any(|(n, _)| n == name) {
+                    let pid = nix::unistd::Pid::from_raw(child.id() as i32);
+                    let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM);
+                }
+            }
         }
         if stopped_at.is_some_and(|t| t.elapsed() > Duration::from_secs(10)) {
             children.iter_mut().for_each(|(_, c)| drop(c.kill()));

@@ -248,10 +248,7 @@ pub struct Loaded {
 impl Loaded {
     /// Reads and parses `path` (unknown keys are errors).
     pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = crate::input_file::read_text(path)?;
         let config = toml::from_str(&text).map_err(|e| ConfigError::Parse {
             path: path.to_owned(),
             message: e.to_string(),

@@ -8,12 +8,15 @@ pub mod report;
 use crate::error::StudyError;
 use nalgebra::{SMatrix, SVector};
 use recorder::Frame;
-use runner::config::{ConfigError, Loaded, Machining, RunConfig, Scenario};
+use runner::config::{Machining, RunConfig, Scenario};
 use runner::machining::SpiralCut;
+use runner::plan::SURFACE_INPUT;
+use runner::recording::{FrameSink, RunHeader};
 use runner::run::{run_with, RunOptions};
 use runner::summary::{Acc, Stats, Summary};
 use runner::surface::LoadedSurface;
 use runner::Plan;
+use runner::RunError;
 use serde::Serialize;
 use servo_core::surface::SinusoidalGrid;
 use std::f64::consts::TAU;
@@ -244,16 +247,28 @@ pub fn run_machining(
     Ok((summary, analysis))
 }
 
-/// The form analysis of a machining recording of `loaded` (None for other scenarios).
-pub fn from_recording(
-    loaded: &Loaded,
-    rec: &recorder::Recording,
-) -> Result<Option<FormAnalysis>, ConfigError> {
-    let Scenario::Machine(m) = &loaded.config.scenario else {
-        return Ok(None);
-    };
-    let surface = LoadedSurface::load(&m.surface, &loaded.origin)?;
-    let mut a = FormAnalysis::new(&loaded.config, m, surface);
-    rec.frames.iter().for_each(|f| a.add(f));
-    Ok(Some(a))
+/// The form analysis of a machining recording, built from its header (configuration and the
+/// embedded surface image) and fed in the same streaming pass as its summary; none for other
+/// scenarios.
+#[derive(Default)]
+pub struct FormSink {
+    /// The analysis, once the header named a machining scenario.
+    pub analysis: Option<FormAnalysis>,
+}
+
+impl FrameSink for FormSink {
+    fn header(&mut self, h: &RunHeader) -> Result<(), RunError> {
+        if let Scenario::Machine(m) = &h.loaded.config.scenario {
+            let image = h.inputs.get(SURFACE_INPUT).map(Vec::as_slice);
+            let surface = LoadedSurface::load(&m.surface, &h.loaded.origin, image)?;
+            self.analysis = Some(FormAnalysis::new(&h.loaded.config, m, surface));
+        }
+        Ok(())
+    }
+
+    fn frame(&mut self, f: &Frame) {
+        if let Some(a) = &mut self.analysis {
+            a.add(f);
+        }
+    }
 }

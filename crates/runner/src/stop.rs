@@ -1,0 +1,142 @@
+//! Why a run ended, and the flag that asks it to end: set from a signal handler (which signal)
+//! or by the control plane, polled by the loop at tick boundaries.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+
+/// A request to end the run, shared between whoever asks (a signal handler, a control-plane
+/// thread) and the loop. 0 = keep running; a signal number; or [`StopRequest::CONTROL`].
+#[derive(Debug, Default, Clone)]
+pub struct StopRequest(Arc<AtomicUsize>);
+
+impl StopRequest {
+    /// The value a control-plane STOP (or a library caller) stores.
+    pub const CONTROL: usize = 1 << 16;
+
+    /// Not stopped.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The raw cell: nonzero means stop.
+    pub fn cell(&self) -> &AtomicUsize {
+        &self.0
+    }
+
+    /// The shared cell, for a signal handler to store the signal number into
+    /// (`signal_hook::flag::register_usize`).
+    pub fn shared(&self) -> Arc<AtomicUsize> {
+        self.0.clone()
+    }
+
+    /// Asks the run to stop (control plane, library caller).
+    pub fn request(&self) {
+        let _ = self
+            .0
+            .compare_exchange(0, Self::CONTROL, Ordering::Relaxed, Ordering::Relaxed);
+    }
+
+    /// Whether a stop was asked for.
+    #[inline]
+    pub fn is_set(&self) -> bool {
+        self.0.load(Ordering::Relaxed) != 0
+    }
+
+    /// How the run ends if it ends now because of this request.
+    pub fn reason(&self) -> EndReason {
+        match self.0.load(Ordering::Relaxed) {
+            0 => EndReason::Completed,
+            Self::CONTROL => EndReason::Stopped,
+            signal => EndReason::Signal(signal as i32),
+        }
+    }
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EndReason {
+    /// It ran its whole duration.
+    Completed,
+    /// A control-plane STOP (`servo ctl stop`) or a library caller ended it.
+    Stopped,
+    /// A signal ended it (its number: 1 SIGHUP, 2 SIGINT, 15 SIGTERM).
+    Signal(i32),
+    /// The plant or the controller was lost (HIL).
+    PeerLost,
+    /// The recording could not be written (disk full, I/O error): the run was ended safely.
+    WriteFailed,
+}
+
+impl EndReason {
+    /// The name written into the recording and the summary.
+    pub fn name(self) -> &'static str {
+        match self {
+            EndReason::Completed => "completed",
+            EndReason::Stopped => "stopped",
+            EndReason::Signal(_) => "interrupted",
+            EndReason::PeerLost => "peer-lost",
+            EndReason::WriteFailed => "write-failed",
+        }
+    }
+
+    /// The signal's name, for [`EndReason::Signal`].
+    pub fn signal_name(self) -> Option<&'static str> {
+        match self {
+            EndReason::Signal(1) => Some("SIGHUP"),
+            EndReason::Signal(2) => Some("SIGINT"),
+            EndReason::Signal(15) => Some("SIGTERM"),
+            EndReason::Signal(_) => Some("signal"),
+            _ => None,
+        }
+    }
+
+    /// The process exit code that says it: 0 completed or stopped on request, 128 + the
+    /// signal number when interrupted (130 SIGINT, 143 SIGTERM, 129 SIGHUP, as shells do),
+    /// 3 a lost peer, 4 a failed recording.
+    pub fn exit_code(self) -> u8 {
+        match self {
+            EndReason::Completed | EndReason::Stopped => 0,
+            EndReason::Signal(s) => (128 + s.clamp(0, 127)) as u8,
+            EndReason::PeerLost => 3,
+            EndReason::WriteFailed => 4,
+        }
+    }
+
+    /// The `end` metadata record of a run that ended this way after `ticks` ticks
+    /// (`simulated_s` seconds).
+    pub fn record(self, ticks: u64, simulated_s: f64) -> BTreeMap<String, String> {
+        let mut m = BTreeMap::from([
+            ("reason".to_string(), self.name().to_string()),
+            ("ticks".to_string(), ticks.to_string()),
+            ("simulated_s".to_string(), simulated_s.to_string()),
+        ]);
+        if let Some(s) = self.signal_name() {
+            m.insert("signal".into(), s.into());
+        }
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_signal_number_becomes_its_reason_and_exit_code() {
+        let stop = StopRequest::new();
+        assert_eq!(stop.reason(), EndReason::Completed);
+        stop.cell().store(15, Ordering::Relaxed);
+        assert!(stop.is_set());
+        assert_eq!(stop.reason(), EndReason::Signal(15));
+        assert_eq!(stop.reason().exit_code(), 143);
+        assert_eq!(stop.reason().signal_name(), Some("SIGTERM"));
+        // A later request does not overwrite the first reason.
+        stop.request();
+        assert_eq!(stop.reason(), EndReason::Signal(15));
+        let control = StopRequest::new();
+        control.request();
+        assert_eq!(control.reason(), EndReason::Stopped);
+        assert_eq!(control.reason().exit_code(), 0);
+    }
+}
