@@ -3,24 +3,20 @@
 mod common;
 
 use common::*;
+use densa_alloc::{is_active, measure, CountingAllocator};
 use servo_core::*;
-use stats_alloc::{Region, StatsAlloc, INSTRUMENTED_SYSTEM};
-use std::alloc::System;
 
+/// Counts per thread: the test harness's own threads never enter a measurement.
 #[global_allocator]
-static GLOBAL: &StatsAlloc<System> = &INSTRUMENTED_SYSTEM;
+static ALLOCATOR: CountingAllocator = CountingAllocator::system();
 
 const TICKS: usize = 100_000;
 
-/// Bytes allocated (and allocations made) while `f` runs.
-fn allocated_by(f: impl FnOnce()) -> (usize, usize) {
-    let region = Region::new(GLOBAL);
-    f();
-    let stats = region.change();
-    (
-        stats.bytes_allocated + stats.bytes_reallocated.max(0) as usize,
-        stats.allocations + stats.reallocations,
-    )
+/// Bytes allocated (and allocations made) by this thread while `f` runs.
+fn allocated_by(f: impl FnOnce()) -> (u64, u64) {
+    assert!(is_active(), "the counting allocator must be installed");
+    let ((), stats) = measure(f);
+    (stats.bytes_allocated, stats.allocs + stats.reallocs)
 }
 
 #[test]
