@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
 """Reads a `servo run` recording with the official Python readers (PyPI `mcap` and
-`mcap-ros2-support`), decodes every message, and checks the count against the run's summary.
+`mcap-ros2-support`), decodes every message, and checks the count against the run's summary;
+reads every record again with the stream reader validating CRCs, and checks what Foxglove's
+indexed reader needs (profile `ros2`, message indexes) and the `end` record.
 
 Usage: python3 scripts/check_mcap.py run.mcap summary.json
 """
@@ -9,6 +11,8 @@ import math
 import sys
 
 from mcap.reader import make_reader
+from mcap.records import Header, MessageIndex
+from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 
 
@@ -30,8 +34,17 @@ def main(path, summary_path):
     assert total == expected, f"decoded {total} messages, the run reported {expected}"
     assert counts == {"/telemetry": ticks, "/truth": ticks}, counts
     assert meta["run"]["seed"] == str(summary["meta"]["seed"]), meta["run"]["seed"]
+    assert meta["end"]["reason"] == summary["meta"]["end_reason"], meta["end"]
+    assert meta["end"]["ticks"] == str(ticks), meta["end"]
+    with open(path, "rb") as f:
+        records = list(StreamReader(f, validate_crcs=True).records)
+    header = next(r for r in records if isinstance(r, Header))
+    assert header.profile == "ros2", header.profile
+    indexes = sum(isinstance(r, MessageIndex) for r in records)
+    assert indexes > 0, "no message indexes"
     print(f"{path}: decoded all {total} messages with the Python mcap readers "
-          f"({counts['/telemetry']} telemetry, {counts['/truth']} truth), as the run reported")
+          f"({counts['/telemetry']} telemetry, {counts['/truth']} truth), as the run reported; "
+          f"CRCs valid, profile ros2, {indexes} message indexes, ended {meta['end']['reason']}")
 
 
 if __name__ == "__main__":
