@@ -38,7 +38,11 @@ pub struct ControllerFile {
 impl ControllerFile {
     /// Loads `path`, checking shapes, finiteness and that it was designed for `servo_rate_hz`.
     pub fn load(path: &Path, servo_rate_hz: f64) -> Result<Self, ConfigError> {
-        Self::parse(&crate::input_file::read_text(path)?, path, servo_rate_hz)
+        Self::parse(
+            &crate::config::input_file::read_text(path)?,
+            path,
+            servo_rate_hz,
+        )
     }
 
     /// Parses the text of the controller file `path` (errors located there).

@@ -25,7 +25,6 @@ pub mod controller_file;
 mod error;
 pub mod feedforward;
 pub mod hil;
-pub mod input_file;
 pub mod machining;
 pub mod plan;
 pub mod preview;

@@ -5,6 +5,7 @@
 //! raw configuration.
 
 use crate::closed_loop::ClosedLoop;
+use crate::config::input_file::{read_input, read_text, MAX_IMAGE_BYTES};
 use crate::config::{
     ControllerConfig, ControllerKind, Loaded, Origin, RunConfig, Scenario, SurfaceConfig,
 };
@@ -12,7 +13,6 @@ use crate::controller::Controller;
 use crate::controller_file::ControllerFile;
 use crate::error::RunError;
 use crate::feedforward::Feedforward;
-use crate::input_file::{read_input, read_text, MAX_IMAGE_BYTES};
 use crate::surface::LoadedSurface;
 use plant_sim::model::ModelError;
 use plant_sim::params::CurrentLoopModel;

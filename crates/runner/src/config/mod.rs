@@ -1,6 +1,7 @@
 //! The one configuration of a run (TOML), every default the thesis prototype, and errors that
 //! name the file, line, key and allowed range.
 
+pub mod input_file;
 mod machining;
 mod origin;
 pub mod presets;
@@ -248,7 +249,7 @@ pub struct Loaded {
 impl Loaded {
     /// Reads and parses `path` (unknown keys are errors).
     pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
-        let text = crate::input_file::read_text(path)?;
+        let text = input_file::read_text(path)?;
         let config = toml::from_str(&text).map_err(|e| ConfigError::Parse {
             path: path.to_owned(),
             message: e.to_string(),

@@ -1,7 +1,7 @@
 //! Reading the files a run depends on, bounded: only regular files, at most a stated size, so
 //! a path naming a device, a FIFO or a huge file fails at once with a clear error.
 
-use crate::config::ConfigError;
+use super::origin::ConfigError;
 use std::io::Read;
 use std::path::Path;
 

@@ -1,0 +1,26 @@
+//! What the CLI tests share: the binary, a private scratch folder, JSON output.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// The `servo` binary under test.
+pub fn servo() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_servo"))
+}
+
+/// `name` in this test process's scratch folder (made if needed).
+pub fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("fts-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// The JSON a successful `servo … --json` printed (panics with its stderr otherwise).
+pub fn json(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "servo failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON summary")
+}

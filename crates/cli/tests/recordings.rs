@@ -1,0 +1,264 @@
+//! Recordings end to end: what a run leaves on disk however it ends, and reading it back.
+
+mod common;
+
+use common::{json, servo, tmp};
+use std::process::{Command, Stdio};
+
+/// The default run writes an MCAP that the official reader decodes completely, and `servo
+/// inspect` recomputes exactly the live statistics from it.
+#[test]
+fn inspect_equals_the_live_summary() {
+    let path = tmp("live.mcap");
+    let live = json(
+        &servo()
+            .args(["run", "--json", "-q", "--duration", "0.3", "--out"])
+            .arg(&path)
+            .output()
+            .unwrap(),
+    );
+    let read = json(
+        &servo()
+            .args(["inspect", "--json"])
+            .arg(&path)
+            .output()
+            .unwrap(),
+    );
+    for key in [
+        "ticks",
+        "stats_ticks",
+        "following_error_m",
+        "true_error_m",
+        "control_v",
+        "saturated_ticks",
+        "adc_clipped_ticks",
+    ] {
+        assert_eq!(live[key], read["summary"][key], "{key}");
+    }
+    assert_eq!(read["end"]["reason"], "completed");
+    assert!(read["file"].as_str().unwrap().starts_with("complete"));
+    let rec = recorder::read(&path).unwrap();
+    let messages = rec.report.unwrap().messages;
+    assert_eq!(messages, 2 * live["ticks"].as_u64().unwrap());
+    assert_eq!(live["meta"]["recorded_messages"].as_u64(), Some(messages));
+}
+
+#[test]
+fn same_seed_gives_identical_bytes() {
+    let (a, b) = (tmp("a.mcap"), tmp("b.mcap"));
+    for p in [&a, &b] {
+        let st = servo()
+            .args(["run", "-q", "--duration", "0.1", "--seed", "5", "--out"])
+            .arg(p)
+            .output()
+            .unwrap();
+        assert!(st.status.success());
+    }
+    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
+}
+
+/// SIGINT, SIGTERM or SIGHUP mid-run: the run ends at a tick boundary, the MCAP is finished
+/// and readable, its `end` record names the signal, and the exit code is 128 + its number.
+#[test]
+fn a_signal_ends_the_run_with_a_finished_file_that_names_it() {
+    for (signal, name, code) in [
+        ("INT", "SIGINT", 130),
+        ("TERM", "SIGTERM", 143),
+        ("HUP", "SIGHUP", 129),
+    ] {
+        let path = tmp(&format!("sig-{signal}.mcap"));
+        let child = servo()
+            .args(["run", "--json", "-q", "--duration", "600", "--out"])
+            .arg(&path)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(700));
+        let ok = Command::new("kill")
+            .args([&format!("-{signal}"), &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(ok.success());
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(
+            out.status.code(),
+            Some(code),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["meta"]["interrupted"], true);
+        assert_eq!(v["meta"]["end_reason"], "interrupted");
+        let ticks = v["ticks"].as_u64().unwrap();
+        assert!(ticks > 0 && ticks < 600 * 199_600);
+        let rec = recorder::read(&path).expect("a finished MCAP");
+        assert_eq!(rec.report.unwrap().state, recorder::FileState::Finished);
+        assert_eq!(rec.frames.len() as u64, ticks);
+        assert_eq!(rec.end["signal"], name);
+        assert_eq!(rec.end["ticks"], ticks.to_string());
+        let read = json(
+            &servo()
+                .args(["inspect", "--json"])
+                .arg(&path)
+                .output()
+                .unwrap(),
+        );
+        assert_eq!(read["summary"]["meta"]["interrupted"], true);
+        assert_eq!(read["summary"]["following_error_m"], v["following_error_m"]);
+    }
+}
+
+/// A second run to the same file is refused (exit 2, the file named, nothing changed);
+/// `--overwrite` replaces it.
+#[test]
+fn an_existing_recording_is_not_overwritten() {
+    let path = tmp("twice.mcap");
+    let run = |extra: &[&str]| {
+        servo()
+            .args(["run", "-q", "--duration", "0.01", "--out"])
+            .arg(&path)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    assert!(run(&[]).status.success());
+    let first = std::fs::read(&path).unwrap();
+    let again = run(&["--seed", "9"]);
+    assert_eq!(again.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(
+        err.contains("twice.mcap") && err.contains("--overwrite"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&path).unwrap(), first);
+    assert!(run(&["--seed", "9", "--overwrite"]).status.success());
+    assert_ne!(std::fs::read(&path).unwrap(), first);
+}
+
+/// A recording never makes `servo inspect` open a path named inside it: the controller file
+/// of a state-space run is deleted before the inspection, which still works (the
+/// controller's description and its file are in the recording itself).
+#[test]
+fn inspect_reads_nothing_but_the_recording() {
+    let dir = tmp("selfcontained");
+    std::fs::create_dir_all(&dir).unwrap();
+    let ctrl = dir.join("h2.toml");
+    let synth = servo()
+        .args(["synth", "h2", "--rate", "20000", "--order", "8", "--out"])
+        .arg(&ctrl)
+        .output()
+        .unwrap();
+    assert!(
+        synth.status.success(),
+        "{}",
+        String::from_utf8_lossy(&synth.stderr)
+    );
+    let rec = dir.join("ss.mcap");
+    let run = servo()
+        .args([
+            "run",
+            "-q",
+            "--rate",
+            "20000",
+            "--duration",
+            "0.05",
+            "--controller",
+            "ss",
+            "--ss-file",
+        ])
+        .arg(&ctrl)
+        .arg("--out")
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    std::fs::remove_file(&ctrl).unwrap();
+    let read = json(
+        &servo()
+            .args(["inspect", "--json"])
+            .arg(&rec)
+            .output()
+            .unwrap(),
+    );
+    assert!(
+        read["summary"]["meta"]["controller"]
+            .as_str()
+            .unwrap()
+            .starts_with("state space, 8 states"),
+        "{read}"
+    );
+}
+
+/// A device is never taken for a recording (not even with --overwrite): a clear error naming
+/// it, nothing run.
+#[test]
+fn a_device_is_not_a_recording_target() {
+    let out = servo()
+        .args([
+            "run",
+            "-q",
+            "--duration",
+            "1",
+            "--overwrite",
+            "--out",
+            "/dev/full",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("/dev/full") && err.contains("not a regular file"),
+        "{err}"
+    );
+}
+
+/// The disk filling mid-run (here: a 2 MB file-size limit) ends the run safely with a clear
+/// error (exit 1, no panic), and the unfinished file it leaves is recovered by `servo inspect`.
+#[test]
+fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
+    let dir = tmp("fulldisk");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("big.mcap");
+    let script = format!(
+        "trap '' XFSZ; ulimit -f 4000; exec '{}' run -q --duration 5 --out '{}'",
+        env!("CARGO_BIN_EXE_servo"),
+        path.display()
+    );
+    let out = Command::new("sh").args(["-c", &script]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("big.mcap") && err.contains("too large"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        !path.exists(),
+        "an unfinished file must not take the target's name"
+    );
+    let partial = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().ends_with(".partial"))
+        .expect("the unfinished recording is kept");
+    let read = json(
+        &servo()
+            .args(["inspect", "--json"])
+            .arg(&partial)
+            .output()
+            .unwrap(),
+    );
+    let file = read["file"].as_str().unwrap();
+    assert!(file.starts_with("unfinished"), "{file}");
+    assert!(
+        read["summary"]["ticks"].as_u64().unwrap() > 10_000,
+        "{read}"
+    );
+    assert_eq!(read["summary"]["meta"]["end_reason"], "unfinished");
+}
