@@ -10,7 +10,7 @@
 
 use crate::error::RunError;
 use crate::plan::Plan;
-use crate::recording::metadata;
+use crate::recording;
 use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
@@ -19,7 +19,7 @@ use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
-use recorder::{Chunks, Frame, Overwrite, RecordOptions, Recorder};
+use recorder::{Chunks, Frame};
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -211,20 +211,7 @@ pub fn record(
     let tap = Tap::new(&ep)?;
     let mut rec = match &out {
         // Uncompressed: this process shares the cores with two busy-polling ones.
-        Some(path) => Some(Recorder::create(
-            path,
-            metadata(plan),
-            RecordOptions {
-                chunks: Chunks::Raw,
-                overwrite: if overwrite {
-                    Overwrite::Replace
-                } else {
-                    Overwrite::Refuse
-                },
-                inputs: plan.inputs.clone(),
-                ..Default::default()
-            },
-        )?),
+        Some(path) => Some(recording::create(plan, path, overwrite, Chunks::Raw)?),
         None => None,
     };
     let total = c.ticks();

@@ -9,7 +9,7 @@ use crate::config::{ConfigError, Loaded, RunConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
-use recorder::{FileState, Frame, ReadReport, Visit};
+use recorder::{Chunks, FileState, Frame, Overwrite, ReadReport, RecordOptions, Recorder, Visit};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -35,6 +35,30 @@ pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
         m.insert(input_key(&input.name), sha256_hex(&input.data));
     }
     m
+}
+
+/// Starts the recording of a run of `plan` at `path`: its `run` metadata, its inputs as
+/// attachments, chunks stored as `chunks`; an existing file is replaced only with `overwrite`.
+pub fn create(
+    plan: &Plan,
+    path: &Path,
+    overwrite: bool,
+    chunks: Chunks,
+) -> Result<Recorder, RunError> {
+    Ok(Recorder::create(
+        path,
+        metadata(plan),
+        RecordOptions {
+            chunks,
+            overwrite: if overwrite {
+                Overwrite::Replace
+            } else {
+                Overwrite::Refuse
+            },
+            inputs: plan.inputs.clone(),
+            ..Default::default()
+        },
+    )?)
 }
 
 /// The metadata key holding the SHA-256 of the input attachment `name`.

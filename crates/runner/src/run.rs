@@ -4,13 +4,13 @@
 
 use crate::error::RunError;
 use crate::plan::Plan;
-use crate::recording::metadata;
+use crate::recording;
 use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use daq_io::{Backend, Daq, InProcess};
-use recorder::{Frame, Overwrite, RecordOptions, Recorder};
+use recorder::{Chunks, Frame};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -45,19 +45,7 @@ pub fn run_with(
     let mut servo = ServoLoop::new(plan)?;
     let description = plan.controller.description.clone();
     let mut recorder = match &opts.out {
-        Some(path) => Some(Recorder::create(
-            path,
-            metadata(plan),
-            RecordOptions {
-                overwrite: if opts.overwrite {
-                    Overwrite::Replace
-                } else {
-                    Overwrite::Refuse
-                },
-                inputs: plan.inputs.clone(),
-                ..Default::default()
-            },
-        )?),
+        Some(path) => Some(recording::create(plan, path, opts.overwrite, Chunks::Zstd)?),
         None => None,
     };
     let total = c.ticks();
