@@ -238,8 +238,8 @@ mod tests {
 
     #[test]
     fn csv_interpolates_and_reports_bad_lines() {
-        let dir = std::env::temp_dir().join(format!("fts-cut-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let good = dir.join("good.csv");
         std::fs::write(&good, "time_s,force_n\n0,0\n1e-3,2\n2e-3,1\n").unwrap();
         let mut c = CuttingForce::new(&CuttingProfile::Csv { path: good }).unwrap();

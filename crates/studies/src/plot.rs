@@ -362,8 +362,8 @@ mod tests {
 
     #[test]
     fn writes_png_and_svg_when_a_font_exists() {
-        let dir = std::env::temp_dir().join(format!("fts-plot-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let x: Vec<f64> = (1..100).map(|i| i as f64 * 10.0).collect();
         let fig = Figure {
             title: "test".into(),

@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ExitCode, Stdio};
 use std::time::{Duration, Instant};
 
-/// Writes the plan's configuration (files made absolute) for the child processes.
+/// Writes the plan's configuration (files made absolute) for the child processes into `dir`
+/// (a private folder of this run).
 fn write_resolved(plan: &Plan, dir: &Path) -> Result<PathBuf, CliError> {
     let mut c = plan.config.clone();
     if let Some(p) = &c.controller.ss_file {
@@ -26,12 +27,10 @@ fn write_resolved(plan: &Plan, dir: &Path) -> Result<PathBuf, CliError> {
         }
     }
     let path = dir.join("config.toml");
-    std::fs::create_dir_all(dir)
-        .and_then(|_| std::fs::write(&path, c.to_toml()))
-        .map_err(|source| CliError::Write {
-            path: path.clone(),
-            source,
-        })?;
+    std::fs::write(&path, c.to_toml()).map_err(|source| CliError::Write {
+        path: path.clone(),
+        source,
+    })?;
     Ok(path)
 }
 
@@ -71,8 +70,16 @@ pub fn run(
         .unwrap_or_else(|| format!("run-{}", std::process::id()));
     daq_io::ipc::check_prefix(&prefix)
         .map_err(|e| Origin::default().invalid("--prefix", &prefix, &e))?;
-    let dir = std::env::temp_dir().join(format!("fts-servo-{prefix}"));
-    let config = write_resolved(plan, &dir)?;
+    // A folder of our own, created exclusively (mode 0700, unpredictable name): nobody else
+    // can place or replace the configuration the children run; removed when this returns.
+    let dir = tempfile::Builder::new()
+        .prefix("fts-servo-")
+        .tempdir()
+        .map_err(|source| CliError::Write {
+            path: std::env::temp_dir(),
+            source,
+        })?;
+    let config = write_resolved(plan, dir.path())?;
     let config = config.to_str().expect("temp paths are UTF-8");
     let mode = if realtime { "--realtime" } else { "--lockstep" };
     let out_arg = out.as_ref().map(|p| p.display().to_string());
@@ -153,7 +160,6 @@ pub fn run(
     if let Some(mut o) = recorder.stdout {
         let _ = o.read_to_string(&mut text);
     }
-    let _ = std::fs::remove_dir_all(&dir);
     let summary: Summary = serde_json::from_str(&text).map_err(|_| {
         CliError::Processes(format!(
             "the recorder gave no summary (exit codes: {})",
