@@ -4,7 +4,7 @@ use std::path::Path;
 
 mod common;
 
-use common::{json, servo, tmp};
+use common::{json, servo, succeeded, tmp};
 
 fn nm(v: &serde_json::Value, group: &str) -> f64 {
     v[group]["rms"].as_f64().unwrap() * 1e9
@@ -184,11 +184,7 @@ fn budget_writes_data_and_plots() {
         .arg(&dir)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         text.contains("thesis §5.7.2") && text.contains("total"),

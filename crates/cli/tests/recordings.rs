@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{json, servo, tmp};
+use common::{json, servo, succeeded, tmp};
 use std::process::{Command, Stdio};
 
 /// The default run writes an MCAP that the official reader decodes completely, and `servo
@@ -149,11 +149,7 @@ fn inspect_reads_nothing_but_the_recording() {
         .arg(&ctrl)
         .output()
         .unwrap();
-    assert!(
-        synth.status.success(),
-        "{}",
-        String::from_utf8_lossy(&synth.stderr)
-    );
+    succeeded(&synth);
     let rec = dir.join("ss.mcap");
     let run = servo()
         .args([
@@ -172,11 +168,7 @@ fn inspect_reads_nothing_but_the_recording() {
         .arg(&rec)
         .output()
         .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    succeeded(&run);
     std::fs::remove_file(&ctrl).unwrap();
     let read = json(
         &servo()

@@ -13,6 +13,6 @@ pub mod writer;
 pub use frame::{Frame, Telemetry, Truth};
 pub use reader::{read, stream, FileState, ReadError, ReadReport, Recording, Visit};
 pub use writer::{
-    partial_path, Chunks, Input, Overwrite, RecordError, RecordOptions, RecordStats, Recorder,
-    WhenFull, CHUNK_BYTES,
+    check_target, partial_path, Chunks, Input, Overwrite, RecordError, RecordOptions, RecordStats,
+    Recorder, WhenFull, CHUNK_BYTES,
 };

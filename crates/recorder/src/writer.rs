@@ -162,19 +162,7 @@ impl Recorder {
             path: path.to_owned(),
             source,
         };
-        if let Ok(existing) = std::fs::symlink_metadata(path) {
-            if !existing.is_file() {
-                // A device, a directory or a link is never replaced by a recording.
-                return Err(io(std::io::Error::other(
-                    "exists and is not a regular file",
-                )));
-            }
-            if options.overwrite == Overwrite::Refuse {
-                return Err(RecordError::Exists {
-                    path: path.to_owned(),
-                });
-            }
-        }
+        check_target(path, options.overwrite)?;
         let partial = partial_path(path);
         let file = File::options()
             .write(true)
@@ -365,6 +353,27 @@ fn drain<W: std::io::Write + std::io::Seek>(
 /// Target bytes of records per chunk (4 MiB ≈ 26 ms of a 199.6 kHz run: what a killed run
 /// loses at most).
 pub const CHUNK_BYTES: u64 = 4 << 20;
+
+/// Whether a recording may be written to `path`: a device, a directory or a link is never
+/// replaced; an existing file only with [`Overwrite::Replace`]. [`Recorder::create`] checks
+/// this; a caller that starts other work first (the HIL processes) can check it earlier.
+pub fn check_target(path: &Path, overwrite: Overwrite) -> Result<(), RecordError> {
+    let Ok(existing) = std::fs::symlink_metadata(path) else {
+        return Ok(());
+    };
+    if !existing.is_file() {
+        return Err(RecordError::Io {
+            path: path.to_owned(),
+            source: std::io::Error::other("exists and is not a regular file"),
+        });
+    }
+    if overwrite == Overwrite::Refuse {
+        return Err(RecordError::Exists {
+            path: path.to_owned(),
+        });
+    }
+    Ok(())
+}
 
 /// `<dir>/<name>.<pid>.partial`: the recording while it is written.
 pub fn partial_path(path: &Path) -> PathBuf {

@@ -59,10 +59,14 @@ pub fn run(
     plan.check_stable()?;
     timeout.timeout()?;
     let (realtime, quiet) = (hil.realtime, rec.quiet);
-    if let (Some(o), false) = (&out, rec.overwrite) {
-        if o.exists() {
-            return Err(RunError::Record(recorder::RecordError::Exists { path: o.clone() }).into());
-        }
+    if let Some(o) = &out {
+        // Checked before any process starts (the recorder process checks it again).
+        let overwrite = if rec.overwrite {
+            recorder::Overwrite::Replace
+        } else {
+            recorder::Overwrite::Refuse
+        };
+        recorder::check_target(o, overwrite).map_err(RunError::from)?;
     }
     let prefix = hil
         .prefix

@@ -15,12 +15,17 @@ pub fn tmp(name: &str) -> PathBuf {
     dir.join(name)
 }
 
-/// The JSON a successful `servo … --json` printed (panics with its stderr otherwise).
-pub fn json(out: &Output) -> serde_json::Value {
+/// Asserts that `out` is a successful run, showing its stderr otherwise.
+pub fn succeeded(out: &Output) {
     assert!(
         out.status.success(),
         "servo failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// The JSON a successful `servo … --json` printed (panics with its stderr otherwise).
+pub fn json(out: &Output) -> serde_json::Value {
+    succeeded(out);
     serde_json::from_slice(&out.stdout).expect("JSON summary")
 }
