@@ -86,15 +86,17 @@ impl Plan {
     }
 
     /// The same run with another controller (the stage, its noise and the surface reused;
-    /// a controller file path is taken as it is, like the plan's own resolved paths).
+    /// a controller file path is taken as it is, like the plan's own resolved paths, and the
+    /// file already read is reused when the path is unchanged).
     pub fn with_controller(&self, controller: ControllerConfig) -> Result<Self, RunError> {
+        let same_file = controller.ss_file == self.config.controller.ss_file;
         let mut config = self.config.clone();
         config.controller = controller;
         config.validate(&self.origin)?;
         let inputs = self
             .inputs
             .iter()
-            .filter(|i| i.name != CONTROLLER_INPUT)
+            .filter(|i| same_file || i.name != CONTROLLER_INPUT)
             .cloned()
             .collect();
         Plan::assemble(
@@ -122,18 +124,28 @@ impl Plan {
         mut inputs: Vec<Input>,
     ) -> Result<Self, RunError> {
         let c = &config.controller;
+        let rate = config.plant.timing.servo_rate_hz;
         let file = match (&c.kind, &c.ss_file) {
             (ControllerKind::Ss, Some(path)) => {
-                let text = read_text(path)?;
-                let file = ControllerFile::parse(&text, path, config.plant.timing.servo_rate_hz)?;
-                inputs.push(Input {
-                    name: CONTROLLER_INPUT.into(),
-                    media_type: "application/toml".into(),
-                    data: text.into_bytes(),
-                });
-                Some(file)
+                let read = inputs.iter().find(|i| i.name == CONTROLLER_INPUT);
+                let text = match read {
+                    Some(i) => String::from_utf8_lossy(&i.data).into_owned(),
+                    None => {
+                        let text = read_text(path)?;
+                        inputs.push(Input {
+                            name: CONTROLLER_INPUT.into(),
+                            media_type: "application/toml".into(),
+                            data: text.clone().into_bytes(),
+                        });
+                        text
+                    }
+                };
+                Some(ControllerFile::parse(&text, path, rate)?)
             }
-            _ => None,
+            _ => {
+                inputs.retain(|i| i.name != CONTROLLER_INPUT);
+                None
+            }
         };
         let controller = Controller::build(&config, &origin, file.as_ref())?;
         let closed_loop = closed_loop_of(&config, &origin, &sim, &controller)?;

@@ -169,8 +169,9 @@ struct RunReader<'a, S: FrameSink> {
 }
 
 impl<S: FrameSink> RunReader<'_, S> {
-    /// The header from the `run` record and the attachments read so far.
-    fn header(&self) -> Result<RunHeader, RunError> {
+    /// The header from the `run` record and the attachments read so far (taken: it is built
+    /// once, before the first frame or at the end of a file without frames).
+    fn header(&mut self) -> Result<RunHeader, RunError> {
         let not_a_run = || RunError::NotARun(self.path.to_owned());
         let run = self.run.as_ref().ok_or_else(not_a_run)?;
         let text = run.get("config").ok_or_else(not_a_run)?;
@@ -178,17 +179,15 @@ impl<S: FrameSink> RunReader<'_, S> {
             path: self.path.to_owned(),
             message: e.to_string(),
         })?;
-        let mut inputs = BTreeMap::new();
         for (name, data) in &self.attachments {
-            let stated = run.get(&input_key(name));
-            if stated != Some(&sha256_hex(data)) {
+            if run.get(&input_key(name)) != Some(&sha256_hex(data)) {
                 return Err(RunError::InputMismatch {
                     path: self.path.to_owned(),
                     input: name.clone(),
                 });
             }
-            inputs.insert(name.clone(), data.clone());
         }
+        let inputs = std::mem::take(&mut self.attachments);
         Ok(RunHeader {
             controller: run
                 .get("controller")
