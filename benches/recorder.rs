@@ -1,44 +1,24 @@
-//! Recorder throughput: one second of frames at 199.6 kHz (two messages each) pushed through
-//! the ring, encoded and written to a zstd-chunked MCAP file, as a multiple of real time; the
-//! baseline in the same run writes the same CDR payloads back to back to a plain buffered file.
+//! Recorder throughput: one simulated second of a real closed-loop run (the default thesis
+//! prototype, 199.6 kHz, sensor and current noise on: realistic entropy) pushed through the
+//! ring, encoded and written as whole-chunk zstd MCAP with message indexes and the overview,
+//! as a multiple of real time; the baseline in the same run writes the same CDR payloads back
+//! to back to a plain buffered file. Prints the bytes per simulated second of each.
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use recorder::{Frame, Overwrite, RecordOptions, Recorder, Telemetry, Truth};
+use recorder::{Frame, Message, Overwrite, RecordOptions, Recorder};
+use runner::config::Loaded;
 use std::collections::BTreeMap;
 use std::io::Write;
 
-const FRAMES: usize = 199_600;
-
+/// One simulated second of the default run.
 fn frames() -> Vec<Frame> {
-    (0..FRAMES)
-        .map(|k| {
-            let t = k as f64 / 199_600.0;
-            let n = ((k * 2_654_435_761) % 1000) as f32 * 1e-12; // noise-like data, not constant
-            Frame {
-                time_ns: (t * 1e9).round() as u64,
-                telemetry: Telemetry {
-                    reference_m: 0.0,
-                    measured_m: n,
-                    following_error_m: -n,
-                    control_v: n * 1e6,
-                    accel_m_s2: n * 1e3,
-                    flags: 0.0,
-                },
-                truth: Truth {
-                    tool_m: n * 0.3,
-                    true_error_m: n * 0.3,
-                    gap_m: n,
-                    motor_force_n: n * 1e3,
-                    cutting_force_n: 0.0,
-                    coil_current_a: n * 1e4,
-                    current_noise_a: n * 1e2,
-                    base_m: n * 0.1,
-                    sensor_noise_v: n * 1e5,
-                },
-            }
-        })
-        .collect()
+    let mut loaded = Loaded::default();
+    loaded.config.run.duration_s = 1.0;
+    let plan = runner::Plan::new(&loaded).unwrap();
+    let mut out = Vec::new();
+    runner::run::run_to_end_with(&plan, |f| out.push(*f)).unwrap();
+    out
 }
 
 fn throughput(c: &mut Criterion) {
@@ -49,7 +29,7 @@ fn throughput(c: &mut Criterion) {
     let mut group = c.benchmark_group("recorder_1s");
     group
         .sample_size(10)
-        .throughput(Throughput::Elements(FRAMES as u64));
+        .throughput(Throughput::Elements(data.len() as u64));
     group.bench_function("mcap_zstd", |b| {
         b.iter(|| {
             let options = RecordOptions {
@@ -80,6 +60,14 @@ fn throughput(c: &mut Criterion) {
         })
     });
     group.finish();
+    for (what, file) in [("mcap", &path), ("raw", &dir.join("raw.bin"))] {
+        let bytes = std::fs::metadata(file).map_or(0, |m| m.len());
+        println!(
+            "recorder_1s/{what}: {:.1} MB per simulated second",
+            bytes as f64 / 1e6
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 criterion_group!(benches, throughput);

@@ -253,6 +253,11 @@ pub struct RecordingArgs {
     /// Replace an existing output file (otherwise the run does not start).
     #[arg(long, conflicts_with = "no_record")]
     pub overwrite: bool,
+    /// Log time of the run's t = 0 in the recording: an RFC 3339 date
+    /// (2026-01-01T00:00:00Z, the default, fixed so a seeded run's bytes repeat) or `now`.
+    /// Foxglove shows log times as dates.
+    #[arg(long, value_name = "DATE|now", value_parser = parse_epoch, conflicts_with = "no_record")]
+    pub log_epoch: Option<u64>,
     /// Do not write a file (summary only).
     #[arg(long)]
     pub no_record: bool,
@@ -265,10 +270,29 @@ pub struct RecordingArgs {
 }
 
 impl RecordingArgs {
-    /// The file to write, if any (`default` when --out is not given).
-    pub fn out(&self, default: &std::path::Path) -> Option<PathBuf> {
-        (!self.no_record).then(|| self.out.clone().unwrap_or_else(|| default.to_owned()))
+    /// The recording to write, if any (to `default` when --out is not given).
+    pub fn out(&self, default: &std::path::Path) -> Option<runner::recording::Target> {
+        (!self.no_record).then(|| runner::recording::Target {
+            path: self.out.clone().unwrap_or_else(|| default.to_owned()),
+            overwrite: self.overwrite,
+            epoch_ns: self.log_epoch.unwrap_or(recorder::DEFAULT_EPOCH_NS),
+        })
     }
+}
+
+/// `--log-epoch`: an RFC 3339 date or `now`, as ns since the Unix epoch.
+pub fn parse_epoch(s: &str) -> Result<u64, String> {
+    let when = if s == "now" {
+        std::time::SystemTime::now()
+    } else {
+        humantime::parse_rfc3339_weak(s).map_err(|e| {
+            format!("{e}: expected an RFC 3339 date such as 2026-01-01T00:00:00Z, or `now`")
+        })?
+    };
+    when.duration_since(std::time::UNIX_EPOCH)
+        .ok()
+        .and_then(|d| u64::try_from(d.as_nanos()).ok())
+        .ok_or_else(|| format!("{s}: must lie between 1970 and 2554"))
 }
 
 /// Options of the HIL processes.

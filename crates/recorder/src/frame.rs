@@ -1,11 +1,11 @@
 //! The recorded signal groups, one MCAP channel each, as ROS 2 message definitions encoded
 //! in CDR: Foxglove decodes and plots them without any plug-in (`/telemetry.following_error_m`).
 
-/// Declares a flat record of `f32` fields with its topic, ROS 2 schema name and CDR codec.
+/// Declares a flat group of `f32` fields with its ROS 2 field list and CDR body codec.
 /// float32 keeps ~7 significant digits: picometres on a 50 µm stroke, far finer on nm-scale
-/// errors, at half the bytes of float64 (the recorder's throughput is bytes through LZ4).
-macro_rules! record {
-    ($(#[$doc:meta])* $name:ident, $topic:literal, $schema:literal, { $($(#[$fdoc:meta])* $field:ident),+ $(,)? }) => {
+/// errors, at half the bytes of float64 (the recorder's throughput is bytes through zstd).
+macro_rules! fields {
+    ($(#[$doc:meta])* $name:ident { $($(#[$fdoc:meta])* $field:ident),+ $(,)? }) => {
         $(#[$doc])*
         #[derive(Debug, Clone, Copy, Default, PartialEq)]
         pub struct $name {
@@ -13,29 +13,88 @@ macro_rules! record {
         }
 
         impl $name {
-            /// MCAP topic.
-            pub const TOPIC: &'static str = $topic;
-            /// ROS 2 message type name (schema name).
-            pub const SCHEMA_NAME: &'static str = $schema;
             /// Field names, in wire order.
             pub const FIELDS: &'static [&'static str] = &[$(stringify!($field)),+];
+            /// Number of fields.
+            pub const LEN: usize = Self::FIELDS.len();
 
-            /// The `ros2msg` schema text: one `float32` line per field.
-            pub fn schema_text() -> String {
+            /// The fields in wire order.
+            pub fn values(&self) -> [f32; Self::LEN] {
+                [$(self.$field),+]
+            }
+
+            /// From the fields in wire order.
+            pub fn from_values(v: [f32; Self::LEN]) -> Self {
+                let mut it = v.into_iter();
+                $name { $($field: it.next().unwrap_or_default(),)+ }
+            }
+
+            /// The `ros2msg` field list: one `float32` line per field.
+            pub fn field_text() -> String {
                 Self::FIELDS.iter().map(|f| format!("float32 {f}\n")).collect()
             }
 
-            /// Appends the CDR encoding (little-endian encapsulation, 4-aligned floats).
-            pub fn encode(&self, out: &mut Vec<u8>) {
-                out.extend_from_slice(&CDR_LE_HEADER);
+            /// Appends the CDR body (4-aligned little-endian floats).
+            #[inline]
+            pub fn put(&self, out: &mut Vec<u8>) {
                 $(out.extend_from_slice(&self.$field.to_le_bytes());)+
             }
 
-            /// Decodes a CDR payload written by [`Self::encode`].
-            pub fn decode(data: &[u8]) -> Option<Self> {
-                let body = data.strip_prefix(&CDR_LE_HEADER[..])?;
-                let mut fields = body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap()));
-                Some($name { $($field: fields.next()?,)+ })
+            /// Reads the fields back from a CDR body.
+            pub fn take(body: &mut impl Iterator<Item = f32>) -> Option<Self> {
+                Some($name { $($field: body.next()?,)+ })
+            }
+        }
+    };
+}
+
+/// A message type of its own MCAP channel: topic, ROS 2 schema, CDR codec.
+pub trait Message: Sized {
+    /// MCAP topic.
+    const TOPIC: &'static str;
+    /// ROS 2 message type name (schema name).
+    const SCHEMA_NAME: &'static str;
+    /// The `ros2msg` schema text.
+    fn schema_text() -> String;
+    /// Appends the CDR body (after the encapsulation header).
+    fn put_body(&self, out: &mut Vec<u8>);
+    /// Reads a CDR body.
+    fn take_body(body: &[u8]) -> Option<Self>;
+
+    /// Appends the CDR encoding (little-endian encapsulation header, then the body).
+    #[inline]
+    fn encode(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&CDR_LE_HEADER);
+        self.put_body(out);
+    }
+
+    /// Decodes a CDR payload written by [`Message::encode`].
+    fn decode(data: &[u8]) -> Option<Self> {
+        Self::take_body(data.strip_prefix(&CDR_LE_HEADER[..])?)
+    }
+}
+
+/// The little-endian `f32`s of a CDR body.
+pub(crate) fn floats(body: &[u8]) -> impl Iterator<Item = f32> + '_ {
+    body.chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+}
+
+/// Makes a flat field group a [`Message`] of its own topic.
+macro_rules! message {
+    ($name:ident, $topic:literal, $schema:literal) => {
+        impl Message for $name {
+            const TOPIC: &'static str = $topic;
+            const SCHEMA_NAME: &'static str = $schema;
+            fn schema_text() -> String {
+                Self::field_text()
+            }
+            #[inline]
+            fn put_body(&self, out: &mut Vec<u8>) {
+                self.put(out)
+            }
+            fn take_body(body: &[u8]) -> Option<Self> {
+                Self::take(&mut floats(body))
             }
         }
     };
@@ -44,9 +103,9 @@ macro_rules! record {
 /// CDR encapsulation header for little-endian plain CDR.
 const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
 
-record!(
+fields!(
     /// What the controller knew this tick (all SI; the reference and measurement in m).
-    Telemetry, "/telemetry", "fts_servo/msg/Telemetry", {
+    Telemetry {
     /// Reference position in m.
     reference_m,
     /// Measured position (ADC gap reading / sensitivity) in m.
@@ -60,10 +119,11 @@ record!(
     /// Status flags of the tick ([`daq_io::flags`] bits) as a number.
     flags,
 });
+message!(Telemetry, "/telemetry", "fts_servo/msg/Telemetry");
 
-record!(
+fields!(
     /// What no sensor sees, at the same tick.
-    Truth, "/truth", "fts_servo/msg/Truth", {
+    Truth {
     /// True tool position relative to the frame `x1 − xg` in m.
     tool_m,
     /// True positioning error `tool − reference` in m.
@@ -83,6 +143,7 @@ record!(
     /// Sensor noise in the tick's reading in V.
     sensor_noise_v,
 });
+message!(Truth, "/truth", "fts_servo/msg/Truth");
 
 /// One tick: both groups, stamped with the tick time (the MCAP log time of both messages).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

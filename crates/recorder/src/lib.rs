@@ -1,18 +1,24 @@
 //! # recorder
 //!
-//! Runs logged to MCAP: one channel per signal group (`/telemetry`, `/truth`), ROS 2 message
-//! schemas in CDR that Foxglove plots directly, a `run` metadata record (resolved config,
-//! version, seed) and an `end` one (how the run ended), the run's input files as attachments,
-//! zstd-compressed chunks with message indexes. Writing happens on its own thread behind a
-//! preallocated ring, so the servo tick never encodes or does I/O.
+//! Runs logged to MCAP: one channel per signal group (`/telemetry`, `/truth`) plus a 1 kHz
+//! min/max/mean `/overview`, ROS 2 message schemas in CDR that Foxglove plots directly, a
+//! `run` metadata record (resolved config, seed, epoch), an `environment` one (what differs
+//! between runs of the same seed) and an `end` one (how the run ended), the run's input files
+//! as attachments, whole-chunk zstd compression with message indexes. Writing happens on its
+//! own thread behind a preallocated ring, so the servo tick never encodes or does I/O; reading
+//! streams in constant memory, checks CRCs and recovers unfinished files.
 
+#[macro_use]
 pub mod frame;
+pub mod mcap_file;
+pub mod overview;
 pub mod reader;
 pub mod writer;
 
-pub use frame::{Frame, Telemetry, Truth};
-pub use reader::{read, stream, FileState, ReadError, ReadReport, Recording, Visit};
+pub use frame::{Frame, Message, Telemetry, Truth};
+pub use overview::{Overview, Signals, OVERVIEW_PERIOD_NS};
+pub use reader::{read, stream, BadRecord, FileState, ReadError, ReadReport, Recording, Visit};
 pub use writer::{
-    check_target, partial_path, Chunks, Input, Overwrite, RecordError, RecordOptions, RecordStats,
-    Recorder, WhenFull, CHUNK_BYTES,
+    check_target, partial_path, Input, Overwrite, RecordError, RecordOptions, RecordStats,
+    Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY, SYNC_INTERVAL,
 };

@@ -1,12 +1,15 @@
-//! Reading a recording back as a stream (the official `mcap` crate's sans-io reader): constant
-//! memory whatever the file's length, chunk CRCs checked, and unfinished files (a run that was
-//! killed, a full disk) recovered up to their last complete record.
+//! Reading a recording back as a stream: one record (at most one chunk) in memory at a time,
+//! whatever the file's length; chunk and attachment CRCs checked; a corrupt chunk reported with
+//! its offset and skipped (the records around it are still read); an unfinished file (a run
+//! that was killed, a full disk) read up to its last complete record. The records are parsed
+//! here, following the MCAP specification, so every one of those cases is in our hands; the
+//! official `mcap` crate reads the same files in the tests.
 
-use crate::frame::{Frame, Telemetry, Truth};
-use mcap::records::Record;
-use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use crate::frame::{Frame, Message, Telemetry, Truth};
+use crate::mcap_file::{op, MAGIC};
+use crate::writer::EPOCH_KEY;
 use std::collections::BTreeMap;
-use std::io::Read;
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 /// Reading errors: the file cannot be opened, or it is not a recording at all.
@@ -21,13 +24,11 @@ pub enum ReadError {
         /// Cause.
         source: std::io::Error,
     },
-    /// Not an MCAP file (its first records are unreadable).
-    #[error("{path} is not an MCAP recording: {source}")]
-    Mcap {
+    /// Not an MCAP file (no MCAP magic at its start).
+    #[error("{path} is not an MCAP recording (no MCAP magic at its start)")]
+    NotMcap {
         /// File.
         path: PathBuf,
-        /// Cause.
-        source: mcap::McapError,
     },
 }
 
@@ -38,7 +39,7 @@ pub trait Visit {
     fn metadata(&mut self, _name: &str, _values: &BTreeMap<String, String>) {}
     /// An attachment (an input file of the run).
     fn attachment(&mut self, _name: &str, _data: &[u8]) {}
-    /// One tick: telemetry and truth.
+    /// One tick: telemetry and truth, its time in ns from the run's start.
     fn frame(&mut self, frame: &Frame);
 }
 
@@ -50,26 +51,50 @@ pub enum FileState {
     /// It ends early (the run was killed or the disk filled): everything up to the last
     /// complete record was read.
     Unfinished,
-    /// A record failed its check (a chunk CRC); the records before it were read.
+    /// The record structure breaks at `at_byte` (an impossible record length): what came
+    /// before was read, nothing after can be found.
     Corrupt {
-        /// Bytes of the file read when the bad record was found (it lies before this offset).
-        before_byte: u64,
-        /// What failed.
+        /// Offset of the record that cannot be right.
+        at_byte: u64,
+        /// What is wrong with it.
         reason: String,
     },
+}
+
+/// A record that failed its check and was skipped.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BadRecord {
+    /// Offset of the record in the file.
+    pub at_byte: u64,
+    /// What failed (CRC, size, compression).
+    pub reason: String,
 }
 
 /// What a read found.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ReadReport {
-    /// Messages read.
+    /// Full-rate messages read (`/telemetry` and `/truth`).
     pub messages: u64,
     /// Frames (tick pairs of telemetry and truth) read.
     pub frames: u64,
-    /// Log time of the last frame, ns.
+    /// Time of the last frame from the run's start, ns.
     pub last_time_ns: Option<u64>,
     /// Whether the file was complete.
     pub state: FileState,
+    /// Records that failed their check and were skipped (the first [`MAX_BAD_LISTED`]).
+    pub bad: Vec<BadRecord>,
+    /// How many records failed their check in all.
+    pub bad_count: u64,
+}
+
+/// Bad records listed in a [`ReadReport`] (the rest are counted).
+pub const MAX_BAD_LISTED: usize = 16;
+
+impl ReadReport {
+    /// Whether anything in the file failed its check.
+    pub fn is_damaged(&self) -> bool {
+        self.bad_count > 0 || matches!(self.state, FileState::Corrupt { .. })
+    }
 }
 
 impl std::fmt::Display for ReadReport {
@@ -78,23 +103,34 @@ impl std::fmt::Display for ReadReport {
             format!("t = {:.6} s", t as f64 * 1e-9)
         });
         match &self.state {
-            FileState::Finished => write!(f, "complete, {} messages", self.messages),
+            FileState::Finished => write!(f, "complete, {} messages", self.messages)?,
             FileState::Unfinished => write!(
                 f,
                 "unfinished, {} messages recovered up to {until}",
                 self.messages
-            ),
-            FileState::Corrupt {
-                before_byte,
-                reason,
-            } => write!(
+            )?,
+            FileState::Corrupt { at_byte, reason } => write!(
                 f,
-                "corrupt record before byte {before_byte} ({reason}); {} messages read up to {until}",
+                "unreadable from byte {at_byte} ({reason}); {} messages read up to {until}",
                 self.messages
-            ),
+            )?,
         }
+        if let Some(first) = self.bad.first() {
+            write!(
+                f,
+                "; {} corrupt record(s) skipped, the first at byte {} ({})",
+                self.bad_count, first.at_byte, first.reason
+            )?;
+        }
+        Ok(())
     }
 }
+
+/// Largest record accepted, bytes (attachments are input files, bounded at 64 MiB).
+pub const MAX_RECORD_BYTES: u64 = 256 << 20;
+
+/// Largest decompressed chunk accepted, bytes.
+pub const MAX_CHUNK_BYTES: u64 = 64 << 20;
 
 /// Streams `path` into `visit`. Errors only when the file cannot be opened or is not MCAP; a
 /// truncated or corrupt file is read as far as it is intact and says so in the report.
@@ -103,128 +139,252 @@ pub fn stream(path: &Path, visit: &mut impl Visit) -> Result<ReadReport, ReadErr
         path: path.to_owned(),
         source,
     };
-    let mut file = std::fs::File::open(path).map_err(io)?;
+    let file = std::fs::File::open(path).map_err(io)?;
     if !file.metadata().map_err(io)?.is_file() {
         return Err(io(std::io::Error::other("not a regular file")));
     }
-    let mut reader = LinearReader::new_with_options(
-        // Each chunk's CRC is checked before any of its records is shown (a chunk is at most
-        // a few MiB): a corrupt chunk yields nothing, never garbage.
-        LinearReaderOptions::default()
-            .with_prevalidate_chunk_crcs(true)
-            .with_record_length_limit(MAX_RECORD_BYTES),
-    );
+    let mut input = BufReader::with_capacity(1 << 20, file);
+    let mut magic = [0u8; 8];
+    if read_full(&mut input, &mut magic).map_err(io)? < 8 || &magic != MAGIC {
+        return Err(ReadError::NotMcap {
+            path: path.to_owned(),
+        });
+    }
     let mut s = Streamer::default();
-    let mut fed = 0u64;
-    let mut eof = false;
+    let mut at = 8u64;
+    let mut head = [0u8; 9];
+    let mut body = Vec::new();
     let state = loop {
-        let Some(event) = reader.next_event() else {
-            break FileState::Finished;
-        };
-        match event {
-            Ok(LinearReadEvent::ReadRequest(n)) => {
-                if eof {
-                    break if s.footer {
-                        FileState::Finished
-                    } else {
-                        FileState::Unfinished
-                    };
-                }
-                let buf = reader.insert(n.max(1 << 16));
-                let got = file.read(buf).map_err(io)?;
-                reader.notify_read(got);
-                fed += got as u64;
-                eof = got == 0;
-            }
-            Ok(LinearReadEvent::Record { data, opcode }) => {
-                match mcap::parse_record(opcode, data) {
-                    Ok(record) => s.record(record, visit),
-                    Err(e) => break s.bad(fed, e, path)?,
-                }
-            }
-            Err(e) => break s.bad(fed, e, path)?,
+        if read_full(&mut input, &mut head).map_err(io)? < 9 {
+            break FileState::Unfinished;
         }
+        let opcode = head[0];
+        let len = u64::from_le_bytes(head[1..].try_into().expect("8 bytes"));
+        if len > MAX_RECORD_BYTES {
+            break FileState::Corrupt {
+                at_byte: at,
+                reason: format!("record length {len} exceeds {MAX_RECORD_BYTES}"),
+            };
+        }
+        body.clear();
+        let got = (&mut input).take(len).read_to_end(&mut body).map_err(io)?;
+        if (got as u64) < len {
+            break FileState::Unfinished;
+        }
+        if opcode == op::FOOTER {
+            break FileState::Finished;
+        }
+        if let Err(reason) = s.record(opcode, &body, visit) {
+            s.bad(at, reason);
+        }
+        at += 9 + len;
     };
     Ok(ReadReport {
         messages: s.messages,
         frames: s.frames,
         last_time_ns: s.last_time_ns,
         state,
+        bad: s.bad,
+        bad_count: s.bad_count,
     })
 }
 
-/// Largest record accepted, bytes (a chunk is 4 MiB of records; attachments are input files).
-pub const MAX_RECORD_BYTES: usize = 256 << 20;
+/// Reads until `buf` is full or the file ends; the bytes read.
+fn read_full(input: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match input.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// Little-endian fields of a record body, each failing with what was missing.
+struct Fields<'a>(&'a [u8]);
+
+impl<'a> Fields<'a> {
+    fn bytes(&mut self, n: usize) -> Result<&'a [u8], String> {
+        if self.0.len() < n {
+            return Err("record too short".into());
+        }
+        let (head, rest) = self.0.split_at(n);
+        self.0 = rest;
+        Ok(head)
+    }
+    fn u16(&mut self) -> Result<u16, String> {
+        Ok(u16::from_le_bytes(self.bytes(2)?.try_into().expect("2")))
+    }
+    fn u32(&mut self) -> Result<u32, String> {
+        Ok(u32::from_le_bytes(self.bytes(4)?.try_into().expect("4")))
+    }
+    fn u64(&mut self) -> Result<u64, String> {
+        Ok(u64::from_le_bytes(self.bytes(8)?.try_into().expect("8")))
+    }
+    fn str(&mut self) -> Result<String, String> {
+        let n = self.u32()? as usize;
+        String::from_utf8(self.bytes(n)?.to_vec()).map_err(|_| "string not UTF-8".into())
+    }
+    fn string_map(&mut self) -> Result<BTreeMap<String, String>, String> {
+        let n = self.u32()? as usize;
+        let mut m = Fields(self.bytes(n)?);
+        let mut map = BTreeMap::new();
+        while !m.0.is_empty() {
+            map.insert(m.str()?, m.str()?);
+        }
+        Ok(map)
+    }
+}
 
 /// Pairs the messages of a tick into frames.
 #[derive(Default)]
 struct Streamer {
     topics: BTreeMap<u16, String>,
+    epoch_ns: u64,
     pending: Option<(u32, u64, Telemetry)>,
     messages: u64,
     frames: u64,
     last_time_ns: Option<u64>,
-    footer: bool,
-    anything: bool,
+    bad: Vec<BadRecord>,
+    bad_count: u64,
+    zstd: Option<zstd::bulk::Decompressor<'static>>,
+    chunk: Vec<u8>,
 }
 
 impl Streamer {
-    fn record(&mut self, record: Record<'_>, visit: &mut impl Visit) {
-        self.anything = true;
-        match record {
-            Record::Channel(c) => {
-                self.topics.insert(c.id, c.topic);
-            }
-            Record::Metadata(m) => visit.metadata(&m.name, &m.metadata),
-            Record::Attachment { header, data, .. } => visit.attachment(&header.name, &data),
-            Record::Message { header, data } => {
-                self.messages += 1;
-                match self.topics.get(&header.channel_id).map(String::as_str) {
-                    Some(Telemetry::TOPIC) => {
-                        self.pending =
-                            Telemetry::decode(&data).map(|t| (header.sequence, header.log_time, t));
-                    }
-                    Some(Truth::TOPIC) => {
-                        if let (Some((seq, time_ns, telemetry)), Some(truth)) =
-                            (self.pending.take(), Truth::decode(&data))
-                        {
-                            if seq == header.sequence {
-                                self.frames += 1;
-                                self.last_time_ns = Some(time_ns);
-                                visit.frame(&Frame {
-                                    time_ns,
-                                    telemetry,
-                                    truth,
-                                });
-                            }
-                        }
-                    }
-                    _ => {}
-                }
-            }
-            Record::Footer(_) => self.footer = true,
-            _ => {}
+    fn bad(&mut self, at_byte: u64, reason: String) {
+        self.bad_count += 1;
+        if self.bad.len() < MAX_BAD_LISTED {
+            self.bad.push(BadRecord { at_byte, reason });
         }
     }
 
-    /// A read error: before any record the file is not a recording; after some, the rest of
-    /// the file is unusable and what was read stands.
-    fn bad(&self, fed: u64, e: mcap::McapError, path: &Path) -> Result<FileState, ReadError> {
-        if !self.anything {
-            return Err(ReadError::Mcap {
-                path: path.to_owned(),
-                source: e,
-            });
-        }
-        Ok(match e {
-            mcap::McapError::UnexpectedEof | mcap::McapError::UnexpectedEoc => {
-                FileState::Unfinished
+    /// One record of the data section.
+    fn record(&mut self, opcode: u8, body: &[u8], visit: &mut impl Visit) -> Result<(), String> {
+        let mut f = Fields(body);
+        match opcode {
+            op::CHANNEL => {
+                let id = f.u16()?;
+                let _schema = f.u16()?;
+                self.topics.insert(id, f.str()?);
             }
-            other => FileState::Corrupt {
-                before_byte: fed,
-                reason: other.to_string(),
-            },
-        })
+            op::METADATA => {
+                let name = f.str()?;
+                let values = f.string_map()?;
+                if name == "run" {
+                    self.epoch_ns = values
+                        .get(EPOCH_KEY)
+                        .and_then(|e| e.parse().ok())
+                        .unwrap_or(0);
+                }
+                visit.metadata(&name, &values);
+            }
+            op::ATTACHMENT => {
+                let checked = body.len().checked_sub(4).ok_or("record too short")?;
+                let crc = u32::from_le_bytes(body[checked..].try_into().expect("4"));
+                if crc != 0 && crc != crc32fast::hash(&body[..checked]) {
+                    return Err("attachment CRC mismatch".into());
+                }
+                let (_log, _create) = (f.u64()?, f.u64()?);
+                let name = f.str()?;
+                let _media = f.str()?;
+                let n = f.u64()?;
+                let data = f.bytes(usize::try_from(n).map_err(|_| "attachment too large")?)?;
+                visit.attachment(&name, data);
+            }
+            op::MESSAGE => self.message(body, visit)?,
+            op::CHUNK => self.chunk(body, visit)?,
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// A chunk: size, compression and CRC checked before any of its records is shown (a
+    /// corrupt chunk yields nothing, never garbage).
+    fn chunk(&mut self, body: &[u8], visit: &mut impl Visit) -> Result<(), String> {
+        let mut f = Fields(body);
+        let (_start, _end) = (f.u64()?, f.u64()?);
+        let size = f.u64()?;
+        let crc = f.u32()?;
+        let compression = f.str()?;
+        let n = f.u64()?;
+        let compressed = f.bytes(usize::try_from(n).map_err(|_| "chunk too large")?)?;
+        if size > MAX_CHUNK_BYTES {
+            return Err(format!("chunk of {size} bytes exceeds {MAX_CHUNK_BYTES}"));
+        }
+        let mut records = std::mem::take(&mut self.chunk);
+        records.clear();
+        match compression.as_str() {
+            "" => records.extend_from_slice(compressed),
+            "zstd" => {
+                records.reserve(size as usize);
+                let z = match &mut self.zstd {
+                    Some(z) => z,
+                    None => self
+                        .zstd
+                        .insert(zstd::bulk::Decompressor::new().map_err(|e| e.to_string())?),
+                };
+                z.decompress_to_buffer(compressed, &mut records)
+                    .map_err(|e| format!("zstd: {e}"))?;
+            }
+            other => return Err(format!("unsupported chunk compression {other:?}")),
+        }
+        if records.len() as u64 != size {
+            return Err(format!("chunk holds {} bytes, not {size}", records.len()));
+        }
+        if crc != 0 && crc != crc32fast::hash(&records) {
+            return Err("chunk CRC mismatch".into());
+        }
+        let mut inner = Fields(&records);
+        let result = (|| {
+            while !inner.0.is_empty() {
+                let opcode = inner.bytes(1)?[0];
+                let len = inner.u64()?;
+                let record = inner.bytes(usize::try_from(len).map_err(|_| "record too large")?)?;
+                self.record(opcode, record, visit)?;
+            }
+            Ok(())
+        })();
+        self.chunk = records;
+        result
+    }
+
+    /// A message: telemetry waits for the truth of the same tick.
+    fn message(&mut self, body: &[u8], visit: &mut impl Visit) -> Result<(), String> {
+        let mut f = Fields(body);
+        let channel = f.u16()?;
+        let sequence = f.u32()?;
+        let log_time = f.u64()?;
+        let _publish = f.u64()?;
+        let data = f.0;
+        let time_ns = log_time.saturating_sub(self.epoch_ns);
+        match self.topics.get(&channel).map(String::as_str) {
+            Some(Telemetry::TOPIC) => {
+                self.messages += 1;
+                self.pending = Telemetry::decode(data).map(|t| (sequence, time_ns, t));
+            }
+            Some(Truth::TOPIC) => {
+                self.messages += 1;
+                if let (Some((seq, time_ns, telemetry)), Some(truth)) =
+                    (self.pending.take(), Truth::decode(data))
+                {
+                    if seq == sequence {
+                        self.frames += 1;
+                        self.last_time_ns = Some(time_ns);
+                        visit.frame(&Frame {
+                            time_ns,
+                            telemetry,
+                            truth,
+                        });
+                    }
+                }
+            }
+            _ => {}
+        }
+        Ok(())
     }
 }
 

@@ -1,48 +1,43 @@
 //! MCAP writing off the servo tick: the loop pushes [`Frame`]s into a preallocated wait-free
-//! ring; a writer thread encodes them and writes zstd-compressed chunks with message indexes
-//! (profile `ros2`: what Foxglove's indexed reader expects). Log time is the simulation time,
-//! so a seeded run gives a byte-identical file.
+//! ring; a writer thread encodes them into whole-chunk zstd chunks with message indexes
+//! ([`crate::mcap_file`]; profile `ros2`: what Foxglove's indexed reader expects), adds the
+//! 1 kHz [`crate::overview`] channel, and keeps up with the loop on one core (≥ 25× real time
+//! at 199.6 kHz, `cargo bench --bench recorder`).
+//!
+//! Log time is the run's time from a fixed epoch ([`DEFAULT_EPOCH_NS`], configurable), so a
+//! seeded run gives byte-identical data channels and Foxglove shows real dates. What differs
+//! between two runs of the same seed (run id, host, version, wall-clock times) is kept to the
+//! `environment` metadata record (at the start) and the `timing` one (at the end).
 //!
 //! The file is written under a temporary name beside the target (`<name>.<pid>.partial`) and
 //! renamed when finished; an existing target is kept unless [`Overwrite::Replace`] is asked
-//! for. A run that dies leaves the `.partial` file, which the reader recovers up to its last
-//! complete chunk (4 MiB of records, ≈ 26 ms of a 199.6 kHz run).
-//!
-//! Compression choice (measured, `cargo bench --bench recorder`): the mcap crate feeds every
-//! message record to the compressor separately; LZ4's frame API pays a checksum and a bound
-//! computation per write (≈ 3–4× real time), zstd level 1 in the writer thread ≈ 5×. zstd's
-//! own worker threads are off: on two cores they compete with the servo loop.
+//! for. Every closed chunk reaches the operating system in one write at once, and storage
+//! (`fdatasync`) at least every [`SYNC_INTERVAL`]: a run killed with SIGKILL loses at most the
+//! chunk being filled ([`CHUNK_SPAN_NS`] of run) and what waits in the ring; a power loss at
+//! most [`SYNC_INTERVAL`] more. The reader recovers the rest.
 
-use crate::frame::{Frame, Telemetry, Truth};
-use mcap::records::{MessageHeader, Metadata};
-use mcap::{Attachment, Compression, WriteOptions, Writer};
+use crate::frame::{Frame, Message, Telemetry, Truth};
+use crate::mcap_file::McapFile;
+use crate::overview::{Overview, OverviewBin};
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant, SystemTime};
 
 /// Recording errors.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum RecordError {
-    /// The output file could not be created or written.
+    /// The output file could not be created or written (a full disk, an I/O error).
     #[error("cannot write {path}: {source}")]
     Io {
         /// Output path.
         path: PathBuf,
         /// Cause.
         source: std::io::Error,
-    },
-    /// The MCAP layer failed (usually an I/O error underneath, e.g. a full disk).
-    #[error("writing {path}: {source}")]
-    Mcap {
-        /// Output path.
-        path: PathBuf,
-        /// Cause.
-        source: mcap::McapError,
     },
     /// The target exists and [`Overwrite::Refuse`] was asked for.
     #[error("{} exists: not overwritten (pass --overwrite to replace it)", path.display())]
@@ -81,22 +76,31 @@ pub struct Input {
 pub struct RecordOptions {
     /// Ring full: wait or drop.
     pub when_full: WhenFull,
-    /// Chunk storage.
-    pub chunks: Chunks,
     /// Existing target.
     pub overwrite: Overwrite,
     /// Files embedded as attachments, before the first message.
     pub inputs: Vec<Input>,
+    /// Log time of the run's t = 0, ns since the Unix epoch (Foxglove shows log times as
+    /// dates). Kept in the `run` record as `log_time_epoch_ns`; readers subtract it.
+    pub epoch_ns: u64,
+    /// The `environment` record: what differs between two runs of the same seed (run id,
+    /// host, version, …). The recorder adds `started` (UTC).
+    pub environment: BTreeMap<String, String>,
 }
 
+/// The default log-time epoch: 2026-01-01T00:00:00Z, in ns since the Unix epoch (fixed, so
+/// a seeded run's bytes are reproducible).
+pub const DEFAULT_EPOCH_NS: u64 = 1_767_225_600_000_000_000;
+
 impl Default for RecordOptions {
-    /// Wait when full, zstd chunks, never overwrite, nothing attached.
+    /// Wait when full, never overwrite, nothing attached, the default epoch.
     fn default() -> Self {
         RecordOptions {
             when_full: WhenFull::Wait,
-            chunks: Chunks::Zstd,
             overwrite: Overwrite::Refuse,
             inputs: Vec::new(),
+            epoch_ns: DEFAULT_EPOCH_NS,
+            environment: BTreeMap::new(),
         }
     }
 }
@@ -113,7 +117,7 @@ pub enum WhenFull {
 /// Counts reported when a recording is finished.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct RecordStats {
-    /// Messages written (two per recorded frame).
+    /// Full-rate messages written (two per recorded frame; the overview is not counted).
     pub messages: u64,
     /// Frames dropped because the ring was full.
     pub dropped_frames: u64,
@@ -131,34 +135,46 @@ pub struct Recorder {
     thread: Option<JoinHandle<Result<u64, RecordError>>>,
 }
 
-/// Frames the ring holds (≈ 0.1 s at 199.6 kHz; 20 k × 136 B ≈ 2.7 MB).
+/// Frames the ring holds (≈ 0.16 s at 199.6 kHz; 32 768 × 64 B ≈ 2 MB).
 pub const RING_FRAMES: usize = 1 << 15;
 
-/// How chunks are stored.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Chunks {
-    /// zstd level 1 (≈ 6× smaller; 0.2–0.3 s of one core per simulated second at 199.6 kHz).
-    Zstd,
-    /// Uncompressed (≈ 25 MB per simulated second; ≈ 10× cheaper to write): for a recorder
-    /// that shares the cores with a real-time loop.
-    Raw,
-}
+/// Run time one full-rate chunk covers at most, ns (20 ms: ≈ 4 000 ticks, ≈ 0.5 MB before
+/// compression): what a killed run loses at most, besides the ring.
+pub const CHUNK_SPAN_NS: u64 = 20_000_000;
+
+/// Run time one overview chunk covers at most, ns.
+pub const OVERVIEW_CHUNK_SPAN_NS: u64 = 1_000_000_000;
+
+/// Bytes of records one chunk holds at most (a bound for slow rates; at 199.6 kHz the time
+/// span closes chunks first).
+pub const CHUNK_BYTES: usize = 4 << 20;
+
+/// Longest wall-clock time between two `fdatasync`s of the file.
+pub const SYNC_INTERVAL: Duration = Duration::from_secs(1);
+
+/// How often an idle writer thread looks at the ring (the ring holds 0.16 s of a run).
+const IDLE_POLL: Duration = Duration::from_millis(1);
+
+/// Chunk lanes: full-rate data, overview.
+const DATA: usize = 0;
+const OVERVIEW: usize = 1;
+
+/// Channel ids.
+const TELEMETRY_CH: u16 = 1;
+const TRUTH_CH: u16 = 2;
+const OVERVIEW_CH: u16 = 3;
 
 impl Recorder {
     /// Creates the recording of `path` under a temporary name beside it (failing now, before
     /// any run, if it cannot be written, or if `path` exists and may not be replaced), writes
-    /// the metadata record `run` with `metadata` and the attachments, and starts the writer
-    /// thread.
+    /// the `run` record (`metadata` and the epoch), the `environment` record and the
+    /// attachments, and starts the writer thread.
     pub fn create(
         path: &Path,
         metadata: BTreeMap<String, String>,
         options: RecordOptions,
     ) -> Result<Self, RecordError> {
         let io = |source| RecordError::Io {
-            path: path.to_owned(),
-            source,
-        };
-        let mc = |source| RecordError::Mcap {
             path: path.to_owned(),
             source,
         };
@@ -169,45 +185,61 @@ impl Recorder {
             .create_new(true)
             .open(&partial)
             .map_err(io)?;
-        let mut w = WriteOptions::new()
-            .compression(match options.chunks {
-                Chunks::Zstd => Some(Compression::Zstd),
-                Chunks::Raw => None,
-            })
-            .compression_level(1)
-            .compression_threads(0)
-            .chunk_size(Some(CHUNK_BYTES))
-            .profile("ros2")
-            .library("fts-servo recorder")
-            .create(BufWriter::with_capacity(1 << 20, file))
-            .map_err(mc)?;
-        let channels = add_channels(&mut w).map_err(mc)?;
-        w.write_metadata(&Metadata {
-            name: "run".into(),
-            metadata,
-        })
-        .map_err(mc)?;
+        let mut w =
+            McapFile::create(file, "ros2", "fts-servo recorder", 2, CHUNK_BYTES).map_err(io)?;
+        for (id, name, text, channel, topic) in [
+            (
+                1,
+                Telemetry::SCHEMA_NAME,
+                Telemetry::schema_text(),
+                TELEMETRY_CH,
+                Telemetry::TOPIC,
+            ),
+            (
+                2,
+                Truth::SCHEMA_NAME,
+                Truth::schema_text(),
+                TRUTH_CH,
+                Truth::TOPIC,
+            ),
+            (
+                3,
+                Overview::SCHEMA_NAME,
+                Overview::schema_text(),
+                OVERVIEW_CH,
+                Overview::TOPIC,
+            ),
+        ] {
+            w.schema(id, name, "ros2msg", text.as_bytes());
+            w.channel(channel, id, topic, "cdr");
+        }
+        let mut run = metadata;
+        run.insert(EPOCH_KEY.into(), options.epoch_ns.to_string());
+        w.metadata("run", &run).map_err(io)?;
+        let mut environment = options.environment;
+        environment.insert("started".into(), utc_now());
+        w.metadata("environment", &environment).map_err(io)?;
         for input in &options.inputs {
-            w.attach(&Attachment {
-                log_time: 0,
-                create_time: 0,
-                name: input.name.clone(),
-                media_type: input.media_type.clone(),
-                data: std::borrow::Cow::Borrowed(&input.data),
-            })
-            .map_err(mc)?;
+            w.attachment(
+                &input.name,
+                &input.media_type,
+                options.epoch_ns,
+                &input.data,
+            )
+            .map_err(io)?;
         }
         let (ring, consumer) = rtrb::RingBuffer::new(RING_FRAMES);
         let writer_alive = Arc::new(AtomicBool::new(true));
         let written = Arc::new(AtomicU64::new(0));
         let end = Arc::new(Mutex::new(BTreeMap::new()));
         let (alive, count, end_record) = (writer_alive.clone(), written.clone(), end.clone());
-        let (target, overwrite) = (path.to_owned(), options.overwrite);
+        let (target, overwrite, epoch_ns) = (path.to_owned(), options.overwrite, options.epoch_ns);
         let thread = std::thread::Builder::new()
             .name("mcap-writer".into())
             .spawn(move || {
-                let result = drain(consumer, w, channels, &count, &end_record)
-                    .map_err(|source| RecordError::Mcap {
+                let result = Drain::new(w, epoch_ns)
+                    .run(consumer, &count, &end_record)
+                    .map_err(|source| RecordError::Io {
                         path: target.clone(),
                         source,
                     })
@@ -227,10 +259,14 @@ impl Recorder {
         })
     }
 
-    /// Queues one frame; never allocates. With [`WhenFull::Wait`] it spins until there is room
-    /// and fails only if the writer thread has died (e.g. disk full).
+    /// Queues one frame; never allocates. Fails at once if the writer thread has stopped (a
+    /// write error, e.g. a full disk): the caller ends the run safely. With
+    /// [`WhenFull::Wait`] it waits for room.
     #[inline]
     pub fn push(&mut self, frame: Frame) -> Result<(), RecordError> {
+        if !self.writer_alive.load(Ordering::Acquire) {
+            return Err(RecordError::WriterGone);
+        }
         let mut frame = frame;
         loop {
             match self.ring.push(frame) {
@@ -245,7 +281,6 @@ impl Recorder {
                             return Err(RecordError::WriterGone);
                         }
                         frame = f;
-                        std::hint::spin_loop();
                         std::thread::yield_now();
                     }
                 },
@@ -253,14 +288,14 @@ impl Recorder {
         }
     }
 
-    /// Messages written so far.
+    /// Full-rate messages written so far.
     pub fn written(&self) -> u64 {
         self.written.load(Ordering::Relaxed)
     }
 
     /// Closes the ring, waits for the writer to drain it, writes the `end` metadata record
-    /// (how the run ended: reason, tick, …), finishes the file, moves it to its target, and
-    /// reports the counts or the writer's error.
+    /// (how the run ended: reason, tick, …) and the `timing` one, finishes the file, moves it
+    /// to its target, and reports the counts or the writer's error.
     pub fn finish(mut self, end: BTreeMap<String, String>) -> Result<RecordStats, RecordError> {
         *self.end.lock().unwrap_or_else(|e| e.into_inner()) = end;
         let thread = self.thread.take().expect("finish is called once");
@@ -274,85 +309,130 @@ impl Recorder {
     }
 }
 
-struct Channels {
-    telemetry: u16,
-    truth: u16,
+/// The `run` metadata key holding the log-time epoch (ns since the Unix epoch).
+pub const EPOCH_KEY: &str = "log_time_epoch_ns";
+
+/// Now, as an RFC 3339 UTC time.
+fn utc_now() -> String {
+    humantime::format_rfc3339_millis(SystemTime::now()).to_string()
 }
 
-fn add_channels<W: std::io::Write + std::io::Seek>(
-    w: &mut Writer<W>,
-) -> mcap::McapResult<Channels> {
-    let no_meta = BTreeMap::new();
-    let ts = w.add_schema(
-        Telemetry::SCHEMA_NAME,
-        "ros2msg",
-        Telemetry::schema_text().as_bytes(),
-    )?;
-    let rs = w.add_schema(
-        Truth::SCHEMA_NAME,
-        "ros2msg",
-        Truth::schema_text().as_bytes(),
-    )?;
-    Ok(Channels {
-        telemetry: w.add_channel(ts, Telemetry::TOPIC, "cdr", &no_meta)?,
-        truth: w.add_channel(rs, Truth::TOPIC, "cdr", &no_meta)?,
-    })
+/// The writer thread's state.
+struct Drain {
+    w: McapFile<File>,
+    epoch_ns: u64,
+    overview: OverviewBin,
+    sequence: u32,
+    overview_sequence: u32,
+    written: u64,
+    started: Instant,
+    synced: Instant,
 }
 
-/// The writer thread: encodes and writes until the producer is gone and the ring is empty.
-fn drain<W: std::io::Write + std::io::Seek>(
-    mut ring: rtrb::Consumer<Frame>,
-    mut w: Writer<W>,
-    ch: Channels,
-    count: &AtomicU64,
-    end: &Mutex<BTreeMap<String, String>>,
-) -> mcap::McapResult<u64> {
-    let mut buf = Vec::with_capacity(256);
-    let mut sequence = 0u32;
-    let mut written = 0u64;
-    loop {
-        let available = ring.slots();
-        if available == 0 {
-            if ring.is_abandoned() && ring.is_empty() {
-                break;
-            }
-            std::thread::yield_now();
-            continue;
+impl Drain {
+    fn new(w: McapFile<File>, epoch_ns: u64) -> Self {
+        Drain {
+            w,
+            epoch_ns,
+            overview: OverviewBin::default(),
+            sequence: 0,
+            overview_sequence: 0,
+            written: 0,
+            started: Instant::now(),
+            synced: Instant::now(),
         }
-        let chunk = ring.read_chunk(available).expect("slots are available");
-        for frame in chunk.into_iter() {
-            let time_ns = frame.time_ns;
-            for (channel_id, encode) in [
-                (ch.telemetry, &frame.telemetry as &dyn Encode),
-                (ch.truth, &frame.truth as &dyn Encode),
-            ] {
-                buf.clear();
-                encode.encode_into(&mut buf);
-                let header = MessageHeader {
-                    channel_id,
-                    sequence,
-                    log_time: time_ns,
-                    publish_time: time_ns,
-                };
-                w.write_to_known_channel(&header, &buf)?;
-                written += 1;
-            }
-            sequence = sequence.wrapping_add(1);
-        }
-        count.store(written, Ordering::Relaxed);
     }
-    let end = std::mem::take(&mut *end.lock().unwrap_or_else(|e| e.into_inner()));
-    w.write_metadata(&Metadata {
-        name: "end".into(),
-        metadata: end,
-    })?;
-    w.finish()?;
-    Ok(written)
-}
 
-/// Target bytes of records per chunk (4 MiB ≈ 26 ms of a 199.6 kHz run: what a killed run
-/// loses at most).
-pub const CHUNK_BYTES: u64 = 4 << 20;
+    /// Encodes and writes until the producer is gone and the ring is empty, then writes the
+    /// `end` and `timing` records and the summary.
+    fn run(
+        mut self,
+        mut ring: rtrb::Consumer<Frame>,
+        count: &AtomicU64,
+        end: &Mutex<BTreeMap<String, String>>,
+    ) -> std::io::Result<u64> {
+        loop {
+            let available = ring.slots();
+            if available == 0 {
+                if ring.is_abandoned() && ring.is_empty() {
+                    break;
+                }
+                std::thread::sleep(IDLE_POLL);
+                continue;
+            }
+            let chunk = ring.read_chunk(available).expect("slots are available");
+            for frame in chunk.into_iter() {
+                self.frame(&frame)?;
+            }
+            count.store(self.written, Ordering::Relaxed);
+            if self.synced.elapsed() >= SYNC_INTERVAL {
+                self.w.sync()?;
+                self.synced = Instant::now();
+            }
+        }
+        if let Some((t, o)) = self.overview.take() {
+            self.overview_message(t, &o);
+        }
+        let end = std::mem::take(&mut *end.lock().unwrap_or_else(|e| e.into_inner()));
+        self.w.close_chunk(DATA)?;
+        self.w.close_chunk(OVERVIEW)?;
+        self.w.metadata("end", &end)?;
+        let timing = BTreeMap::from([
+            ("finished".to_string(), utc_now()),
+            (
+                "wall_s".to_string(),
+                format!("{:.3}", self.started.elapsed().as_secs_f64()),
+            ),
+        ]);
+        self.w.metadata("timing", &timing)?;
+        self.w.finish()?;
+        Ok(self.written)
+    }
+
+    /// One tick: its two messages, its share of the overview; closes chunks that are full.
+    #[inline]
+    fn frame(&mut self, frame: &Frame) -> std::io::Result<()> {
+        let t = self.epoch_ns + frame.time_ns;
+        if self
+            .w
+            .chunk_start(DATA)
+            .is_some_and(|start| t - start >= CHUNK_SPAN_NS)
+        {
+            self.w.close_chunk(DATA)?;
+        }
+        let seq = self.sequence;
+        self.w
+            .message(DATA, TELEMETRY_CH, seq, t, |b| frame.telemetry.encode(b));
+        let bytes = self
+            .w
+            .message(DATA, TRUTH_CH, seq, t, |b| frame.truth.encode(b));
+        self.sequence = seq.wrapping_add(1);
+        self.written += 2;
+        if bytes >= CHUNK_BYTES {
+            self.w.close_chunk(DATA)?;
+        }
+        if let Some((period_start, o)) = self.overview.add(frame) {
+            let start = self.epoch_ns + period_start;
+            if self
+                .w
+                .chunk_start(OVERVIEW)
+                .is_some_and(|first| start - first >= OVERVIEW_CHUNK_SPAN_NS)
+            {
+                self.w.close_chunk(OVERVIEW)?;
+            }
+            self.overview_message(period_start, &o);
+        }
+        Ok(())
+    }
+
+    fn overview_message(&mut self, period_start_ns: u64, o: &Overview) {
+        let t = self.epoch_ns + period_start_ns;
+        let seq = self.overview_sequence;
+        self.w
+            .message(OVERVIEW, OVERVIEW_CH, seq, t, |b| o.encode(b));
+        self.overview_sequence = seq.wrapping_add(1);
+    }
+}
 
 /// Whether a recording may be written to `path`: a device, a directory or a link is never
 /// replaced; an existing file only with [`Overwrite::Replace`]. [`Recorder::create`] checks
@@ -401,22 +481,5 @@ fn publish(partial: &Path, target: &Path, overwrite: Overwrite) -> Result<(), Re
             Err(_) if !target.exists() => std::fs::rename(partial, target).map_err(io),
             Err(e) => Err(io(e)),
         },
-    }
-}
-
-/// Object-safe encoding of the two record types.
-trait Encode {
-    fn encode_into(&self, out: &mut Vec<u8>);
-}
-
-impl Encode for Telemetry {
-    fn encode_into(&self, out: &mut Vec<u8>) {
-        self.encode(out)
-    }
-}
-
-impl Encode for Truth {
-    fn encode_into(&self, out: &mut Vec<u8>) {
-        self.encode(out)
     }
 }

@@ -1,9 +1,10 @@
-//! Write, read back with the official `mcap` crate, compare; same input → same bytes; files
-//! that end early or carry a corrupt byte are read as far as they are intact; an existing
-//! recording is never replaced unless asked.
+//! Write, read back with our reader and with the official `mcap` crate, compare; same input →
+//! same data bytes; files that end early or carry a corrupt byte are read as far as they are
+//! intact; an existing recording is never replaced unless asked.
 
 use recorder::{
     read, FileState, Frame, Overwrite, RecordError, RecordOptions, Recorder, Telemetry, Truth,
+    DEFAULT_EPOCH_NS, OVERVIEW_PERIOD_NS,
 };
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -67,13 +68,99 @@ fn frames_survive_the_round_trip_bit_for_bit() {
     assert!(rec.frames == data);
 }
 
+/// Every message (topic, log time, sequence, payload) and every metadata record but the two
+/// that describe the run's environment, as the official reader sees them.
+fn content(path: &std::path::Path) -> (Vec<(String, u64, u32, Vec<u8>)>, Vec<(String, String)>) {
+    let bytes = std::fs::read(path).unwrap();
+    let messages = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| {
+            let m = m.unwrap();
+            (
+                m.channel.topic.clone(),
+                m.log_time,
+                m.sequence,
+                m.data.into_owned(),
+            )
+        })
+        .collect();
+    let metadata = mcap::read::LinearReader::new(&bytes)
+        .unwrap()
+        .filter_map(|r| match r.unwrap() {
+            mcap::records::Record::Metadata(m) => {
+                Some((m.name.clone(), format!("{:?}", m.metadata)))
+            }
+            _ => None,
+        })
+        .collect();
+    (messages, metadata)
+}
+
+/// Same frames → the same messages byte for byte, the same `run` and `end` records; the
+/// `environment` and `timing` records are the only difference between two recordings.
 #[test]
-fn same_frames_same_bytes() {
+fn same_frames_same_data_bytes() {
     let data = frames(30_000);
     let (a, b) = (tmp("a.mcap"), tmp("b.mcap"));
     write(&a, &data);
+    std::thread::sleep(std::time::Duration::from_millis(5)); // a different start time
     write(&b, &data);
-    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
+    let ((ma, da), (mb, db)) = (content(&a), content(&b));
+    assert_eq!(
+        ma.len(),
+        2 * 30_000 + 151,
+        "both channels and the 1 kHz overview"
+    );
+    assert!(ma == mb, "the messages differ");
+    let names: Vec<_> = da.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["run", "environment", "end", "timing"]);
+    for (x, y) in da.iter().zip(&db) {
+        match x.0.as_str() {
+            "environment" | "timing" => assert_ne!(x, y, "{} should say when", x.0),
+            _ => assert_eq!(x, y),
+        }
+    }
+}
+
+/// Log times are dates: the run's t = 0 is the epoch (2026-01-01 by default, in the `run`
+/// record), and the 1 kHz overview's min/max/mean agree with the frames they summarise.
+#[test]
+fn log_times_start_at_the_epoch_and_the_overview_summarises_each_millisecond() {
+    let data = frames(1_000);
+    let path = tmp("epoch.mcap");
+    write(&path, &data);
+    let rec = read(&path).unwrap();
+    assert_eq!(
+        rec.metadata["log_time_epoch_ns"],
+        DEFAULT_EPOCH_NS.to_string()
+    );
+    let bytes = std::fs::read(&path).unwrap();
+    let mut overview = Vec::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        assert!(m.log_time >= DEFAULT_EPOCH_NS);
+        if m.channel.topic == "/overview" {
+            use recorder::Message;
+            overview.push((
+                m.log_time - DEFAULT_EPOCH_NS,
+                recorder::Overview::decode(&m.data).unwrap(),
+            ));
+        }
+    }
+    // 1 000 ticks at 199.6 kHz span 5.006 ms: six periods.
+    assert_eq!(overview.len(), 6);
+    for (start, o) in &overview {
+        let inside: Vec<_> = data
+            .iter()
+            .filter(|f| f.time_ns / OVERVIEW_PERIOD_NS == start / OVERVIEW_PERIOD_NS)
+            .collect();
+        assert_eq!(o.ticks as usize, inside.len());
+        let measured = inside.iter().map(|f| f.telemetry.measured_m);
+        assert_eq!(o.max.measured_m, measured.clone().fold(f32::MIN, f32::max));
+        assert_eq!(o.min.measured_m, measured.clone().fold(f32::MAX, f32::min));
+        let mean = measured.map(f64::from).sum::<f64>() / inside.len() as f64;
+        assert!((f64::from(o.mean.measured_m) - mean).abs() <= 1e-7 * mean.abs());
+    }
 }
 
 #[test]
@@ -108,32 +195,64 @@ fn files_carry_message_indexes_and_the_ros2_profile() {
     let ops = opcodes(&bytes);
     let count = |op: u8| ops.iter().filter(|&&o| o == op).count();
     let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
-    assert_eq!(summary.stats.unwrap().message_count, 100_000);
-    let with_messages: Vec<_> = summary
-        .chunk_indexes
-        .iter()
-        .filter(|c| c.message_end_time > 0)
-        .collect();
-    assert!(with_messages.len() >= 2, "{:?}", summary.chunk_indexes);
+    let stats = summary.stats.clone().unwrap();
+    // 50 000 ticks at 199.6 kHz: 250.5 ms, 251 overview periods.
+    assert_eq!(stats.message_count, 100_000 + 251);
+    assert_eq!(
+        stats
+            .channel_message_counts
+            .values()
+            .copied()
+            .collect::<Vec<_>>(),
+        [50_000, 50_000, 251]
+    );
+    // 20 ms data chunks (13) and one overview chunk.
+    assert_eq!(
+        summary.chunk_indexes.len(),
+        14,
+        "{:?}",
+        summary.chunk_indexes
+    );
     for c in &summary.chunk_indexes {
         assert!(
-            !c.message_index_offsets.is_empty()
-                || (c.message_start_time, c.message_end_time) == (0, 0),
-            "chunk at {} has times but no message indexes",
+            !c.message_index_offsets.is_empty(),
+            "chunk at {} has no message indexes",
             c.chunk_start_offset
         );
+        assert!(
+            c.message_end_time - c.message_start_time < 20_000_000
+                || c.message_index_offsets.len() == 1
+        );
     }
-    let indexed: usize = with_messages
+    let indexed: usize = summary
+        .chunk_indexes
         .iter()
         .map(|c| c.message_index_offsets.len())
         .sum();
     assert_eq!(
         indexed,
-        2 * with_messages.len(),
-        "both channels in every chunk"
+        2 * 13 + 1,
+        "both data channels in every data chunk"
     );
     assert_eq!(count(mcap::records::op::MESSAGE_INDEX), indexed);
     assert!(count(mcap::records::op::STATISTICS) == 1);
+    // Through the official crate's index reading: every message of every chunk is indexed,
+    // and an index entry leads to the message it names.
+    let mut through_indexes = 0;
+    for c in &summary.chunk_indexes {
+        let indexes = summary.read_message_indexes(&bytes, c).unwrap();
+        for (channel, entries) in &indexes {
+            through_indexes += entries.len() as u64;
+            let last = entries.last().unwrap();
+            let m = summary.seek_message(&bytes, c, last).unwrap();
+            assert_eq!((m.channel.id, m.log_time), (channel.id, last.log_time));
+        }
+    }
+    assert_eq!(through_indexes, stats.message_count);
+    assert_eq!(
+        mcap::MessageStream::new(&bytes).unwrap().count() as u64,
+        stats.message_count
+    );
     match mcap::read::LinearReader::new(&bytes).unwrap().next() {
         Some(Ok(mcap::records::Record::Header(h))) => assert_eq!(h.profile, "ros2"),
         other => panic!("first record {other:?}"),
@@ -163,9 +282,9 @@ fn truncated_files_are_recovered_up_to_the_cut() {
                 assert!(rec.frames[..] == data[..n], "cut at {at}: frames differ");
                 let complete_until = chunks
                     .iter()
-                    .filter(|c| !c.message_index_offsets.is_empty())
+                    .filter(|c| c.message_index_offsets.contains_key(&1))
                     .filter(|c| (c.chunk_start_offset + c.chunk_length) as usize <= at)
-                    .map(|c| c.message_end_time)
+                    .map(|c| c.message_end_time - DEFAULT_EPOCH_NS)
                     .max();
                 let must = complete_until
                     .map_or(0, |end| data.iter().filter(|f| f.time_ns <= end).count());
@@ -180,32 +299,46 @@ fn truncated_files_are_recovered_up_to_the_cut() {
     }
 }
 
-/// A flipped byte inside a chunk fails its CRC: reported with where it was found, the frames
-/// before that chunk still read.
+/// A flipped byte inside a chunk fails its check: that chunk is reported with its offset and
+/// skipped, every frame before and after it is still read.
 #[test]
-fn a_flipped_byte_is_reported() {
+fn a_flipped_byte_is_reported_and_the_rest_is_read() {
     let data = frames(60_000);
     let path = tmp("flip.mcap");
     write(&path, &data);
     let mut bytes = std::fs::read(&path).unwrap();
     let chunks = mcap::Summary::read(&bytes).unwrap().unwrap().chunk_indexes;
-    let last = chunks.iter().max_by_key(|c| c.chunk_start_offset).unwrap();
-    let at = (last.chunk_start_offset + last.chunk_length / 2) as usize;
+    let mut data_chunks: Vec<_> = chunks
+        .iter()
+        .filter(|c| c.message_index_offsets.contains_key(&1))
+        .collect();
+    data_chunks.sort_by_key(|c| c.chunk_start_offset);
+    let hit = data_chunks[data_chunks.len() / 2];
+    let at = (hit.chunk_start_offset + hit.chunk_length / 2) as usize;
     bytes[at] ^= 0x40;
     std::fs::write(&path, &bytes).unwrap();
     let rec = read(&path).unwrap();
-    match rec.report.unwrap().state {
-        FileState::Corrupt {
-            before_byte,
-            reason,
-        } => {
-            assert!(before_byte as usize >= at, "{before_byte} < {at}");
-            assert!(!reason.is_empty());
-        }
-        other => panic!("flipped byte at {at} not reported: {other:?}"),
-    }
-    assert!(!rec.frames.is_empty());
-    assert!(rec.frames[..] == data[..rec.frames.len()]);
+    let report = rec.report.unwrap();
+    assert_eq!(report.state, FileState::Finished);
+    assert_eq!(report.bad_count, 1);
+    assert_eq!(report.bad[0].at_byte, hit.chunk_start_offset);
+    assert!(
+        report
+            .to_string()
+            .contains(&format!("at byte {}", hit.chunk_start_offset)),
+        "{report}"
+    );
+    let (lost_from, lost_to) = (
+        hit.message_start_time - DEFAULT_EPOCH_NS,
+        hit.message_end_time - DEFAULT_EPOCH_NS,
+    );
+    let kept: Vec<Frame> = data
+        .iter()
+        .filter(|f| f.time_ns < lost_from || f.time_ns > lost_to)
+        .copied()
+        .collect();
+    assert!(kept.len() < data.len() && kept.len() > data.len() / 2);
+    assert!(rec.frames == kept, "the frames around the corrupt chunk");
 }
 /// An existing recording is kept unless `Overwrite::Replace`; the refused run leaves no
 /// temporary file behind, and a replacing one leaves only the new file.

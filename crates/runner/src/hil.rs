@@ -19,9 +19,8 @@ use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
-use recorder::{Chunks, Frame};
+use recorder::Frame;
 use std::collections::VecDeque;
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 /// How long a process waits for its peers to appear.
@@ -200,8 +199,7 @@ impl Joiner {
 pub fn record(
     plan: &Plan,
     prefix: &str,
-    out: Option<PathBuf>,
-    overwrite: bool,
+    out: Option<recording::Target>,
     realtime: bool,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Summary, RunError> {
@@ -210,8 +208,7 @@ pub fn record(
     let ep = Endpoint::open(prefix, "recorder")?;
     let tap = Tap::new(&ep)?;
     let mut rec = match &out {
-        // Uncompressed: this process shares the cores with two busy-polling ones.
-        Some(path) => Some(recording::create(plan, path, overwrite, Chunks::Raw)?),
+        Some(to) => Some(recording::create(plan, to)?),
         None => None,
     };
     let total = c.ticks();

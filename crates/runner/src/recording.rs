@@ -9,10 +9,47 @@ use crate::config::{ConfigError, Loaded, RunConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
-use recorder::{Chunks, FileState, Frame, Overwrite, ReadReport, RecordOptions, Recorder, Visit};
+use recorder::{FileState, Frame, Overwrite, ReadReport, RecordOptions, Recorder, Visit};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Where and how a run is recorded.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Target {
+    /// The MCAP file.
+    pub path: PathBuf,
+    /// Replace an existing file (otherwise the run does not start).
+    pub overwrite: bool,
+    /// Log time of the run's t = 0, ns since the Unix epoch
+    /// ([`recorder::DEFAULT_EPOCH_NS`] unless asked).
+    pub epoch_ns: u64,
+}
+
+impl Target {
+    /// `path`, not replacing an existing file, with the default epoch.
+    pub fn new(path: impl Into<PathBuf>) -> Self {
+        Target {
+            path: path.into(),
+            overwrite: false,
+            epoch_ns: recorder::DEFAULT_EPOCH_NS,
+        }
+    }
+
+    /// How an existing file is treated.
+    pub fn overwrite(&self) -> Overwrite {
+        if self.overwrite {
+            Overwrite::Replace
+        } else {
+            Overwrite::Refuse
+        }
+    }
+
+    /// Fails now if the recording could not be written (see [`recorder::check_target`]).
+    pub fn check(&self) -> Result<(), RunError> {
+        Ok(recorder::check_target(&self.path, self.overwrite())?)
+    }
+}
 
 /// The `run` metadata record of a run of `plan`.
 pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
@@ -23,7 +60,6 @@ pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
             "controller".to_string(),
             plan.controller.description.clone(),
         ),
-        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
         ("seed".to_string(), c.run.seed.to_string()),
         (
             "servo_rate_hz".to_string(),
@@ -37,25 +73,32 @@ pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
     m
 }
 
-/// Starts the recording of a run of `plan` at `path`: its `run` metadata, its inputs as
-/// attachments, chunks stored as `chunks`; an existing file is replaced only with `overwrite`.
-pub fn create(
-    plan: &Plan,
-    path: &Path,
-    overwrite: bool,
-    chunks: Chunks,
-) -> Result<Recorder, RunError> {
+/// The `environment` record: what differs between two runs of the same seed (the recorder
+/// adds the start time). Comparisons of recordings leave it out.
+pub fn environment() -> BTreeMap<String, String> {
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map_or_else(|_| "unknown".into(), |h| h.trim().to_owned());
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    BTreeMap::from([
+        ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+        ("host".to_string(), host),
+        ("pid".to_string(), std::process::id().to_string()),
+        ("run_id".to_string(), format!("{:032x}", rand::random::<u128>())),
+        ("command".to_string(), command),
+    ])
+}
+
+/// Starts the recording of a run of `plan` at `to`: its `run` metadata, its environment, its
+/// inputs as attachments.
+pub fn create(plan: &Plan, to: &Target) -> Result<Recorder, RunError> {
     Ok(Recorder::create(
-        path,
+        &to.path,
         metadata(plan),
         RecordOptions {
-            chunks,
-            overwrite: if overwrite {
-                Overwrite::Replace
-            } else {
-                Overwrite::Refuse
-            },
+            overwrite: to.overwrite(),
             inputs: plan.inputs.clone(),
+            epoch_ns: to.epoch_ns,
+            environment: environment(),
             ..Default::default()
         },
     )?)

@@ -10,16 +10,13 @@ use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use daq_io::{Backend, Daq, InProcess};
-use recorder::{Chunks, Frame};
-use std::path::PathBuf;
+use recorder::Frame;
 use std::time::Instant;
 
 /// How to run.
 pub struct RunOptions<'a> {
     /// Where to record (None: no recording).
-    pub out: Option<PathBuf>,
-    /// Replace an existing recording at `out` (otherwise the run does not start).
-    pub overwrite: bool,
+    pub out: Option<recording::Target>,
     /// Set to stop early (a signal, a caller); the run ends at a tick boundary and the
     /// recording is finished with the reason.
     pub stop: &'a StopRequest,
@@ -45,7 +42,7 @@ pub fn run_with(
     let mut servo = ServoLoop::new(plan)?;
     let description = plan.controller.description.clone();
     let mut recorder = match &opts.out {
-        Some(path) => Some(recording::create(plan, path, opts.overwrite, Chunks::Zstd)?),
+        Some(to) => Some(recording::create(plan, to)?),
         None => None,
     };
     let total = c.ticks();
@@ -113,7 +110,6 @@ pub fn run_to_end_with(plan: &Plan, on_frame: impl FnMut(&Frame)) -> Result<Summ
         plan,
         RunOptions {
             out: None,
-            overwrite: false,
             stop: &stop,
             progress: &mut |_, _| {},
         },

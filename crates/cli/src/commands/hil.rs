@@ -115,7 +115,6 @@ impl RecordCmd {
             &plan,
             &prefix,
             out.clone(),
-            rec.overwrite,
             self.hil.realtime,
             &mut progress,
         );
@@ -123,7 +122,7 @@ impl RecordCmd {
         let summary = result?;
         print_summary(&summary, rec.json);
         if let (Some(p), false) = (out, rec.json) {
-            println!("  wrote {}", p.display());
+            println!("  wrote {}", p.path.display());
         }
         Ok(ExitCode::SUCCESS)
     }

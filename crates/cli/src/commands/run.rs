@@ -49,8 +49,8 @@ impl Run {
         print_summary(&summary, rec.json);
         if let (Some(o), false) = (out, rec.json) {
             println!(
-                "  wrote {} (open it in Foxglove: topics /telemetry and /truth)",
-                o.display()
+                "  wrote {} (open it in Foxglove: topics /overview, /telemetry and /truth)",
+                o.path.display()
             );
         }
         Ok(code)
@@ -60,7 +60,7 @@ impl Run {
 /// Runs `f` recording to `out` (as `rec` says), with `stop` and a progress bar labelled `what`.
 pub fn with_progress<T, E>(
     rec: &RecordingArgs,
-    out: Option<std::path::PathBuf>,
+    out: Option<runner::recording::Target>,
     stop: &StopRequest,
     what: &str,
     f: impl FnOnce(RunOptions<'_>) -> Result<T, E>,
@@ -75,7 +75,6 @@ where
     };
     let result = f(RunOptions {
         out,
-        overwrite: rec.overwrite,
         stop,
         progress: &mut progress,
     });

@@ -54,19 +54,14 @@ pub fn run(
     hil: &HilArgs,
     timeout: &PeerTimeoutArgs,
     rec: &RecordingArgs,
-    out: Option<PathBuf>,
+    out: Option<runner::recording::Target>,
 ) -> Result<(Summary, ExitCode), CliError> {
     plan.check_stable()?;
     timeout.timeout()?;
     let (realtime, quiet) = (hil.realtime, rec.quiet);
     if let Some(o) = &out {
         // Checked before any process starts (the recorder process checks it again).
-        let overwrite = if rec.overwrite {
-            recorder::Overwrite::Replace
-        } else {
-            recorder::Overwrite::Refuse
-        };
-        recorder::check_target(o, overwrite).map_err(RunError::from)?;
+        o.check()?;
     }
     let prefix = hil
         .prefix
@@ -86,12 +81,18 @@ pub fn run(
     let config = write_resolved(plan, dir.path())?;
     let config = config.to_str().expect("temp paths are UTF-8");
     let mode = if realtime { "--realtime" } else { "--lockstep" };
-    let out_arg = out.as_ref().map(|p| p.display().to_string());
+    let out_arg = out.as_ref().map(|t| {
+        let epoch = std::time::UNIX_EPOCH + std::time::Duration::from_nanos(t.epoch_ns);
+        (
+            t.path.display().to_string(),
+            humantime::format_rfc3339_nanos(epoch).to_string(),
+        )
+    });
     let mut record_args = vec![
         "record", "--config", config, "--prefix", &prefix, "--json", "--quiet", mode,
     ];
     match &out_arg {
-        Some(o) => record_args.extend(["--out", o]),
+        Some((o, epoch)) => record_args.extend(["--out", o, "--log-epoch", epoch]),
         None => record_args.push("--no-record"),
     }
     if rec.overwrite {

@@ -1,0 +1,477 @@
+//! An MCAP file writer that compresses whole chunks.
+//!
+//! The official `mcap` crate pushes every record of a chunk through a streaming compressor in
+//! several small writes; at 400 000 messages per simulated second that costs more than the
+//! compression itself. Here a chunk's records are encoded into one buffer, compressed in one
+//! call (zstd, reusing its context) and written, with their message indexes, in one write.
+//! The file carries everything an indexed reader (Foxglove's `McapIndexedReader`) needs:
+//! message indexes after every chunk, and a summary with schemas, channels, statistics, chunk,
+//! attachment and metadata indexes and summary offsets.
+//!
+//! Records follow the MCAP specification (<https://mcap.dev/spec>), little-endian throughout.
+
+use std::collections::BTreeMap;
+use std::io::{self, Write};
+
+/// MCAP magic bytes, at the start and end of a file.
+pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
+
+/// Record opcodes (MCAP specification).
+pub mod op {
+    /// Header.
+    pub const HEADER: u8 = 0x01;
+    /// Footer.
+    pub const FOOTER: u8 = 0x02;
+    /// Schema.
+    pub const SCHEMA: u8 = 0x03;
+    /// Channel.
+    pub const CHANNEL: u8 = 0x04;
+    /// Message.
+    pub const MESSAGE: u8 = 0x05;
+    /// Chunk.
+    pub const CHUNK: u8 = 0x06;
+    /// Message index.
+    pub const MESSAGE_INDEX: u8 = 0x07;
+    /// Chunk index.
+    pub const CHUNK_INDEX: u8 = 0x08;
+    /// Attachment.
+    pub const ATTACHMENT: u8 = 0x09;
+    /// Attachment index.
+    pub const ATTACHMENT_INDEX: u8 = 0x0A;
+    /// Statistics.
+    pub const STATISTICS: u8 = 0x0B;
+    /// Metadata.
+    pub const METADATA: u8 = 0x0C;
+    /// Metadata index.
+    pub const METADATA_INDEX: u8 = 0x0D;
+    /// Summary offset.
+    pub const SUMMARY_OFFSET: u8 = 0x0E;
+    /// Data end.
+    pub const DATA_END: u8 = 0x0F;
+}
+
+/// Little-endian field encoding into a byte buffer.
+trait Put {
+    fn u8(&mut self, v: u8) -> &mut Self;
+    fn u16(&mut self, v: u16) -> &mut Self;
+    fn u32(&mut self, v: u32) -> &mut Self;
+    fn u64(&mut self, v: u64) -> &mut Self;
+    /// `uint32` length prefix, then the UTF-8 bytes.
+    fn str(&mut self, s: &str) -> &mut Self;
+    /// A length-prefixed group whose byte length is known only after it is written
+    /// (`uint32` for arrays and maps).
+    fn group32(&mut self, body: impl FnOnce(&mut Vec<u8>)) -> &mut Self;
+}
+
+impl Put for Vec<u8> {
+    fn u8(&mut self, v: u8) -> &mut Self {
+        self.push(v);
+        self
+    }
+    fn u16(&mut self, v: u16) -> &mut Self {
+        self.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+    fn u32(&mut self, v: u32) -> &mut Self {
+        self.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+    fn u64(&mut self, v: u64) -> &mut Self {
+        self.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+    fn str(&mut self, s: &str) -> &mut Self {
+        self.u32(s.len() as u32);
+        self.extend_from_slice(s.as_bytes());
+        self
+    }
+    fn group32(&mut self, body: impl FnOnce(&mut Vec<u8>)) -> &mut Self {
+        let at = self.len();
+        self.u32(0);
+        body(self);
+        let len = (self.len() - at - 4) as u32;
+        self[at..at + 4].copy_from_slice(&len.to_le_bytes());
+        self
+    }
+}
+
+/// Appends one record: opcode, `uint64` length, body.
+fn record(out: &mut Vec<u8>, opcode: u8, body: impl FnOnce(&mut Vec<u8>)) {
+    out.u8(opcode).u64(0);
+    let at = out.len();
+    body(out);
+    let len = (out.len() - at) as u64;
+    out[at - 8..at].copy_from_slice(&len.to_le_bytes());
+}
+
+/// Where the bytes go: a file (made durable with `sync_data`) or anything else that writes.
+pub trait Sink: Write {
+    /// Asks the storage to keep what was written across a power loss.
+    fn sync(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Sink for std::fs::File {
+    fn sync(&mut self) -> io::Result<()> {
+        self.sync_data()
+    }
+}
+
+impl Sink for Vec<u8> {}
+
+/// The messages of the chunk being filled.
+struct OpenChunk {
+    records: Vec<u8>,
+    /// Message index entries per channel id (`log_time`, offset in records: 16 bytes each,
+    /// as they are written), in write order.
+    index: Vec<Vec<u8>>,
+    start_ns: u64,
+    end_ns: u64,
+}
+
+impl OpenChunk {
+    fn new(capacity: usize) -> Self {
+        OpenChunk {
+            records: Vec::with_capacity(capacity),
+            index: Vec::new(),
+            start_ns: u64::MAX,
+            end_ns: 0,
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.records.is_empty()
+    }
+}
+
+/// Counts for the statistics record.
+#[derive(Default)]
+struct Counts {
+    messages: u64,
+    attachments: u32,
+    metadata: u32,
+    chunks: u32,
+    start_ns: Option<u64>,
+    end_ns: u64,
+    /// Messages per channel id.
+    per_channel: Vec<u64>,
+}
+
+/// An MCAP file being written. Schemas, channels, metadata and attachments go straight to the
+/// data section; messages collect in chunks ([`McapFile::message`]) that the caller closes
+/// with [`McapFile::close_chunk`] (several chunks may be open at once, one per `lane`, so a
+/// low-rate channel can live in chunks of its own); [`McapFile::finish`] writes the summary.
+pub struct McapFile<W: Sink> {
+    out: W,
+    /// Bytes written to `out` so far (the offset of the next record).
+    position: u64,
+    /// Records waiting to be written (everything but chunk bodies).
+    pending: Vec<u8>,
+    /// Summary records by group.
+    schemas: Vec<u8>,
+    channels: Vec<u8>,
+    chunk_indexes: Vec<u8>,
+    attachment_indexes: Vec<u8>,
+    metadata_indexes: Vec<u8>,
+    schema_count: u16,
+    channel_ids: Vec<u16>,
+    counts: Counts,
+    lanes: Vec<OpenChunk>,
+    zstd: zstd::bulk::Compressor<'static>,
+    compressed: Vec<u8>,
+}
+
+/// zstd level of the chunks: the fast end (measured in `benches/recorder.rs` on a real run's
+/// noisy data: level 1 ≈ 25 % slower for the same size; level −5 ≈ 5 % faster, 10 % larger).
+pub const ZSTD_LEVEL: i32 = -1;
+
+impl<W: Sink> McapFile<W> {
+    /// Starts a file: magic and header (`profile`, `library`), written at once. `lanes` chunks
+    /// can be open at the same time, each expected to hold up to `chunk_bytes`.
+    pub fn create(
+        mut out: W,
+        profile: &str,
+        library: &str,
+        lanes: usize,
+        chunk_bytes: usize,
+    ) -> io::Result<Self> {
+        let mut head = MAGIC.to_vec();
+        record(&mut head, op::HEADER, |b| {
+            b.str(profile).str(library);
+        });
+        out.write_all(&head)?;
+        Ok(McapFile {
+            out,
+            position: head.len() as u64,
+            pending: Vec::with_capacity(1 << 16),
+            schemas: Vec::new(),
+            channels: Vec::new(),
+            chunk_indexes: Vec::new(),
+            attachment_indexes: Vec::new(),
+            metadata_indexes: Vec::new(),
+            schema_count: 0,
+            channel_ids: Vec::new(),
+            counts: Counts::default(),
+            lanes: (0..lanes).map(|_| OpenChunk::new(chunk_bytes)).collect(),
+            zstd: zstd::bulk::Compressor::new(ZSTD_LEVEL)?,
+            compressed: Vec::with_capacity(chunk_bytes),
+        })
+    }
+
+    /// Offset in the file of the next record written.
+    fn offset(&self) -> u64 {
+        self.position + self.pending.len() as u64
+    }
+
+    /// Adds a schema (ids from 1) to the data section and the summary.
+    pub fn schema(&mut self, id: u16, name: &str, encoding: &str, data: &[u8]) {
+        let body = |b: &mut Vec<u8>| {
+            b.u16(id).str(name).str(encoding).u32(data.len() as u32);
+            b.extend_from_slice(data);
+        };
+        record(&mut self.pending, op::SCHEMA, body);
+        record(&mut self.schemas, op::SCHEMA, body);
+        self.schema_count += 1;
+    }
+
+    /// Adds a channel to the data section and the summary.
+    pub fn channel(&mut self, id: u16, schema_id: u16, topic: &str, encoding: &str) {
+        let body = |b: &mut Vec<u8>| {
+            b.u16(id).u16(schema_id).str(topic).str(encoding).u32(0);
+        };
+        record(&mut self.pending, op::CHANNEL, body);
+        record(&mut self.channels, op::CHANNEL, body);
+        self.channel_ids.push(id);
+        let per_channel = &mut self.counts.per_channel;
+        per_channel.resize(per_channel.len().max(usize::from(id) + 1), 0);
+    }
+
+    /// Writes a metadata record (and indexes it).
+    pub fn metadata(&mut self, name: &str, values: &BTreeMap<String, String>) -> io::Result<()> {
+        let offset = self.offset();
+        record(&mut self.pending, op::METADATA, |b| {
+            b.str(name).group32(|m| {
+                for (k, v) in values {
+                    m.str(k).str(v);
+                }
+            });
+        });
+        let length = self.offset() - offset;
+        record(&mut self.metadata_indexes, op::METADATA_INDEX, |b| {
+            b.u64(offset).u64(length).str(name);
+        });
+        self.counts.metadata += 1;
+        self.write_pending()
+    }
+
+    /// Writes an attachment (with its CRC, and indexes it).
+    pub fn attachment(
+        &mut self,
+        name: &str,
+        media_type: &str,
+        time_ns: u64,
+        data: &[u8],
+    ) -> io::Result<()> {
+        let offset = self.offset();
+        record(&mut self.pending, op::ATTACHMENT, |b| {
+            let at = b.len();
+            b.u64(time_ns).u64(time_ns).str(name).str(media_type);
+            b.u64(data.len() as u64);
+            b.extend_from_slice(data);
+            let crc = crc32fast::hash(&b[at..]);
+            b.u32(crc);
+        });
+        let length = self.offset() - offset;
+        record(&mut self.attachment_indexes, op::ATTACHMENT_INDEX, |b| {
+            b.u64(offset).u64(length).u64(time_ns).u64(time_ns);
+            b.u64(data.len() as u64).str(name).str(media_type);
+        });
+        self.counts.attachments += 1;
+        self.write_pending()
+    }
+
+    /// Appends a message on a channel added with [`McapFile::channel`] to the open chunk of
+    /// `lane` (the payload is written by `data`, into the chunk buffer: no copy). Returns the
+    /// bytes the chunk holds now.
+    #[inline]
+    pub fn message(
+        &mut self,
+        lane: usize,
+        channel_id: u16,
+        sequence: u32,
+        log_time: u64,
+        data: impl FnOnce(&mut Vec<u8>),
+    ) -> usize {
+        let chunk = &mut self.lanes[lane];
+        let offset = chunk.records.len() as u64;
+        // Opcode, length (filled in below), channel, sequence, log and publish time.
+        let mut head = [0u8; 1 + 8 + 2 + 4 + 8 + 8];
+        head[0] = op::MESSAGE;
+        head[9..11].copy_from_slice(&channel_id.to_le_bytes());
+        head[11..15].copy_from_slice(&sequence.to_le_bytes());
+        head[15..23].copy_from_slice(&log_time.to_le_bytes());
+        head[23..31].copy_from_slice(&log_time.to_le_bytes());
+        let records = &mut chunk.records;
+        records.extend_from_slice(&head);
+        data(records);
+        let len = (records.len() as u64 - offset - 9).to_le_bytes();
+        let at = offset as usize + 1;
+        records[at..at + 8].copy_from_slice(&len);
+        let channel = usize::from(channel_id);
+        if chunk.index.len() <= channel {
+            chunk.index.resize_with(channel + 1, Vec::new);
+        }
+        let mut entry = [0u8; 16];
+        entry[..8].copy_from_slice(&log_time.to_le_bytes());
+        entry[8..].copy_from_slice(&offset.to_le_bytes());
+        chunk.index[channel].extend_from_slice(&entry);
+        chunk.start_ns = chunk.start_ns.min(log_time);
+        chunk.end_ns = chunk.end_ns.max(log_time);
+        self.counts.per_channel[channel] += 1;
+        self.counts.messages += 1;
+        chunk.records.len()
+    }
+
+    /// Log time of the first message in the open chunk of `lane`, if it has any.
+    pub fn chunk_start(&self, lane: usize) -> Option<u64> {
+        let chunk = &self.lanes[lane];
+        (!chunk.is_empty()).then_some(chunk.start_ns)
+    }
+
+    /// Compresses the open chunk of `lane` and writes it with its message indexes, in one
+    /// write (nothing if it is empty).
+    pub fn close_chunk(&mut self, lane: usize) -> io::Result<()> {
+        if self.lanes[lane].is_empty() {
+            return Ok(());
+        }
+        let chunk = std::mem::replace(&mut self.lanes[lane], OpenChunk::new(0));
+        self.compressed.clear();
+        let bound = zstd::zstd_safe::compress_bound(chunk.records.len());
+        self.compressed.reserve(bound);
+        self.zstd
+            .compress_to_buffer(&chunk.records, &mut self.compressed)?;
+        let start = self.offset();
+        record(&mut self.pending, op::CHUNK, |b| {
+            b.u64(chunk.start_ns).u64(chunk.end_ns);
+            b.u64(chunk.records.len() as u64);
+            b.u32(crc32fast::hash(&chunk.records));
+            b.str("zstd").u64(self.compressed.len() as u64);
+            b.extend_from_slice(&self.compressed);
+        });
+        let chunk_length = self.offset() - start;
+        let mut offsets = BTreeMap::new();
+        let index_start = self.offset();
+        for (channel, entries) in chunk.index.iter().enumerate() {
+            if entries.is_empty() {
+                continue;
+            }
+            let channel = channel as u16;
+            offsets.insert(channel, self.offset());
+            record(&mut self.pending, op::MESSAGE_INDEX, |b| {
+                b.u16(channel).u32(entries.len() as u32);
+                b.extend_from_slice(entries);
+            });
+        }
+        let index_length = self.offset() - index_start;
+        record(&mut self.chunk_indexes, op::CHUNK_INDEX, |b| {
+            b.u64(chunk.start_ns)
+                .u64(chunk.end_ns)
+                .u64(start)
+                .u64(chunk_length);
+            b.group32(|m| {
+                for (&channel, &offset) in &offsets {
+                    m.u16(channel).u64(offset);
+                }
+            });
+            b.u64(index_length).str("zstd");
+            b.u64(self.compressed.len() as u64);
+            b.u64(chunk.records.len() as u64);
+        });
+        let c = &mut self.counts;
+        c.chunks += 1;
+        c.start_ns = Some(c.start_ns.map_or(chunk.start_ns, |s| s.min(chunk.start_ns)));
+        c.end_ns = c.end_ns.max(chunk.end_ns);
+        // Keep the buffers for the next chunk of this lane.
+        let (mut records, mut index) = (chunk.records, chunk.index);
+        records.clear();
+        index.iter_mut().for_each(Vec::clear);
+        self.lanes[lane] = OpenChunk {
+            records,
+            index,
+            ..OpenChunk::new(0)
+        };
+        self.write_pending()
+    }
+
+    /// Asks the storage to keep everything written so far (see [`Sink::sync`]).
+    pub fn sync(&mut self) -> io::Result<()> {
+        self.out.sync()
+    }
+
+    fn write_pending(&mut self) -> io::Result<()> {
+        self.out.write_all(&self.pending)?;
+        self.position += self.pending.len() as u64;
+        self.pending.clear();
+        Ok(())
+    }
+
+    /// Closes every open chunk, writes the data end, the summary (schemas, channels,
+    /// statistics, chunk, attachment and metadata indexes, summary offsets) and the footer,
+    /// and hands the sink back.
+    pub fn finish(mut self) -> io::Result<W> {
+        for lane in 0..self.lanes.len() {
+            self.close_chunk(lane)?;
+        }
+        record(&mut self.pending, op::DATA_END, |b| {
+            b.u32(0);
+        });
+        let c = &self.counts;
+        let mut statistics = Vec::new();
+        record(&mut statistics, op::STATISTICS, |b| {
+            b.u64(c.messages)
+                .u16(self.schema_count)
+                .u32(self.channel_ids.len() as u32);
+            b.u32(c.attachments).u32(c.metadata).u32(c.chunks);
+            b.u64(c.start_ns.unwrap_or(0)).u64(c.end_ns);
+            b.group32(|m| {
+                for &id in &self.channel_ids {
+                    m.u16(id).u64(c.per_channel[usize::from(id)]);
+                }
+            });
+        });
+        let summary_start = self.offset();
+        let mut summary = Vec::new();
+        let mut offsets = Vec::new();
+        for (opcode, group) in [
+            (op::SCHEMA, &self.schemas),
+            (op::CHANNEL, &self.channels),
+            (op::STATISTICS, &statistics),
+            (op::CHUNK_INDEX, &self.chunk_indexes),
+            (op::ATTACHMENT_INDEX, &self.attachment_indexes),
+            (op::METADATA_INDEX, &self.metadata_indexes),
+        ] {
+            if !group.is_empty() {
+                offsets.push((opcode, summary_start + summary.len() as u64, group.len()));
+                summary.extend_from_slice(group);
+            }
+        }
+        let summary_offset_start = summary_start + summary.len() as u64;
+        for (opcode, start, length) in offsets {
+            record(&mut summary, op::SUMMARY_OFFSET, |b| {
+                b.u8(opcode).u64(start).u64(length as u64);
+            });
+        }
+        // The summary CRC covers the summary section and the footer up to the CRC field.
+        summary.u8(op::FOOTER).u64(8 + 8 + 4);
+        summary.u64(summary_start).u64(summary_offset_start);
+        let crc = crc32fast::hash(&summary);
+        summary.u32(crc);
+        summary.extend_from_slice(MAGIC);
+        self.pending.extend_from_slice(&summary);
+        self.write_pending()?;
+        self.out.flush()?;
+        self.out.sync()?;
+        Ok(self.out)
+    }
+}
