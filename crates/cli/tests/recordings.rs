@@ -43,8 +43,10 @@ fn inspect_equals_the_live_summary() {
     assert_eq!(live["meta"]["recorded_messages"].as_u64(), Some(messages));
 }
 
+/// Same seed, same data: every message, attachment and record but the run's environment
+/// (run id, host, start time) is byte-identical, and the environment does differ.
 #[test]
-fn same_seed_gives_identical_bytes() {
+fn same_seed_gives_identical_data() {
     let (a, b) = (tmp("a.mcap"), tmp("b.mcap"));
     for p in [&a, &b] {
         let st = servo()
@@ -54,7 +56,29 @@ fn same_seed_gives_identical_bytes() {
             .unwrap();
         assert!(st.status.success());
     }
-    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
+    assert_eq!(
+        recorder::fingerprint(&a).unwrap(),
+        recorder::fingerprint(&b).unwrap()
+    );
+    let environment = |p| {
+        let mut e = Environment(Default::default());
+        recorder::stream(p, &mut e).unwrap();
+        e.0
+    };
+    let (ea, eb) = (environment(&a), environment(&b));
+    assert_ne!(ea["run_id"], eb["run_id"]);
+    assert_eq!(ea["version"], env!("CARGO_PKG_VERSION"));
+}
+
+/// The `environment` record of a recording.
+struct Environment(std::collections::BTreeMap<String, String>);
+
+impl recorder::Visit for Environment {
+    fn metadata(&mut self, name: &str, values: &std::collections::BTreeMap<String, String>) {
+        if name == "environment" {
+            self.0 = values.clone();
+        }
+    }
 }
 
 /// SIGINT, SIGTERM or SIGHUP mid-run: the run ends at a tick boundary, the MCAP is finished

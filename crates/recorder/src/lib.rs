@@ -17,7 +17,10 @@ pub mod writer;
 
 pub use frame::{Frame, Message, Telemetry, Truth};
 pub use overview::{Overview, Signals, OVERVIEW_PERIOD_NS};
-pub use reader::{read, stream, BadRecord, FileState, ReadError, ReadReport, Recording, Visit};
+pub use reader::{
+    fingerprint, read, stream, BadRecord, FileState, ReadError, ReadReport, Recording, Visit,
+    ENVIRONMENT_RECORDS,
+};
 pub use writer::{
     check_target, partial_path, Input, Overwrite, RecordError, RecordOptions, RecordStats,
     Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY, SYNC_INTERVAL,

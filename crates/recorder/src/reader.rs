@@ -40,7 +40,9 @@ pub trait Visit {
     /// An attachment (an input file of the run).
     fn attachment(&mut self, _name: &str, _data: &[u8]) {}
     /// One tick: telemetry and truth, its time in ns from the run's start.
-    fn frame(&mut self, frame: &Frame);
+    fn frame(&mut self, _frame: &Frame) {}
+    /// Every message of every channel as written (log time in ns since the Unix epoch).
+    fn message(&mut self, _topic: &str, _sequence: u32, _log_time: u64, _data: &[u8]) {}
 }
 
 /// How far a file could be read.
@@ -361,6 +363,8 @@ impl Streamer {
         let _publish = f.u64()?;
         let data = f.0;
         let time_ns = log_time.saturating_sub(self.epoch_ns);
+        let topic = self.topics.get(&channel).map_or("", String::as_str);
+        visit.message(topic, sequence, log_time, data);
         match self.topics.get(&channel).map(String::as_str) {
             Some(Telemetry::TOPIC) => {
                 self.messages += 1;
@@ -421,4 +425,46 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
     let mut rec = Recording::default();
     rec.report = Some(stream(path, &mut rec)?);
     Ok(rec)
+}
+
+/// The metadata records that describe where and when a run happened, not what it did:
+/// comparisons of recordings leave them out.
+pub const ENVIRONMENT_RECORDS: [&str; 2] = ["environment", "timing"];
+
+/// SHA-256 over what a run did: every message (topic, sequence, log time, payload), every
+/// attachment and every metadata record but the [`ENVIRONMENT_RECORDS`]. Two runs of the same
+/// seed and configuration have the same fingerprint.
+pub fn fingerprint(path: &Path) -> Result<String, ReadError> {
+    use sha2::{Digest, Sha256};
+    struct Hash(Sha256);
+    impl Hash {
+        fn field(&mut self, bytes: &[u8]) {
+            self.0.update((bytes.len() as u64).to_le_bytes());
+            self.0.update(bytes);
+        }
+    }
+    impl Visit for Hash {
+        fn metadata(&mut self, name: &str, values: &BTreeMap<String, String>) {
+            if !ENVIRONMENT_RECORDS.contains(&name) {
+                self.field(name.as_bytes());
+                for (k, v) in values {
+                    self.field(k.as_bytes());
+                    self.field(v.as_bytes());
+                }
+            }
+        }
+        fn attachment(&mut self, name: &str, data: &[u8]) {
+            self.field(name.as_bytes());
+            self.field(data);
+        }
+        fn message(&mut self, topic: &str, sequence: u32, log_time: u64, data: &[u8]) {
+            self.field(topic.as_bytes());
+            self.0.update(sequence.to_le_bytes());
+            self.0.update(log_time.to_le_bytes());
+            self.field(data);
+        }
+    }
+    let mut h = Hash(Sha256::new());
+    stream(path, &mut h)?;
+    Ok(h.0.finalize().iter().map(|b| format!("{b:02x}")).collect())
 }

@@ -83,7 +83,10 @@ pub fn environment() -> BTreeMap<String, String> {
         ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
         ("host".to_string(), host),
         ("pid".to_string(), std::process::id().to_string()),
-        ("run_id".to_string(), format!("{:032x}", rand::random::<u128>())),
+        (
+            "run_id".to_string(),
+            format!("{:032x}", rand::random::<u128>()),
+        ),
         ("command".to_string(), command),
     ])
 }

@@ -32,7 +32,6 @@ fn machine(cfg: &Loaded) -> FormReport {
         &plan(cfg),
         RunOptions {
             out: None,
-            overwrite: false,
             stop: &stop,
             progress: &mut |_, _| {},
         },

@@ -147,7 +147,7 @@ impl MachineCmd {
             );
         }
         if let Some(o) = out {
-            println!("  wrote {}", o.display());
+            println!("  wrote {}", o.path.display());
         }
         print_written(&written);
         Ok(code)
