@@ -35,10 +35,16 @@ pub enum CliError {
 
 impl CliError {
     /// 2 for what the user can fix before running (bad input, a controller that would make
-    /// the loop unstable), 1 for failures while running.
+    /// the loop unstable), 4 when the recording could not be written mid-run (the run was
+    /// ended safely), 1 for other failures while running.
     pub fn exit_code(&self) -> u8 {
         let input = |r: &RunError| matches!(r, RunError::Config(_) | RunError::Unstable { .. });
+        let write_failed =
+            |r: &RunError| matches!(r, RunError::Record(recorder::RecordError::WriteFailed { .. }));
         match self {
+            CliError::Run(r) | CliError::Study(StudyError::Run(r)) if write_failed(r) => {
+                runner::stop::EndReason::WriteFailed.exit_code()
+            }
             CliError::Config(_) => 2,
             CliError::Run(r) | CliError::Study(StudyError::Run(r)) if input(r) => 2,
             CliError::Study(StudyError::Config(_)) => 2,

@@ -235,7 +235,8 @@ fn a_device_is_not_a_recording_target() {
 }
 
 /// The disk filling mid-run (here: a 2 MB file-size limit) ends the run safely with a clear
-/// error (exit 1, no panic), and the unfinished file it leaves is recovered by `servo inspect`.
+/// error naming the target and the partial file (exit 4, no panic), and the unfinished file it
+/// leaves holds every complete 20 ms chunk, recovered by `servo inspect`.
 #[test]
 fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
     let dir = tmp("fulldisk");
@@ -248,9 +249,9 @@ fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
     );
     let out = Command::new("sh").args(["-c", &script]).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(out.status.code(), Some(4), "{err}");
     assert!(
-        err.contains("big.mcap") && err.contains("too large"),
+        err.contains("big.mcap") && err.contains("too large") && err.contains(".partial"),
         "{err}"
     );
     assert!(!err.contains("panicked"), "{err}");
@@ -277,4 +278,6 @@ fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
         "{read}"
     );
     assert_eq!(read["summary"]["meta"]["end_reason"], "unfinished");
+    let recovered = read["summary"]["ticks"].as_f64().unwrap() / 199_600.0;
+    assert!(recovered < 1.0, "2 MB cannot hold {recovered} s");
 }

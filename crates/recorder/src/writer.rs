@@ -39,6 +39,22 @@ pub enum RecordError {
         /// Cause.
         source: std::io::Error,
     },
+    /// Writing failed mid-run (a full disk, a file size limit, an I/O error): the run ends,
+    /// and the file holds everything up to its last complete chunk.
+    #[error(
+        "writing {} failed: {source}; the recording up to its last complete chunk is in {} \
+         (`servo inspect` recovers it)",
+        path.display(),
+        partial.display()
+    )]
+    WriteFailed {
+        /// The target.
+        path: PathBuf,
+        /// The unfinished file.
+        partial: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
     /// The target exists and [`Overwrite::Refuse`] was asked for.
     #[error("{} exists: not overwritten (pass --overwrite to replace it)", path.display())]
     Exists {
@@ -180,11 +196,15 @@ impl Recorder {
         };
         check_target(path, options.overwrite)?;
         let partial = partial_path(path);
-        let file = File::options()
-            .write(true)
-            .create_new(true)
-            .open(&partial)
-            .map_err(io)?;
+        let file = {
+            use std::os::unix::fs::OpenOptionsExt;
+            File::options()
+                .write(true)
+                .create_new(true)
+                .mode(0o600) // private to the user, as every file the runtime writes
+                .open(&partial)
+                .map_err(io)?
+        };
         let mut w =
             McapFile::create(file, "ros2", "fts-servo recorder", 2, CHUNK_BYTES).map_err(io)?;
         for (id, name, text, channel, topic) in [
@@ -239,8 +259,9 @@ impl Recorder {
             .spawn(move || {
                 let result = Drain::new(w, epoch_ns)
                     .run(consumer, &count, &end_record)
-                    .map_err(|source| RecordError::Io {
+                    .map_err(|source| RecordError::WriteFailed {
                         path: target.clone(),
+                        partial: partial.clone(),
                         source,
                     })
                     .and_then(|n| publish(&partial, &target, overwrite).map(|()| n));
