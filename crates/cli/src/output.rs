@@ -39,8 +39,12 @@ impl CliError {
     /// ended safely), 1 for other failures while running.
     pub fn exit_code(&self) -> u8 {
         let input = |r: &RunError| matches!(r, RunError::Config(_) | RunError::Unstable { .. });
-        let write_failed =
-            |r: &RunError| matches!(r, RunError::Record(recorder::RecordError::WriteFailed { .. }));
+        let write_failed = |r: &RunError| {
+            matches!(
+                r,
+                RunError::Record(recorder::RecordError::WriteFailed { .. })
+            )
+        };
         match self {
             CliError::Run(r) | CliError::Study(StudyError::Run(r)) if write_failed(r) => {
                 runner::stop::EndReason::WriteFailed.exit_code()

@@ -281,3 +281,92 @@ fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
     let recovered = read["summary"]["ticks"].as_f64().unwrap() / 199_600.0;
     assert!(recovered < 1.0, "2 MB cannot hold {recovered} s");
 }
+
+/// A run killed with SIGKILL (no handler runs) leaves its `.partial` file: every complete
+/// chunk in it is recovered, and what is recovered is exactly the start of the same seeded
+/// run left to finish.
+#[test]
+fn a_sigkilled_run_is_recovered_up_to_its_last_chunk() {
+    let path = tmp("killed.mcap");
+    let mut child = servo()
+        .args(["run", "-q", "--duration", "1", "--seed", "3", "--out"])
+        .arg(&path)
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let partial = recorder::partial_path_of(&path, child.id());
+    // Kill once a few chunks are on disk (2 MB ≈ 0.15 s of run); a slow machine only waits
+    // longer.
+    while std::fs::metadata(&partial).map_or(0, |m| m.len()) < 2 << 20 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before the kill"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let killed = recorder::read(&partial).unwrap();
+    let report = killed.report.unwrap();
+    assert_eq!(report.state, recorder::FileState::Unfinished);
+    assert!(report.to_string().starts_with("unfinished"), "{report}");
+    let whole = tmp("unkilled.mcap");
+    succeeded(
+        &servo()
+            .args(["run", "-q", "--duration", "1", "--seed", "3", "--out"])
+            .arg(&whole)
+            .output()
+            .unwrap(),
+    );
+    let reference = recorder::read(&whole).unwrap().frames;
+    let n = killed.frames.len();
+    // At least the 2 MB seen on disk: well over one 20 ms chunk (≈ 4 000 ticks).
+    assert!(n > 8_000 && n < reference.len(), "{n} frames recovered");
+    assert!(
+        killed.frames[..] == reference[..n],
+        "the recovered frames differ"
+    );
+    assert_eq!(n % 3_992, 0, "whole 20 ms chunks (3 992 ticks each) only");
+}
+
+/// Peak resident memory of `servo inspect file`, kB (Python's getrusage of its only child).
+fn inspect_peak_rss_kb(file: &std::path::Path) -> u64 {
+    let out = Command::new("python3")
+        .args([
+            "-c",
+            "import resource, subprocess, sys\n\
+             subprocess.run(sys.argv[1:], check=True, stdout=subprocess.DEVNULL)\n\
+             print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)",
+            env!("CARGO_BIN_EXE_servo"),
+            "inspect",
+        ])
+        .arg(file)
+        .output()
+        .unwrap();
+    succeeded(&out);
+    String::from_utf8_lossy(&out.stdout).trim().parse().unwrap()
+}
+
+/// `servo inspect` streams: a recording ten times longer needs no more memory.
+#[test]
+fn inspect_memory_does_not_grow_with_the_recording() {
+    let (short, long) = (tmp("short.mcap"), tmp("long.mcap"));
+    for (p, seconds) in [(&short, "0.2"), (&long, "2")] {
+        succeeded(
+            &servo()
+                .args(["run", "-q", "--duration", seconds, "--out"])
+                .arg(p)
+                .output()
+                .unwrap(),
+        );
+    }
+    let size = |p: &std::path::Path| std::fs::metadata(p).unwrap().len();
+    assert!(size(&long) > 9 * size(&short));
+    let (a, b) = (inspect_peak_rss_kb(&short), inspect_peak_rss_kb(&long));
+    assert!(
+        b < a + a / 10,
+        "peak RSS {a} kB for {} B, {b} kB for {} B",
+        size(&short),
+        size(&long)
+    );
+}

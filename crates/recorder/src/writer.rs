@@ -476,12 +476,17 @@ pub fn check_target(path: &Path, overwrite: Overwrite) -> Result<(), RecordError
     Ok(())
 }
 
-/// `<dir>/<name>.<pid>.partial`: the recording while it is written.
+/// `<dir>/<name>.<pid>.partial`: the recording while this process writes it.
 pub fn partial_path(path: &Path) -> PathBuf {
+    partial_path_of(path, std::process::id())
+}
+
+/// The `.partial` file process `pid` writes while recording to `path`.
+pub fn partial_path_of(path: &Path, pid: u32) -> PathBuf {
     let name = path
         .file_name()
         .map_or_else(|| "recording".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!("{name}.{}.partial", std::process::id()))
+    path.with_file_name(format!("{name}.{pid}.partial"))
 }
 
 /// Moves the finished `partial` file to `target`: without replacing an existing one (a hard
