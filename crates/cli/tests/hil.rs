@@ -311,6 +311,7 @@ fn control_plane_changes_gains_and_stops_a_running_loop() {
     assert!(out.status.success());
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(summary["meta"]["interrupted"], true);
+    assert_eq!(summary["meta"]["end_reason"], "stopped", "by servo ctl stop");
     let changed = recorder::read(&b).unwrap().frames;
     assert!(changed.len() < 20 * 199_600 && changed.len() >= 60_000);
     // The same run, in process, without the change, as long as the changed one.
@@ -380,7 +381,7 @@ fn processes_of(prefix: &str) -> Vec<u32> {
 
 /// SIGTERM sent to the `servo run --hil` parent alone (as a supervisor sends it) is
 /// forwarded: the plant stops at a tick boundary, the recorder finishes the file (complete,
-/// `end` record `stopped`), the parent exits 128 + 15, and no child outlives it.
+/// `end` record: interrupted by SIGTERM), the parent exits 128 + 15, and no child outlives it.
 #[test]
 fn a_signal_to_the_hil_parent_stops_every_process_and_finishes_the_file() {
     let p = prefix("term");
@@ -417,7 +418,8 @@ fn a_signal_to_the_hil_parent_stops_every_process_and_finishes_the_file() {
     );
     let rec = recorder::read(&out).expect("a finished recording");
     assert_eq!(rec.report.unwrap().state, recorder::FileState::Finished);
-    assert_eq!(rec.end["reason"], "stopped");
+    assert_eq!(rec.end["reason"], "interrupted");
+    assert_eq!(rec.end["signal"], "SIGTERM");
     let ticks: usize = rec.end["ticks"].parse().unwrap();
     assert!((20_000..60 * 199_600).contains(&ticks), "{ticks}");
     assert_eq!(rec.frames.len(), ticks);

@@ -234,6 +234,7 @@ pub mod command {
     /// Start a plant waiting for it (`wait_for_start`).
     pub const START: u32 = 3;
     /// Stop at the next tick boundary (the plant ends the run as if its duration were over).
+    /// `value`: why, as a [`super::stop_cause`] (0: a control-plane request).
     pub const STOP: u32 = 1;
     /// Multiply the controller output (all gains of a linear controller) by `value`
     /// (dimensionless, 0.1..=10).
@@ -252,6 +253,24 @@ pub struct Control {
     pub reserved: u32,
     /// Argument (unit per command).
     pub value: f64,
+}
+
+/// Why a run was stopped early: a signal's number (1 SIGHUP, 2 SIGINT, 15 SIGTERM), or
+/// [`stop_cause::CONTROL`].
+pub mod stop_cause {
+    /// Not stopped.
+    pub const NONE: u32 = 0;
+    /// A control-plane STOP (`servo ctl stop`) or a library caller.
+    pub const CONTROL: u32 = 1 << 16;
+
+    /// The cause a STOP command's `value` carries (0 or out of range: [`CONTROL`]).
+    pub fn of_value(value: f64) -> u32 {
+        if value >= 1.0 && value < 128.0 {
+            value as u32
+        } else {
+            CONTROL
+        }
+    }
 }
 
 /// Which process a [`Health`] report comes from.
@@ -310,8 +329,8 @@ pub struct Health {
     pub overruns: u64,
     /// Sticky [`flags`] fault bits.
     pub faults: u32,
-    /// Reserved, 0.
-    pub reserved: u32,
+    /// Why the run was stopped early, a [`stop_cause`] (0: it was not).
+    pub stop_cause: u32,
     /// Wall time since the first tick in s.
     pub wall_s: f64,
     /// Round-trip latency (plant, in its final report; zero before).

@@ -23,8 +23,8 @@ pub mod ipc;
 pub mod serve;
 
 pub use contract::{
-    flags, Command, Control, Health, Latency, Sensor, Telemetry, TelemetryBlock, Truth, TruthBlock,
-    BLOCK_TICKS,
+    flags, stop_cause, Command, Control, Health, Latency, Sensor, Telemetry, TelemetryBlock, Truth,
+    TruthBlock, BLOCK_TICKS,
 };
 pub use daq::{Backend, Daq, DaqError, InProcess};
 pub use histogram::LatencyHistogram;

@@ -81,8 +81,8 @@ pub struct ServeReport {
     pub faults: u32,
     /// Tick at which the controller was declared lost.
     pub fault_tick: Option<u64>,
-    /// Stopped early by a control-plane STOP or the stop flag.
-    pub stopped: bool,
+    /// Why it stopped early, a [`crate::stop_cause`] (0: it ran to its end or faulted).
+    pub stop_cause: u32,
     /// Round trip sensor → command, plant side.
     pub latency: crate::Latency,
     /// Wall time from the first tick in s.
@@ -240,14 +240,15 @@ pub fn serve<B: Backend>(
         k += 1;
         if k.is_multiple_of(2048) {
             while let Some(c) = take(&control_sub) {
-                if c.command == command::STOP {
+                if c.command == command::STOP && report.stop_cause == 0 {
                     end_tick = end_tick.min(k);
-                    report.stopped = true;
+                    report.stop_cause = crate::stop_cause::of_value(c.value);
                 }
             }
-            if stop.load(Ordering::Relaxed) != 0 {
+            let asked = stop.load(Ordering::Relaxed);
+            if asked != 0 && report.stop_cause == 0 {
                 end_tick = end_tick.min(k);
-                report.stopped = true;
+                report.stop_cause = u32::try_from(asked).unwrap_or(crate::stop_cause::CONTROL);
             }
             // The latency percentiles scan the histogram: only in the final report.
             progress(&mut health, k, &report, t0);
@@ -269,6 +270,7 @@ pub fn serve<B: Backend>(
     };
     progress(&mut health, k, &report, t0);
     health.latency = report.latency;
+    health.stop_cause = report.stop_cause;
     crate::ipc::send(&health_pub, health);
     crate::ipc::linger(&truth_service, opts.linger);
     Ok(report)

@@ -112,6 +112,8 @@ pub fn controller(plan: &Plan, prefix: &str, stop: &StopRequest) -> Result<u64, 
                 stop_sent = stopper
                     .send(Control {
                         command: command::STOP,
+                        value: f64::from(stop.cell().load(std::sync::atomic::Ordering::Relaxed)
+                            as u32),
                         ..Default::default()
                     })
                     .is_ok();
@@ -271,7 +273,11 @@ pub fn record(
     let reason = if plant_fault {
         EndReason::PeerLost
     } else if ticks < total {
-        EndReason::Stopped
+        // The plant's final report says who stopped it (a signal, `servo ctl stop`).
+        match EndReason::of_cause(plant_health.stop_cause) {
+            EndReason::Completed => EndReason::Stopped,
+            reason => reason,
+        }
     } else {
         EndReason::Completed
     };

@@ -12,7 +12,7 @@ pub struct StopRequest(Arc<AtomicUsize>);
 
 impl StopRequest {
     /// The value a control-plane STOP (or a library caller) stores.
-    pub const CONTROL: usize = 1 << 16;
+    pub const CONTROL: usize = daq_io::stop_cause::CONTROL as usize;
 
     /// Not stopped.
     pub fn new() -> Self {
@@ -45,11 +45,7 @@ impl StopRequest {
 
     /// How the run ends if it ends now because of this request.
     pub fn reason(&self) -> EndReason {
-        match self.0.load(Ordering::Relaxed) {
-            0 => EndReason::Completed,
-            Self::CONTROL => EndReason::Stopped,
-            signal => EndReason::Signal(signal as i32),
-        }
+        EndReason::of_cause(self.0.load(Ordering::Relaxed) as u32)
     }
 }
 
@@ -69,6 +65,15 @@ pub enum EndReason {
 }
 
 impl EndReason {
+    /// The end a [`daq_io::stop_cause`] describes (0: completed).
+    pub fn of_cause(cause: u32) -> EndReason {
+        match cause {
+            daq_io::stop_cause::NONE => EndReason::Completed,
+            1..=127 => EndReason::Signal(cause as i32),
+            _ => EndReason::Stopped,
+        }
+    }
+
     /// The name written into the recording and the summary.
     pub fn name(self) -> &'static str {
         match self {
