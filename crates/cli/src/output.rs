@@ -28,6 +28,9 @@ pub enum CliError {
         /// Cause.
         source: std::io::Error,
     },
+    /// Exporting a recording.
+    #[error(transparent)]
+    Export(#[from] recorder::export::ExportError),
     /// Starting or supervising the HIL processes.
     #[error("{0}")]
     Processes(String),
@@ -52,6 +55,7 @@ impl CliError {
             CliError::Config(_) => 2,
             CliError::Run(r) | CliError::Study(StudyError::Run(r)) if input(r) => 2,
             CliError::Study(StudyError::Config(_)) => 2,
+            CliError::Export(recorder::export::ExportError::Selection(_)) => 2,
             _ => 1,
         }
     }

@@ -311,7 +311,10 @@ fn control_plane_changes_gains_and_stops_a_running_loop() {
     assert!(out.status.success());
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(summary["meta"]["interrupted"], true);
-    assert_eq!(summary["meta"]["end_reason"], "stopped", "by servo ctl stop");
+    assert_eq!(
+        summary["meta"]["end_reason"], "stopped",
+        "by servo ctl stop"
+    );
     let changed = recorder::read(&b).unwrap().frames;
     assert!(changed.len() < 20 * 199_600 && changed.len() >= 60_000);
     // The same run, in process, without the change, as long as the changed one.

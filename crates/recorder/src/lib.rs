@@ -10,6 +10,7 @@
 
 #[macro_use]
 pub mod frame;
+pub mod export;
 pub mod mcap_file;
 pub mod overview;
 pub mod reader;

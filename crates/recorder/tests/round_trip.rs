@@ -3,56 +3,13 @@
 //! intact; an existing recording is never replaced unless asked.
 
 use recorder::{
-    read, FileState, Frame, Overwrite, RecordError, RecordOptions, Recorder, Telemetry, Truth,
-    DEFAULT_EPOCH_NS, OVERVIEW_PERIOD_NS,
+    read, FileState, Frame, Overwrite, RecordError, RecordOptions, Recorder, DEFAULT_EPOCH_NS,
+    OVERVIEW_PERIOD_NS,
 };
+mod common;
+
+use common::{end, frames, tmp, write};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
-
-fn frames(n: usize) -> Vec<Frame> {
-    (0..n)
-        .map(|k| {
-            let t = k as f64 / 199_600.0;
-            Frame {
-                time_ns: (t * 1e9).round() as u64,
-                telemetry: Telemetry {
-                    reference_m: (1e-9 * (t * 300.0).sin()) as f32,
-                    measured_m: k as f32 * 1e-12,
-                    following_error_m: -1e-10,
-                    control_v: 0.1,
-                    accel_m_s2: 0.0,
-                    flags: (k % 3) as f32,
-                },
-                truth: Truth {
-                    tool_m: 2e-9,
-                    cutting_force_n: 1.0,
-                    ..Default::default()
-                },
-            }
-        })
-        .collect()
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("fts-recorder-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
-
-fn end() -> BTreeMap<String, String> {
-    BTreeMap::from([("reason".to_string(), "completed".to_string())])
-}
-
-fn write(path: &std::path::Path, data: &[Frame]) {
-    let meta = BTreeMap::from([("seed".to_string(), "7".to_string())]);
-    let mut r = Recorder::create(path, meta, RecordOptions::default()).unwrap();
-    for f in data {
-        r.push(*f).unwrap();
-    }
-    let stats = r.finish(end()).unwrap();
-    assert_eq!(stats.messages, 2 * data.len() as u64);
-    assert_eq!(stats.dropped_frames, 0);
-}
 
 #[test]
 fn frames_survive_the_round_trip_bit_for_bit() {

@@ -112,8 +112,9 @@ pub fn controller(plan: &Plan, prefix: &str, stop: &StopRequest) -> Result<u64, 
                 stop_sent = stopper
                     .send(Control {
                         command: command::STOP,
-                        value: f64::from(stop.cell().load(std::sync::atomic::Ordering::Relaxed)
-                            as u32),
+                        value: f64::from(
+                            stop.cell().load(std::sync::atomic::Ordering::Relaxed) as u32
+                        ),
                         ..Default::default()
                     })
                     .is_ok();
