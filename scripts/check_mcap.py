@@ -28,11 +28,15 @@ def main(path, summary_path):
                 assert math.isfinite(decoded.following_error_m), "non-finite following error"
             elif channel.topic == "/truth":
                 assert math.isfinite(decoded.tool_m), "non-finite tool position"
-    total = sum(counts.values())
+            elif channel.topic == "/overview":
+                assert decoded.min.following_error_m <= decoded.max.following_error_m
+    total = counts["/telemetry"] + counts["/truth"]
     expected = summary["meta"]["recorded_messages"]
     ticks = summary["ticks"]
     assert total == expected, f"decoded {total} messages, the run reported {expected}"
-    assert counts == {"/telemetry": ticks, "/truth": ticks}, counts
+    assert counts["/telemetry"] == ticks and counts["/truth"] == ticks, counts
+    # The 1 kHz overview: one message per started millisecond of run.
+    assert abs(counts["/overview"] - ticks / 199.6) <= 2, counts
     assert meta["run"]["seed"] == str(summary["meta"]["seed"]), meta["run"]["seed"]
     assert meta["end"]["reason"] == summary["meta"]["end_reason"], meta["end"]
     assert meta["end"]["ticks"] == str(ticks), meta["end"]
@@ -43,7 +47,8 @@ def main(path, summary_path):
     indexes = sum(isinstance(r, MessageIndex) for r in records)
     assert indexes > 0, "no message indexes"
     print(f"{path}: decoded all {total} messages with the Python mcap readers "
-          f"({counts['/telemetry']} telemetry, {counts['/truth']} truth), as the run reported; "
+          f"({counts['/telemetry']} telemetry, {counts['/truth']} truth, "
+          f"{counts['/overview']} overview), as the run reported; "
           f"CRCs valid, profile ros2, {indexes} message indexes, ended {meta['end']['reason']}")
 
 

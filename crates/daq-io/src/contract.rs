@@ -265,7 +265,7 @@ pub mod stop_cause {
 
     /// The cause a STOP command's `value` carries (0 or out of range: [`CONTROL`]).
     pub fn of_value(value: f64) -> u32 {
-        if value >= 1.0 && value < 128.0 {
+        if (1.0..128.0).contains(&value) {
             value as u32
         } else {
             CONTROL

@@ -60,8 +60,8 @@ impl Message for Overview {
 
     fn schema_text() -> String {
         format!(
-            "uint32 ticks\nfts_servo/msg/Signals min\nfts_servo/msg/Signals max\n\
-             fts_servo/msg/Signals mean\n{}\nMSG: fts_servo/msg/Signals\n{}",
+            "uint32 ticks\nfts_servo/Signals min\nfts_servo/Signals max\n\
+             fts_servo/Signals mean\n{}\nMSG: fts_servo/Signals\n{}",
             "=".repeat(80),
             Signals::field_text()
         )
@@ -191,6 +191,6 @@ mod tests {
         assert_eq!(buf.len(), 4 + 4 + 3 * 4 * Signals::LEN);
         assert_eq!(Overview::decode(&buf), Some(o));
         assert!(Overview::schema_text()
-            .contains("\nMSG: fts_servo/msg/Signals\nfloat32 following_error_m\n"));
+            .contains("\nMSG: fts_servo/Signals\nfloat32 following_error_m\n"));
     }
 }
