@@ -306,7 +306,7 @@ impl Visit for Feed<'_, '_> {
             return;
         }
         e.tick += 1;
-        if (e.tick - 1) % s.every != 0 {
+        if !(e.tick - 1).is_multiple_of(s.every) {
             return;
         }
         e.values.clear();
