@@ -34,6 +34,14 @@ pub enum CliError {
     /// Starting or supervising the HIL processes.
     #[error("{0}")]
     Processes(String),
+    /// A HIL child process failed (it printed why); the command exits with its code.
+    #[error("servo {name} exited with {code}")]
+    Child {
+        /// Which process (`plant`, `controller`, `recorder`).
+        name: String,
+        /// Its exit code.
+        code: i32,
+    },
 }
 
 impl CliError {
@@ -56,6 +64,7 @@ impl CliError {
             CliError::Run(r) | CliError::Study(StudyError::Run(r)) if input(r) => 2,
             CliError::Study(StudyError::Config(_)) => 2,
             CliError::Export(recorder::export::ExportError::Selection(_)) => 2,
+            CliError::Child { code, .. } => u8::try_from(*code).unwrap_or(1),
             _ => 1,
         }
     }

@@ -427,3 +427,81 @@ fn a_signal_to_the_hil_parent_stops_every_process_and_finishes_the_file() {
     assert!((20_000..60 * 199_600).contains(&ticks), "{ticks}");
     assert_eq!(rec.frames.len(), ticks);
 }
+
+/// The HIL recorder's disk filling mid-run (a 2 MB file-size limit on the recorder alone; on
+/// every process it would stop iceoryx2 from sizing its shared memory): the recorder asks the
+/// plant to stop, the plant ends the run safely and with the controller exits 0, the recorder
+/// exits 4 naming the partial file, which is recovered.
+#[test]
+fn a_full_disk_in_hil_ends_the_run_safely() {
+    let p = prefix("full");
+    let dir = tmp("hil-full");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("hil.mcap");
+    // The plant's final health report says why it stopped.
+    let ep = daq_io::ipc::Endpoint::open(&p, "test-watch").unwrap();
+    let health = ep
+        .subscriber::<daq_io::Health>(daq_io::ipc::leaf::HEALTH)
+        .unwrap();
+    let start = |args: &[&str]| {
+        servo()
+            .args(args)
+            .args(["--prefix", &p])
+            .stdout(Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    let mut plant = start(&["plant", "--duration", "60"]);
+    let mut controller = start(&["controller"]);
+    let script = format!(
+        "trap '' XFSZ; ulimit -f 4000; exec '{}' record -q --json --duration 60 --prefix {p} --out '{}'",
+        env!("CARGO_BIN_EXE_servo"),
+        out.display()
+    );
+    let rec = Command::new("sh")
+        .args(["-c", &script])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Read the reports while the plant lives (its samples go with it).
+    let mut last = None;
+    let plant_status = loop {
+        let exited = plant.try_wait().unwrap();
+        while let Some(h) = daq_io::ipc::take(&health) {
+            if h.role == daq_io::contract::role::PLANT {
+                last = Some(h);
+            }
+        }
+        if let Some(status) = exited {
+            break status;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    };
+    assert!(plant_status.success(), "the plant stops safely");
+    assert!(controller.wait().unwrap().success());
+    let rec = rec.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&rec.stderr);
+    assert_eq!(rec.status.code(), Some(4), "{err}");
+    assert!(
+        err.contains("hil.mcap") && err.contains(".partial"),
+        "{err}"
+    );
+    let last = last.expect("the plant's report");
+    assert_eq!(last.state, daq_io::contract::state::DONE);
+    assert_eq!(last.stop_cause, daq_io::stop_cause::WRITE_FAILED);
+    assert!(
+        last.ticks < 60 * 199_600,
+        "stopped early: {} ticks",
+        last.ticks
+    );
+    let partial = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|f| f.to_string_lossy().ends_with(".partial"))
+        .expect("the unfinished recording is kept");
+    let rec = recorder::read(&partial).unwrap();
+    assert_eq!(rec.report.unwrap().state, recorder::FileState::Unfinished);
+    let n = rec.frames.len();
+    assert!(n > 0 && n < 60 * 199_600, "{n} frames");
+}

@@ -262,11 +262,15 @@ pub mod stop_cause {
     pub const NONE: u32 = 0;
     /// A control-plane STOP (`servo ctl stop`) or a library caller.
     pub const CONTROL: u32 = 1 << 16;
+    /// The recorder could not write the recording (a full disk): the run is ended safely.
+    pub const WRITE_FAILED: u32 = 1 << 17;
 
     /// The cause a STOP command's `value` carries (0 or out of range: [`CONTROL`]).
     pub fn of_value(value: f64) -> u32 {
         if (1.0..128.0).contains(&value) {
             value as u32
+        } else if value == f64::from(WRITE_FAILED) {
+            WRITE_FAILED
         } else {
             CONTROL
         }

@@ -210,6 +210,8 @@ pub fn record(
     let description = plan.controller.description.clone();
     let ep = Endpoint::open(prefix, "recorder")?;
     let tap = Tap::new(&ep)?;
+    // Made now: a publisher the plant has not yet seen would lose its first message.
+    let stopper = ControlSender::new(&ep)?;
     let mut rec = match &out {
         Some(to) => Some(recording::create(plan, to)?),
         None => None,
@@ -221,11 +223,21 @@ pub fn record(
     let (mut telemetry_end, mut truth_end, mut plant_fault) = (false, false, false);
     let mut last_data: Option<Instant> = None;
     let waiting = Instant::now();
+    let mut write_failed = false;
     let mut push = |f: Frame| {
         summary.add(&f);
         if let Some(r) = &mut rec {
-            // A writer failure comes out of finish() below.
-            let _ = r.push(f);
+            if r.push(f).is_err() && !write_failed {
+                // The file cannot be written (a full disk): the plant ends the run safely, as
+                // for any stop; the error comes out of finish() below.
+                write_failed = true;
+                let stop = Control {
+                    command: command::STOP,
+                    value: f64::from(daq_io::stop_cause::WRITE_FAILED),
+                    ..Default::default()
+                };
+                let _ = stopper.send(stop);
+            }
         }
     };
     loop {

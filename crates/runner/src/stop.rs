@@ -70,6 +70,7 @@ impl EndReason {
         match cause {
             daq_io::stop_cause::NONE => EndReason::Completed,
             1..=127 => EndReason::Signal(cause as i32),
+            daq_io::stop_cause::WRITE_FAILED => EndReason::WriteFailed,
             _ => EndReason::Stopped,
         }
     }

@@ -165,20 +165,27 @@ pub fn run(
     if let Some(mut o) = recorder.stdout {
         let _ = o.read_to_string(&mut text);
     }
-    let summary: Summary = serde_json::from_str(&text).map_err(|_| {
-        CliError::Processes(format!(
+    let failed = codes.iter().find(|(_, c)| *c != 0).cloned();
+    let summary: Summary = serde_json::from_str(&text).map_err(|_| match &failed {
+        // The child said why on stderr (e.g. the recorder: a full disk, and where the partial
+        // file is); its exit code is the run's.
+        Some((name, code)) => CliError::Child {
+            name: name.to_string(),
+            code: *code,
+        },
+        None => CliError::Processes(format!(
             "the recorder gave no summary (exit codes: {})",
             codes
                 .iter()
                 .map(|(n, c)| format!("{n} {c}"))
                 .collect::<Vec<_>>()
                 .join(", ")
-        ))
+        )),
     })?;
-    let code = match codes.iter().find(|(_, c)| *c != 0) {
+    let code = match failed {
         Some((name, c)) => {
             eprintln!("servo {name} exited with {c}");
-            ExitCode::from(*c as u8)
+            ExitCode::from(c as u8)
         }
         None => ExitCode::SUCCESS,
     };
