@@ -1,8 +1,11 @@
-//! Recorder throughput: one simulated second of a real closed-loop run (the default thesis
-//! prototype, 199.6 kHz, sensor and current noise on: realistic entropy) pushed through the
-//! ring, encoded and written as whole-chunk zstd MCAP with message indexes and the overview,
-//! as a multiple of real time; the baseline in the same run writes the same CDR payloads back
-//! to back to a plain buffered file. Prints the bytes per simulated second of each.
+//! Recorder throughput: [`SECONDS`] simulated seconds of a real closed-loop run (the default
+//! thesis prototype, 199.6 kHz, sensor and current noise on: realistic entropy; one simulated
+//! second repeated, time-shifted) pushed through the ring, encoded and written as whole-chunk
+//! zstd MCAP with message indexes and the overview, finished and synced; the baseline in the
+//! same run writes the same CDR payloads back to back to a plain buffered file; a third case
+//! records every 10th tick (`--record-every 10`). Several seconds per iteration so the
+//! one-off costs of a recording (its final drain and `fdatasync`) weigh as in a long run; divide the time by [`SECONDS`] for the time per
+//! simulated second. Prints the bytes per simulated second of each.
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -10,6 +13,7 @@ use recorder::{Frame, Message, Overwrite, RecordOptions, Recorder};
 use runner::config::Loaded;
 use std::collections::BTreeMap;
 use std::io::Write;
+use std::num::NonZeroU32;
 
 /// One simulated second of the default run.
 fn frames() -> Vec<Frame> {
@@ -21,28 +25,48 @@ fn frames() -> Vec<Frame> {
     out
 }
 
+/// Simulated seconds per iteration.
+const SECONDS: u64 = 4;
+
+/// The frames of [`SECONDS`] simulated seconds: one, repeated and time-shifted.
+fn run_of(second: &[Frame]) -> impl Iterator<Item = Frame> + '_ {
+    (0..SECONDS).flat_map(move |k| {
+        second.iter().map(move |f| Frame {
+            time_ns: f.time_ns + k * 1_000_000_000,
+            ..*f
+        })
+    })
+}
+
 fn throughput(c: &mut Criterion) {
     let data = frames();
     let dir = std::env::temp_dir().join(format!("fts-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("bench.mcap");
-    let mut group = c.benchmark_group("recorder_1s");
+    let path_of = |every: u32| dir.join(format!("every-{every}.mcap"));
+    let mut group = c.benchmark_group("recorder_4s");
     group
         .sample_size(10)
-        .throughput(Throughput::Elements(data.len() as u64));
-    group.bench_function("mcap_zstd", |b| {
-        b.iter(|| {
-            let options = RecordOptions {
-                overwrite: Overwrite::Replace,
-                ..Default::default()
-            };
-            let mut r = Recorder::create(&path, BTreeMap::new(), options).unwrap();
-            for f in &data {
-                r.push(*f).unwrap();
-            }
-            r.finish(BTreeMap::new()).unwrap()
-        })
-    });
+        .throughput(Throughput::Elements(SECONDS * data.len() as u64));
+    for every in [1, 10] {
+        let name = match every {
+            1 => "mcap_zstd".to_string(),
+            n => format!("mcap_zstd_every_{n}"),
+        };
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                let options = RecordOptions {
+                    overwrite: Overwrite::Replace,
+                    every: NonZeroU32::new(every).unwrap(),
+                    ..Default::default()
+                };
+                let mut r = Recorder::create(&path_of(every), BTreeMap::new(), options).unwrap();
+                for f in run_of(&data) {
+                    r.push(f).unwrap();
+                }
+                r.finish(BTreeMap::new()).unwrap()
+            })
+        });
+    }
     group.bench_function("raw_file_baseline", |b| {
         b.iter(|| {
             let mut w = std::io::BufWriter::with_capacity(
@@ -50,7 +74,7 @@ fn throughput(c: &mut Criterion) {
                 std::fs::File::create(dir.join("raw.bin")).unwrap(),
             );
             let mut buf = Vec::with_capacity(256);
-            for f in &data {
+            for f in run_of(&data) {
                 buf.clear();
                 f.telemetry.encode(&mut buf);
                 f.truth.encode(&mut buf);
@@ -60,11 +84,15 @@ fn throughput(c: &mut Criterion) {
         })
     });
     group.finish();
-    for (what, file) in [("mcap", &path), ("raw", &dir.join("raw.bin"))] {
+    for (what, file) in [
+        ("mcap", path_of(1)),
+        ("mcap_every_10", path_of(10)),
+        ("raw", dir.join("raw.bin")),
+    ] {
         let bytes = std::fs::metadata(file).map_or(0, |m| m.len());
         println!(
-            "recorder_1s/{what}: {:.1} MB per simulated second",
-            bytes as f64 / 1e6
+            "recorder_4s/{what}: {:.1} MB per simulated second",
+            bytes as f64 / 1e6 / SECONDS as f64
         );
     }
     let _ = std::fs::remove_dir_all(&dir);

@@ -6,6 +6,7 @@ use clap::Args;
 use plant_sim::params::NoiseParams;
 use runner::config::presets::{ScenarioKind, ScenarioValues, StagePreset};
 use runner::config::{ConfigError, ControllerKind, FeedforwardKind, Loaded};
+use std::num::NonZeroU32;
 use std::path::PathBuf;
 
 /// The stage and where the configuration comes from (every command that models the loop).
@@ -258,6 +259,12 @@ pub struct RecordingArgs {
     /// Foxglove shows log times as dates.
     #[arg(long, value_name = "DATE|now", value_parser = parse_epoch, conflicts_with = "no_record")]
     pub log_epoch: Option<u64>,
+    /// Record only every n-th tick at full rate (the first, then every n), for long runs:
+    /// divides the recording's size and writing time by about n. The 1 kHz `/overview`
+    /// channel still summarises every tick. 1 = all (the default); at most 1 000 000.
+    #[arg(long, value_name = "N", default_value_t = NonZeroU32::MIN,
+          value_parser = parse_every, conflicts_with = "no_record")]
+    pub record_every: NonZeroU32,
     /// Do not write a file (summary only).
     #[arg(long)]
     pub no_record: bool,
@@ -276,8 +283,18 @@ impl RecordingArgs {
             path: self.out.clone().unwrap_or_else(|| default.to_owned()),
             overwrite: self.overwrite,
             epoch_ns: self.log_epoch.unwrap_or(recorder::DEFAULT_EPOCH_NS),
+            every: self.record_every,
         })
     }
+}
+
+/// `--record-every`: 1 … 1 000 000.
+fn parse_every(s: &str) -> Result<NonZeroU32, String> {
+    s.parse::<u32>()
+        .ok()
+        .filter(|n| (1..=1_000_000).contains(n))
+        .and_then(NonZeroU32::new)
+        .ok_or_else(|| format!("{s}: expected a whole number of ticks from 1 to 1000000"))
 }
 
 /// `--log-epoch`: an RFC 3339 date or `now`, as ns since the Unix epoch.

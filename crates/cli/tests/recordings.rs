@@ -43,6 +43,48 @@ fn inspect_equals_the_live_summary() {
     assert_eq!(live["meta"]["recorded_messages"].as_u64(), Some(messages));
 }
 
+/// `--record-every 10`: a tenth of the ticks, a finished run (not "interrupted"), and
+/// statistics close to the live ones (the RMS of a tenth of 60 000 noisy samples: within 5 %).
+#[test]
+fn a_decimated_recording_reads_as_a_complete_run() {
+    let path = tmp("every10.mcap");
+    let live = json(
+        &servo()
+            .args([
+                "run",
+                "--json",
+                "-q",
+                "--duration",
+                "0.3",
+                "--record-every",
+                "10",
+            ])
+            .arg("--out")
+            .arg(&path)
+            .output()
+            .unwrap(),
+    );
+    let read = json(
+        &servo()
+            .args(["inspect", "--json"])
+            .arg(&path)
+            .output()
+            .unwrap(),
+    );
+    let s = &read["summary"];
+    assert_eq!(s["ticks"], live["ticks"].as_u64().unwrap().div_ceil(10));
+    assert_eq!(s["meta"]["interrupted"], false);
+    assert_eq!(s["meta"]["recorded_every"], 10);
+    assert_eq!(read["end"]["reason"], "completed");
+    let rms = |v: &serde_json::Value| v["following_error_m"]["rms"].as_f64().unwrap();
+    assert!(
+        (rms(s) / rms(&live) - 1.0).abs() < 0.05,
+        "{} vs {}",
+        rms(s),
+        rms(&live)
+    );
+}
+
 /// Same seed, same data: every message, attachment and record but the run's environment
 /// (run id, host, start time) is byte-identical, and the environment does differ.
 #[test]

@@ -14,6 +14,7 @@ pub mod export;
 pub mod mcap_file;
 pub mod overview;
 pub mod reader;
+mod syncer;
 pub mod writer;
 
 pub use frame::{Frame, Message, Telemetry, Truth};
@@ -24,5 +25,6 @@ pub use reader::{
 };
 pub use writer::{
     check_target, partial_path, partial_path_of, Input, Overwrite, RecordError, RecordOptions,
-    RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY, SYNC_INTERVAL,
+    RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY, EVERY_KEY,
+    SYNC_INTERVAL,
 };

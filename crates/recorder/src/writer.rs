@@ -12,15 +12,18 @@
 //! The file is written under a temporary name beside the target (`<name>.<pid>.partial`) and
 //! renamed when finished; an existing target is kept unless [`Overwrite::Replace`] is asked
 //! for. Every closed chunk reaches the operating system in one write at once, and storage
-//! (`fdatasync`) at least every [`SYNC_INTERVAL`]: a run killed with SIGKILL loses at most the
-//! chunk being filled ([`CHUNK_SPAN_NS`] of run) and what waits in the ring; a power loss at
-//! most [`SYNC_INTERVAL`] more. The reader recovers the rest.
+//! (`fdatasync`, on a thread of its own so the writer never waits for the disk) every
+//! [`SYNC_INTERVAL`]: a run killed with SIGKILL loses at most the chunk being filled
+//! ([`CHUNK_SPAN_NS`] of run) and what waits in the ring; a power loss at most
+//! [`SYNC_INTERVAL`] and one sync's duration more. The reader recovers the rest.
 
 use crate::frame::{Frame, Message, Telemetry, Truth};
 use crate::mcap_file::McapFile;
 use crate::overview::{Overview, OverviewBin};
+use crate::syncer::Syncer;
 use std::collections::BTreeMap;
 use std::fs::File;
+use std::num::NonZeroU32;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -99,6 +102,10 @@ pub struct RecordOptions {
     /// Log time of the run's t = 0, ns since the Unix epoch (Foxglove shows log times as
     /// dates). Kept in the `run` record as `log_time_epoch_ns`; readers subtract it.
     pub epoch_ns: u64,
+    /// Decimation of the full-rate channels for long runs: every `every`-th tick is recorded
+    /// (the first tick, then every `every` ticks; 1 = all). The `/overview` channel still sees
+    /// every tick. Kept in the `run` record as `record_every`. At least 1.
+    pub every: NonZeroU32,
     /// The `environment` record: what differs between two runs of the same seed (run id,
     /// host, version, …). The recorder adds `started` (UTC).
     pub environment: BTreeMap<String, String>,
@@ -109,13 +116,14 @@ pub struct RecordOptions {
 pub const DEFAULT_EPOCH_NS: u64 = 1_767_225_600_000_000_000;
 
 impl Default for RecordOptions {
-    /// Wait when full, never overwrite, nothing attached, the default epoch.
+    /// Wait when full, never overwrite, nothing attached, the default epoch, every tick.
     fn default() -> Self {
         RecordOptions {
             when_full: WhenFull::Wait,
             overwrite: Overwrite::Refuse,
             inputs: Vec::new(),
             epoch_ns: DEFAULT_EPOCH_NS,
+            every: NonZeroU32::MIN,
             environment: BTreeMap::new(),
         }
     }
@@ -165,7 +173,7 @@ pub const OVERVIEW_CHUNK_SPAN_NS: u64 = 1_000_000_000;
 /// span closes chunks first).
 pub const CHUNK_BYTES: usize = 4 << 20;
 
-/// Longest wall-clock time between two `fdatasync`s of the file.
+/// Wall-clock time between two `fdatasync` requests of the file.
 pub const SYNC_INTERVAL: Duration = Duration::from_secs(1);
 
 /// How often an idle writer thread looks at the ring (the ring holds 0.16 s of a run).
@@ -205,6 +213,7 @@ impl Recorder {
                 .open(&partial)
                 .map_err(io)?
         };
+        let syncer = Syncer::start(&file).map_err(io)?;
         let mut w =
             McapFile::create(file, "ros2", "fts-servo recorder", 2, CHUNK_BYTES).map_err(io)?;
         for (id, name, text, channel, topic) in [
@@ -235,6 +244,7 @@ impl Recorder {
         }
         let mut run = metadata;
         run.insert(EPOCH_KEY.into(), options.epoch_ns.to_string());
+        run.insert(EVERY_KEY.into(), options.every.to_string());
         w.metadata("run", &run).map_err(io)?;
         let mut environment = options.environment;
         environment.insert("started".into(), utc_now());
@@ -253,11 +263,12 @@ impl Recorder {
         let written = Arc::new(AtomicU64::new(0));
         let end = Arc::new(Mutex::new(BTreeMap::new()));
         let (alive, count, end_record) = (writer_alive.clone(), written.clone(), end.clone());
-        let (target, overwrite, epoch_ns) = (path.to_owned(), options.overwrite, options.epoch_ns);
+        let (target, overwrite) = (path.to_owned(), options.overwrite);
+        let (epoch_ns, every) = (options.epoch_ns, options.every);
         let thread = std::thread::Builder::new()
             .name("mcap-writer".into())
             .spawn(move || {
-                let result = Drain::new(w, epoch_ns)
+                let result = Drain::new(w, syncer, epoch_ns, every)
                     .run(consumer, &count, &end_record)
                     .map_err(|source| RecordError::WriteFailed {
                         path: target.clone(),
@@ -333,6 +344,9 @@ impl Recorder {
 /// The `run` metadata key holding the log-time epoch (ns since the Unix epoch).
 pub const EPOCH_KEY: &str = "log_time_epoch_ns";
 
+/// The `run` metadata key holding the full-rate decimation ([`RecordOptions::every`]).
+pub const EVERY_KEY: &str = "record_every";
+
 /// Now, as an RFC 3339 UTC time.
 fn utc_now() -> String {
     humantime::format_rfc3339_millis(SystemTime::now()).to_string()
@@ -341,7 +355,11 @@ fn utc_now() -> String {
 /// The writer thread's state.
 struct Drain {
     w: McapFile<File>,
+    syncer: Syncer,
     epoch_ns: u64,
+    every: u32,
+    /// Ticks seen, recorded or not.
+    ticks: u64,
     overview: OverviewBin,
     sequence: u32,
     overview_sequence: u32,
@@ -351,10 +369,13 @@ struct Drain {
 }
 
 impl Drain {
-    fn new(w: McapFile<File>, epoch_ns: u64) -> Self {
+    fn new(w: McapFile<File>, syncer: Syncer, epoch_ns: u64, every: NonZeroU32) -> Self {
         Drain {
             w,
+            syncer,
             epoch_ns,
+            every: every.get(),
+            ticks: 0,
             overview: OverviewBin::default(),
             sequence: 0,
             overview_sequence: 0,
@@ -387,7 +408,7 @@ impl Drain {
             }
             count.store(self.written, Ordering::Relaxed);
             if self.synced.elapsed() >= SYNC_INTERVAL {
-                self.w.sync()?;
+                self.syncer.request()?;
                 self.synced = Instant::now();
             }
         }
@@ -406,13 +427,36 @@ impl Drain {
             ),
         ]);
         self.w.metadata("timing", &timing)?;
+        self.syncer.stop()?;
         self.w.finish()?;
         Ok(self.written)
     }
 
-    /// One tick: its two messages, its share of the overview; closes chunks that are full.
+    /// One tick: its two messages (unless decimated away), its share of the overview; closes
+    /// chunks that are full.
     #[inline]
     fn frame(&mut self, frame: &Frame) -> std::io::Result<()> {
+        if self.ticks.is_multiple_of(u64::from(self.every)) {
+            self.full_rate(frame)?;
+        }
+        self.ticks += 1;
+        if let Some((period_start, o)) = self.overview.add(frame) {
+            let start = self.epoch_ns + period_start;
+            if self
+                .w
+                .chunk_start(OVERVIEW)
+                .is_some_and(|first| start - first >= OVERVIEW_CHUNK_SPAN_NS)
+            {
+                self.w.close_chunk(OVERVIEW)?;
+            }
+            self.overview_message(period_start, &o);
+        }
+        Ok(())
+    }
+
+    /// The tick's `/telemetry` and `/truth` messages.
+    #[inline]
+    fn full_rate(&mut self, frame: &Frame) -> std::io::Result<()> {
         let t = self.epoch_ns + frame.time_ns;
         if self
             .w
@@ -431,17 +475,6 @@ impl Drain {
         self.written += 2;
         if bytes >= CHUNK_BYTES {
             self.w.close_chunk(DATA)?;
-        }
-        if let Some((period_start, o)) = self.overview.add(frame) {
-            let start = self.epoch_ns + period_start;
-            if self
-                .w
-                .chunk_start(OVERVIEW)
-                .is_some_and(|first| start - first >= OVERVIEW_CHUNK_SPAN_NS)
-            {
-                self.w.close_chunk(OVERVIEW)?;
-            }
-            self.overview_message(period_start, &o);
         }
         Ok(())
     }

@@ -98,6 +98,40 @@ fn log_times_start_at_the_epoch_and_the_overview_summarises_each_millisecond() {
     }
 }
 
+/// `every = 7`: the full-rate channels hold ticks 0, 7, 14, … bit for bit, the `run` record
+/// says so, and the overview is the same as the full recording's (it sees every tick).
+#[test]
+fn decimated_recordings_keep_every_nth_tick_and_the_whole_overview() {
+    let data = frames(10_000);
+    let (full, every7) = (tmp("full.mcap"), tmp("every7.mcap"));
+    write(&full, &data);
+    let options = RecordOptions {
+        every: std::num::NonZeroU32::new(7).unwrap(),
+        ..Default::default()
+    };
+    let mut r = Recorder::create(&every7, BTreeMap::new(), options).unwrap();
+    for f in &data {
+        r.push(*f).unwrap();
+    }
+    assert_eq!(r.finish(end()).unwrap().messages, 2 * 1_429);
+    let rec = read(&every7).unwrap();
+    assert_eq!(rec.metadata["record_every"], "7");
+    let kept: Vec<Frame> = data.iter().step_by(7).copied().collect();
+    assert!(rec.frames == kept);
+    let overview = |p: &std::path::Path| {
+        let bytes = std::fs::read(p).unwrap();
+        mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(Result::unwrap)
+            .filter(|m| m.channel.topic == "/overview")
+            .map(|m| (m.log_time, m.data.into_owned()))
+            .collect::<Vec<_>>()
+    };
+    let o = overview(&every7);
+    assert_eq!(o.len(), 51); // 10 000 ticks span 50.1 ms
+    assert_eq!(o, overview(&full));
+}
+
 #[test]
 fn unwritable_path_is_a_clear_error() {
     let err = Recorder::create(

@@ -12,6 +12,7 @@ use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use recorder::{FileState, Frame, Overwrite, ReadReport, RecordOptions, Recorder, Visit};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
+use std::num::NonZeroU32;
 use std::path::{Path, PathBuf};
 
 /// Where and how a run is recorded.
@@ -24,15 +25,19 @@ pub struct Target {
     /// Log time of the run's t = 0, ns since the Unix epoch
     /// ([`recorder::DEFAULT_EPOCH_NS`] unless asked).
     pub epoch_ns: u64,
+    /// Full-rate decimation: every n-th tick recorded (1 = all; see
+    /// [`RecordOptions::every`]).
+    pub every: NonZeroU32,
 }
 
 impl Target {
-    /// `path`, not replacing an existing file, with the default epoch.
+    /// `path`, not replacing an existing file, with the default epoch, every tick.
     pub fn new(path: impl Into<PathBuf>) -> Self {
         Target {
             path: path.into(),
             overwrite: false,
             epoch_ns: recorder::DEFAULT_EPOCH_NS,
+            every: NonZeroU32::MIN,
         }
     }
 
@@ -101,6 +106,7 @@ pub fn create(plan: &Plan, to: &Target) -> Result<Recorder, RunError> {
             overwrite: to.overwrite(),
             inputs: plan.inputs.clone(),
             epoch_ns: to.epoch_ns,
+            every: to.every,
             environment: environment(),
             ..Default::default()
         },
@@ -129,6 +135,8 @@ pub struct RunHeader {
     pub controller: String,
     /// The embedded input files by attachment name, each checked against its SHA-256.
     pub inputs: BTreeMap<String, Vec<u8>>,
+    /// Full-rate decimation the run was recorded with (every n-th tick; 1 = all).
+    pub every: NonZeroU32,
 }
 
 /// What else reads the frames of a recording in the same pass (a study's analysis).
@@ -183,8 +191,10 @@ pub fn inspect_with(path: &Path, sink: &mut impl FrameSink) -> Result<Inspected,
     let cfg = &header.loaded.config;
     let end = reader.end;
     let completed = end.get("reason").is_some_and(|r| r == "completed");
+    let every = header.every.get();
     let summary = builder.finish(RunMeta {
-        interrupted: !completed || builder.ticks() < cfg.ticks(),
+        interrupted: !completed || builder.ticks() < cfg.ticks().div_ceil(u64::from(every)),
+        recorded_every: (every > 1).then_some(every),
         recorded_messages: Some(read.messages),
         end_reason: Some(match read.state {
             FileState::Finished => end
@@ -234,7 +244,15 @@ impl<S: FrameSink> RunReader<'_, S> {
             }
         }
         let inputs = std::mem::take(&mut self.attachments);
+        // Recordings made before decimation existed have no key: every tick.
+        let every = match run.get(recorder::EVERY_KEY) {
+            None => NonZeroU32::MIN,
+            Some(v) => v
+                .parse()
+                .map_err(|_| RunError::NotARun(self.path.to_owned()))?,
+        };
         Ok(RunHeader {
+            every,
             controller: run
                 .get("controller")
                 .cloned()

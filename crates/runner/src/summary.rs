@@ -152,6 +152,9 @@ pub struct RunMeta {
     /// How the run ended (`completed`, `stopped`, `interrupted`, `peer-lost`,
     /// `write-failed`; `unfinished` for a recording that ends early).
     pub end_reason: Option<String>,
+    /// Summary of a recording decimated at every n-th tick (`record_every` > 1): its counts
+    /// are of the recorded ticks and its statistics an estimate from them.
+    pub recorded_every: Option<u32>,
 }
 
 /// The summary of a run.
@@ -210,6 +213,13 @@ impl fmt::Display for Summary {
             },
             m.settle_s
         )?;
+        if let Some(n) = m.recorded_every {
+            writeln!(
+                f,
+                "  recorded every {n}th tick: counts are of the recorded ticks, statistics \
+                 estimated from them"
+            )?;
+        }
         let nm = |s: &Stats| format!("RMS {:>8.3} nm   PV {:>8.3} nm", s.rms * 1e9, s.pv * 1e9);
         writeln!(
             f,
@@ -304,6 +314,7 @@ impl RunMeta {
             spectral_radius: None,
             hil: None,
             end_reason: None,
+            recorded_every: None,
         }
     }
 }

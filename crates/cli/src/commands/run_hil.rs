@@ -86,13 +86,16 @@ pub fn run(
         (
             t.path.display().to_string(),
             humantime::format_rfc3339_nanos(epoch).to_string(),
+            t.every.to_string(),
         )
     });
     let mut record_args = vec![
         "record", "--config", config, "--prefix", &prefix, "--json", "--quiet", mode,
     ];
     match &out_arg {
-        Some((o, epoch)) => record_args.extend(["--out", o, "--log-epoch", epoch]),
+        Some((o, epoch, every)) => {
+            record_args.extend(["--out", o, "--log-epoch", epoch, "--record-every", every])
+        }
         None => record_args.push("--no-record"),
     }
     if rec.overwrite {
