@@ -115,6 +115,91 @@ fn controller_file_of_the_wrong_shape() {
     );
 }
 
+/// A controller file with `d = [[1e250]]` (once read as "stable, spectral radius 0") and a NaN
+/// sample rate are refused before anything runs, in process and by a HIL controller process
+/// that repeats the check.
+#[test]
+fn overflowing_or_nan_controller_files_are_refused() {
+    let file = |name: &str, rate: &str, d: &str| {
+        let ss = tmp(name);
+        std::fs::write(
+            &ss,
+            format!(
+                "sample_rate_hz = {rate}\na = [[0.5]]\nb = [[1.0]]\nc = [[1.0]]\nd = [[{d}]]\n"
+            ),
+        )
+        .unwrap();
+        ss.display().to_string()
+    };
+    let huge = file("huge.toml", "199600.0", "1e250");
+    fails_with(
+        &[
+            "run",
+            "--no-record",
+            "--controller",
+            "ss",
+            "--ss-file",
+            &huge,
+        ],
+        None,
+        &["unstable", "spectral radius 2.533e241"],
+    );
+    fails_with(
+        &[
+            "controller",
+            "--prefix",
+            "nobody-here",
+            "--controller",
+            "ss",
+            "--ss-file",
+            &huge,
+        ],
+        None,
+        &["unstable", "spectral radius 2.533e241"],
+    );
+    let nan_rate = file("nan-rate.toml", "nan", "0.0");
+    fails_with(
+        &[
+            "run",
+            "--no-record",
+            "--controller",
+            "ss",
+            "--ss-file",
+            &nan_rate,
+        ],
+        None,
+        &["nan-rate.toml", "sample_rate_hz", "NaN"],
+    );
+}
+
+/// `servo synth --order` outside what a controller file holds is refused before any design
+/// is written; `servo frf --points` is bounded.
+#[test]
+fn design_options_whose_output_cannot_be_used_are_refused() {
+    let out = tmp("never.toml");
+    for order in ["0", "1000"] {
+        fails_with(
+            &[
+                "synth",
+                "h2",
+                "--order",
+                order,
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            None,
+            &["--order", order, "states"],
+        );
+        assert!(!out.exists());
+    }
+    let err = servo()
+        .args(["frf", "--points", "100000000"])
+        .output()
+        .unwrap();
+    assert_eq!(err.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&err.stderr).contains("2..=10000"));
+}
+
 /// The Chapter 7 PID written as a state-space controller file (its exact discrete
 /// realisation) gives the same run as `--controller pid` (same seed): the `ss` path is right.
 #[test]

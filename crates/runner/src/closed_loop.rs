@@ -161,13 +161,17 @@ impl ClosedLoop {
         }
     }
 
-    /// Largest closed-loop pole magnitude (< 1: stable).
+    /// Largest closed-loop pole magnitude (< 1: stable); NaN when a pole is not a number (a
+    /// loop whose coefficients overflow), which no `< 1` check accepts.
     pub fn spectral_radius(&self) -> f64 {
         self.sys
             .poles()
             .iter()
             .map(|p| p.norm())
-            .fold(0.0, f64::max)
+            .fold(
+                0.0,
+                |worst, r| if r.is_nan() || r > worst { r } else { worst },
+            )
     }
 
     /// The plant of `sim` alone, no controller (the DAC command enters as
@@ -240,3 +244,28 @@ pub const SOURCES: [(&str, usize); 7] = [
     ("adc accel", input::ACCEL_READING_V),
     ("dac", input::CONTROL_DISTURBANCE_V),
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A loop whose matrix holds a NaN (coefficients that overflowed) has a NaN radius, which
+    /// no `< 1` check accepts (`f64::max` used to drop it and report 0).
+    #[test]
+    fn a_loop_that_is_not_a_number_has_no_radius_below_one() {
+        let n = 3;
+        let mut a = DMatrix::identity(n, n) * 0.5;
+        a[(1, 2)] = f64::NAN;
+        let cl = ClosedLoop {
+            sys: StateSpace {
+                a,
+                b: DMatrix::zeros(n, 0),
+                c: DMatrix::zeros(0, n),
+                d: DMatrix::zeros(0, 0),
+            },
+            period_s: 1e-5,
+            noise_variance: [0.0; 7],
+        };
+        assert!(cl.spectral_radius().is_nan());
+    }
+}

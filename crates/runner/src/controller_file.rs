@@ -85,7 +85,8 @@ impl ControllerFile {
         shape("b", &file.b, n, 1)?;
         shape("c", &file.c, 1, n)?;
         shape("d", &file.d, 1, 1)?;
-        if (file.sample_rate_hz - servo_rate_hz).abs() > 1e-6 * servo_rate_hz {
+        let off = (file.sample_rate_hz - servo_rate_hz).abs();
+        if off.is_nan() || off > 1e-6 * servo_rate_hz {
             return Err(at.invalid(
                 "sample_rate_hz",
                 file.sample_rate_hz,

@@ -16,7 +16,7 @@ pub enum RunError {
     #[error("plant: {0}")]
     Sim(plant_sim::sim::SimError),
     /// The controller and the plant form an unstable loop.
-    #[error("the closed loop is unstable (spectral radius {radius:.6} ≥ 1) with {controller}: lower the gains or check the controller file; nothing was run")]
+    #[error("the closed loop is unstable (spectral radius {}, must be < 1; NaN when coefficients overflow) with {controller}: lower the gains or check the controller file; nothing was run", readable(*radius))]
     Unstable {
         /// Largest closed-loop eigenvalue magnitude.
         radius: f64,
@@ -60,4 +60,13 @@ pub enum RunError {
     /// A recording without the metadata `servo run` writes.
     #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
     NotARun(PathBuf),
+}
+
+/// A spectral radius as a reader wants it: six decimals near 1, powers of ten when huge.
+fn readable(radius: f64) -> String {
+    if radius.abs() < 1e3 {
+        format!("{radius:.6}")
+    } else {
+        format!("{radius:.3e}")
+    }
 }

@@ -68,6 +68,8 @@ pub fn plant(
 /// `servo controller`: runs the controller of `plan` against the plant of run `prefix` until
 /// the plant closes the run. `stop` (Ctrl-C) asks the plant to stop. Returns the ticks run.
 pub fn controller(plan: &Plan, prefix: &str, stop: &StopRequest) -> Result<u64, RunError> {
+    // The orchestrator checked it too; a controller never trusts that it did.
+    plan.check_stable()?;
     let mut servo = ServoLoop::new(plan)?;
     let ep = Endpoint::open(prefix, "controller")?;
     let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;

@@ -163,10 +163,11 @@ impl Plan {
     }
 
     /// The spectral radius of the sampled closed loop, or [`RunError::Unstable`] when it is
-    /// ≥ 1 (the pre-run check of every run).
+    /// ≥ 1 or not a number (coefficients that overflow; the pre-run check of every run and of
+    /// every HIL process).
     pub fn check_stable(&self) -> Result<f64, RunError> {
         let radius = self.closed_loop.spectral_radius();
-        if radius >= 1.0 {
+        if radius.is_nan() || radius >= 1.0 {
             return Err(RunError::Unstable {
                 radius,
                 controller: self.controller.description.clone(),

@@ -49,6 +49,17 @@ pub enum StudyError {
     /// Grey-box identification failed.
     #[error("identification: {0}")]
     Identification(#[from] design::identify::IdentifyError),
+    /// The grey-box fit does not explain the measured FRF (a closed-loop FRF, another plant,
+    /// bad data): its parameters are not reported.
+    #[error(
+        "identification: fit {fit_percent:.1} % is below the {min:.0} % a credible fit reaches \
+         (thesis §5.5.3: 97.7 %); is the FRF an open-loop one of this stage (--mass, config)?",
+        min = crate::identify::MIN_CREDIBLE_FIT_PERCENT
+    )]
+    FitNotCredible {
+        /// The fit reached, % (NaN when the fit broke down).
+        fit_percent: f64,
+    },
     /// A measured FRF file that cannot be used.
     #[error("{}:{line}: {what}", path.display())]
     FrfFile {

@@ -8,7 +8,6 @@ use num_complex::Complex64;
 use plant_sim::params::StageParams;
 use plant_sim::Simulator;
 use runner::closed_loop::ClosedLoop;
-use runner::config::ConfigError;
 use runner::Plan;
 use std::path::Path;
 
@@ -68,13 +67,28 @@ pub struct Identified {
     pub points: usize,
 }
 
+/// Largest plausible magnitude of an open-loop stage FRF, m/V: a nm-stage moves micrometres
+/// per volt (the thesis prototype ≈ 2.5 µm/V static), so a response near 1 is a closed-loop T
+/// or S (m/m), not a plant.
+pub const MAX_PLANT_MAGNITUDE_M_PER_V: f64 = 1e-2;
+
+/// Fewest points a fit of six parameters is attempted on.
+pub const MIN_POINTS: usize = 7;
+
+/// Lowest fit % (on the complex response) `identify` reports as a result; below it the model
+/// does not explain the data (the thesis's own fit: 97.7 %).
+pub const MIN_CREDIBLE_FIT_PERCENT: f64 = 70.0;
+
 /// Reads an FRF CSV with columns `freq_hz`, `magnitude_m_per_v`, `phase_deg` (others ignored;
-/// rows with `clipped = true` skipped).
-pub fn read_frf_csv(path: &Path) -> Result<(Vec<f64>, Vec<Complex64>), StudyError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+/// rows with `clipped = true` skipped; at most [`runner::config::input_file::MAX_TEXT_BYTES`]).
+/// Every row must have every column; values must be finite, frequencies strictly increasing
+/// and below `nyquist_hz`, magnitudes those of a plant (0 < |G| ≤
+/// [`MAX_PLANT_MAGNITUDE_M_PER_V`]). Errors name the file and line.
+pub fn read_frf_csv(
+    path: &Path,
+    nyquist_hz: f64,
+) -> Result<(Vec<f64>, Vec<Complex64>), StudyError> {
+    let text = runner::config::input_file::read_text(path)?;
     let bad = |line: usize, what: &str| StudyError::FrfFile {
         path: path.to_owned(),
         line,
@@ -101,9 +115,15 @@ pub fn read_frf_csv(path: &Path) -> Result<(Vec<f64>, Vec<Complex64>), StudyErro
     let cc = header.iter().position(|h| *h == "clipped");
     let (mut f, mut g) = (Vec::new(), Vec::new());
     for (i, line) in lines {
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        if cells.len() < header.len() || line.trim().is_empty() {
+        if line.trim().is_empty() {
             continue;
+        }
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        if cells.len() != header.len() {
+            return Err(bad(
+                i + 1,
+                &format!("{} columns; the header has {}", cells.len(), header.len()),
+            ));
         }
         if cc.is_some_and(|c| cells[c] == "true") {
             continue;
@@ -113,19 +133,37 @@ pub fn read_frf_csv(path: &Path) -> Result<(Vec<f64>, Vec<Complex64>), StudyErro
                 .parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| bad(i + 1, &format!("`{}` is not a number", cells[c])))
+                .ok_or_else(|| bad(i + 1, &format!("`{}` is not a finite number", cells[c])))
         };
         let (freq, mag, phase) = (num(cf)?, num(cm)?, num(cp)?);
-        if freq <= 0.0 || mag <= 0.0 {
-            return Err(bad(i + 1, "frequency and magnitude must be > 0"));
+        if freq <= 0.0 || freq >= nyquist_hz {
+            return Err(bad(
+                i + 1,
+                &format!("freq_hz {freq}: must lie in (0, {nyquist_hz}) Hz, below the servo rate's Nyquist frequency"),
+            ));
+        }
+        if f.last().is_some_and(|&last| freq <= last) {
+            return Err(bad(
+                i + 1,
+                &format!("freq_hz {freq}: frequencies must increase strictly (duplicated or unsorted rows)"),
+            ));
+        }
+        if mag <= 0.0 || mag > MAX_PLANT_MAGNITUDE_M_PER_V {
+            return Err(bad(
+                i + 1,
+                &format!(
+                    "magnitude_m_per_v {mag}: an open-loop stage FRF lies in (0, {MAX_PLANT_MAGNITUDE_M_PER_V}] m/V \
+                     (a closed-loop FRF, ≈ 1 m/m at low frequency, cannot be identified)"
+                ),
+            ));
         }
         f.push(freq);
         g.push(Complex64::from_polar(mag, phase.to_radians()));
     }
-    if f.len() < 7 {
+    if f.len() < MIN_POINTS {
         return Err(bad(
             1,
-            &format!("{} usable rows; at least 7 needed", f.len()),
+            &format!("{} usable rows; at least {MIN_POINTS} needed", f.len()),
         ));
     }
     Ok((f, g))
@@ -145,7 +183,8 @@ fn open_loop(plan: &Plan, stage: StageParams, freq_hz: &[f64]) -> Result<Vec<Com
 }
 
 /// Fits the Table 5-2 parameters to `(freq_hz, measured)`, starting from `plan`'s stage, each
-/// bounded to a factor 4 around its start.
+/// bounded to a factor 4 around its start; fails with [`StudyError::FitNotCredible`] when
+/// the fit explains less than [`MIN_CREDIBLE_FIT_PERCENT`] of the data.
 pub fn identify(
     plan: &Plan,
     freq_hz: &[f64],
@@ -158,6 +197,11 @@ pub fn identify(
     let upper = start.map(|v| v * 4.0);
     let mut model = |p: &[f64]| open_loop(plan, with_table_5_2(&base, p), freq_hz);
     let f = design::identify::fit(&mut model, measured, &start, &lower, &upper, 200)?;
+    if f.fit_percent.is_nan() || f.fit_percent < MIN_CREDIBLE_FIT_PERCENT {
+        return Err(StudyError::FitNotCredible {
+            fit_percent: f.fit_percent,
+        });
+    }
     Ok(Identified {
         names: NAMES.iter().map(|s| s.to_string()).collect(),
         fitted: f.params,

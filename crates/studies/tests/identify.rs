@@ -67,3 +67,79 @@ fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
         id.fit_percent
     );
 }
+
+/// What `servo identify` refuses, each with the file and line: rows missing a column,
+/// frequencies at or above Nyquist, duplicated rows, overflowing values, a closed-loop FRF
+/// (≈ 1 m/m, not µm/V); and a well-formed FRF the stage model cannot explain fails as "not
+/// credible" instead of printing a fit of NaN or −2806 %.
+#[test]
+fn bad_frf_files_and_incredible_fits_are_refused() {
+    use studies::identify::read_frf_csv;
+    use studies::StudyError;
+    let dir = tempfile::tempdir().unwrap();
+    let nyquist = 99_800.0;
+    let header = "freq_hz,magnitude_m_per_v,phase_deg,clipped\n";
+    let rows = |mag: f64| -> String {
+        (0..10)
+            .map(|i| format!("{},{mag},-10,false\n", 100.0 * (i + 1) as f64))
+            .collect()
+    };
+    let cases = [
+        (
+            "short.csv",
+            format!("{header}{}100,1e-6\n", rows(1e-6)),
+            12,
+            "columns",
+        ),
+        (
+            "nyquist.csv",
+            format!("{header}{}2e5,1e-6,0,false\n", rows(1e-6)),
+            12,
+            "Nyquist",
+        ),
+        (
+            "dup.csv",
+            format!("{header}{}1000,1e-6,0,false\n", rows(1e-6)),
+            12,
+            "increase strictly",
+        ),
+        (
+            "huge.csv",
+            format!("{header}{}", rows(1e300)),
+            2,
+            "magnitude_m_per_v",
+        ),
+        (
+            "closed.csv",
+            format!("{header}{}", rows(1.0)),
+            2,
+            "closed-loop",
+        ),
+    ];
+    for (name, text, line, what) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        let err = read_frf_csv(&path, nyquist).unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            msg.contains(&format!("{name}:{line}:")) && msg.contains(what),
+            "{name}: {msg}"
+        );
+    }
+    // Well-formed, plausible magnitudes, but a flat response with a phase that wanders: no
+    // four-mass stage looks like that.
+    let freqs: Vec<f64> = (0..40).map(|i| 50.0 * 1.15f64.powi(i)).collect();
+    let g: Vec<Complex64> = freqs
+        .iter()
+        .enumerate()
+        .map(|(i, _)| Complex64::from_polar(1e-6, (i as f64 * 2.3).sin() * 3.0))
+        .collect();
+    let err = identify(&plan(&Loaded::default()), &freqs, &g).unwrap_err();
+    assert!(
+        matches!(err, StudyError::FitNotCredible { fit_percent } if fit_percent.is_nan() || fit_percent < 70.0),
+        "{err}"
+    );
+    assert!(err
+        .to_string()
+        .contains("below the 70 % a credible fit reaches"));
+}

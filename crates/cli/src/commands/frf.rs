@@ -33,9 +33,9 @@ pub struct FrfCmd {
     /// Highest frequency in Hz.
     #[arg(long, default_value_t = 20000.0)]
     to: f64,
-    /// Frequencies (log-spaced; stepped sine).
-    #[arg(long, default_value_t = 30)]
-    points: usize,
+    /// Frequencies (log-spaced; stepped sine), 2 to 10 000.
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u16).range(2..=10_000))]
+    points: u16,
     /// Excitation amplitude in V (stepped sine: below 150 Hz, rising as f² above, up to 5 V,
     /// default 2 mV open loop / 10 mV closed loop; chirp: constant, default 2 mV open loop /
     /// 0.2 V closed loop).
@@ -79,7 +79,7 @@ impl FrfCmd {
             FrfMethod::Stepped => {
                 let mut settings = FrfSettings::for_loop(self.which);
                 crate::args::set(&mut settings.amplitude_v, self.amplitude);
-                let n = self.points.max(2);
+                let n = usize::from(self.points);
                 let freqs = lti::spectral::log_space(self.from, self.to, n);
                 let bar = points_bar(n, "stepped sine", "frequencies");
                 let pts = frf::stepped_sine(plan, self.which, &freqs, &settings, &mut |d, _| {

@@ -28,7 +28,8 @@ impl IdentifyCmd {
     /// Fits and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let plan = Plan::new(&self.plant.load()?)?;
-        let (f, g) = studies::identify::read_frf_csv(&self.file)?;
+        let nyquist_hz = plan.config.plant.timing.servo_rate_hz / 2.0;
+        let (f, g) = studies::identify::read_frf_csv(&self.file, nyquist_hz)?;
         let id = studies::identify::identify(&plan, &f, &g)?;
         if self.json {
             print_json(&id);

@@ -3,7 +3,8 @@
 use crate::args::PlantArgs;
 use crate::output::{print_json, print_margins, CliError};
 use clap::{Args, ValueEnum};
-use runner::config::{ControllerConfig, ControllerKind};
+use runner::config::{ControllerConfig, ControllerKind, Origin};
+use runner::controller_file::MAX_SS_ORDER;
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -87,6 +88,30 @@ impl SynthCmd {
                 self.effort_weight.unwrap_or(1000.0),
             )?,
         };
+        let full = design.controller.nx();
+        let writable = full.min(MAX_SS_ORDER);
+        if let Some(n) = self.order.filter(|n| !(1..=writable).contains(n)) {
+            return Err(Origin::default()
+                .invalid(
+                    "--order",
+                    n,
+                    &format!(
+                        "1..={writable} states (the design has {full}; a controller file holds at most {MAX_SS_ORDER})"
+                    ),
+                )
+                .into());
+        }
+        if self.order.is_none() && full > MAX_SS_ORDER {
+            return Err(Origin::default()
+                .invalid(
+                    "--order",
+                    "none (full order)",
+                    &format!(
+                        "1..={MAX_SS_ORDER} states: the full-order design has {full}, more than a controller file holds"
+                    ),
+                )
+                .into());
+        }
         if let Some(n) = self.order {
             let (reduced, hankel, bound) = design.reduced(n)?;
             if !self.json {
