@@ -131,45 +131,18 @@ fn overflowing_or_nan_controller_files_are_refused() {
         .unwrap();
         ss.display().to_string()
     };
+    let ss = ["--controller", "ss", "--ss-file"];
     let huge = file("huge.toml", "199600.0", "1e250");
-    fails_with(
-        &[
-            "run",
-            "--no-record",
-            "--controller",
-            "ss",
-            "--ss-file",
-            &huge,
-        ],
-        None,
-        &["unstable", "spectral radius 2.533e241"],
-    );
-    fails_with(
-        &[
-            "controller",
-            "--prefix",
-            "nobody-here",
-            "--controller",
-            "ss",
-            "--ss-file",
-            &huge,
-        ],
-        None,
-        &["unstable", "spectral radius 2.533e241"],
-    );
+    for command in [
+        &["run", "--no-record"][..],
+        &["controller", "--prefix", "nobody-here"],
+    ] {
+        let args = [command, &ss, &[huge.as_str()]].concat();
+        fails_with(&args, None, &["unstable", "spectral radius 2.533e241"]);
+    }
     let nan_rate = file("nan-rate.toml", "nan", "0.0");
-    fails_with(
-        &[
-            "run",
-            "--no-record",
-            "--controller",
-            "ss",
-            "--ss-file",
-            &nan_rate,
-        ],
-        None,
-        &["nan-rate.toml", "sample_rate_hz", "NaN"],
-    );
+    let args = [&["run", "--no-record"][..], &ss, &[nan_rate.as_str()]].concat();
+    fails_with(&args, None, &["nan-rate.toml", "sample_rate_hz", "NaN"]);
 }
 
 /// `servo synth --order` outside what a controller file holds is refused before any design

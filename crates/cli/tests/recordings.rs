@@ -5,6 +5,17 @@ mod common;
 use common::{json, servo, succeeded, tmp};
 use std::process::{Command, Stdio};
 
+/// What `servo inspect --json` says of the recording `path`.
+fn inspect_json(path: &std::path::Path) -> serde_json::Value {
+    json(
+        &servo()
+            .args(["inspect", "--json"])
+            .arg(path)
+            .output()
+            .unwrap(),
+    )
+}
+
 /// The default run writes an MCAP that the official reader decodes completely, and `servo
 /// inspect` recomputes exactly the live statistics from it.
 #[test]
@@ -17,13 +28,7 @@ fn inspect_equals_the_live_summary() {
             .output()
             .unwrap(),
     );
-    let read = json(
-        &servo()
-            .args(["inspect", "--json"])
-            .arg(&path)
-            .output()
-            .unwrap(),
-    );
+    let read = inspect_json(&path);
     for key in [
         "ticks",
         "stats_ticks",
@@ -64,13 +69,7 @@ fn a_decimated_recording_reads_as_a_complete_run() {
             .output()
             .unwrap(),
     );
-    let read = json(
-        &servo()
-            .args(["inspect", "--json"])
-            .arg(&path)
-            .output()
-            .unwrap(),
-    );
+    let read = inspect_json(&path);
     let s = &read["summary"];
     assert_eq!(s["ticks"], live["ticks"].as_u64().unwrap().div_ceil(10));
     assert_eq!(s["meta"]["interrupted"], false);
@@ -163,13 +162,7 @@ fn a_signal_ends_the_run_with_a_finished_file_that_names_it() {
         assert_eq!(rec.frames.len() as u64, ticks);
         assert_eq!(rec.end["signal"], name);
         assert_eq!(rec.end["ticks"], ticks.to_string());
-        let read = json(
-            &servo()
-                .args(["inspect", "--json"])
-                .arg(&path)
-                .output()
-                .unwrap(),
-        );
+        let read = inspect_json(&path);
         assert_eq!(read["summary"]["meta"]["interrupted"], true);
         assert_eq!(read["summary"]["following_error_m"], v["following_error_m"]);
     }
@@ -236,13 +229,7 @@ fn inspect_reads_nothing_but_the_recording() {
         .unwrap();
     succeeded(&run);
     std::fs::remove_file(&ctrl).unwrap();
-    let read = json(
-        &servo()
-            .args(["inspect", "--json"])
-            .arg(&rec)
-            .output()
-            .unwrap(),
-    );
+    let read = inspect_json(&rec);
     assert!(
         read["summary"]["meta"]["controller"]
             .as_str()
@@ -306,13 +293,7 @@ fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
         .map(|e| e.unwrap().path())
         .find(|p| p.to_string_lossy().ends_with(".partial"))
         .expect("the unfinished recording is kept");
-    let read = json(
-        &servo()
-            .args(["inspect", "--json"])
-            .arg(&partial)
-            .output()
-            .unwrap(),
-    );
+    let read = inspect_json(&partial);
     let file = read["file"].as_str().unwrap();
     assert!(file.starts_with("unfinished"), "{file}");
     assert!(

@@ -41,8 +41,9 @@ pub trait Visit {
     fn attachment(&mut self, _name: &str, _data: &[u8]) {}
     /// One tick: telemetry and truth, its time in ns from the run's start.
     fn frame(&mut self, _frame: &Frame) {}
-    /// Every message of every channel as written (log time in ns since the Unix epoch).
-    fn message(&mut self, _topic: &str, _sequence: u32, _log_time: u64, _data: &[u8]) {}
+    /// Every message of every channel as written, its time in ns from the run's start (its log
+    /// time less the `run` record's epoch).
+    fn message(&mut self, _topic: &str, _sequence: u32, _time_ns: u64, _data: &[u8]) {}
 }
 
 /// How far a file could be read.
@@ -364,13 +365,13 @@ impl Streamer {
         let data = f.0;
         let time_ns = log_time.saturating_sub(self.epoch_ns);
         let topic = self.topics.get(&channel).map_or("", String::as_str);
-        visit.message(topic, sequence, log_time, data);
-        match self.topics.get(&channel).map(String::as_str) {
-            Some(Telemetry::TOPIC) => {
+        visit.message(topic, sequence, time_ns, data);
+        match topic {
+            Telemetry::TOPIC => {
                 self.messages += 1;
                 self.pending = Telemetry::decode(data).map(|t| (sequence, time_ns, t));
             }
-            Some(Truth::TOPIC) => {
+            Truth::TOPIC => {
                 self.messages += 1;
                 if let (Some((seq, time_ns, telemetry)), Some(truth)) =
                     (self.pending.take(), Truth::decode(data))
@@ -431,8 +432,9 @@ pub fn read(path: &Path) -> Result<Recording, ReadError> {
 /// comparisons of recordings leave them out.
 pub const ENVIRONMENT_RECORDS: [&str; 2] = ["environment", "timing"];
 
-/// SHA-256 over what a run did: every message (topic, sequence, log time, payload), every
-/// attachment and every metadata record but the [`ENVIRONMENT_RECORDS`]. Two runs of the same
+/// SHA-256 over what a run did: every message (topic, sequence, time, payload), every
+/// attachment and every metadata record but the [`ENVIRONMENT_RECORDS`] (the `run` record
+/// holds the log-time epoch). Two runs of the same
 /// seed and configuration have the same fingerprint.
 pub fn fingerprint(path: &Path) -> Result<String, ReadError> {
     use sha2::{Digest, Sha256};
@@ -457,10 +459,10 @@ pub fn fingerprint(path: &Path) -> Result<String, ReadError> {
             self.field(name.as_bytes());
             self.field(data);
         }
-        fn message(&mut self, topic: &str, sequence: u32, log_time: u64, data: &[u8]) {
+        fn message(&mut self, topic: &str, sequence: u32, time_ns: u64, data: &[u8]) {
             self.field(topic.as_bytes());
             self.0.update(sequence.to_le_bytes());
-            self.0.update(log_time.to_le_bytes());
+            self.0.update(time_ns.to_le_bytes());
             self.field(data);
         }
     }

@@ -78,6 +78,17 @@ pub enum Overwrite {
     Replace,
 }
 
+impl Overwrite {
+    /// From a command's `--overwrite` flag.
+    pub fn from_flag(replace: bool) -> Self {
+        if replace {
+            Overwrite::Replace
+        } else {
+            Overwrite::Refuse
+        }
+    }
+}
+
 /// A file a run depended on, embedded in its recording (MCAP attachment) so the recording
 /// replays and inspects on its own.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -183,10 +194,16 @@ const IDLE_POLL: Duration = Duration::from_millis(1);
 const DATA: usize = 0;
 const OVERVIEW: usize = 1;
 
-/// Channel ids.
+/// Channel ids (each channel's schema has the same id).
 const TELEMETRY_CH: u16 = 1;
 const TRUTH_CH: u16 = 2;
 const OVERVIEW_CH: u16 = 3;
+
+/// Adds the schema of `M` (`ros2msg`) and its channel (`cdr`), both with id `id`.
+fn register<M: Message>(w: &mut McapFile<File>, id: u16) {
+    w.schema(id, M::SCHEMA_NAME, "ros2msg", M::schema_text().as_bytes());
+    w.channel(id, id, M::TOPIC, "cdr");
+}
 
 impl Recorder {
     /// Creates the recording of `path` under a temporary name beside it (failing now, before
@@ -204,44 +221,13 @@ impl Recorder {
         };
         check_target(path, options.overwrite)?;
         let partial = partial_path(path);
-        let file = {
-            use std::os::unix::fs::OpenOptionsExt;
-            File::options()
-                .write(true)
-                .create_new(true)
-                .mode(0o600) // private to the user, as every file the runtime writes
-                .open(&partial)
-                .map_err(io)?
-        };
+        let file = create_private(&partial).map_err(io)?;
         let syncer = Syncer::start(&file).map_err(io)?;
         let mut w =
             McapFile::create(file, "ros2", "fts-servo recorder", 2, CHUNK_BYTES).map_err(io)?;
-        for (id, name, text, channel, topic) in [
-            (
-                1,
-                Telemetry::SCHEMA_NAME,
-                Telemetry::schema_text(),
-                TELEMETRY_CH,
-                Telemetry::TOPIC,
-            ),
-            (
-                2,
-                Truth::SCHEMA_NAME,
-                Truth::schema_text(),
-                TRUTH_CH,
-                Truth::TOPIC,
-            ),
-            (
-                3,
-                Overview::SCHEMA_NAME,
-                Overview::schema_text(),
-                OVERVIEW_CH,
-                Overview::TOPIC,
-            ),
-        ] {
-            w.schema(id, name, "ros2msg", text.as_bytes());
-            w.channel(channel, id, topic, "cdr");
-        }
+        register::<Telemetry>(&mut w, TELEMETRY_CH);
+        register::<Truth>(&mut w, TRUTH_CH);
+        register::<Overview>(&mut w, OVERVIEW_CH);
         let mut run = metadata;
         run.insert(EPOCH_KEY.into(), options.epoch_ns.to_string());
         run.insert(EVERY_KEY.into(), options.every.to_string());
@@ -507,6 +493,17 @@ pub fn check_target(path: &Path, overwrite: Overwrite) -> Result<(), RecordError
         });
     }
     Ok(())
+}
+
+/// Creates `path` exclusively (never through an existing file or link), mode 0600: private to
+/// the user, as every file the runtime writes.
+pub(crate) fn create_private(path: &Path) -> std::io::Result<File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    File::options()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(path)
 }
 
 /// `<dir>/<name>.<pid>.partial`: the recording while this process writes it.

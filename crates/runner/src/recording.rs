@@ -43,11 +43,7 @@ impl Target {
 
     /// How an existing file is treated.
     pub fn overwrite(&self) -> Overwrite {
-        if self.overwrite {
-            Overwrite::Replace
-        } else {
-            Overwrite::Refuse
-        }
+        Overwrite::from_flag(self.overwrite)
     }
 
     /// Fails now if the recording could not be written (see [`recorder::check_target`]).

@@ -82,11 +82,7 @@ impl ExportCmd {
             to_s: self.to.unwrap_or(f64::INFINITY),
             every: self.every,
         };
-        let overwrite = if self.overwrite {
-            Overwrite::Replace
-        } else {
-            Overwrite::Refuse
-        };
+        let overwrite = Overwrite::from_flag(self.overwrite);
         let done = export(&self.file, &out, format, &selection, overwrite)?;
         if self.json {
             print_json(&serde_json::json!({

@@ -15,18 +15,13 @@ pub(crate) struct CsvRows {
 impl CsvRows {
     pub(crate) fn create(path: &Path, tables: &[(Table, Vec<Column>)]) -> std::io::Result<Self> {
         let columns = &tables[0].1;
-        let mut out = BufWriter::with_capacity(1 << 20, super::npz::create_private(path)?);
+        let mut out = BufWriter::with_capacity(1 << 20, crate::writer::create_private(path)?);
         let names: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
         writeln!(out, "{}", names.join(","))?;
         Ok(CsvRows {
             out,
             kinds: columns.iter().map(|c| c.kind).collect(),
         })
-    }
-
-    pub(crate) fn finish(mut self) -> std::io::Result<()> {
-        self.out.flush()?;
-        self.out.get_ref().sync_data()
     }
 }
 
@@ -43,5 +38,10 @@ impl Rows for CsvRows {
             }
         }
         self.out.write_all(b"\n")
+    }
+
+    fn finish(mut self: Box<Self>) -> std::io::Result<()> {
+        self.out.flush()?;
+        self.out.get_ref().sync_data()
     }
 }

@@ -11,8 +11,7 @@ mod npz;
 use crate::frame::{Frame, Message, Telemetry, Truth};
 use crate::overview::{Overview, Signals};
 use crate::reader::{stream, ReadError, ReadReport, Visit};
-use crate::writer::{Overwrite, RecordError, EPOCH_KEY};
-use std::collections::BTreeMap;
+use crate::writer::{Overwrite, RecordError};
 use std::path::{Path, PathBuf};
 
 /// Export errors.
@@ -98,6 +97,8 @@ pub(crate) enum Table {
 pub(crate) trait Rows {
     /// One row of `table`, in the order of its columns.
     fn row(&mut self, table: Table, values: &[f64]) -> std::io::Result<()>;
+    /// Completes the file and makes it durable.
+    fn finish(self: Box<Self>) -> std::io::Result<()>;
 }
 
 impl Selection {
@@ -201,20 +202,12 @@ pub fn export(
     };
     let result = (|| {
         let mut exporter = Exporter::new(selection, output);
-        let read = match format {
-            Format::Csv => {
-                let mut rows = csv::CsvRows::create(&partial, &columns).map_err(io)?;
-                let read = exporter.run(input, &mut rows)?;
-                rows.finish().map_err(io)?;
-                read
-            }
-            Format::Npz => {
-                let mut rows = npz::NpzRows::create(&partial, &columns).map_err(io)?;
-                let read = exporter.run(input, &mut rows)?;
-                rows.finish().map_err(io)?;
-                read
-            }
+        let mut rows: Box<dyn Rows> = match format {
+            Format::Csv => Box::new(csv::CsvRows::create(&partial, &columns).map_err(io)?),
+            Format::Npz => Box::new(npz::NpzRows::create(&partial, &columns).map_err(io)?),
         };
+        let read = exporter.run(input, &mut *rows)?;
+        rows.finish().map_err(io)?;
         crate::writer::publish(&partial, output, overwrite)?;
         Ok(Exported {
             path: output.to_owned(),
@@ -233,7 +226,6 @@ pub fn export(
 struct Exporter<'a> {
     selection: &'a Selection,
     output: &'a Path,
-    epoch_ns: u64,
     tick: u64,
     rows: u64,
     overview_rows: u64,
@@ -246,7 +238,6 @@ impl<'a> Exporter<'a> {
         Exporter {
             selection,
             output,
-            epoch_ns: 0,
             tick: 0,
             rows: 0,
             overview_rows: 0,
@@ -290,15 +281,6 @@ impl Feed<'_, '_> {
 }
 
 impl Visit for Feed<'_, '_> {
-    fn metadata(&mut self, name: &str, values: &BTreeMap<String, String>) {
-        if name == "run" {
-            self.exporter.epoch_ns = values
-                .get(EPOCH_KEY)
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(0);
-        }
-    }
-
     fn frame(&mut self, f: &Frame) {
         let e = &mut *self.exporter;
         let s = e.selection;
@@ -321,12 +303,11 @@ impl Visit for Feed<'_, '_> {
         self.emit(Table::Frames);
     }
 
-    fn message(&mut self, topic: &str, _sequence: u32, log_time: u64, data: &[u8]) {
+    fn message(&mut self, topic: &str, _sequence: u32, time_ns: u64, data: &[u8]) {
         let e = &mut *self.exporter;
         if topic != Overview::TOPIC || !e.selection.overview {
             return;
         }
-        let time_ns = log_time.saturating_sub(e.epoch_ns);
         let Some(o) = Overview::decode(data).filter(|_| e.selection.keeps(time_ns)) else {
             return;
         };

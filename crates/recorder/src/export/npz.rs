@@ -3,19 +3,10 @@
 //! `.npy` header needs the length), then stored (uncompressed, zip64) into the archive.
 
 use super::{Column, Kind, Rows, Table};
+use crate::writer::create_private;
 use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::Path;
-
-/// Creates `path` exclusively, private to the user.
-pub(crate) fn create_private(path: &Path) -> std::io::Result<File> {
-    use std::os::unix::fs::OpenOptionsExt;
-    File::options()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(path)
-}
 
 /// A column being spooled.
 struct Spool {
@@ -68,9 +59,26 @@ impl NpzRows {
             tables: spooled,
         })
     }
+}
+
+impl Rows for NpzRows {
+    fn row(&mut self, table: Table, values: &[f64]) -> std::io::Result<()> {
+        let Some((_, spools)) = self.tables.iter_mut().find(|(t, _)| *t == table) else {
+            return Ok(());
+        };
+        for (s, &v) in spools.iter_mut().zip(values) {
+            match s.kind {
+                Kind::F64 => s.file.write_all(&v.to_le_bytes())?,
+                Kind::F32 => s.file.write_all(&(v as f32).to_le_bytes())?,
+                Kind::U32 => s.file.write_all(&(v as u32).to_le_bytes())?,
+            }
+            s.len += 1;
+        }
+        Ok(())
+    }
 
     /// Writes the archive: each column as `<name>.npy` (`numpy.load(f)["time_s"]`).
-    pub(crate) fn finish(self) -> std::io::Result<()> {
+    fn finish(self: Box<Self>) -> std::io::Result<()> {
         let file = File::options()
             .write(true)
             .truncate(true)
@@ -92,23 +100,6 @@ impl NpzRows {
         let mut out = zip.finish().map_err(std::io::Error::other)?;
         out.flush()?;
         out.get_ref().sync_data()
-    }
-}
-
-impl Rows for NpzRows {
-    fn row(&mut self, table: Table, values: &[f64]) -> std::io::Result<()> {
-        let Some((_, spools)) = self.tables.iter_mut().find(|(t, _)| *t == table) else {
-            return Ok(());
-        };
-        for (s, &v) in spools.iter_mut().zip(values) {
-            match s.kind {
-                Kind::F64 => s.file.write_all(&v.to_le_bytes())?,
-                Kind::F32 => s.file.write_all(&(v as f32).to_le_bytes())?,
-                Kind::U32 => s.file.write_all(&(v as u32).to_le_bytes())?,
-            }
-            s.len += 1;
-        }
-        Ok(())
     }
 }
 
