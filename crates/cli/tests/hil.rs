@@ -498,3 +498,63 @@ fn a_full_disk_in_hil_ends_the_run_safely() {
     let n = rec.frames.len();
     assert!(n > 0 && n < 60 * 199_600, "{n} frames");
 }
+
+/// The 40 µm step (beyond the ±25.6 µm sensor) trips the loop in process and in
+/// lockstep HIL at the same tick: exit 5, the recording's `end` record says `tripped` with the
+/// cause and tick, and the frames agree up to the in-process end (the HIL plant ends at its
+/// next control-plane check after the controller's STOP, still in the safe state).
+#[test]
+fn a_trip_ends_the_run_with_exit_5_in_process_and_in_hil() {
+    let (a, b) = (tmp("trip-inproc.mcap"), tmp("trip-hil.mcap"));
+    let common = [
+        "--scenario",
+        "step",
+        "--amplitude",
+        "40e-6",
+        "--duration",
+        "0.1",
+        "-q",
+        "--json",
+    ];
+    let p = prefix("trip");
+    let runs = [
+        [&["run", "--out", a.to_str().unwrap()][..], &common].concat(),
+        [
+            &["run", "--hil", "--prefix", &p, "--out", b.to_str().unwrap()][..],
+            &common,
+        ]
+        .concat(),
+    ];
+    let mut ends = Vec::new();
+    for (args, path) in runs.iter().zip([&a, &b]) {
+        let out = servo().args(args).output().unwrap();
+        assert_eq!(
+            out.status.code(),
+            Some(5),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["trip"]["cause"], "following-error", "{args:?}");
+        assert_eq!(v["meta"]["end_reason"], "tripped");
+        let rec = recorder::read(path).unwrap();
+        assert_eq!(
+            rec.report.as_ref().unwrap().state,
+            recorder::FileState::Finished
+        );
+        assert_eq!(rec.end["reason"], "tripped");
+        assert_eq!(rec.end["safe_state"], "zero");
+        assert_eq!(rec.end["trip_tick"], v["trip"]["tick"].to_string());
+        ends.push((rec, v));
+    }
+    let ((inproc, v), (hil, w)) = (&ends[0], &ends[1]);
+    assert_eq!(v["trip"], w["trip"]);
+    // The step is at 20 % of 0.1 s = tick 3992; the trip follows it within two ticks.
+    let tick = v["trip"]["tick"].as_u64().unwrap();
+    assert!((3992..=3994).contains(&tick), "{tick}");
+    let n = inproc.frames.len();
+    assert_eq!(n as u64, tick + 998 + 1);
+    assert!(hil.frames.len() >= n && hil.frames.len() <= n + 2048);
+    assert_eq!(inproc.frames[..], hil.frames[..n]);
+    assert!(hil.frames[n..].iter().all(|f| f.telemetry.control_v == 0.0));
+}

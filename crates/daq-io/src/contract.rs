@@ -34,6 +34,25 @@ pub mod flags {
     pub const COMMAND_NOT_FINITE: u32 = 1 << 3;
     /// The controller output was at its limit, or the DAC clipped (telemetry).
     pub const SATURATED: u32 = 1 << 8;
+    /// Machine protection tripped: this tick's command is the configured safe state
+    /// (telemetry, from the trip's tick on; one of the `TRIP_*` bits says why).
+    pub const TRIPPED: u32 = 1 << 9;
+    /// Trip cause: |reference − measured| beyond the following-error limit.
+    pub const TRIP_FOLLOWING_ERROR: u32 = 1 << 10;
+    /// Trip cause: the gap reading clipped at the ADC range or passed the position limit.
+    pub const TRIP_SENSOR_RANGE: u32 = 1 << 11;
+    /// Trip cause: the command stayed saturated longer than the saturation limit.
+    pub const TRIP_SATURATION: u32 = 1 << 12;
+    /// Trip cause: a non-finite reading or controller output.
+    pub const TRIP_NOT_FINITE: u32 = 1 << 13;
+    /// Trip cause: the reference or feedforward latched a fault (a lost spindle lock).
+    pub const TRIP_REFERENCE_FAULT: u32 = 1 << 14;
+    /// Every `TRIP_*` cause bit.
+    pub const TRIP_CAUSES: u32 = TRIP_FOLLOWING_ERROR
+        | TRIP_SENSOR_RANGE
+        | TRIP_SATURATION
+        | TRIP_NOT_FINITE
+        | TRIP_REFERENCE_FAULT;
     /// The plant has no more ticks: this sample closes the run (no command expected).
     pub const END: u32 = 1 << 16;
     /// The plant lost its controller and drives zero current (safe state).
@@ -264,6 +283,9 @@ pub mod stop_cause {
     pub const CONTROL: u32 = 1 << 16;
     /// The recorder could not write the recording (a full disk): the run is ended safely.
     pub const WRITE_FAILED: u32 = 1 << 17;
+    /// Machine protection tripped the loop (the controller asks the plant to end the run
+    /// after its safe-state interval).
+    pub const TRIPPED: u32 = 1 << 18;
 
     /// The cause a STOP command's `value` carries (0 or out of range: [`CONTROL`]).
     pub fn of_value(value: f64) -> u32 {
@@ -271,6 +293,8 @@ pub mod stop_cause {
             value as u32
         } else if value == f64::from(WRITE_FAILED) {
             WRITE_FAILED
+        } else if value == f64::from(TRIPPED) {
+            TRIPPED
         } else {
             CONTROL
         }

@@ -334,6 +334,15 @@ pub struct PlantParams {
 }
 
 impl PlantParams {
+    /// Static tool displacement per DAC volt, in m/V: the current loop's DC transconductance
+    /// × K_T over the static stiffness at the coil carrier (k2 in series with k3, in parallel
+    /// with k5; m1 and m4 follow m2 at DC). 0.167 mm/V on the thesis prototype.
+    pub fn dc_gain_m_per_v(&self) -> f64 {
+        let s = &self.stage;
+        let k = s.k2_n_per_m * s.k3_n_per_m / (s.k2_n_per_m + s.k3_n_per_m) + s.k5_n_per_m;
+        self.actuator.current_gain_a_per_v * self.actuator.kt_n_per_a / k
+    }
+
     /// The thesis prototype with the 0.175 kg heavy stage (§5.7.3).
     pub fn heavy() -> Self {
         PlantParams {

@@ -132,6 +132,23 @@ fn static_deflection_of_the_spring_network() {
     assert!((g[(0, 1)].re - x1).abs() < 1e-12 * x1);
 }
 
+#[test]
+fn static_gain_from_the_dac_to_the_tool() {
+    // The full model (current loop, mechanics) at DC, for both stages, against the closed form
+    // the machine protection's retract uses.
+    for params in [PlantParams::default(), PlantParams::heavy()] {
+        let model = PlantModel::new(&params).unwrap();
+        let g = model.sys.freq_response(0.0).unwrap();
+        let want = params.dc_gain_m_per_v();
+        for out in [output::TOOL_M, output::GAP_M] {
+            let got = g[(out, input::COMMAND_V)].re;
+            assert!((got - want).abs() < 1e-9 * want, "{got} vs {want}");
+        }
+        // 0.167 mm/V on the prototype: K_T / (k2 ∥-series k3) = 3.6658 / 21 955 N/m.
+        assert!((want - 1.6697e-4).abs() < 1e-7, "{want}");
+    }
+}
+
 /// Natural frequencies (Hz) of the mechanics, ascending.
 fn modes(p: &StageParams) -> Vec<f64> {
     let mech = mechanics(p);

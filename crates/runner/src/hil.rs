@@ -10,6 +10,7 @@
 
 use crate::error::RunError;
 use crate::plan::Plan;
+use crate::protection::TripCause;
 use crate::recording;
 use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
@@ -65,9 +66,24 @@ pub fn plant(
     Ok(serve(&ep, &mut backend, &opts, stop.cell())?)
 }
 
+/// How a HIL controller's run ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControllerEnd {
+    /// Ticks run.
+    pub ticks: u64,
+    /// The machine-protection trip (cause, tick), if the loop tripped: it held the safe state
+    /// for `protection.after_trip_s`, then asked the plant to end the run.
+    pub trip: Option<(TripCause, u64)>,
+}
+
 /// `servo controller`: runs the controller of `plan` against the plant of run `prefix` until
-/// the plant closes the run. `stop` (Ctrl-C) asks the plant to stop. Returns the ticks run.
-pub fn controller(plan: &Plan, prefix: &str, stop: &StopRequest) -> Result<u64, RunError> {
+/// the plant closes the run. `stop` (Ctrl-C) asks the plant to stop; so does a trip, after the
+/// safe state was held.
+pub fn controller(
+    plan: &Plan,
+    prefix: &str,
+    stop: &StopRequest,
+) -> Result<ControllerEnd, RunError> {
     // The orchestrator checked it too; a controller never trusts that it did.
     plan.check_stable()?;
     let mut servo = ServoLoop::new(plan)?;
@@ -104,6 +120,9 @@ pub fn controller(plan: &Plan, prefix: &str, stop: &StopRequest) -> Result<u64, 
         if let Err(e) = link.write(cmd) {
             break Err(RunError::PlantLost(e));
         }
+        if servo.run_over(s.seq) && !stop_sent {
+            stop_sent = stopper.send(stop_for(daq_io::stop_cause::TRIPPED)).is_ok();
+        }
         if s.seq.is_multiple_of(2048) {
             while let Some(c) = take(&control_sub) {
                 if c.command == command::SET_GAIN_SCALE && (0.1..=10.0).contains(&c.value) {
@@ -111,15 +130,8 @@ pub fn controller(plan: &Plan, prefix: &str, stop: &StopRequest) -> Result<u64, 
                 }
             }
             if stop.is_set() && !stop_sent {
-                stop_sent = stopper
-                    .send(Control {
-                        command: command::STOP,
-                        value: f64::from(
-                            stop.cell().load(std::sync::atomic::Ordering::Relaxed) as u32
-                        ),
-                        ..Default::default()
-                    })
-                    .is_ok();
+                let cause = stop.cell().load(std::sync::atomic::Ordering::Relaxed) as u32;
+                stop_sent = stopper.send(stop_for(cause)).is_ok();
             }
             health.ticks = s.seq;
             health.wall_s = start.elapsed().as_secs_f64();
@@ -139,7 +151,19 @@ pub fn controller(plan: &Plan, prefix: &str, stop: &StopRequest) -> Result<u64, 
     daq_io::ipc::send(&health_pub, health);
     let service = ep.service::<TelemetryBlock>(leaf::TELEMETRY)?;
     daq_io::ipc::linger(&service, Duration::from_secs(5));
-    result
+    result.map(|ticks| ControllerEnd {
+        ticks,
+        trip: servo.trip(),
+    })
+}
+
+/// The control-plane STOP that ends a run for `cause` (a [`daq_io::stop_cause`]).
+fn stop_for(cause: u32) -> Control {
+    Control {
+        command: command::STOP,
+        value: f64::from(cause),
+        ..Default::default()
+    }
 }
 
 /// Joins the two record streams tick by tick.
@@ -233,12 +257,7 @@ pub fn record(
                 // The file cannot be written (a full disk): the plant ends the run safely, as
                 // for any stop; the error comes out of finish() below.
                 write_failed = true;
-                let stop = Control {
-                    command: command::STOP,
-                    value: f64::from(daq_io::stop_cause::WRITE_FAILED),
-                    ..Default::default()
-                };
-                let _ = stopper.send(stop);
+                let _ = stopper.send(stop_for(daq_io::stop_cause::WRITE_FAILED));
             }
         }
     };
@@ -295,9 +314,10 @@ pub fn record(
         }
     } else {
         EndReason::Completed
-    };
+    }
+    .after_trip(summary.trip(c.plant.timing.servo_rate_hz).is_some());
     let stats = match rec {
-        Some(r) => Some(r.finish(reason.record(ticks, ticks as f64 * plan.period_s()))?),
+        Some(r) => Some(r.finish(recording::end_record(plan, reason, &summary))?),
         None => None,
     };
     Ok(summary.finish(RunMeta {

@@ -28,6 +28,7 @@ pub mod hil;
 pub mod machining;
 pub mod plan;
 pub mod preview;
+pub mod protection;
 pub mod recording;
 pub mod run;
 pub mod servo_loop;

@@ -8,6 +8,7 @@
 use crate::config::{ConfigError, Loaded, RunConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
+use crate::stop::EndReason;
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use recorder::{FileState, Frame, Overwrite, ReadReport, RecordOptions, Recorder, Visit};
 use sha2::{Digest, Sha256};
@@ -107,6 +108,34 @@ pub fn create(plan: &Plan, to: &Target) -> Result<Recorder, RunError> {
             ..Default::default()
         },
     )?)
+}
+
+/// The `end` record of a run of `plan` that ended for `reason` after the frames `summary` saw:
+/// the reason and tick count, and after a machine-protection trip its cause, tick, what the
+/// tick before it showed and the safe state.
+pub fn end_record(
+    plan: &Plan,
+    reason: EndReason,
+    summary: &SummaryBuilder,
+) -> BTreeMap<String, String> {
+    let ticks = summary.ticks();
+    let mut m = reason.record(ticks, ticks as f64 * plan.period_s());
+    if let Some(t) = summary.trip(plan.config.plant.timing.servo_rate_hz) {
+        for (k, v) in [
+            ("trip_cause", t.cause),
+            ("trip_tick", t.tick.to_string()),
+            ("trip_following_error_m", t.following_error_m.to_string()),
+            ("trip_measured_m", t.measured_m.to_string()),
+            ("trip_control_v", t.control_v.to_string()),
+            (
+                "safe_state",
+                plan.config.protection.safe_state.name().to_string(),
+            ),
+        ] {
+            m.insert(k.to_string(), v);
+        }
+    }
+    m
 }
 
 /// The metadata key holding the SHA-256 of the input attachment `name`.

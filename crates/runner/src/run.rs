@@ -78,12 +78,17 @@ pub fn run_with(
         let Some(command) = command else { break };
         daq.write(command).expect("in-process writes cannot fail");
         truth = daq.backend().truth().unwrap_or_default();
+        if servo.run_over(s.seq) && reason == EndReason::Completed {
+            // Tripped, and the safe state held long enough: the next sample closes the run.
+            reason = EndReason::Tripped;
+            daq.stop();
+        }
     }
     (opts.progress)(summary.ticks(), total);
+    let reason = reason.after_trip(servo.trip().is_some());
     let wall = start.elapsed().as_secs_f64();
-    let simulated_s = summary.ticks() as f64 * plan.period_s();
     let stats = match recorder {
-        Some(r) => Some(r.finish(reason.record(summary.ticks(), simulated_s))?),
+        Some(r) => Some(r.finish(recording::end_record(plan, reason, &summary))?),
         None => None,
     };
     Ok(summary.finish(RunMeta {

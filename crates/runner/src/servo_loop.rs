@@ -8,6 +8,7 @@ use crate::feedforward::Feedforward;
 use crate::machining::SurfaceReference;
 use crate::plan::Plan;
 use crate::preview::{Window, MAX_PREVIEW};
+use crate::protection::{Observation, Protection, TripCause};
 use daq_io::{flags, Command, Sensor, Telemetry};
 use servo_core::{Block, ChirpConfig, SineConfig, StepConfig, Sweep};
 
@@ -112,7 +113,10 @@ impl Source {
 
 /// The controller's half of a tick: reads tick k's sample, returns tick k's command and the
 /// telemetry of tick k−1 (what the sample at its end showed). A non-finite reading latches the
-/// controller's fault: 0 V out and [`flags::FAULT_CONTROLLER`] on the command and telemetry.
+/// controller's fault: [`flags::FAULT_CONTROLLER`] on the command and telemetry, and a trip.
+/// Machine protection ([`Protection`]) checks every sample; once tripped, the command is the
+/// configured safe state and carries [`flags::TRIPPED`] with the cause's bit (0 V on a fault
+/// when protection is disabled).
 pub struct ServoLoop {
     /// The controller.
     pub controller: Controller,
@@ -124,6 +128,11 @@ pub struct ServoLoop {
     last_u: f64,
     /// Whether any block had latched a fault after the last command.
     last_fault: bool,
+    /// The command came out non-finite once (latched like a block fault).
+    output_fault: bool,
+    /// The protection flags of the last command.
+    last_trip_flags: u32,
+    protection: Protection,
     gain_scale: f64,
     sensitivity: f64,
     accel_scale: f64,
@@ -164,6 +173,9 @@ impl ServoLoop {
             r: 0.0,
             last_u: 0.0,
             last_fault: false,
+            output_fault: false,
+            last_trip_flags: 0,
+            protection: Protection::new(&c.protection, &c.plant),
             gain_scale: 1.0,
             sensitivity: c.plant.capa.sensitivity_v_per_m,
             accel_scale: 1.0 / c.plant.accel.sensitivity_v_per_m_s2,
@@ -177,8 +189,27 @@ impl ServoLoop {
         self.gain_scale = scale;
     }
 
-    fn any_fault(&self) -> bool {
-        self.controller.faulted() || self.source.faulted() || self.feedforward.faulted()
+    /// The fault a block latched, as a trip cause (None: no fault).
+    fn fault(&self) -> Option<TripCause> {
+        if self.controller.faulted() || self.output_fault {
+            Some(TripCause::NotFinite)
+        } else if self.source.faulted() || self.feedforward.faulted() {
+            Some(TripCause::ReferenceFault)
+        } else {
+            None
+        }
+    }
+
+    /// The cause and tick of the machine-protection trip, if the loop tripped.
+    pub fn trip(&self) -> Option<(TripCause, u64)> {
+        self.protection.trip()
+    }
+
+    /// Whether the run should end after tick `seq`: the loop tripped and has held the safe
+    /// state for `protection.after_trip_s`.
+    #[inline]
+    pub fn run_over(&self, seq: u64) -> bool {
+        self.protection.run_over(seq)
     }
 
     /// Reads this tick's reference into the window (the first tick fills it).
@@ -215,16 +246,60 @@ impl ServoLoop {
                 accel_m_s2: s.accel_v * self.accel_scale,
                 flags: (s.flags & !flags::END)
                     | if saturated { flags::SATURATED } else { 0 }
-                    | if faulted { flags::FAULT_CONTROLLER } else { 0 },
+                    | if faulted { flags::FAULT_CONTROLLER } else { 0 }
+                    | self.last_trip_flags,
                 reserved: 0,
             }
         });
         if s.flags & flags::END != 0 {
             return (None, telemetry);
         }
+        if let Some(t) = &telemetry {
+            let seen = Observation {
+                following_error_m: t.following_error_m,
+                measured_m: t.measured_m,
+                gap_clipped: s.flags & flags::GAP_CLIPPED != 0,
+                saturated: t.flags & flags::SATURATED != 0,
+            };
+            self.protection.watch(s.seq, &seen, self.last_u);
+        }
         self.advance(s);
+        let desired = self.window.at(0);
+        let u = if self.protection.trip().is_some() {
+            self.protection.safe_command()
+        } else {
+            let raw = self.control(s);
+            self.output_fault |= !raw.is_finite();
+            match self.fault() {
+                Some(cause) => {
+                    self.protection.fault(cause, s.seq, self.last_u);
+                    match self.protection.trip() {
+                        Some(_) => self.protection.safe_command(),
+                        None => 0.0,
+                    }
+                }
+                None => raw,
+            }
+        };
+        let faulted = self.fault().is_some();
+        self.last_u = u;
+        self.last_fault = faulted;
+        self.last_trip_flags = self.protection.flags();
+        self.r = desired;
+        let command = Command {
+            seq: s.seq,
+            dac_v: u,
+            flags: if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.last_trip_flags,
+            reserved: 0,
+        };
+        (Some(command), telemetry)
+    }
+
+    /// The controller's command for sample `s` (feedback on the smoothed reference plus the
+    /// feedforward, scaled and clamped to the output limit), in V.
+    #[inline]
+    fn control(&mut self, s: &Sensor) -> f64 {
         let w = &self.window;
-        let desired = w.at(0);
         let (reference, u_ff) = match &mut self.feedforward {
             Feedforward::None => (w.smooth(0), 0.0),
             Feedforward::Model(ff) => {
@@ -243,21 +318,6 @@ impl ServoLoop {
             .controller
             .update(reference * self.sensitivity - s.gap_v, s.accel_v);
         let limit = self.controller.limit_v;
-        let faulted = self.any_fault();
-        let u = if faulted {
-            0.0
-        } else {
-            (raw * self.gain_scale + u_ff).clamp(-limit, limit)
-        };
-        self.last_u = u;
-        self.last_fault = faulted;
-        self.r = desired;
-        let command = Command {
-            seq: s.seq,
-            dac_v: u,
-            flags: if faulted { flags::FAULT_CONTROLLER } else { 0 },
-            reserved: 0,
-        };
-        (Some(command), telemetry)
+        (raw * self.gain_scale + u_ff).clamp(-limit, limit)
     }
 }

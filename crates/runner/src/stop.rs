@@ -62,6 +62,8 @@ pub enum EndReason {
     PeerLost,
     /// The recording could not be written (disk full, I/O error): the run was ended safely.
     WriteFailed,
+    /// Machine protection tripped the loop; it held the safe state, then the run ended.
+    Tripped,
 }
 
 impl EndReason {
@@ -71,7 +73,17 @@ impl EndReason {
             daq_io::stop_cause::NONE => EndReason::Completed,
             1..=127 => EndReason::Signal(cause as i32),
             daq_io::stop_cause::WRITE_FAILED => EndReason::WriteFailed,
+            daq_io::stop_cause::TRIPPED => EndReason::Tripped,
             _ => EndReason::Stopped,
+        }
+    }
+
+    /// The reason of a run whose loop `tripped`: a trip outranks completing the duration or
+    /// a later stop request (the run did not do what it was asked).
+    pub fn after_trip(self, tripped: bool) -> EndReason {
+        match self {
+            EndReason::Completed | EndReason::Stopped if tripped => EndReason::Tripped,
+            reason => reason,
         }
     }
 
@@ -83,6 +95,7 @@ impl EndReason {
             EndReason::Signal(_) => "interrupted",
             EndReason::PeerLost => "peer-lost",
             EndReason::WriteFailed => "write-failed",
+            EndReason::Tripped => "tripped",
         }
     }
 
@@ -99,13 +112,14 @@ impl EndReason {
 
     /// The process exit code that says it: 0 completed or stopped on request, 128 + the
     /// signal number when interrupted (130 SIGINT, 143 SIGTERM, 129 SIGHUP, as shells do),
-    /// 3 a lost peer, 4 a failed recording.
+    /// 3 a lost peer, 4 a failed recording, 5 a machine-protection trip.
     pub fn exit_code(self) -> u8 {
         match self {
             EndReason::Completed | EndReason::Stopped => 0,
             EndReason::Signal(s) => (128 + s.clamp(0, 127)) as u8,
             EndReason::PeerLost => 3,
             EndReason::WriteFailed => 4,
+            EndReason::Tripped => 5,
         }
     }
 

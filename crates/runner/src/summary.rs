@@ -2,6 +2,7 @@
 //! (so `servo inspect` recomputes exactly the same numbers from the file).
 
 use crate::config::RunConfig;
+use crate::protection::TripCause;
 use daq_io::Latency;
 use recorder::Frame;
 use serde::{Deserialize, Serialize};
@@ -72,6 +73,10 @@ pub struct SummaryBuilder {
     control: Acc,
     saturated: u64,
     adc_clipped: u64,
+    /// The telemetry of the frame before the last one added.
+    before: recorder::Telemetry,
+    /// The first tripped frame: its cause, time and the telemetry before it.
+    trip: Option<(TripCause, u64, recorder::Telemetry)>,
 }
 
 impl SummaryBuilder {
@@ -93,19 +98,38 @@ impl SummaryBuilder {
     pub fn add(&mut self, f: &Frame) {
         self.ticks += 1;
         self.last_ns = f.time_ns;
+        let flags = f.telemetry.flags as u32;
+        if self.trip.is_none() {
+            if let Some(cause) = TripCause::of_flags(flags) {
+                self.trip = Some((cause, f.time_ns, self.before));
+            }
+            self.before = f.telemetry;
+        }
         if f.time_ns < self.settle_ns {
             return;
         }
         self.following.add(f.telemetry.following_error_m as f64);
         self.truth.add(f.truth.true_error_m as f64);
         self.control.add(f.telemetry.control_v as f64);
-        let flags = f.telemetry.flags as u32;
         if flags & daq_io::flags::SATURATED != 0 {
             self.saturated += 1;
         }
         if flags & (daq_io::flags::GAP_CLIPPED | daq_io::flags::ACCEL_CLIPPED) != 0 {
             self.adc_clipped += 1;
         }
+    }
+
+    /// The machine-protection trip the frames so far show, for a loop at `servo_rate_hz`.
+    pub fn trip(&self, servo_rate_hz: f64) -> Option<TripReport> {
+        self.trip.map(|(cause, time_ns, before)| TripReport {
+            cause: cause.name().into(),
+            // Frames are stamped at the end of their tick.
+            tick: ((time_ns as f64 * 1e-9 * servo_rate_hz).round() as u64).saturating_sub(1),
+            time_s: time_ns as f64 * 1e-9,
+            following_error_m: before.following_error_m.into(),
+            measured_m: before.measured_m.into(),
+            control_v: before.control_v.into(),
+        })
     }
 
     /// The summary so far.
@@ -119,9 +143,28 @@ impl SummaryBuilder {
             control_v: self.control.stats(),
             saturated_ticks: self.saturated,
             adc_clipped_ticks: self.adc_clipped,
+            trip: self.trip(meta.servo_rate_hz),
             meta,
         }
     }
+}
+
+/// A machine-protection trip as the frames show it: the first tick whose command was the safe
+/// state, and what the tick before it showed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TripReport {
+    /// `following-error`, `sensor-range`, `saturation`, `non-finite` or `reference-fault`.
+    pub cause: String,
+    /// The first tick commanded in the safe state.
+    pub tick: u64,
+    /// The end of that tick, s of simulated time.
+    pub time_s: f64,
+    /// Following error the tick before, m.
+    pub following_error_m: f64,
+    /// Measured position the tick before, m.
+    pub measured_m: f64,
+    /// Command the tick before, V.
+    pub control_v: f64,
 }
 
 /// Facts about the run besides the statistics.
@@ -177,6 +220,8 @@ pub struct Summary {
     /// Ticks where an ADC channel (gap or accelerometer) clipped — a limit cycle or a stroke
     /// beyond the sensor range.
     pub adc_clipped_ticks: u64,
+    /// The machine-protection trip, if the loop tripped.
+    pub trip: Option<TripReport>,
     /// Run facts.
     pub meta: RunMeta,
 }
@@ -211,7 +256,8 @@ impl fmt::Display for Summary {
                 (None, true) => ", INTERRUPTED".to_string(),
                 _ => String::new(),
             },
-            m.settle_s
+            // To the ns: 10 % of 0.1 s prints as 0.01, not 0.010000000000000002.
+            (m.settle_s * 1e9).round() / 1e9
         )?;
         if let Some(n) = m.recorded_every {
             writeln!(
@@ -234,6 +280,18 @@ impl fmt::Display for Summary {
         )?;
         if self.adc_clipped_ticks > 0 {
             writeln!(f, "  WARNING                   an ADC clipped on {} ticks (limit cycle or over-range)", self.adc_clipped_ticks)?;
+        }
+        if let Some(t) = &self.trip {
+            writeln!(
+                f,
+                "  TRIPPED                   {} at tick {} (t = {:.6} s; the tick before: following error {:.3} µm, measured {:.3} µm, command {:.4} V); safe state from then on",
+                t.cause,
+                t.tick,
+                t.time_s,
+                t.following_error_m * 1e6,
+                t.measured_m * 1e6,
+                t.control_v
+            )?;
         }
         if let Some(r) = m.spectral_radius {
             writeln!(

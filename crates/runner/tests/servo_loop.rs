@@ -1,8 +1,10 @@
 //! The controller half of a tick on bad input: a non-finite reading latches the controller's
-//! fault, the command is 0 V from then on and both the command and the telemetry say so.
+//! fault and trips machine protection; the command is the safe state from then on and both the
+//! command and the telemetry say so.
 
 use daq_io::{flags, Sensor};
-use runner::config::Loaded;
+use runner::config::{Loaded, SafeState};
+use runner::protection::TripCause;
 use runner::{Plan, ServoLoop};
 
 fn sample(seq: u64, gap_v: f64) -> Sensor {
@@ -34,5 +36,29 @@ fn a_nan_reading_gives_zero_volts_and_a_fault_flag() {
         assert_eq!(c.dac_v, 0.0);
         assert_ne!(c.flags & flags::FAULT_CONTROLLER, 0);
         assert_ne!(t.unwrap().flags & flags::FAULT_CONTROLLER, 0);
+    }
+}
+
+#[test]
+fn a_nan_reading_trips_to_the_configured_safe_state() {
+    for (state, held) in [(SafeState::Zero, false), (SafeState::Hold, true)] {
+        let mut l = Loaded::default();
+        l.config.protection.safe_state = state;
+        let mut servo = ServoLoop::new(&Plan::new(&l).unwrap()).unwrap();
+        let before = servo.tick(&sample(0, 0.01)).0.unwrap().dac_v;
+        let (c, _) = servo.tick(&sample(1, f64::NAN));
+        let c = c.unwrap();
+        assert_eq!(servo.trip(), Some((TripCause::NotFinite, 1)));
+        let bits = flags::TRIPPED | flags::TRIP_NOT_FINITE | flags::FAULT_CONTROLLER;
+        assert_eq!(c.flags & bits, bits);
+        let want = if held { before } else { 0.0 };
+        assert_eq!(c.dac_v, want);
+        // 5 ms = 998 ticks of safe state, then the run is over.
+        for k in 2..=999 {
+            let (c, t) = servo.tick(&sample(k, 0.01));
+            assert_eq!(c.unwrap().dac_v, want);
+            assert_eq!(t.unwrap().flags & bits, bits);
+            assert_eq!(servo.run_over(k), k == 999, "tick {k}");
+        }
     }
 }

@@ -78,8 +78,18 @@ impl ControllerCmd {
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let plan = Plan::new(&self.run.load()?)?;
         let stop = stop_on_signals();
-        runner::hil::controller(&plan, &self.hil.prefix()?, &stop)?;
-        Ok(ExitCode::from(stop.reason().exit_code()))
+        let end = runner::hil::controller(&plan, &self.hil.prefix()?, &stop)?;
+        if let Some((cause, tick)) = end.trip {
+            eprintln!(
+                "servo controller: TRIPPED — {} at tick {}; held the safe state ({}) and ended the run",
+                cause.name(),
+                tick,
+                plan.config.protection.safe_state.name()
+            );
+        }
+        Ok(ExitCode::from(
+            stop.reason().after_trip(end.trip.is_some()).exit_code(),
+        ))
     }
 }
 
@@ -124,7 +134,8 @@ impl RecordCmd {
         if let (Some(p), false) = (out, rec.json) {
             println!("  wrote {}", p.path.display());
         }
-        Ok(ExitCode::SUCCESS)
+        let reason = runner::stop::EndReason::Completed.after_trip(summary.trip.is_some());
+        Ok(ExitCode::from(reason.exit_code()))
     }
 }
 

@@ -133,7 +133,7 @@ impl MachineCmd {
         let written = form::report::write(&analysis, &title, &self.out_dir)
             .map_err(studies::StudyError::from)?;
         let report = analysis.report();
-        let code = ExitCode::from(stop.reason().exit_code());
+        let code = crate::interrupt::exit_code(&summary, &stop);
         if rec.json {
             print_json(&report);
             return Ok(code);

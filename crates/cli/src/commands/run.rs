@@ -44,7 +44,8 @@ impl Run {
             let summary = with_progress(rec, out.clone(), &stop, "simulating", |opts| {
                 run(&plan, opts)
             })?;
-            (summary, ExitCode::from(stop.reason().exit_code()))
+            let code = crate::interrupt::exit_code(&summary, &stop);
+            (summary, code)
         };
         print_summary(&summary, rec.json);
         if let (Some(o), false) = (out, rec.json) {

@@ -5,9 +5,11 @@ pub mod input_file;
 mod machining;
 mod origin;
 pub mod presets;
+mod protection;
 
 pub use machining::{Machining, SurfaceConfig};
 pub use origin::{line_of, ConfigError, Origin};
+pub use protection::{ProtectionConfig, SafeState};
 
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::PlantParams;
@@ -26,6 +28,8 @@ pub struct RunConfig {
     pub controller: ControllerConfig,
     /// The simulated stage (timing.servo_rate_hz is the loop rate).
     pub plant: PlantParams,
+    /// Machine-protection limits and the safe state a trip takes the loop to.
+    pub protection: ProtectionConfig,
 }
 
 /// Run length and statistics.
@@ -375,7 +379,8 @@ impl RunConfig {
                 "a controller file for kind = \"ss\"",
             ));
         }
-        Ok(())
+        self.protection
+            .validate(at, c.limit_v, self.plant.dc_gain_m_per_v())
     }
 }
 
