@@ -14,6 +14,7 @@ Prints one JSON line when the run ends: ticks seen, first and last tick, and the
 following error (m) over the ticks at or after --settle-s.
 """
 import argparse
+import os
 import ctypes
 import json
 import math
@@ -43,7 +44,7 @@ class Telemetry(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "fts_servo::Telemetry"
+        return "fts_servo::v3::Telemetry"
 
 
 class TelemetryBlock(ctypes.Structure):
@@ -58,12 +59,18 @@ class TelemetryBlock(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "fts_servo::TelemetryBlock"
+        return "fts_servo::v3::TelemetryBlock"
 
 
 def open_subscriber(prefix: str):
     """Subscribes to fts-servo/<prefix>/telemetry with daq-io's settings for that service."""
-    node = iox2.NodeBuilder.new().create(iox2.ServiceType.Ipc)
+    # Named as every fts-servo process names its node (contract version 3), so peers see a
+    # tap of this version on the run.
+    node = (
+        iox2.NodeBuilder.new()
+        .name(iox2.NodeName.new(f"fts-servo/v3/{prefix}/tap-{os.getpid()}"))
+        .create(iox2.ServiceType.Ipc)
+    )
     service = (
         node.service_builder(iox2.ServiceName.new(f"fts-servo/{prefix}/telemetry"))
         .publish_subscribe(TelemetryBlock)

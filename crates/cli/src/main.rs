@@ -41,7 +41,7 @@ enum Command {
     Plant(hil::PlantCmd),
     Controller(hil::ControllerCmd),
     Record(hil::RecordCmd),
-    Ctl(hil::CtlCmd),
+    Ctl(ctl::CtlCmd),
 }
 
 impl Command {

@@ -1,32 +1,19 @@
 //! HIL: plant, controller and recorder as separate processes over iceoryx2, as a user runs
 //! them. Each test uses its own run prefix (with the test process id) so tests run in parallel.
 
+mod common;
+
+use common::{json, servo, succeeded, tmp};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
-
-fn servo() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_servo"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("fts-hil-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
 
 fn prefix(tag: &str) -> String {
     format!("t-{tag}-{}", std::process::id())
 }
 
 fn run_ok(args: &[&str]) -> serde_json::Value {
-    let out = servo().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "servo {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("JSON summary")
+    json(&servo().args(args).output().unwrap())
 }
 
 /// In-process and lockstep HIL recordings of the same config: frame by frame identical.
@@ -295,17 +282,43 @@ fn control_plane_changes_gains_and_stops_a_running_loop() {
         .spawn()
         .unwrap();
     wait_for_ticks(&p, 20_000, &mut run);
-    assert!(servo()
-        .args(["ctl", "--prefix", &p, "gain", "1.5"])
-        .status()
-        .unwrap()
-        .success());
+    let ctl = |args: &[&str]| {
+        servo()
+            .args(["ctl", "--prefix", &p, "--timeout-s", "60"])
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    // Beyond the margin: the default PID goes unstable at ×4.41 (12.9 dB, the issue's
+    // number; studies' `gain_margin_predicts_the_stability_limit` checks the limit itself).
+    for (scale, why) in [
+        ("4", "refused: the loop goes unstable above ×4.409"),
+        ("nan", "not a finite number"),
+    ] {
+        let out = ctl(&["gain", scale]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains(why), "{err}");
+        if scale == "4" {
+            assert!(
+                err.contains("12.9 dB") && err.contains("allowed ×0.041–×2.205"),
+                "{err}"
+            );
+        }
+    }
+    let out = ctl(&["gain", "1.5"]);
+    succeeded(&out);
+    let said = String::from_utf8_lossy(&out.stdout).to_string();
+    let applied: u64 = said
+        .split("applied from tick ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{said}"));
     wait_for_ticks(&p, 60_000, &mut run);
-    assert!(servo()
-        .args(["ctl", "--prefix", &p, "stop"])
-        .status()
-        .unwrap()
-        .success());
+    let out = ctl(&["stop"]);
+    succeeded(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("stop applied: the run ends at tick"));
     let out = run.wait_with_output().unwrap();
     assert!(out.status.success());
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -342,6 +355,111 @@ fn control_plane_changes_gains_and_stops_a_running_loop() {
         (ratio - 1.5).abs() < 1e-5,
         "first scaled command ratio {ratio}"
     );
+    // The acknowledgement named that tick, and the recording holds the change (only the
+    // accepted one).
+    assert_eq!(applied, j as u64);
+    let end = recorder::read(&b).unwrap().end;
+    assert_eq!(end["gain_change.1"], format!("tick {j}: output scale 1.5"));
+    assert!(!end.contains_key("gain_change.2"));
+}
+
+/// `servo ctl` to a prefix no run holds fails at once (not after its 60 s timeout) and says so.
+#[test]
+fn ctl_to_a_prefix_without_a_run_fails_fast() {
+    for action in [&["gain", "1.2"][..], &["stop"], &["start"]] {
+        let out = servo()
+            .args(["ctl", "--prefix", &prefix("nobody"), "--timeout-s", "60"])
+            .args(action)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains("no run on prefix"), "{err}");
+    }
+}
+
+/// A second run on a prefix a live run holds is refused before it makes anything, naming the
+/// live run; the first run's recording is untouched (its own seed, complete).
+#[test]
+fn a_second_run_on_a_live_prefix_is_refused() {
+    let p = prefix("twice");
+    let (first, second) = (tmp("twice-1.mcap"), tmp("twice-2.mcap"));
+    let mut run = servo()
+        .args([
+            "run",
+            "--hil",
+            "-q",
+            "--json",
+            "--seed",
+            "1",
+            "--duration",
+            "60",
+            "--prefix",
+            &p,
+            "--out",
+        ])
+        .arg(&first)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_ticks(&p, 20_000, &mut run);
+    let pid = run.id();
+    for args in [
+        &[
+            "run",
+            "--hil",
+            "--seed",
+            "2",
+            "--duration",
+            "1",
+            "--prefix",
+            &p,
+            "--out",
+            second.to_str().unwrap(),
+        ][..],
+        &[
+            "record",
+            "--seed",
+            "2",
+            "--duration",
+            "1",
+            "--prefix",
+            &p,
+            "--out",
+            second.to_str().unwrap(),
+        ],
+        &["plant", "--prefix", &p],
+        &["controller", "--prefix", &p],
+    ] {
+        let out = servo().args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("is in use by a live run") && err.contains("started"),
+            "{err}"
+        );
+        if args[0] == "run" {
+            assert!(err.contains(&format!("pid {pid}")), "{err}");
+        }
+        assert!(!second.exists(), "{args:?} made its recording");
+    }
+    succeeded(
+        &servo()
+            .args(["ctl", "--prefix", &p, "--timeout-s", "60", "stop"])
+            .output()
+            .unwrap(),
+    );
+    let out = run.wait_with_output().unwrap();
+    succeeded(&out);
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["meta"]["seed"], 1);
+    let rec = recorder::read(&first).unwrap();
+    assert_eq!(
+        rec.report.as_ref().unwrap().state,
+        recorder::FileState::Finished
+    );
+    assert_eq!(Some(rec.frames.len() as u64), summary["ticks"].as_u64());
+    assert_eq!(rec.end["reason"], "stopped");
 }
 
 #[test]

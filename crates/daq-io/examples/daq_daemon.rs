@@ -70,7 +70,7 @@ impl Backend for FakeHardware {
 
 /// A minimal PI position controller (what `--demo` runs in a thread): holds 1 µm.
 fn demo_controller(prefix: &str) -> (f64, u64) {
-    let ep = Endpoint::open(prefix, "demo-controller").expect("join the run");
+    let ep = Endpoint::open(prefix, "controller").expect("join the run");
     let mut daq = ControllerLink::new(&ep, Duration::from_secs(10), Duration::from_secs(1))
         .expect("controller ports");
     let (kp, ki) = (0.02, 0.002);
@@ -105,7 +105,7 @@ fn main() {
     let realtime = args.iter().any(|a| a == "--realtime");
     let demo = args.iter().any(|a| a == "--demo");
 
-    let ep = Endpoint::open(&prefix, "daq-daemon").expect("join the run");
+    let ep = Endpoint::open(&prefix, "plant").expect("join the run");
     let pacing = if realtime {
         Pacing::RealTime
     } else {

@@ -2,8 +2,15 @@
 //!
 //! Every message carries the tick index `seq` it belongs to. Layouts are fixed (C layout, no
 //! implicit padding) so other languages can map them: `examples/python/tap_telemetry.py` reads
-//! [`TelemetryBlock`] with `ctypes`. The iceoryx2 type names (`fts_servo::…`) are part of the
-//! contract; change a layout and its name together.
+//! [`TelemetryBlock`] with `ctypes`, and `include/fts_servo_contract.h` declares them for a C
+//! or C++ DAQ daemon (CI compiles a C file asserting every size and offset against these
+//! types). The layouts are versioned: [`CONTRACT_VERSION`] is in every iceoryx2 type name
+//! (`fts_servo::v3::…`) and in every node name, and a peer of another version is refused at
+//! connect with both versions named ([`crate::ipc::Endpoint::open`]). Change a layout, bump
+//! the version (a test pins [`LAYOUT_FINGERPRINT`]).
+
+/// The version of the sample contract's layouts (every `#[repr(C)]` type here).
+pub const CONTRACT_VERSION: u32 = 3;
 
 #[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
@@ -67,7 +74,7 @@ pub mod flags {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::Sensor"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Sensor"))]
 pub struct Sensor {
     /// Tick index (0 for the reading before the first command).
     pub seq: u64,
@@ -89,7 +96,7 @@ pub struct Sensor {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::Command"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Command"))]
 pub struct Command {
     /// The tick this command answers (the echoed [`Sensor::seq`]).
     pub seq: u64,
@@ -105,7 +112,7 @@ pub struct Command {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::Telemetry"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Telemetry"))]
 pub struct Telemetry {
     /// Tick index.
     pub seq: u64,
@@ -131,7 +138,7 @@ pub struct Telemetry {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::Truth"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Truth"))]
 pub struct Truth {
     /// Tick index.
     pub seq: u64,
@@ -169,7 +176,7 @@ pub const BLOCK_TICKS: usize = 64;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::TelemetryBlock"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::TelemetryBlock"))]
 pub struct TelemetryBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -185,7 +192,7 @@ pub struct TelemetryBlock {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::TruthBlock"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::TruthBlock"))]
 pub struct TruthBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -264,7 +271,7 @@ pub mod command {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::Control"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Control"))]
 pub struct Control {
     /// One of [`command`].
     pub command: u32,
@@ -272,6 +279,47 @@ pub struct Control {
     pub reserved: u32,
     /// Argument (unit per command).
     pub value: f64,
+    /// Request id the [`Ack`] echoes (0: no acknowledgement wanted).
+    pub id: u64,
+}
+
+/// What a run did with a [`Control`] message ([`Ack::status`]).
+pub mod ack_status {
+    /// Applied at [`super::Ack::tick`].
+    pub const APPLIED: u32 = 1;
+    /// Refused: the change would leave the loop with less than the required stability
+    /// margin ([`super::Ack::low`]..=[`super::Ack::high`] is what is allowed).
+    pub const REFUSED_MARGIN: u32 = 2;
+    /// Refused: not a number, or a command this process does not take.
+    pub const REFUSED_INVALID: u32 = 3;
+}
+
+/// The reply to a [`Control`] message with an `id` (controller or plant → anyone).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
+#[repr(C)]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Ack"))]
+pub struct Ack {
+    /// The request's [`Control::id`].
+    pub id: u64,
+    /// The tick at which it was applied (or seen, when refused).
+    pub tick: u64,
+    /// The request's value.
+    pub value: f64,
+    /// The lowest value allowed (gain scale: the stable range's lower end with the margin).
+    pub low: f64,
+    /// The highest value allowed.
+    pub high: f64,
+    /// The value at which the loop would go unstable (gain scale; 0 if not applicable).
+    pub unstable_at: f64,
+    /// The request's [`Control::command`].
+    pub command: u32,
+    /// One of [`ack_status`].
+    pub status: u32,
+    /// Which process answers, one of [`role`].
+    pub role: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
 }
 
 /// Why a run was stopped early: a signal's number (1 SIGHUP, 2 SIGINT, 15 SIGTERM), or
@@ -325,7 +373,7 @@ pub mod state {
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::Latency"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Latency"))]
 pub struct Latency {
     /// Exchanges measured.
     pub count: u64,
@@ -345,7 +393,7 @@ pub struct Latency {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::Health"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Health"))]
 pub struct Health {
     /// One of [`role`].
     pub role: u32,

@@ -5,7 +5,7 @@
 //! opens every service with the same settings ([`ServiceSettings`]); opening cleans up the
 //! resources of dead nodes first, so a run after a `kill -9` starts cleanly.
 
-use crate::contract::{Block, Command, Control, Health, Sensor, TelemetryBlock, TruthBlock};
+use crate::contract::{Ack, Block, Command, Control, Health, Sensor, TelemetryBlock, TruthBlock};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use std::fmt::Debug;
@@ -20,9 +20,9 @@ pub type Service<T> = PubSubFactory<ipc::Service, T, ()>;
 
 /// Transport errors, naming the service and what failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("iceoryx2 {what}: {detail}")]
+#[error("{what}: {detail}")]
 pub struct IpcError {
-    /// What was being done (`open service fts-servo/run-1/sensor`, …).
+    /// What was being done (`iceoryx2 open service fts-servo/run-1/sensor`, `join run …`).
     pub what: String,
     /// The iceoryx2 error.
     pub detail: String,
@@ -30,7 +30,7 @@ pub struct IpcError {
 
 fn ipc_err(what: impl Into<String>, e: impl Debug) -> IpcError {
     IpcError {
-        what: what.into(),
+        what: format!("iceoryx2 {}", what.into()),
         detail: format!("{e:?}"),
     }
 }
@@ -49,6 +49,8 @@ pub mod leaf {
     pub const CONTROL: &str = "control";
     /// Plant and controller → anyone ([`crate::Health`]).
     pub const HEALTH: &str = "health";
+    /// Plant and controller → anyone: replies to control messages ([`crate::Ack`]).
+    pub const ACK: &str = "ack";
 }
 
 /// Queue sizes and port limits of one service (identical in every process that opens it).
@@ -71,7 +73,7 @@ pub fn settings(leaf: &str) -> ServiceSettings {
             publishers: 1,
             subscribers: 3,
         },
-        leaf::CONTROL | leaf::HEALTH => ServiceSettings {
+        leaf::CONTROL | leaf::HEALTH | leaf::ACK => ServiceSettings {
             buffer: 64,
             publishers: 4,
             subscribers: 4,
@@ -113,7 +115,7 @@ impl Endpoint {
             detail,
         })?;
         iceoryx2::prelude::set_log_level(LogLevel::Error);
-        let node_name = NodeName::new(&format!("fts-servo-{prefix}-{name}"))
+        let node_name = NodeName::new(&crate::peers::node_name(prefix, name))
             .map_err(|e| ipc_err("node name", e))?;
         let node = NodeBuilder::new()
             .name(&node_name)
@@ -121,10 +123,24 @@ impl Endpoint {
             .create::<ipc::Service>()
             .map_err(|e| ipc_err("create node", e))?;
         node.try_cleanup_dead_nodes();
+        // Checked after this node exists: of two processes joining at once, at least one sees
+        // the other.
+        let peers = crate::peers::live_peers(prefix, Some(node.id()));
+        if let Some(detail) = crate::peers::refusal(prefix, name, &peers) {
+            return Err(IpcError {
+                what: format!("join run {prefix:?} as {name}"),
+                detail,
+            });
+        }
         Ok(Endpoint {
             node,
             prefix: prefix.to_owned(),
         })
+    }
+
+    /// The other live processes of this run (see [`crate::peers`]).
+    pub fn peers(&self) -> Vec<crate::peers::Peer> {
+        crate::peers::live_peers(&self.prefix, Some(self.node.id()))
     }
 
     /// The run prefix.
@@ -356,7 +372,8 @@ impl crate::Daq for ControllerLink {
     }
 }
 
-/// Everything a process other than plant and controller reads: telemetry, truth, health.
+/// Everything a process other than plant and controller reads: telemetry, truth, health and
+/// the acknowledgements of control-plane changes.
 pub struct Tap {
     /// Controller telemetry blocks.
     pub telemetry: Subscriber<TelemetryBlock>,
@@ -364,15 +381,18 @@ pub struct Tap {
     pub truth: Subscriber<TruthBlock>,
     /// Health reports.
     pub health: Subscriber<Health>,
+    /// Control-plane acknowledgements.
+    pub ack: Subscriber<Ack>,
 }
 
 impl Tap {
-    /// Subscribes to telemetry, truth and health of the run.
+    /// Subscribes to telemetry, truth, health and acknowledgements of the run.
     pub fn new(ep: &Endpoint) -> Result<Self, IpcError> {
         Ok(Tap {
             telemetry: ep.subscriber(leaf::TELEMETRY)?,
             truth: ep.subscriber(leaf::TRUTH)?,
             health: ep.subscriber(leaf::HEALTH)?,
+            ack: ep.subscriber(leaf::ACK)?,
         })
     }
 }

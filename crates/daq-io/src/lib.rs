@@ -19,12 +19,15 @@ mod daq;
 mod histogram;
 #[cfg(feature = "ipc")]
 pub mod ipc;
+pub mod layout;
+#[cfg(feature = "ipc")]
+pub mod peers;
 #[cfg(feature = "ipc")]
 pub mod serve;
 
 pub use contract::{
-    flags, stop_cause, Command, Control, Health, Latency, Sensor, Telemetry, TelemetryBlock, Truth,
-    TruthBlock, BLOCK_TICKS,
+    ack_status, flags, stop_cause, Ack, Command, Control, Health, Latency, Sensor, Telemetry,
+    TelemetryBlock, Truth, TruthBlock, BLOCK_TICKS, CONTRACT_VERSION,
 };
 pub use daq::{Backend, Daq, DaqError, InProcess};
 pub use histogram::LatencyHistogram;

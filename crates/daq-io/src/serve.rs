@@ -10,7 +10,9 @@
 //!   [`flags::FAULT_PEER_LOST`] is raised, the plant runs `safe_ticks` more ticks in the safe
 //!   state (recorded, so the current's decay is visible) and ends the run.
 
-use crate::contract::{command, flags, role, state, Command, Control, Health, Sensor, TruthBlock};
+use crate::contract::{
+    ack_status, command, flags, role, state, Ack, Command, Control, Health, Sensor, TruthBlock,
+};
 use crate::ipc::{leaf, poll_until, take, BlockWriter, Endpoint, IpcError};
 use crate::{Backend, LatencyHistogram};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -128,6 +130,25 @@ pub fn serve<B: Backend>(
     let command_sub = ep.subscriber::<Command>(leaf::COMMAND)?;
     let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
     let health_pub = ep.publisher::<Health>(leaf::HEALTH)?;
+    let ack_pub = ep.publisher::<Ack>(leaf::ACK)?;
+    let ack = |c: &Control, tick: u64| {
+        let status = match c.command {
+            command::START | command::STOP => ack_status::APPLIED,
+            _ => return, // the controller's (gain)
+        };
+        crate::ipc::send(
+            &ack_pub,
+            Ack {
+                id: c.id,
+                tick,
+                value: c.value,
+                command: c.command,
+                status,
+                role: role::PLANT,
+                ..Default::default()
+            },
+        );
+    };
     let mut health = Health {
         role: role::PLANT,
         state: state::WAITING,
@@ -143,6 +164,7 @@ pub fn serve<B: Backend>(
             !opts.wait_for_recorder || truth_service.dynamic_config().number_of_subscribers() > 0;
         while let Some(c) = take(&control_sub) {
             started |= c.command == command::START;
+            ack(&c, 0);
         }
         if controller && recorder && started {
             break;
@@ -244,6 +266,7 @@ pub fn serve<B: Backend>(
                     end_tick = end_tick.min(k);
                     report.stop_cause = crate::stop_cause::of_value(c.value);
                 }
+                ack(&c, k);
             }
             let asked = stop.load(Ordering::Relaxed);
             if asked != 0 && report.stop_cause == 0 {

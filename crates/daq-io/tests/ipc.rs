@@ -128,3 +128,31 @@ fn a_plant_told_to_wait_starts_on_the_control_plane_start() {
     assert_eq!(control(&mut link).len() as u64, ticks);
     assert_eq!(plant.join().unwrap().ticks, ticks);
 }
+
+/// A peer of another contract version (here an iceoryx2 node named as a v2 plant would name
+/// it) is refused at connect, with both versions named; a second process in the same role on
+/// the same prefix is refused as a second run.
+#[test]
+fn a_peer_of_another_contract_version_is_refused_at_connect() {
+    use iceoryx2::prelude::*;
+    let p = prefix("version");
+    let old = NodeBuilder::new()
+        .name(&NodeName::new(&format!("fts-servo/v2/{p}/plant")).unwrap())
+        .create::<ipc::Service>()
+        .unwrap();
+    let e = Endpoint::open(&p, "controller").err().expect("refused");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("contract mismatch")
+            && msg.contains("contract v2")
+            && msg.contains(&format!("v{}", daq_io::CONTRACT_VERSION))
+            && msg.contains(&format!("pid {}", std::process::id())),
+        "{msg}"
+    );
+    drop(old);
+    // Gone: the same join succeeds; a second controller is a second run.
+    let first = Endpoint::open(&p, "controller").unwrap();
+    let e = Endpoint::open(&p, "controller").err().expect("refused");
+    assert!(e.to_string().contains("is in use by a live run"), "{e}");
+    assert_eq!(first.peers(), vec![]);
+}

@@ -9,6 +9,7 @@
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
 use crate::error::RunError;
+use crate::gain_range::{gain_range, GainRange};
 use crate::plan::Plan;
 use crate::protection::TripCause;
 use crate::recording;
@@ -19,7 +20,7 @@ use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
 use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
-use daq_io::{flags, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
+use daq_io::{ack_status, flags, Ack, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
 use recorder::Frame;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -86,8 +87,10 @@ pub fn controller(
 ) -> Result<ControllerEnd, RunError> {
     // The orchestrator checked it too; a controller never trusts that it did.
     plan.check_stable()?;
+    let gains = gain_range(plan)?;
     let mut servo = ServoLoop::new(plan)?;
     let ep = Endpoint::open(prefix, "controller")?;
+    let ack_pub = ep.publisher::<Ack>(leaf::ACK)?;
     let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;
     let telemetry_pub = ep.publisher::<TelemetryBlock>(leaf::TELEMETRY)?;
     let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
@@ -125,8 +128,12 @@ pub fn controller(
         }
         if s.seq.is_multiple_of(2048) {
             while let Some(c) = take(&control_sub) {
-                if c.command == command::SET_GAIN_SCALE && (0.1..=10.0).contains(&c.value) {
-                    servo.set_gain_scale(c.value);
+                if c.command == command::SET_GAIN_SCALE {
+                    let ack = gain_change(&gains, &c, s.seq + 1);
+                    if ack.status == ack_status::APPLIED {
+                        servo.set_gain_scale(c.value);
+                    }
+                    daq_io::ipc::send(&ack_pub, ack);
                 }
             }
             if stop.is_set() && !stop_sent {
@@ -155,6 +162,29 @@ pub fn controller(
         ticks,
         trip: servo.trip(),
     })
+}
+
+/// The answer to gain change `c` seen before tick `tick` (applied from that tick if allowed):
+/// refused when not a number or outside the range that keeps [`crate::gain_range::MARGIN`].
+fn gain_change(gains: &GainRange, c: &Control, tick: u64) -> Ack {
+    Ack {
+        id: c.id,
+        tick,
+        value: c.value,
+        low: gains.low(),
+        high: gains.high(),
+        unstable_at: gains.unstable_above,
+        command: c.command,
+        status: if !c.value.is_finite() {
+            ack_status::REFUSED_INVALID
+        } else if gains.allows(c.value) {
+            ack_status::APPLIED
+        } else {
+            ack_status::REFUSED_MARGIN
+        },
+        role: role::CONTROLLER,
+        reserved: 0,
+    }
 }
 
 /// The control-plane STOP that ends a run for `cause` (a [`daq_io::stop_cause`]).
@@ -250,6 +280,7 @@ pub fn record(
     let mut last_data: Option<Instant> = None;
     let waiting = Instant::now();
     let mut write_failed = false;
+    let mut gain_changes: Vec<Ack> = Vec::new();
     let mut push = |f: Frame| {
         summary.add(&f);
         if let Some(r) = &mut rec {
@@ -277,6 +308,11 @@ pub fn record(
         while let Some(h) = take(&tap.health) {
             if h.role == role::PLANT {
                 plant_health = h;
+            }
+        }
+        while let Some(a) = take(&tap.ack) {
+            if a.status == ack_status::APPLIED && a.command == command::SET_GAIN_SCALE {
+                gain_changes.push(a);
             }
         }
         let silent = match last_data {
@@ -316,8 +352,16 @@ pub fn record(
         EndReason::Completed
     }
     .after_trip(summary.trip(c.plant.timing.servo_rate_hz).is_some());
+    let mut end = recording::end_record(plan, reason, &summary);
+    for (i, a) in gain_changes.iter().enumerate() {
+        // Every accepted change, with the tick it took effect (`servo ctl gain`).
+        end.insert(
+            format!("gain_change.{}", i + 1),
+            format!("tick {}: output scale {}", a.tick, a.value),
+        );
+    }
     let stats = match rec {
-        Some(r) => Some(r.finish(recording::end_record(plan, reason, &summary))?),
+        Some(r) => Some(r.finish(end)?),
         None => None,
     };
     Ok(summary.finish(RunMeta {

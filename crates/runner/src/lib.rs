@@ -24,6 +24,7 @@ pub mod controller;
 pub mod controller_file;
 mod error;
 pub mod feedforward;
+pub mod gain_range;
 pub mod hil;
 pub mod machining;
 pub mod plan;

@@ -210,15 +210,14 @@ pub fn plant_error(e: SimError, at: &Origin) -> RunError {
     }
 }
 
-/// The sampled closed loop of `sim` with `ctrl` (the `coil` current model is linearised as
-/// the ideal loop of eq 5-9).
-fn closed_loop_of(
+/// The exact linear tick of `sim` (the `coil` current model is linearised as the ideal loop
+/// of eq 5-9).
+pub fn linear_tick_of(
     config: &RunConfig,
     at: &Origin,
     sim: &Simulator,
-    ctrl: &Controller,
-) -> Result<ClosedLoop, RunError> {
-    let linear = match sim.linear_tick() {
+) -> Result<plant_sim::LinearTick, RunError> {
+    Ok(match sim.linear_tick() {
         Some(l) => l,
         None => {
             let mut ideal = config.plant;
@@ -228,9 +227,18 @@ fn closed_loop_of(
                 .linear_tick()
                 .expect("ideal model")
         }
-    };
+    })
+}
+
+/// The sampled closed loop of `sim` with `ctrl`.
+fn closed_loop_of(
+    config: &RunConfig,
+    at: &Origin,
+    sim: &Simulator,
+    ctrl: &Controller,
+) -> Result<ClosedLoop, RunError> {
     Ok(ClosedLoop::new(
-        &linear,
+        &linear_tick_of(config, at, sim)?,
         &ctrl.linear,
         config.plant.capa.sensitivity_v_per_m,
         sim.period_s(),

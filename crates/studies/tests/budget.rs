@@ -316,6 +316,33 @@ fn gain_margin_predicts_the_stability_limit() {
     }
 }
 
+/// The range `servo ctl gain` checks against (bisection on the sampled loop's eigenvalues)
+/// is the loop's frequency-domain gain margins, upper and lower, to 1e-3; a change keeps 6 dB.
+#[test]
+fn the_ctl_gain_range_is_the_loops_gain_margins() {
+    let cfg = Loaded::default();
+    let p = plan(&cfg);
+    let m = studies::margins::loop_margins(&p).unwrap();
+    let (up, down) = (
+        10f64.powf(m.gain_margin_db.unwrap() / 20.0),
+        10f64.powf(m.lower_gain_margin_db.unwrap() / 20.0),
+    );
+    let r = runner::gain_range::gain_range(&p).unwrap();
+    assert!(
+        (r.unstable_above / up - 1.0).abs() < 1e-3,
+        "{} vs {up}",
+        r.unstable_above
+    );
+    assert!(
+        (r.unstable_below / down - 1.0).abs() < 1e-3,
+        "{} vs {down}",
+        r.unstable_below
+    );
+    // The issue's `ctl gain 10` is refused, the 6 dB-safe range is allowed.
+    assert!(!r.allows(10.0) && !r.allows(0.99 * up) && !r.allows(f64::NAN));
+    assert!(r.allows(1.0) && r.allows(0.999 * up / 2.0) && r.allows(1.001 * 2.0 * down));
+}
+
 /// Thesis eq 6-4: Ms = 1.2721 for ξ = 0.707 (§6.3.1).
 #[test]
 fn ms_of_eq_6_4_is_the_thesis_value() {

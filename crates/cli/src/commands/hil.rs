@@ -1,16 +1,12 @@
-//! The HIL processes: `servo plant`, `servo controller`, `servo record`, and `servo ctl`, the
-//! control plane of a running run.
+//! The HIL processes: `servo plant`, `servo controller`, `servo record` (`servo ctl`, the
+//! control plane of a running run, is in [`super::ctl`]).
 
 use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs, RunArgs, DEFAULT_RECORDING};
 use crate::interrupt::stop_on_signals;
 use crate::output::{print_summary, tick_bar, CliError};
-use clap::{Args, Subcommand};
-use daq_io::contract::command;
-use daq_io::ipc::{ControlSender, Endpoint};
-use daq_io::Control;
-use runner::{Plan, RunError};
+use clap::Args;
+use runner::Plan;
 use std::process::ExitCode;
-use std::time::Duration;
 
 /// Exit code of a plant that lost its controller (it drove zero current and ended the run).
 pub const EXIT_FAULT: u8 = 3;
@@ -136,63 +132,5 @@ impl RecordCmd {
         }
         let reason = runner::stop::EndReason::Completed.after_trip(summary.trip.is_some());
         Ok(ExitCode::from(reason.exit_code()))
-    }
-}
-
-/// HIL control plane: start a waiting plant, stop a run, or scale the controller's gains.
-///
-/// Example: servo ctl --prefix bench gain 1.2
-#[derive(Args, Debug)]
-pub struct CtlCmd {
-    /// Run prefix.
-    #[arg(long)]
-    prefix: String,
-    /// What to send.
-    #[command(subcommand)]
-    action: CtlAction,
-}
-
-/// `servo ctl` messages.
-#[derive(Subcommand, Debug, Clone, Copy)]
-enum CtlAction {
-    /// Start a plant waiting for it (`servo plant --wait-start`).
-    Start,
-    /// End the run at the next tick boundary (the recording is finished normally).
-    Stop,
-    /// Multiply the controller output (all gains) by SCALE (0.1..=10).
-    Gain {
-        /// Scale factor.
-        scale: f64,
-    },
-}
-
-impl CtlAction {
-    /// The control-plane message.
-    fn message(self) -> Control {
-        let (command, value) = match self {
-            CtlAction::Start => (command::START, 0.0),
-            CtlAction::Stop => (command::STOP, 0.0),
-            CtlAction::Gain { scale } => (command::SET_GAIN_SCALE, scale),
-        };
-        Control {
-            command,
-            value,
-            ..Default::default()
-        }
-    }
-}
-
-impl CtlCmd {
-    /// Sends one control-plane message to the running run.
-    pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let ep = Endpoint::open(&self.prefix, &format!("ctl-{}", std::process::id()))
-            .map_err(RunError::from)?;
-        let sender = ControlSender::new(&ep).map_err(RunError::from)?;
-        sender.send(self.action.message()).map_err(RunError::from)?;
-        // Samples of a publisher that is gone cannot be received: stay until the plant and
-        // controller have polled (every 2048 ticks: ≈ 10 ms in real time, longer in a
-        // lockstep run on a loaded machine).
-        std::thread::sleep(Duration::from_secs(1));
-        Ok(ExitCode::SUCCESS)
     }
 }

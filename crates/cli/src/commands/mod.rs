@@ -2,6 +2,7 @@
 
 pub mod budget;
 pub mod config;
+pub mod ctl;
 pub mod export;
 pub mod frf;
 pub mod hil;

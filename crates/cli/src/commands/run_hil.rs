@@ -69,6 +69,13 @@ pub fn run(
         .unwrap_or_else(|| format!("run-{}", std::process::id()));
     daq_io::ipc::check_prefix(&prefix)
         .map_err(|e| Origin::default().invalid("--prefix", &prefix, &e))?;
+    // Joining first refuses a prefix a live run holds (naming it) before anything is made.
+    // Subscribe before the children start: a subscriber joining mid-run makes the publishers
+    // set up a connection inside a send, a sub-millisecond stall a real-time loop would feel.
+    let ep = Endpoint::open(&prefix, "run").map_err(RunError::from)?;
+    let health = ep
+        .subscriber::<Health>(leaf::HEALTH)
+        .map_err(RunError::from)?;
     // A folder of our own, created exclusively (mode 0700, unpredictable name): nobody else
     // can place or replace the configuration the children run; removed when this returns.
     let dir = tempfile::Builder::new()
@@ -101,12 +108,6 @@ pub fn run(
     if rec.overwrite {
         record_args.push("--overwrite");
     }
-    // Subscribe before the children start: a subscriber joining mid-run makes the publishers
-    // set up a connection inside a send, a sub-millisecond stall a real-time loop would feel.
-    let ep = Endpoint::open(&prefix, "run").map_err(RunError::from)?;
-    let health = ep
-        .subscriber::<Health>(leaf::HEALTH)
-        .map_err(RunError::from)?;
     let stop = stop_on_signals();
     let recorder = spawn(&record_args, Stdio::piped())?;
     let controller = spawn(
