@@ -1,5 +1,7 @@
 //! What the CLI tests share: the binary, a private scratch folder, JSON output.
 
+pub mod hil;
+
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
