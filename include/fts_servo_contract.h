@@ -75,6 +75,7 @@ typedef struct fts_Sensor {
     uint64_t encoder_count; /* spindle encoder pulses since the start */
     uint32_t flags;
     uint32_t reserved;
+    uint64_t run_id;        /* the run's identity: random, nonzero, the same on every sample */
 } fts_Sensor;
 
 /* Controller -> plant, once per tick: the DAC command for tick seq. */
@@ -120,6 +121,7 @@ typedef struct fts_TelemetryBlock {
     uint64_t block;
     uint32_t count;
     uint32_t flags;
+    uint64_t run_id; /* fts_Sensor.run_id of the run */
     fts_Telemetry ticks[FTS_SERVO_BLOCK_TICKS];
 } fts_TelemetryBlock;
 
@@ -127,6 +129,7 @@ typedef struct fts_TruthBlock {
     uint64_t block;
     uint32_t count;
     uint32_t flags;
+    uint64_t run_id; /* fts_Sensor.run_id of the run */
     fts_Truth ticks[FTS_SERVO_BLOCK_TICKS];
 } fts_TruthBlock;
 

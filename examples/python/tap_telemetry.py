@@ -54,6 +54,7 @@ class TelemetryBlock(ctypes.Structure):
         ("block", ctypes.c_uint64),
         ("count", ctypes.c_uint32),
         ("flags", ctypes.c_uint32),
+        ("run_id", ctypes.c_uint64),
         ("ticks", Telemetry * BLOCK_TICKS),
     ]
 

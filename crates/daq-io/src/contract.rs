@@ -90,6 +90,9 @@ pub struct Sensor {
     pub flags: u32,
     /// Reserved, 0.
     pub reserved: u32,
+    /// The run's identity: a random number the plant draws at start and puts on every sample
+    /// (nonzero). A controller that sees it change is listening to another plant.
+    pub run_id: u64,
 }
 
 /// Controller → plant, once per tick: the DAC command for tick `seq`.
@@ -184,6 +187,8 @@ pub struct TelemetryBlock {
     pub count: u32,
     /// [`flags::END`] on the last block of a run.
     pub flags: u32,
+    /// The run's identity ([`Sensor::run_id`]): a recorder keeps to one run.
+    pub run_id: u64,
     /// The records, `ticks[..count]`.
     pub ticks: [Telemetry; BLOCK_TICKS],
 }
@@ -200,6 +205,8 @@ pub struct TruthBlock {
     pub count: u32,
     /// [`flags::END`] on the last block of a run.
     pub flags: u32,
+    /// The run's identity ([`Sensor::run_id`]): a recorder keeps to one run.
+    pub run_id: u64,
     /// The records, `ticks[..count]`.
     pub ticks: [Truth; BLOCK_TICKS],
 }
@@ -212,8 +219,8 @@ pub trait Block: Copy + Default + core::fmt::Debug + Shareable {
     fn push(&mut self, r: Self::Record) -> bool;
     /// No records held.
     fn is_empty(&self) -> bool;
-    /// Sets the block index and flags before sending.
-    fn seal(&mut self, index: u64, flags: u32);
+    /// Sets the block index, flags and run identity before sending.
+    fn seal(&mut self, index: u64, flags: u32, run_id: u64);
     /// Empties the block after sending.
     fn clear(&mut self);
 }
@@ -226,6 +233,7 @@ macro_rules! block {
                     block: 0,
                     count: 0,
                     flags: 0,
+                    run_id: 0,
                     ticks: [Default::default(); BLOCK_TICKS],
                 }
             }
@@ -242,9 +250,10 @@ macro_rules! block {
             fn is_empty(&self) -> bool {
                 self.count == 0
             }
-            fn seal(&mut self, index: u64, flags: u32) {
+            fn seal(&mut self, index: u64, flags: u32, run_id: u64) {
                 self.block = index;
                 self.flags = flags;
+                self.run_id = run_id;
             }
             fn clear(&mut self) {
                 self.count = 0;

@@ -8,6 +8,14 @@ use crate::contract::{flags, Command, Sensor, Truth};
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum DaqError {
+    /// A sample of another run arrived (another plant publishes on the prefix).
+    #[error("a sample of run {got:016x} arrived in run {expected:016x}: another plant is publishing on this prefix")]
+    ForeignRun {
+        /// The run id of the first sample.
+        expected: u64,
+        /// The run id of the stray sample.
+        got: u64,
+    },
     /// No sensor sample arrived within the timeout: the plant is gone.
     #[error("plant lost: no sensor sample for tick {seq} within {timeout_ms} ms")]
     PlantLost {

@@ -266,24 +266,26 @@ pub fn poll_until<T: Debug + ZeroCopySend + Copy>(
     }
 }
 
-/// Accumulates per-tick records into blocks of [`crate::BLOCK_TICKS`] and publishes full blocks.
+/// Accumulates per-tick records into blocks of [`crate::BLOCK_TICKS`] and publishes full
+/// blocks, stamped with the run's identity.
 pub struct BlockWriter<B> {
     block: B,
     sent: u64,
     refused: u64,
+    run_id: u64,
 }
 
-impl<B: Block> Default for BlockWriter<B> {
-    fn default() -> Self {
+impl<B: Block> BlockWriter<B> {
+    /// A writer for the blocks of run `run_id` ([`crate::Sensor::run_id`]).
+    pub fn new(run_id: u64) -> Self {
         BlockWriter {
             block: B::default(),
             sent: 0,
             refused: 0,
+            run_id,
         }
     }
-}
 
-impl<B: Block> BlockWriter<B> {
     /// Adds a record; publishes the block when it is full.
     #[inline]
     pub fn push(&mut self, p: &Publisher<B>, r: B::Record) {
@@ -298,7 +300,7 @@ impl<B: Block> BlockWriter<B> {
         if self.block.is_empty() && flags == 0 {
             return;
         }
-        self.block.seal(self.sent, flags);
+        self.block.seal(self.sent, flags, self.run_id);
         if !send(p, self.block) {
             self.refused += 1;
         }
@@ -312,11 +314,13 @@ impl<B: Block> BlockWriter<B> {
     }
 }
 
-/// The controller's [`crate::Daq`] over iceoryx2.
+/// The controller's [`crate::Daq`] over iceoryx2. It keeps to the run of the first sample:
+/// a sample with another [`Sensor::run_id`] (another plant on the prefix) is an error.
 pub struct ControllerLink {
     sensor: Subscriber<Sensor>,
     command: Publisher<Command>,
     next_seq: u64,
+    run_id: u64,
     /// How long to wait for the first sample (the plant may start later), then per sample.
     timeouts: (Duration, Duration),
 }
@@ -333,8 +337,16 @@ impl ControllerLink {
             sensor: ep.subscriber(leaf::SENSOR)?,
             command: ep.publisher(leaf::COMMAND)?,
             next_seq: 0,
+            run_id: 0,
             timeouts: (first_timeout, peer_timeout),
         })
+    }
+}
+
+impl ControllerLink {
+    /// The run of the samples read so far (0 before the first).
+    pub fn run_id(&self) -> u64 {
+        self.run_id
     }
 }
 
@@ -352,6 +364,14 @@ impl crate::Daq for ControllerLink {
             Some(mut s) => {
                 while let Some(newer) = take(&self.sensor) {
                     s = newer;
+                }
+                if want == 0 {
+                    self.run_id = s.run_id;
+                } else if s.run_id != self.run_id {
+                    return Err(crate::DaqError::ForeignRun {
+                        expected: self.run_id,
+                        got: s.run_id,
+                    });
                 }
                 self.next_seq = s.seq + 1;
                 Ok(s)

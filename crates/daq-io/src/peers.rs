@@ -100,6 +100,18 @@ pub fn refusal(prefix: &str, role: &str, peers: &[Peer]) -> Option<String> {
     None
 }
 
+/// A fresh random run identity (nonzero): the standard library's per-process random hash
+/// keys, mixed with the pid and the clock.
+pub fn new_run_id() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u32(std::process::id());
+    if let Ok(t) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH) {
+        h.write_u128(t.as_nanos());
+    }
+    h.finish() | 1
+}
+
 /// Seconds since process `pid` started (from `/proc`: its start in clock ticks after boot,
 /// at the kernel's fixed 100 Hz USER_HZ, against the uptime).
 fn started_s_ago(pid: i32) -> Option<f64> {

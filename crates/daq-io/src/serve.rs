@@ -93,6 +93,8 @@ pub struct ServeReport {
     pub truth_refused: u64,
     /// The controller silence that counted as lost.
     pub peer_timeout: Duration,
+    /// The run's identity, on every sample and truth block ([`Sensor::run_id`]).
+    pub run_id: u64,
 }
 
 /// Plant-side errors.
@@ -192,10 +194,15 @@ pub fn serve<B: Backend>(
     while take(&control_sub).is_some() {}
     let period = Duration::from_secs_f64(opts.period_s);
     let mut latency = LatencyHistogram::new();
-    let mut truth = BlockWriter::<TruthBlock>::default();
-    let mut report = ServeReport::default();
+    let run_id = crate::peers::new_run_id();
+    let mut truth = BlockWriter::<TruthBlock>::new(run_id);
+    let mut report = ServeReport {
+        run_id,
+        ..Default::default()
+    };
     let mut sample = Sensor {
         seq: 0,
+        run_id,
         ..backend.initial()
     };
     let mut dac_v = 0.0;
@@ -252,6 +259,7 @@ pub fn serve<B: Backend>(
         sample = Sensor {
             seq: k + 1,
             flags: s.flags | tick_flags,
+            run_id,
             ..s
         };
         if let Some(mut t) = backend.truth() {

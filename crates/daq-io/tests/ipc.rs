@@ -156,3 +156,59 @@ fn a_peer_of_another_contract_version_is_refused_at_connect() {
     assert!(e.to_string().contains("is in use by a live run"), "{e}");
     assert_eq!(first.peers(), vec![]);
 }
+
+/// The controller keeps to the run of its first sample: a sample stamped with another run id
+/// (a plant restarted on the prefix, or a stray publisher) is refused with both ids.
+#[test]
+fn a_sample_of_another_run_is_refused() {
+    let p = prefix("runid");
+    let plant = Endpoint::open(&p, "plant").unwrap();
+    let sensor = plant
+        .publisher::<daq_io::Sensor>(daq_io::ipc::leaf::SENSOR)
+        .unwrap();
+    let ep = Endpoint::open(&p, "controller").unwrap();
+    let mut link =
+        ControllerLink::new(&ep, Duration::from_secs(30), Duration::from_secs(30)).unwrap();
+    let sample = |seq, run_id| daq_io::Sensor {
+        seq,
+        run_id,
+        ..Default::default()
+    };
+    daq_io::ipc::connect(&sensor);
+    assert!(daq_io::ipc::send(&sensor, sample(0, 0xA11CE)));
+    assert_eq!(link.read().unwrap().seq, 0);
+    assert_eq!(link.run_id(), 0xA11CE);
+    assert!(daq_io::ipc::send(&sensor, sample(1, 0xB0B)));
+    match link.read() {
+        Err(daq_io::DaqError::ForeignRun { expected, got }) => {
+            assert_eq!((expected, got), (0xA11CE, 0xB0B))
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// A plant stamps every sample with one nonzero run id, new for every run.
+#[test]
+fn every_run_gets_its_own_id() {
+    let ids: Vec<u64> = (0..2)
+        .map(|i| {
+            let p = prefix(&format!("ids{i}"));
+            let p2 = p.clone();
+            let plant = std::thread::spawn(move || {
+                let ep = Endpoint::open(&p2, "plant").unwrap();
+                let mut opts = ServeOptions::new(100, 1e-5, Pacing::Lockstep);
+                opts.wait_for_recorder = false;
+                serve(&ep, &mut Lag::default(), &opts, &AtomicUsize::new(0)).unwrap()
+            });
+            let ep = Endpoint::open(&p, "controller").unwrap();
+            let mut link =
+                ControllerLink::new(&ep, Duration::from_secs(30), Duration::from_secs(30)).unwrap();
+            let first = control(&mut link);
+            assert_eq!(first.len(), 100);
+            let report = plant.join().unwrap();
+            assert_eq!(link.run_id(), report.run_id);
+            report.run_id
+        })
+        .collect();
+    assert!(ids[0] != 0 && ids[1] != 0 && ids[0] != ids[1], "{ids:x?}");
+}

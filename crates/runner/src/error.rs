@@ -46,6 +46,16 @@ pub enum RunError {
         /// Seconds waited.
         waited_s: f64,
     },
+    /// Data of another run arrived on the prefix being recorded.
+    #[error("a {what} block of run {got:016x} arrived while recording run {expected:016x}: another process publishes on this prefix; the recording stops")]
+    ForeignRun {
+        /// `telemetry` or `truth`.
+        what: &'static str,
+        /// The run id of the first block.
+        expected: u64,
+        /// The run id of the stray block.
+        got: u64,
+    },
     /// The controller lost its plant.
     #[error("{0}; the controller stopped")]
     PlantLost(daq_io::DaqError),

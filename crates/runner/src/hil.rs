@@ -21,7 +21,7 @@ use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{ack_status, flags, Ack, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
-use recorder::Frame;
+use recorder::{Frame, Recorder};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -96,7 +96,7 @@ pub fn controller(
     let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
     let health_pub = ep.publisher::<Health>(leaf::HEALTH)?;
     let stopper = ControlSender::new(&ep)?;
-    let mut telemetry = BlockWriter::<TelemetryBlock>::default();
+    let mut telemetry = BlockWriter::<TelemetryBlock>::new(0);
     let mut health = Health {
         role: role::CONTROLLER,
         state: state::RUNNING,
@@ -110,6 +110,8 @@ pub fn controller(
             Err(e) => break Err(RunError::PlantLost(e)),
         };
         if s.seq == 0 {
+            // The run's identity, from its first sample (the link refuses samples of another).
+            telemetry = BlockWriter::new(link.run_id());
             // Tick 0 is untimed (see daq_io::serve): set up every connection now.
             daq_io::ipc::connect(&telemetry_pub);
             daq_io::ipc::send(&health_pub, health);
@@ -184,6 +186,23 @@ fn gain_change(gains: &GainRange, c: &Control, tick: u64) -> Ack {
         },
         role: role::CONTROLLER,
         reserved: 0,
+    }
+}
+
+/// Keeps the recorder to one run: the first block's run id is the run's; a block of another is
+/// an error naming both.
+fn same_run(run: &mut Option<u64>, id: u64, what: &'static str) -> Result<(), RunError> {
+    match *run {
+        None => {
+            *run = Some(id);
+            Ok(())
+        }
+        Some(expected) if expected == id => Ok(()),
+        Some(expected) => Err(RunError::ForeignRun {
+            what,
+            expected,
+            got: id,
+        }),
     }
 }
 
@@ -268,10 +287,12 @@ pub fn record(
     let tap = Tap::new(&ep)?;
     // Made now: a publisher the plant has not yet seen would lose its first message.
     let stopper = ControlSender::new(&ep)?;
-    let mut rec = match &out {
-        Some(to) => Some(recording::create(plan, to)?),
-        None => None,
-    };
+    if let Some(to) = &out {
+        // Checked now; the file is made when the run's first block names the run.
+        to.check()?;
+    }
+    let mut rec: Option<Recorder> = None;
+    let mut run_id: Option<u64> = None;
     let total = c.ticks();
     let mut summary = SummaryBuilder::new(c.run.settle());
     let mut join = Joiner::default();
@@ -281,26 +302,17 @@ pub fn record(
     let waiting = Instant::now();
     let mut write_failed = false;
     let mut gain_changes: Vec<Ack> = Vec::new();
-    let mut push = |f: Frame| {
-        summary.add(&f);
-        if let Some(r) = &mut rec {
-            if r.push(f).is_err() && !write_failed {
-                // The file cannot be written (a full disk): the plant ends the run safely, as
-                // for any stop; the error comes out of finish() below.
-                write_failed = true;
-                let _ = stopper.send(stop_for(daq_io::stop_cause::WRITE_FAILED));
-            }
-        }
-    };
     loop {
         let mut got = false;
         while let Some(b) = take(&tap.telemetry) {
             got = true;
+            same_run(&mut run_id, b.run_id, "telemetry")?;
             join.telemetry(&b.ticks[..b.count as usize]);
             telemetry_end |= b.flags & flags::END != 0;
         }
         while let Some(b) = take(&tap.truth) {
             got = true;
+            same_run(&mut run_id, b.run_id, "truth")?;
             join.truth(&b.ticks[..b.count as usize]);
             truth_end |= b.flags & flags::END != 0;
             plant_fault |= b.flags & flags::FAULT_PEER_LOST != 0;
@@ -315,13 +327,26 @@ pub fn record(
                 gain_changes.push(a);
             }
         }
+        if let (None, Some(id), Some(to)) = (&rec, run_id, &out) {
+            rec = Some(recording::create(plan, to, id)?);
+        }
         let silent = match last_data {
             Some(t) => !got && t.elapsed() > RECORDER_TIMEOUT,
             None => waiting.elapsed() > STARTUP_TIMEOUT,
         };
         // A plant that lost its controller ends the run alone; a lost plant ends it by silence.
         let finished = (truth_end && (telemetry_end || plant_fault)) || silent;
-        join.drain(finished, &mut push);
+        join.drain(finished, |f: Frame| {
+            summary.add(&f);
+            if let Some(r) = &mut rec {
+                if r.push(f).is_err() && !write_failed {
+                    // The file cannot be written (a full disk): the plant ends the run safely,
+                    // as for any stop; the error comes out of finish() below.
+                    write_failed = true;
+                    let _ = stopper.send(stop_for(daq_io::stop_cause::WRITE_FAILED));
+                }
+            }
+        });
         if finished {
             break;
         }
@@ -379,4 +404,23 @@ pub fn record(
         }),
         ..RunMeta::of(c, description)
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_recorder_keeps_to_the_first_blocks_run() {
+        let mut run = None;
+        same_run(&mut run, 7, "truth").unwrap();
+        same_run(&mut run, 7, "telemetry").unwrap();
+        let e = same_run(&mut run, 8, "telemetry").unwrap_err().to_string();
+        assert!(
+            e.contains("telemetry block of run 0000000000000008")
+                && e.contains("recording run 0000000000000007"),
+            "{e}"
+        );
+        assert_eq!(run, Some(7));
+    }
 }

@@ -75,9 +75,10 @@ pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
     m
 }
 
-/// The `environment` record: what differs between two runs of the same seed (the recorder
-/// adds the start time). Comparisons of recordings leave it out.
-pub fn environment() -> BTreeMap<String, String> {
+/// The `environment` record of run `run_id` (its identity on the transport): what differs
+/// between two runs of the same seed (the recorder adds the start time). Comparisons of
+/// recordings leave it out.
+pub fn environment(run_id: u64) -> BTreeMap<String, String> {
     let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
         .map_or_else(|_| "unknown".into(), |h| h.trim().to_owned());
     let command = std::env::args().collect::<Vec<_>>().join(" ");
@@ -85,17 +86,14 @@ pub fn environment() -> BTreeMap<String, String> {
         ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
         ("host".to_string(), host),
         ("pid".to_string(), std::process::id().to_string()),
-        (
-            "run_id".to_string(),
-            format!("{:032x}", rand::random::<u128>()),
-        ),
+        ("run_id".to_string(), format!("{run_id:016x}")),
         ("command".to_string(), command),
     ])
 }
 
-/// Starts the recording of a run of `plan` at `to`: its `run` metadata, its environment, its
-/// inputs as attachments.
-pub fn create(plan: &Plan, to: &Target) -> Result<Recorder, RunError> {
+/// Starts the recording of run `run_id` of `plan` at `to`: its `run` metadata, its
+/// environment, its inputs as attachments.
+pub fn create(plan: &Plan, to: &Target, run_id: u64) -> Result<Recorder, RunError> {
     Ok(Recorder::create(
         &to.path,
         metadata(plan),
@@ -104,7 +102,7 @@ pub fn create(plan: &Plan, to: &Target) -> Result<Recorder, RunError> {
             inputs: plan.inputs.clone(),
             epoch_ns: to.epoch_ns,
             every: to.every,
-            environment: environment(),
+            environment: environment(run_id),
             ..Default::default()
         },
     )?)

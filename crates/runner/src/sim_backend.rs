@@ -68,7 +68,7 @@ impl Backend for SimBackend {
                 .as_ref()
                 .map_or(0, |w| w.encoder_count(self.tick)),
             flags: s.flags,
-            reserved: 0,
+            ..Default::default()
         }
     }
 
