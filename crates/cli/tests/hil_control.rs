@@ -277,3 +277,119 @@ fn a_trip_ends_the_run_with_exit_5_in_process_and_in_hil() {
     assert_eq!(inproc.frames[..], hil.frames[..n]);
     assert!(hil.frames[n..].iter().all(|f| f.telemetry.control_v == 0.0));
 }
+
+/// This process's effective uid (from /proc).
+fn euid() -> u32 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let line = status.lines().find(|l| l.starts_with("Uid:")).unwrap();
+    line.split_whitespace().nth(2).unwrap().parse().unwrap()
+}
+
+/// Runs `cmd` as the unprivileged user `nobody` (uid/gid 65534).
+fn as_nobody(mut cmd: std::process::Command) -> std::process::Output {
+    use std::os::unix::process::CommandExt;
+    cmd.uid(65534).gid(65534).output().unwrap()
+}
+
+/// Another user on the machine (`nobody`, acting from root's tests; skipped when the suite
+/// cannot switch users): a folder pre-created at the old predictable path (a hostile
+/// `kp = 16.5` and a symlink to a system file) is neither read nor written by the run; the
+/// run's own config folder is mode 0700 and unreadable to them; `servo ctl` from them changes
+/// nothing; the run records its own configuration and only root's commands.
+#[test]
+fn another_user_can_neither_read_the_config_nor_steer_the_run() {
+    if euid() != 0 {
+        eprintln!("skipped: acting as another user needs root");
+        return;
+    }
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let shared = tmp("shared-tmp");
+    std::fs::create_dir_all(&shared).unwrap();
+    std::fs::set_permissions(&shared, std::fs::Permissions::from_mode(0o1777)).unwrap();
+    std::fs::set_permissions(
+        shared.parent().unwrap(),
+        std::fs::Permissions::from_mode(0o755),
+    )
+    .unwrap();
+    let p = prefix("users");
+    let planted = shared.join(format!("fts-servo-{p}"));
+    let plant_files = format!(
+        "mkdir -p '{d}' && printf '[controller.pid]\\nkp = 16.5\\n' > '{d}/config.toml' && ln -s /etc/passwd '{d}/link'",
+        d = planted.display()
+    );
+    let mut sh = std::process::Command::new("sh");
+    sh.args(["-c", &plant_files]);
+    assert!(as_nobody(sh).status.success(), "nobody plants the folder");
+    let out = tmp("users.mcap");
+    let mut run = servo()
+        .args([
+            "run",
+            "--hil",
+            "-q",
+            "--json",
+            "--duration",
+            "60",
+            "--prefix",
+            &p,
+            "--out",
+        ])
+        .arg(&out)
+        .env("TMPDIR", &shared)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_ticks(&p, 20_000, &mut run);
+    // The run's own folder: one, root's, 0700, unreadable to nobody.
+    let own: Vec<_> = std::fs::read_dir(&shared)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|d| {
+            d != &planted
+                && d.file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .starts_with("fts-servo-")
+        })
+        .collect();
+    assert_eq!(own.len(), 1, "{own:?}");
+    let meta = std::fs::metadata(&own[0]).unwrap();
+    assert_eq!((meta.mode() & 0o777, meta.uid()), (0o700, 0));
+    let mut cat = std::process::Command::new("cat");
+    cat.arg(own[0].join("config.toml"));
+    assert!(
+        !as_nobody(cat).status.success(),
+        "nobody read the run's config"
+    );
+    // Nobody's commands do not reach the loop.
+    for action in [&["gain", "1.5"][..], &["stop"]] {
+        let mut ctl = servo();
+        ctl.args(["ctl", "--prefix", &p, "--timeout-s", "2"])
+            .args(action);
+        let o = as_nobody(ctl);
+        assert!(!o.status.success(), "nobody's ctl {action:?} was accepted");
+    }
+    succeeded(
+        &servo()
+            .args(["ctl", "--prefix", &p, "--timeout-s", "60", "stop"])
+            .output()
+            .unwrap(),
+    );
+    let done = run.wait_with_output().unwrap();
+    succeeded(&done);
+    let rec = recorder::read(&out).unwrap();
+    assert!(
+        rec.metadata["config"].contains("kp = 1.65"),
+        "the run's own gains"
+    );
+    assert_eq!(rec.end["reason"], "stopped");
+    assert!(!rec.end.keys().any(|k| k.starts_with("gain_change")));
+    // The planted files are as nobody left them; the run's folder is gone.
+    let planted_config = std::fs::read_to_string(planted.join("config.toml")).unwrap();
+    assert_eq!(planted_config, "[controller.pid]\nkp = 16.5\n");
+    assert!(std::fs::symlink_metadata(planted.join("link"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(!own[0].exists());
+    let _ = std::fs::remove_dir_all(&planted);
+}

@@ -121,7 +121,12 @@ impl Endpoint {
             .name(&node_name)
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
-            .map_err(|e| ipc_err("create node", e))?;
+            .map_err(|e| {
+                ipc_err(
+                    "create node (iceoryx2's /tmp/iceoryx2 and /dev/shm/iox2_* are private to the user who made them: is the run another user's?)",
+                    e,
+                )
+            })?;
         node.try_cleanup_dead_nodes();
         // Checked after this node exists: of two processes joining at once, at least one sees
         // the other.

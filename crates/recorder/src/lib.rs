@@ -24,7 +24,7 @@ pub use reader::{
     ENVIRONMENT_RECORDS,
 };
 pub use writer::{
-    check_target, partial_path, partial_path_of, Input, Overwrite, RecordError, RecordOptions,
-    RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY, EVERY_KEY,
-    SYNC_INTERVAL,
+    check_target, create_private, partial_path, partial_path_of, Input, Overwrite, RecordError,
+    RecordOptions, RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY,
+    EVERY_KEY, SYNC_INTERVAL,
 };

@@ -497,7 +497,7 @@ pub fn check_target(path: &Path, overwrite: Overwrite) -> Result<(), RecordError
 
 /// Creates `path` exclusively (never through an existing file or link), mode 0600: private to
 /// the user, as every file the runtime writes.
-pub(crate) fn create_private(path: &Path) -> std::io::Result<File> {
+pub fn create_private(path: &Path) -> std::io::Result<File> {
     use std::os::unix::fs::OpenOptionsExt;
     File::options()
         .write(true)

@@ -27,7 +27,12 @@ fn write_resolved(plan: &Plan, dir: &Path) -> Result<PathBuf, CliError> {
         }
     }
     let path = dir.join("config.toml");
-    std::fs::write(&path, c.to_toml()).map_err(|source| CliError::Write {
+    // Created new (never through a planted link) and private: mode 0600 in a 0700 folder.
+    let write = || {
+        use std::io::Write;
+        recorder::create_private(&path)?.write_all(c.to_toml().as_bytes())
+    };
+    write().map_err(|source| CliError::Write {
         path: path.clone(),
         source,
     })?;
@@ -80,6 +85,7 @@ pub fn run(
     // can place or replace the configuration the children run; removed when this returns.
     let dir = tempfile::Builder::new()
         .prefix("fts-servo-")
+        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o700))
         .tempdir()
         .map_err(|source| CliError::Write {
             path: std::env::temp_dir(),
