@@ -42,6 +42,7 @@ enum Command {
     Controller(hil::ControllerCmd),
     Record(hil::RecordCmd),
     Ctl(ctl::CtlCmd),
+    Latency(latency::LatencyCmd),
 }
 
 impl Command {
@@ -64,6 +65,7 @@ impl Command {
             Command::Controller(c) => c.exec(),
             Command::Record(c) => c.exec(),
             Command::Ctl(c) => c.exec(),
+            Command::Latency(c) => c.exec(),
         }
     }
 }

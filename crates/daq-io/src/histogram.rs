@@ -51,6 +51,16 @@ impl LatencyHistogram {
         self.max = self.max.max(ns);
     }
 
+    /// Adds every record of `other`.
+    pub fn merge(&mut self, other: &LatencyHistogram) {
+        for (a, b) in self.bins.iter_mut().zip(other.bins.iter()) {
+            *a = a.saturating_add(*b);
+        }
+        self.count += other.count;
+        self.min = self.min.min(other.min);
+        self.max = self.max.max(other.max);
+    }
+
     /// The latency below which a fraction `q` (0..=1) of the records lie, in ns (bin centre,
     /// clamped to the exact min and max).
     pub fn quantile(&self, q: f64) -> u64 {

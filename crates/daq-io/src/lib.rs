@@ -23,6 +23,8 @@ pub mod layout;
 #[cfg(feature = "ipc")]
 pub mod peers;
 #[cfg(feature = "ipc")]
+pub mod qualify;
+#[cfg(feature = "ipc")]
 pub mod serve;
 
 pub use contract::{

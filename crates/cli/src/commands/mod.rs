@@ -9,6 +9,7 @@ pub mod hil;
 pub mod identify;
 pub mod inspect;
 pub mod intermittent;
+pub mod latency;
 pub mod machine;
 pub mod run;
 pub mod run_hil;

@@ -1,4 +1,5 @@
 //! What the CLI tests share: the binary, a private scratch folder, JSON output.
+#![allow(dead_code)] // each test file uses a part
 
 pub mod hil;
 

@@ -1,0 +1,212 @@
+//! `servo latency`: qualify a host before a real-time run — the periodic loop alone at a rate,
+//! its start-lateness histogram, and what the kernel settings allow.
+
+use crate::output::{print_json, tick_bar, CliError};
+use clap::{Args, ValueEnum};
+use daq_io::qualify::{measure, readiness, Check, Wait, WallClock};
+use runner::config::Origin;
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// Wait strategies (see `daq_io::qualify::Wait`).
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum WaitKind {
+    /// Busy-poll the clock.
+    Spin,
+    /// Sleep until --spin-margin-us before each deadline, then spin.
+    SleepSpin,
+}
+
+/// Qualify this host for real time: runs the servo loop's pacing alone at --rate-hz for
+/// --duration and prints its start lateness (p50, p99, p99.9, p99.99, max), the overruns (a
+/// tick started a whole period late), a peer timeout no observed stall reaches, and a readiness
+/// report of the kernel settings with what to change.
+///
+/// Example: servo latency --rate-hz 20000 --wait sleep-spin --duration 10
+#[derive(Args, Debug)]
+pub struct LatencyCmd {
+    /// Loop rate in Hz (100 – 2e6).
+    #[arg(long, default_value_t = 199_600.0)]
+    rate_hz: f64,
+    /// How long to measure, in s (0, 600].
+    #[arg(long, default_value_t = 5.0)]
+    duration: f64,
+    /// How each tick waits for its deadline.
+    #[arg(long, value_enum, default_value_t = WaitKind::Spin)]
+    wait: WaitKind,
+    /// With --wait sleep-spin: spin this long before each deadline, in µs (0 – 10 000).
+    #[arg(long, default_value_t = 50.0)]
+    spin_margin_us: f64,
+    /// Pin the loop to this CPU (default: wherever the scheduler puts it).
+    #[arg(long)]
+    cpu: Option<usize>,
+    /// JSON instead of text.
+    #[arg(long)]
+    json: bool,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// What `servo latency` found.
+#[derive(Debug, serde::Serialize)]
+struct Report {
+    rate_hz: f64,
+    period_ns: u64,
+    ticks: u64,
+    wait: String,
+    cpu: Option<usize>,
+    lateness_ns: Percentiles,
+    overruns: u64,
+    overrun_rate: f64,
+    /// A controller-loss timeout no stall of this run reached (4 × the worst lateness, at
+    /// least 1 ms), in ms.
+    recommended_peer_timeout_ms: u64,
+    readiness: Vec<Check>,
+}
+
+#[derive(Debug, serde::Serialize)]
+struct Percentiles {
+    min: u64,
+    p50: u64,
+    p99: u64,
+    p999: u64,
+    p9999: u64,
+    max: u64,
+}
+
+impl LatencyCmd {
+    /// Measures and reports.
+    pub fn exec(&self) -> Result<ExitCode, CliError> {
+        let at = Origin::default();
+        if !(1e2..=2e6).contains(&self.rate_hz) {
+            return Err(at
+                .invalid("--rate-hz", self.rate_hz, "[100, 2e6] Hz")
+                .into());
+        }
+        if !(self.duration > 0.0 && self.duration <= 600.0) {
+            return Err(at.invalid("--duration", self.duration, "(0, 600] s").into());
+        }
+        if !(0.0..=1e4).contains(&self.spin_margin_us) {
+            return Err(at
+                .invalid("--spin-margin-us", self.spin_margin_us, "[0, 10000] µs")
+                .into());
+        }
+        if let Some(cpu) = self.cpu {
+            pin_to(cpu)?;
+        }
+        let wait = match self.wait {
+            WaitKind::Spin => Wait::Spin,
+            WaitKind::SleepSpin => Wait::SleepThenSpin {
+                margin: Duration::from_secs_f64(self.spin_margin_us * 1e-6),
+            },
+        };
+        let period_ns = (1e9 / self.rate_hz).round() as u64;
+        let ticks = (self.duration * self.rate_hz).round() as u64;
+        let bar = tick_bar(self.quiet || self.json, "measuring");
+        bar.set_length(ticks);
+        // In slices of 0.1 s on one clock, so the bar moves between them.
+        let slice = ((0.1 * self.rate_hz) as u64).max(1);
+        let mut clock = WallClock::new(wait);
+        let mut lateness = daq_io::LatencyHistogram::new();
+        let mut overruns = 0;
+        let mut done = 0;
+        while done < ticks {
+            let n = slice.min(ticks - done);
+            let run = measure(&mut clock, period_ns, done..done + n);
+            lateness.merge(&run.lateness);
+            overruns += run.overruns;
+            done += n;
+            bar.set_position(done);
+        }
+        bar.finish_and_clear();
+        let l = lateness.summary();
+        let report = Report {
+            rate_hz: self.rate_hz,
+            period_ns,
+            ticks,
+            wait: match wait {
+                Wait::Spin => "spin".into(),
+                Wait::SleepThenSpin { margin } => {
+                    format!("sleep-then-spin ({} µs margin)", margin.as_micros())
+                }
+            },
+            cpu: self.cpu,
+            lateness_ns: Percentiles {
+                min: l.min_ns,
+                p50: l.p50_ns,
+                p99: l.p99_ns,
+                p999: l.p999_ns,
+                p9999: lateness.quantile(0.9999),
+                max: l.max_ns,
+            },
+            overruns,
+            overrun_rate: overruns as f64 / ticks as f64,
+            recommended_peer_timeout_ms: (4 * l.max_ns).div_ceil(1_000_000).max(1),
+            readiness: readiness(),
+        };
+        if self.json {
+            print_json(&report);
+        } else {
+            print_report(&report);
+        }
+        Ok(ExitCode::SUCCESS)
+    }
+}
+
+/// Pins this process to `cpu`, or a clear error.
+fn pin_to(cpu: usize) -> Result<(), CliError> {
+    let mut set = nix::sched::CpuSet::new();
+    set.set(cpu)
+        .and_then(|()| nix::sched::sched_setaffinity(nix::unistd::Pid::from_raw(0), &set))
+        .map_err(|e| {
+            let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+            CliError::Processes(format!(
+                "--cpu {cpu}: the host refused the affinity ({e}); this host has CPUs 0–{}",
+                cpus - 1
+            ))
+        })
+}
+
+fn print_report(r: &Report) {
+    let us = |ns: u64| ns as f64 * 1e-3;
+    let l = &r.lateness_ns;
+    println!(
+        "servo latency: {} ticks at {:.1} kHz (period {:.3} µs), {}{}",
+        r.ticks,
+        r.rate_hz / 1e3,
+        us(r.period_ns),
+        r.wait,
+        r.cpu.map_or(String::new(), |c| format!(", CPU {c}"))
+    );
+    println!(
+        "  start lateness   min {:.2} / p50 {:.2} / p99 {:.2} / p99.9 {:.2} / p99.99 {:.2} / max {:.1} µs",
+        us(l.min),
+        us(l.p50),
+        us(l.p99),
+        us(l.p999),
+        us(l.p9999),
+        us(l.max)
+    );
+    println!(
+        "  overruns         {} ({:.4} %): ticks that started a whole period late",
+        r.overruns,
+        100.0 * r.overrun_rate
+    );
+    println!(
+        "  peer timeout     ≥ {} ms recommended (4 × the worst stall seen): --peer-timeout-ms",
+        r.recommended_peer_timeout_ms
+    );
+    println!("  readiness:");
+    for c in &r.readiness {
+        println!(
+            "    {} {:<24} {}",
+            if c.ok { "ok  " } else { "WARN" },
+            c.name,
+            c.value
+        );
+        if !c.advice.is_empty() {
+            println!("         → {}", c.advice);
+        }
+    }
+}
