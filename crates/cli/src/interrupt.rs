@@ -24,11 +24,10 @@ pub fn stop_on_signals() -> StopRequest {
     stop
 }
 
-/// The exit code of a run that produced `summary` under `stop`: the stop's (0, 128 + signal),
-/// or 5 when machine protection tripped the loop (see [`runner::stop::EndReason::exit_code`]).
-pub fn exit_code(summary: &runner::summary::Summary, stop: &StopRequest) -> std::process::ExitCode {
-    let reason = stop.reason().after_trip(summary.trip.is_some());
-    std::process::ExitCode::from(reason.exit_code())
+/// The exit code of a run that ended under `stop`: the stop's (0, 128 + signal), or 5 when
+/// machine protection `tripped` the loop (see [`runner::stop::EndReason::exit_code`]).
+pub fn exit_code(stop: &StopRequest, tripped: bool) -> std::process::ExitCode {
+    std::process::ExitCode::from(stop.reason().after_trip(tripped).exit_code())
 }
 
 /// Environment variable naming the `servo run --hil` process that started this one.

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::hil::{prefix, wait_for_ticks};
+use common::hil::{long_hil_run, prefix, wait_for_ticks};
 use common::{json, servo, tmp};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -270,24 +270,9 @@ fn processes_of(prefix: &str) -> Vec<u32> {
 fn a_signal_to_the_hil_parent_stops_every_process_and_finishes_the_file() {
     let p = prefix("term");
     let out = tmp("term.mcap");
-    let mut parent = servo()
-        .args([
-            "run",
-            "--hil",
-            "-q",
-            "--json",
-            "--duration",
-            "60",
-            "--prefix",
-            &p,
-            "--out",
-        ])
-        .arg(&out)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    wait_for_ticks(&p, 20_000, &mut parent);
+    let mut parent = long_hil_run(&p, &out, |c| {
+        c.stderr(Stdio::piped());
+    });
     let ok = Command::new("kill")
         .args(["-TERM", &parent.id().to_string()])
         .status()

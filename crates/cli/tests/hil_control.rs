@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::hil::{prefix, wait_for_ticks};
+use common::hil::{long_hil_run, prefix, wait_for_ticks};
 use common::{json, servo, succeeded, tmp};
 use std::process::Stdio;
 
@@ -140,25 +140,9 @@ fn ctl_to_a_prefix_without_a_run_fails_fast() {
 fn a_second_run_on_a_live_prefix_is_refused() {
     let p = prefix("twice");
     let (first, second) = (tmp("twice-1.mcap"), tmp("twice-2.mcap"));
-    let mut run = servo()
-        .args([
-            "run",
-            "--hil",
-            "-q",
-            "--json",
-            "--seed",
-            "1",
-            "--duration",
-            "60",
-            "--prefix",
-            &p,
-            "--out",
-        ])
-        .arg(&first)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    wait_for_ticks(&p, 20_000, &mut run);
+    let run = long_hil_run(&p, &first, |c| {
+        c.args(["--seed", "1"]);
+    });
     let pid = run.id();
     for args in [
         &[
@@ -321,24 +305,9 @@ fn another_user_can_neither_read_the_config_nor_steer_the_run() {
     sh.args(["-c", &plant_files]);
     assert!(as_nobody(sh).status.success(), "nobody plants the folder");
     let out = tmp("users.mcap");
-    let mut run = servo()
-        .args([
-            "run",
-            "--hil",
-            "-q",
-            "--json",
-            "--duration",
-            "60",
-            "--prefix",
-            &p,
-            "--out",
-        ])
-        .arg(&out)
-        .env("TMPDIR", &shared)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    wait_for_ticks(&p, 20_000, &mut run);
+    let run = long_hil_run(&p, &out, |c| {
+        c.env("TMPDIR", &shared);
+    });
     // The run's own folder: one, root's, 0700, unreadable to nobody.
     let own: Vec<_> = std::fs::read_dir(&shared)
         .unwrap()

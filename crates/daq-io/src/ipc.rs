@@ -346,9 +346,7 @@ impl ControllerLink {
             timeouts: (first_timeout, peer_timeout),
         })
     }
-}
 
-impl ControllerLink {
     /// The run of the samples read so far (0 before the first).
     pub fn run_id(&self) -> u64 {
         self.run_id

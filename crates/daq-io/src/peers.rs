@@ -23,8 +23,8 @@ pub struct Peer {
     pub role: String,
     /// The contract version it speaks.
     pub version: u32,
-    /// Its process id (None if this user may not see it).
-    pub pid: Option<i32>,
+    /// Its process id.
+    pub pid: i32,
 }
 
 impl Peer {
@@ -34,12 +34,10 @@ impl Peer {
             "run" => "its `servo run --hil`".to_string(),
             role => format!("its {role}"),
         };
-        match self.pid {
-            Some(pid) => match started_s_ago(pid) {
-                Some(age) => format!("{who} (pid {pid}, started {age:.1} s ago)"),
-                None => format!("{who} (pid {pid})"),
-            },
-            None => who,
+        let pid = self.pid;
+        match started_s_ago(pid) {
+            Some(age) => format!("{who} (pid {pid}, started {age:.1} s ago)"),
+            None => format!("{who} (pid {pid})"),
         }
     }
 }
@@ -68,7 +66,7 @@ pub fn live_peers(prefix: &str, own: Option<&iceoryx2::identifiers::UniqueNodeId
                         peers.push(Peer {
                             role: role.to_owned(),
                             version,
-                            pid: Some(details.process_id().value()),
+                            pid: details.process_id().value(),
                         });
                     }
                 }
@@ -100,9 +98,9 @@ pub fn refusal(prefix: &str, role: &str, peers: &[Peer]) -> Option<String> {
     None
 }
 
-/// A fresh random run identity (nonzero): the standard library's per-process random hash
-/// keys, mixed with the pid and the clock.
-pub fn new_run_id() -> u64 {
+/// A fresh random identity (nonzero) for a run or a control-plane request: the standard
+/// library's per-process random hash keys, mixed with the pid and the clock.
+pub fn random_id() -> u64 {
     use std::hash::{BuildHasher, Hasher};
     let mut h = std::collections::hash_map::RandomState::new().build_hasher();
     h.write_u32(std::process::id());
@@ -147,7 +145,7 @@ mod tests {
         let plant = |version| Peer {
             role: "plant".into(),
             version,
-            pid: Some(me),
+            pid: me,
         };
         let e = refusal("p", "plant", &[plant(CONTRACT_VERSION)]).unwrap();
         assert!(

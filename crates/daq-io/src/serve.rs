@@ -194,7 +194,7 @@ pub fn serve<B: Backend>(
     while take(&control_sub).is_some() {}
     let period = Duration::from_secs_f64(opts.period_s);
     let mut latency = LatencyHistogram::new();
-    let run_id = crate::peers::new_run_id();
+    let run_id = crate::peers::random_id();
     let mut truth = BlockWriter::<TruthBlock>::new(run_id);
     let mut report = ServeReport {
         run_id,

@@ -39,7 +39,8 @@ impl GainRange {
 }
 
 /// The gain range of `plan`'s loop, by bisection on the spectral radius of the sampled closed
-/// loop with the controller's output scaled (to 1e-6 relative).
+/// loop with the controller's output scaled (to 1e-6 relative); [`RunError::Unstable`] when
+/// the loop is not stable as it is.
 pub fn gain_range(plan: &Plan) -> Result<GainRange, RunError> {
     plan.check_stable()?;
     let c = &plan.config;

@@ -42,7 +42,7 @@ pub fn run_with(
     let mut servo = ServoLoop::new(plan)?;
     let description = plan.controller.description.clone();
     let mut recorder = match &opts.out {
-        Some(to) => Some(recording::create(plan, to, daq_io::peers::new_run_id())?),
+        Some(to) => Some(recording::create(plan, to, daq_io::peers::random_id())?),
         None => None,
     };
     let total = c.ticks();

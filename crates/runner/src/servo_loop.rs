@@ -265,23 +265,22 @@ impl ServoLoop {
         }
         self.advance(s);
         let desired = self.window.at(0);
-        let u = if self.protection.trip().is_some() {
-            self.protection.safe_command()
-        } else {
-            let raw = self.control(s);
-            self.output_fault |= !raw.is_finite();
-            match self.fault() {
-                Some(cause) => {
-                    self.protection.fault(cause, s.seq, self.last_u);
-                    match self.protection.trip() {
-                        Some(_) => self.protection.safe_command(),
-                        None => 0.0,
-                    }
-                }
-                None => raw,
-            }
+        // The controller runs until the loop trips; a fault it latches trips it now.
+        let raw = self.protection.trip().is_none().then(|| {
+            let u = self.control(s);
+            self.output_fault |= !u.is_finite();
+            u
+        });
+        let fault = self.fault();
+        if let (Some(cause), Some(_)) = (fault, raw) {
+            self.protection.fault(cause, s.seq, self.last_u);
+        }
+        let u = match raw {
+            Some(u) if fault.is_none() => u,
+            _ if self.protection.trip().is_some() => self.protection.safe_command(),
+            _ => 0.0, // a fault with protection disabled
         };
-        let faulted = self.fault().is_some();
+        let faulted = fault.is_some();
         self.last_u = u;
         self.last_fault = faulted;
         self.last_trip_flags = self.protection.flags();

@@ -99,14 +99,6 @@ impl CtlAction {
     }
 }
 
-/// A request id no other `ctl` of this user picks at the same moment (pid and clock).
-fn request_id() -> u64 {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as u64);
-    (u64::from(std::process::id()) << 40 ^ nanos) | 1
-}
-
 impl CtlCmd {
     /// Sends one control-plane message to the running run and reports its acknowledgement.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
@@ -126,7 +118,7 @@ impl CtlCmd {
         }
         let acks = ep.subscriber::<Ack>(leaf::ACK).map_err(RunError::from)?;
         let sender = ControlSender::new(&ep).map_err(RunError::from)?;
-        let id = request_id();
+        let id = daq_io::peers::random_id();
         sender
             .send(self.action.message(id))
             .map_err(RunError::from)?;

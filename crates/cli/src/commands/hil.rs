@@ -83,9 +83,7 @@ impl ControllerCmd {
                 plan.config.protection.safe_state.name()
             );
         }
-        Ok(ExitCode::from(
-            stop.reason().after_trip(end.trip.is_some()).exit_code(),
-        ))
+        Ok(crate::interrupt::exit_code(&stop, end.trip.is_some()))
     }
 }
 

@@ -133,7 +133,7 @@ impl MachineCmd {
         let written = form::report::write(&analysis, &title, &self.out_dir)
             .map_err(studies::StudyError::from)?;
         let report = analysis.report();
-        let code = crate::interrupt::exit_code(&summary, &stop);
+        let code = crate::interrupt::exit_code(&stop, summary.trip.is_some());
         if rec.json {
             print_json(&report);
             return Ok(code);

@@ -44,7 +44,7 @@ impl Run {
             let summary = with_progress(rec, out.clone(), &stop, "simulating", |opts| {
                 run(&plan, opts)
             })?;
-            let code = crate::interrupt::exit_code(&summary, &stop);
+            let code = crate::interrupt::exit_code(&stop, summary.trip.is_some());
             (summary, code)
         };
         print_summary(&summary, rec.json);

@@ -1,7 +1,8 @@
 //! What the HIL tests share: a run prefix of their own, waiting for a run to make progress.
 #![allow(dead_code)] // each test file uses a part
 
-use std::process::Child;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 /// A run prefix unique to this test process and `tag`.
@@ -28,4 +29,27 @@ pub fn wait_for_ticks(prefix: &str, ticks: u64, run: &mut Child) {
         }
         std::thread::sleep(Duration::from_millis(5));
     }
+}
+
+/// A 60 s `servo run --hil` on prefix `p` recording to `out` (JSON summary on a piped stdout),
+/// as `customise` adjusts it (more flags, environment, stderr), started and 20 000 ticks in.
+pub fn long_hil_run(p: &str, out: &Path, customise: impl FnOnce(&mut Command)) -> Child {
+    let mut cmd = super::servo();
+    cmd.args([
+        "run",
+        "--hil",
+        "-q",
+        "--json",
+        "--duration",
+        "60",
+        "--prefix",
+        p,
+        "--out",
+    ])
+    .arg(out)
+    .stdout(Stdio::piped());
+    customise(&mut cmd);
+    let mut run = cmd.spawn().unwrap();
+    wait_for_ticks(p, 20_000, &mut run);
+    run
 }
