@@ -1,5 +1,5 @@
 /*
- * fts-servo sample contract, version 3: the messages plant, controller and recorder exchange
+ * fts-servo sample contract, version 4: the messages plant, controller and recorder exchange
  * over iceoryx2 (publish-subscribe services `fts-servo/<prefix>/<leaf>`), for a DAQ daemon
  * written in C or C++ (iceoryx2's C/C++ bindings).
  *
@@ -8,11 +8,11 @@
  * (crates/daq-io/tests/c_header.rs), so this file cannot drift from them.
  *
  * To interoperate, a peer must:
- *   - use the iceoryx2 type names "fts_servo::v3::<Type>" (FTS_SERVO_TYPE_NAME below) for
+ *   - use the iceoryx2 type names "fts_servo::v4::<Type>" (FTS_SERVO_TYPE_NAME below) for
  *     the services of its leaf (sensor: fts_Sensor, command: fts_Command, telemetry:
  *     fts_TelemetryBlock, truth: fts_TruthBlock, control: fts_Control, ack: fts_Ack,
  *     health: fts_Health);
- *   - name its iceoryx2 node "fts-servo/v3/<prefix>/<role>" (role: plant, controller,
+ *   - name its iceoryx2 node "fts-servo/v4/<prefix>/<role>" (role: plant, controller,
  *     recorder, …): peers refuse a run whose nodes speak another contract version, naming both.
  * Units are SI; times in s; flags are the FTS_FLAG_* bits.
  */
@@ -21,8 +21,8 @@
 
 #include <stdint.h>
 
-#define FTS_SERVO_CONTRACT_VERSION 3
-#define FTS_SERVO_TYPE_NAME(type) "fts_servo::v3::" #type
+#define FTS_SERVO_CONTRACT_VERSION 4
+#define FTS_SERVO_TYPE_NAME(type) "fts_servo::v4::" #type
 #define FTS_SERVO_BLOCK_TICKS 64
 
 /* Status bits of every flags word. 0-7 plant (converters), 8-15 controller, 16+ transport. */
@@ -41,6 +41,7 @@
 #define FTS_FLAG_FAULT_PEER_LOST (1u << 17)
 #define FTS_FLAG_OVERRUN (1u << 18)
 #define FTS_FLAG_FAULT_CONTROLLER (1u << 19)
+#define FTS_FLAG_FAULT_OVERRUN_BUDGET (1u << 20) /* the controller kept answering late */
 
 /* Control-plane commands (fts_Control.command). */
 #define FTS_COMMAND_STOP 1u
@@ -76,6 +77,7 @@ typedef struct fts_Sensor {
     uint32_t flags;
     uint32_t reserved;
     uint64_t run_id;        /* the run's identity: random, nonzero, the same on every sample */
+    uint64_t published_ns;  /* CLOCK_MONOTONIC when published, ns (0: unknown) */
 } fts_Sensor;
 
 /* Controller -> plant, once per tick: the DAC command for tick seq. */
@@ -155,13 +157,14 @@ typedef struct fts_Ack {
     uint32_t reserved;
 } fts_Ack;
 
-/* Round-trip latency in ns (sensor published -> command received, plant side). */
+/* Percentiles of a per-tick time in ns (round trip, start lateness, execution time). */
 typedef struct fts_Latency {
     uint64_t count;
     uint64_t min_ns;
     uint64_t p50_ns;
     uint64_t p99_ns;
     uint64_t p999_ns;
+    uint64_t p9999_ns;
     uint64_t max_ns;
 } fts_Latency;
 
@@ -174,7 +177,9 @@ typedef struct fts_Health {
     uint32_t faults;     /* sticky FTS_FLAG_* fault bits */
     uint32_t stop_cause; /* FTS_STOP_CAUSE_* or a signal number */
     double wall_s;
-    fts_Latency latency;
+    fts_Latency latency;   /* plant: round trip sensor -> command */
+    fts_Latency lateness;  /* tick start after its deadline (controller: after publication) */
+    fts_Latency execution; /* per-tick execution time (TET) */
 } fts_Health;
 
 #endif /* FTS_SERVO_CONTRACT_H */

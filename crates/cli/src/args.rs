@@ -326,9 +326,100 @@ pub struct HilArgs {
     /// Lockstep pacing (the default).
     #[arg(long)]
     pub lockstep: bool,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub realtime_settings: RealtimeArgs,
+}
+
+/// Scheduling policies (`[realtime] policy`).
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum RtPolicy {
+    /// SCHED_OTHER (no privilege).
+    Other,
+    /// SCHED_FIFO.
+    Fifo,
+    /// SCHED_RR.
+    Rr,
+}
+
+impl RtPolicy {
+    /// The policy.
+    pub fn policy(self) -> daq_io::realtime::Policy {
+        match self {
+            RtPolicy::Other => daq_io::realtime::Policy::Other,
+            RtPolicy::Fifo => daq_io::realtime::Policy::Fifo,
+            RtPolicy::Rr => daq_io::realtime::Policy::Rr,
+        }
+    }
+}
+
+/// Real-time settings of the HIL processes (each flag sets its `[realtime]` key).
+#[derive(Args, Debug, Clone)]
+pub struct RealtimeArgs {
+    /// Scheduling policy of plant and controller (fifo/rr need CAP_SYS_NICE or RLIMIT_RTPRIO).
+    #[arg(long, value_enum)]
+    pub rt_policy: Option<RtPolicy>,
+    /// Real-time priority for fifo/rr, 1..=98.
+    #[arg(long)]
+    pub rt_priority: Option<i32>,
+    /// CPU of the plant process.
+    #[arg(long)]
+    pub plant_cpu: Option<usize>,
+    /// CPU of the controller process.
+    #[arg(long)]
+    pub controller_cpu: Option<usize>,
+    /// Lock the servo processes' memory (mlockall) and pre-fault their stacks.
+    #[arg(long)]
+    pub lock_memory: bool,
+    /// How plant and controller wait for each tick.
+    #[arg(long, value_enum)]
+    pub wait: Option<runner::config::WaitKind>,
+    /// With --wait sleep-spin: spin this long before each tick, µs.
+    #[arg(long)]
+    pub spin_margin_us: Option<f64>,
+    /// Startup grace window, ms (overruns not charged to the budget).
+    #[arg(long)]
+    pub grace_ms: Option<f64>,
+    /// Overrun budget: sustained fraction of late ticks absorbed (0..1).
+    #[arg(long)]
+    pub overrun_rate: Option<f64>,
+    /// Overrun budget: burst of overruns beyond the sustained rate absorbed at once, ms.
+    #[arg(long)]
+    pub overrun_burst_ms: Option<f64>,
+}
+
+impl RealtimeArgs {
+    /// Applies the flags to `[realtime]`.
+    pub fn apply(&self, l: &mut Loaded) {
+        let r = &mut l.config.realtime;
+        set(&mut r.policy, self.rt_policy.map(RtPolicy::policy));
+        set(&mut r.priority, self.rt_priority);
+        if self.plant_cpu.is_some() {
+            r.plant_cpu = self.plant_cpu;
+        }
+        if self.controller_cpu.is_some() {
+            r.controller_cpu = self.controller_cpu;
+        }
+        r.lock_memory |= self.lock_memory;
+        set(&mut r.wait, self.wait);
+        set(&mut r.spin_margin_s, self.spin_margin_us.map(|u| u * 1e-6));
+        set(&mut r.grace_s, self.grace_ms.map(|m| m * 1e-3));
+        set(&mut r.overrun_rate, self.overrun_rate);
+        set(
+            &mut r.overrun_burst_s,
+            self.overrun_burst_ms.map(|m| m * 1e-3),
+        );
+    }
 }
 
 impl HilArgs {
+    /// The configuration of `run` with these flags' `[realtime]` settings on top.
+    pub fn load(&self, run: &RunArgs) -> Result<Loaded, ConfigError> {
+        let mut l = run.load()?;
+        self.realtime_settings.apply(&mut l);
+        Ok(l)
+    }
+
     /// Lockstep or real time.
     pub fn pacing(&self) -> daq_io::serve::Pacing {
         if self.realtime {
@@ -354,7 +445,7 @@ impl HilArgs {
 #[derive(Args, Debug, Clone)]
 pub struct PeerTimeoutArgs {
     /// Controller silence after which the plant declares it lost and drives zero current, ms
-    /// (default 200 lockstep, 0.5 real time; > 0).
+    /// (default 200 lockstep; real time: [realtime] peer_timeout_s, 0.5 ms; > 0).
     #[arg(long)]
     pub peer_timeout_ms: Option<f64>,
 }

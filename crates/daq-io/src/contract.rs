@@ -5,12 +5,12 @@
 //! [`TelemetryBlock`] with `ctypes`, and `include/fts_servo_contract.h` declares them for a C
 //! or C++ DAQ daemon (CI compiles a C file asserting every size and offset against these
 //! types). The layouts are versioned: [`CONTRACT_VERSION`] is in every iceoryx2 type name
-//! (`fts_servo::v3::…`) and in every node name, and a peer of another version is refused at
+//! (`fts_servo::v4::…`) and in every node name, and a peer of another version is refused at
 //! connect with both versions named ([`crate::ipc::Endpoint::open`]). Change a layout, bump
 //! the version (a test pins [`LAYOUT_FINGERPRINT`]).
 
 /// The version of the sample contract's layouts (every `#[repr(C)]` type here).
-pub const CONTRACT_VERSION: u32 = 3;
+pub const CONTRACT_VERSION: u32 = 4;
 
 #[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
@@ -68,13 +68,18 @@ pub mod flags {
     pub const OVERRUN: u32 = 1 << 18;
     /// The controller refused a non-finite command or latched a fault; the command is 0 V.
     pub const FAULT_CONTROLLER: u32 = 1 << 19;
+    /// The controller answered late more often than the overrun budget allows (it is alive
+    /// but cannot keep the rate): the plant drove zero current and ended the run.
+    pub const FAULT_OVERRUN_BUDGET: u32 = 1 << 20;
+    /// Every fault that ends a run at the plant.
+    pub const PLANT_FAULTS: u32 = FAULT_PEER_LOST | FAULT_OVERRUN_BUDGET;
 }
 
 /// Plant → controller, once per tick: the sensor readings at the start of tick `seq`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Sensor"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Sensor"))]
 pub struct Sensor {
     /// Tick index (0 for the reading before the first command).
     pub seq: u64,
@@ -93,13 +98,16 @@ pub struct Sensor {
     /// The run's identity: a random number the plant draws at start and puts on every sample
     /// (nonzero). A controller that sees it change is listening to another plant.
     pub run_id: u64,
+    /// When the plant published this sample, in ns of the host's `CLOCK_MONOTONIC` (0:
+    /// unknown). The controller's start lateness is its own monotonic time minus this.
+    pub published_ns: u64,
 }
 
 /// Controller → plant, once per tick: the DAC command for tick `seq`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Command"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Command"))]
 pub struct Command {
     /// The tick this command answers (the echoed [`Sensor::seq`]).
     pub seq: u64,
@@ -115,7 +123,7 @@ pub struct Command {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Telemetry"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Telemetry"))]
 pub struct Telemetry {
     /// Tick index.
     pub seq: u64,
@@ -141,7 +149,7 @@ pub struct Telemetry {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Truth"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Truth"))]
 pub struct Truth {
     /// Tick index.
     pub seq: u64,
@@ -179,7 +187,7 @@ pub const BLOCK_TICKS: usize = 64;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::TelemetryBlock"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::TelemetryBlock"))]
 pub struct TelemetryBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -197,7 +205,7 @@ pub struct TelemetryBlock {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::TruthBlock"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::TruthBlock"))]
 pub struct TruthBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -280,7 +288,7 @@ pub mod command {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Control"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Control"))]
 pub struct Control {
     /// One of [`command`].
     pub command: u32,
@@ -307,7 +315,7 @@ pub mod ack_status {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Ack"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Ack"))]
 pub struct Ack {
     /// The request's [`Control::id`].
     pub id: u64,
@@ -378,11 +386,12 @@ pub mod state {
     pub const FAULTED: u32 = 4;
 }
 
-/// Round-trip latency statistics in ns (sensor published → command received, plant side).
+/// Percentiles of a per-tick time in ns: round trip (sensor published → command received),
+/// start lateness or execution time ([`Health`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Latency"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Latency"))]
 pub struct Latency {
     /// Exchanges measured.
     pub count: u64,
@@ -394,6 +403,8 @@ pub struct Latency {
     pub p99_ns: u64,
     /// 99.9th percentile in ns.
     pub p999_ns: u64,
+    /// 99.99th percentile in ns.
+    pub p9999_ns: u64,
     /// Maximum in ns.
     pub max_ns: u64,
 }
@@ -402,7 +413,7 @@ pub struct Latency {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v3::Health"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Health"))]
 pub struct Health {
     /// One of [`role`].
     pub role: u32,
@@ -418,6 +429,12 @@ pub struct Health {
     pub stop_cause: u32,
     /// Wall time since the first tick in s.
     pub wall_s: f64,
-    /// Round-trip latency (plant, in its final report; zero before).
+    /// Round trip sensor published → command received (plant; zero from the controller).
     pub latency: Latency,
+    /// Start lateness of each tick: the plant's tick start after its deadline (or after its
+    /// backend's clock edge); the controller's tick start after the sample was published.
+    pub lateness: Latency,
+    /// Execution time of each tick (Simulink Real-Time's TET): the plant's own work (publish,
+    /// step, truth) without the wait for the command; the controller's sample-to-command time.
+    pub execution: Latency,
 }

@@ -64,6 +64,16 @@ pub trait Backend {
     fn truth(&self) -> Option<Truth> {
         None
     }
+    /// The plant as the clock: a backend with a sample clock of its own (the ADC's conversion
+    /// clock, an interrupt, a blocking read that returns when the conversion is done) blocks
+    /// here until tick `k`'s edge and returns when that edge was, in ns of `CLOCK_MONOTONIC`
+    /// ([`crate::clock::monotonic_ns`] with the `ipc` feature). The real-time server then
+    /// paces on it, and measures its lateness against it. Default `None`: no clock of its own;
+    /// the server paces on the wall clock.
+    fn wait_for_tick(&mut self, k: u64) -> Option<u64> {
+        let _ = k;
+        None
+    }
 }
 
 /// A [`Backend`] driven directly by the controller's thread: no transport, no copies beyond

@@ -5,10 +5,14 @@
 //! opens every service with the same settings ([`ServiceSettings`]); opening cleans up the
 //! resources of dead nodes first, so a run after a `kill -9` starts cleanly.
 
+use crate::clock::monotonic_ns;
 use crate::contract::{Ack, Block, Command, Control, Health, Sensor, TelemetryBlock, TruthBlock};
 use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+use iceoryx2::sample_mut_uninit::SampleMutUninit;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use std::fmt::Debug;
+use std::mem::MaybeUninit;
 use std::time::{Duration, Instant};
 
 /// A publisher of `T` on a run service.
@@ -64,8 +68,9 @@ pub struct ServiceSettings {
     pub subscribers: usize,
 }
 
-/// The settings of service `leaf`: one sample in flight on the servo path; 1024 blocks
-/// (65 536 ticks, 0.33 s at 199.6 kHz) of room for the recorder.
+/// The settings of service `leaf`: on the servo path only the newest sample is kept (one in
+/// flight, as iceoryx2's own ping-pong benchmark); 1024 blocks (65 536 ticks, 0.33 s at
+/// 199.6 kHz) of room for the recorder.
 pub fn settings(leaf: &str) -> ServiceSettings {
     match leaf {
         leaf::TELEMETRY | leaf::TRUTH => ServiceSettings {
@@ -79,7 +84,7 @@ pub fn settings(leaf: &str) -> ServiceSettings {
             subscribers: 4,
         },
         _ => ServiceSettings {
-            buffer: 4,
+            buffer: 1,
             publishers: 1,
             subscribers: 2,
         },
@@ -240,35 +245,95 @@ pub fn take<T: Debug + ZeroCopySend + Copy>(s: &Subscriber<T>) -> Option<T> {
     s.receive().ok().flatten().map(|sample| *sample)
 }
 
-/// Busy-polls `s` until `accept` takes a sample or `deadline` passes: spins with the CPU's
-/// pause hint, checking the clock every 64 polls and yielding the core after 50 µs so
-/// processes sharing a core still progress.
+/// A publisher that keeps its next sample loaned: [`Sender::send`] writes and publishes it,
+/// and [`Sender::prepare`] loans the next one when the caller is off the exchange's critical
+/// path (a loan walks the subscribers' returned samples and allocates its bookkeeping).
+pub struct Sender<T: Debug + ZeroCopySend + Copy + 'static> {
+    publisher: Publisher<T>,
+    next: Option<SampleMutUninit<ipc::Service, MaybeUninit<T>, ()>>,
+}
+
+impl<T: Debug + ZeroCopySend + Copy + 'static> Sender<T> {
+    /// Wraps `publisher` and loans its first sample.
+    pub fn new(publisher: Publisher<T>) -> Self {
+        let mut s = Sender {
+            publisher,
+            next: None,
+        };
+        s.prepare();
+        s
+    }
+
+    /// Publishes `value`. Returns false when the transport refused (the caller counts it; the
+    /// servo path never blocks on it).
+    #[inline]
+    pub fn send(&mut self, value: T) -> bool {
+        let sample = match self.next.take() {
+            Some(s) => s,
+            None => match self.publisher.loan_uninit() {
+                Ok(s) => s,
+                Err(_) => return false,
+            },
+        };
+        sample.write_payload(value).send().is_ok()
+    }
+
+    /// Loans the sample of the next send, if not yet loaned.
+    #[inline]
+    pub fn prepare(&mut self) {
+        if self.next.is_none() {
+            self.next = self.publisher.loan_uninit().ok();
+        }
+    }
+
+    /// Sets up connections to the subscribers present now (see [`connect`]).
+    pub fn connect(&self) {
+        connect(&self.publisher);
+    }
+}
+
+/// Busy-polls `s` until `accept` takes a sample or the monotonic clock passes `deadline_ns`
+/// ([`monotonic_ns`]). Returns the sample, still held (returning it to the publisher costs a
+/// cross-core cache miss: drop it after the reply is sent). Polls without a pause hint and reads
+/// the clock only every 64 empty polls; yields the core after 50 µs of waiting so processes
+/// sharing a core still progress.
 #[inline]
-pub fn poll_until<T: Debug + ZeroCopySend + Copy>(
+pub fn poll_held<T: Debug + ZeroCopySend + Copy>(
     s: &Subscriber<T>,
-    deadline: Instant,
+    deadline_ns: u64,
     mut accept: impl FnMut(&T) -> bool,
-) -> Option<T> {
-    let start = Instant::now();
+) -> Option<Sample<ipc::Service, T, ()>> {
+    let mut start_ns = 0;
     let mut spins = 0u32;
     loop {
-        while let Some(v) = take(s) {
+        while let Ok(Some(v)) = s.receive() {
             if accept(&v) {
                 return Some(v);
             }
         }
         spins = spins.wrapping_add(1);
         if spins.is_multiple_of(64) {
-            let now = Instant::now();
-            if now >= deadline {
+            let now = monotonic_ns();
+            if now >= deadline_ns {
                 return None;
             }
-            if now - start > Duration::from_micros(50) {
+            if start_ns == 0 {
+                start_ns = now;
+            } else if now - start_ns > 50_000 {
                 std::thread::yield_now();
             }
         }
-        std::hint::spin_loop();
     }
+}
+
+/// [`poll_held`], returning a copy of the sample.
+#[inline]
+pub fn poll_until<T: Debug + ZeroCopySend + Copy>(
+    s: &Subscriber<T>,
+    deadline_ns: u64,
+    accept: impl FnMut(&T) -> bool,
+) -> Option<T> {
+    poll_held(s, deadline_ns, accept).map(|v| *v)
 }
 
 /// Accumulates per-tick records into blocks of [`crate::BLOCK_TICKS`] and publishes full
@@ -320,10 +385,13 @@ impl<B: Block> BlockWriter<B> {
 }
 
 /// The controller's [`crate::Daq`] over iceoryx2. It keeps to the run of the first sample:
-/// a sample with another [`Sensor::run_id`] (another plant on the prefix) is an error.
+/// a sample with another [`Sensor::run_id`] (another plant on the prefix) is an error. The
+/// sample read is held until its command is written (its release is off the round trip), and
+/// the next command's sample is loaned after each write.
 pub struct ControllerLink {
     sensor: Subscriber<Sensor>,
-    command: Publisher<Command>,
+    command: Sender<Command>,
+    held: Option<Sample<ipc::Service, Sensor, ()>>,
     next_seq: u64,
     run_id: u64,
     /// How long to wait for the first sample (the plant may start later), then per sample.
@@ -340,7 +408,8 @@ impl ControllerLink {
     ) -> Result<Self, IpcError> {
         Ok(ControllerLink {
             sensor: ep.subscriber(leaf::SENSOR)?,
-            command: ep.publisher(leaf::COMMAND)?,
+            command: Sender::new(ep.publisher(leaf::COMMAND)?),
+            held: None,
             next_seq: 0,
             run_id: 0,
             timeouts: (first_timeout, peer_timeout),
@@ -356,18 +425,20 @@ impl ControllerLink {
 impl crate::Daq for ControllerLink {
     #[inline]
     fn read(&mut self) -> Result<Sensor, crate::DaqError> {
+        self.held = None;
         let timeout = if self.next_seq == 0 {
             self.timeouts.0
         } else {
             self.timeouts.1
         };
         let want = self.next_seq;
-        // In real time the controller may fall behind: take the newest sample, skip stale.
-        match poll_until(&self.sensor, Instant::now() + timeout, |s| s.seq >= want) {
-            Some(mut s) => {
-                while let Some(newer) = take(&self.sensor) {
-                    s = newer;
-                }
+        let deadline = monotonic_ns() + timeout.as_nanos() as u64;
+        // The queue keeps only the newest sample: a controller that fell behind (real time)
+        // gets the latest, never a stale one.
+        match poll_held(&self.sensor, deadline, |s| s.seq >= want) {
+            Some(held) => {
+                let s = *held;
+                self.held = Some(held);
                 if want == 0 {
                     self.run_id = s.run_id;
                 } else if s.run_id != self.run_id {
@@ -388,10 +459,16 @@ impl crate::Daq for ControllerLink {
 
     #[inline]
     fn write(&mut self, command: Command) -> Result<(), crate::DaqError> {
-        self.command
-            .send_copy(command)
-            .map(|_| ())
-            .map_err(|e| crate::DaqError::Transport(format!("command: {e:?}")))
+        let sent = self.command.send(command);
+        self.held = None;
+        self.command.prepare();
+        if sent {
+            Ok(())
+        } else {
+            Err(crate::DaqError::Transport(
+                "command: the transport refused the sample".into(),
+            ))
+        }
     }
 }
 

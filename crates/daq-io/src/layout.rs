@@ -33,7 +33,7 @@ macro_rules! layouts {
 }
 
 layouts! {
-    Sensor { seq, time_s, gap_v, accel_v, encoder_count, flags, reserved, run_id }
+    Sensor { seq, time_s, gap_v, accel_v, encoder_count, flags, reserved, run_id, published_ns }
     Command { seq, dac_v, flags, reserved }
     Telemetry { seq, time_s, reference_m, measured_m, following_error_m, control_v, accel_m_s2, flags, reserved }
     Truth { seq, time_s, tool_m, gap_m, motor_force_n, cutting_force_n, coil_current_a, current_noise_a, base_m, sensor_noise_v, dac_v, flags, reserved }
@@ -41,8 +41,8 @@ layouts! {
     TruthBlock { block, count, flags, run_id, ticks }
     Control { command, reserved, value, id }
     Ack { id, tick, value, low, high, unstable_at, command, status, role, reserved }
-    Latency { count, min_ns, p50_ns, p99_ns, p999_ns, max_ns }
-    Health { role, state, ticks, overruns, faults, stop_cause, wall_s, latency }
+    Latency { count, min_ns, p50_ns, p99_ns, p999_ns, p9999_ns, max_ns }
+    Health { role, state, ticks, overruns, faults, stop_cause, wall_s, latency, lateness, execution }
 }
 
 /// FNV-1a over every size, alignment and offset of [`LAYOUTS`]: changes whenever a layout
@@ -79,7 +79,7 @@ mod tests {
         // fingerprint.
         assert_eq!(
             (CONTRACT_VERSION, LAYOUT_FINGERPRINT),
-            (3, 0x6d3b_d0df_6c53_8c61),
+            (4, 0x0f7b_ac79_8305_3499),
             "fingerprint {LAYOUT_FINGERPRINT:#018x}"
         );
     }

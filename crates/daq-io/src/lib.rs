@@ -14,6 +14,8 @@
 //! Embedding in a DAQ daemon: implement [`Backend`] for the ADC/DAC hardware and call
 //! [`serve::serve`]; see `examples/daq_daemon.rs`.
 
+#[cfg(feature = "ipc")]
+pub mod clock;
 pub mod contract;
 mod daq;
 mod histogram;
@@ -25,11 +27,14 @@ pub mod peers;
 #[cfg(feature = "ipc")]
 pub mod qualify;
 #[cfg(feature = "ipc")]
+pub mod realtime;
+#[cfg(feature = "ipc")]
 pub mod serve;
+pub mod watchdog;
 
 pub use contract::{
     ack_status, flags, stop_cause, Ack, Command, Control, Health, Latency, Sensor, Telemetry,
     TelemetryBlock, Truth, TruthBlock, BLOCK_TICKS, CONTRACT_VERSION,
 };
 pub use daq::{Backend, Daq, DaqError, InProcess};
-pub use histogram::LatencyHistogram;
+pub use histogram::{LatencyHistogram, TickStats};

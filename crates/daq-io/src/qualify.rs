@@ -3,66 +3,8 @@
 //! settings that decide whether a host holds a rate (LinuxCNC's latency test, rt-tests'
 //! cyclictest). The clock is injected ([`TickClock`]) so the statistics are testable.
 
+pub use crate::clock::{TickClock, Wait, WallClock};
 use crate::LatencyHistogram;
-use std::time::{Duration, Instant};
-
-/// Waits for tick deadlines; returns when it woke. Time in ns from the start of the run.
-pub trait TickClock {
-    /// Waits until `deadline_ns`; returns the time it woke (≥ the deadline for a real clock).
-    fn wait_until(&mut self, deadline_ns: u64) -> u64;
-}
-
-/// How a tick waits for its deadline.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Wait {
-    /// Busy-poll the clock (lowest lateness; burns the core).
-    Spin,
-    /// Sleep until `margin` before the deadline, then spin (frees the core between ticks;
-    /// the margin absorbs the sleep's wake-up latency).
-    SleepThenSpin {
-        /// Spin margin before the deadline.
-        margin: Duration,
-    },
-}
-
-/// The wall clock ([`Instant`]) with a [`Wait`] strategy.
-pub struct WallClock {
-    start: Instant,
-    wait: Wait,
-}
-
-impl WallClock {
-    /// Starts now.
-    pub fn new(wait: Wait) -> Self {
-        WallClock {
-            start: Instant::now(),
-            wait,
-        }
-    }
-
-    fn now_ns(&self) -> u64 {
-        self.start.elapsed().as_nanos() as u64
-    }
-}
-
-impl TickClock for WallClock {
-    fn wait_until(&mut self, deadline_ns: u64) -> u64 {
-        if let Wait::SleepThenSpin { margin } = self.wait {
-            let wake = deadline_ns.saturating_sub(margin.as_nanos() as u64);
-            let now = self.now_ns();
-            if wake > now {
-                std::thread::sleep(Duration::from_nanos(wake - now));
-            }
-        }
-        loop {
-            let now = self.now_ns();
-            if now >= deadline_ns {
-                return now;
-            }
-            std::hint::spin_loop();
-        }
-    }
-}
 
 /// What a latency run measured.
 #[derive(Clone)]

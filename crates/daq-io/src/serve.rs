@@ -1,20 +1,28 @@
 //! The plant side of a run over iceoryx2: serves a [`Backend`] (the simulator, or a DAQ
-//! daemon's hardware) to a controller process, in lockstep or paced to the wall clock.
+//! daemon's hardware) to a controller process, in lockstep or paced in real time.
 //!
 //! Guarantees:
 //! - Lockstep: tick k's command is awaited (busy poll) up to `peer_timeout`; nothing is ever
 //!   held or skipped, so a run is bit-identical to the in-process one.
-//! - Real time: tick k starts at `t0 + k·T`; a command not in by the start of tick k+1 is an
-//!   overrun: the DAC holds its last value (as hardware does) and the count goes up.
-//! - Lost controller: no command for `peer_timeout` → the DAC is driven to 0 V (zero current),
-//!   [`flags::FAULT_PEER_LOST`] is raised, the plant runs `safe_ticks` more ticks in the safe
-//!   state (recorded, so the current's decay is visible) and ends the run.
+//! - Real time: tick k starts at its deadline — `t0 + k·T` on the wall clock (waiting by
+//!   [`ServeOptions::wait`]), or the backend's own clock edge ([`Backend::wait_for_tick`]); a
+//!   command not in by the next deadline is an overrun: the DAC holds its last value (as
+//!   hardware does) and the count goes up.
+//! - Faults ([`crate::watchdog`]): a controller silent for `peer_timeout` (lost), or late more
+//!   often than the overrun budget allows, puts the DAC at 0 V (zero current), raises
+//!   [`flags::FAULT_PEER_LOST`] or [`flags::FAULT_OVERRUN_BUDGET`], runs `safe_ticks` more
+//!   ticks in the safe state (recorded, so the current's decay is visible) and ends the run.
+//!   In the startup grace window neither faults the run unless the silence lasts the window.
+//! - Statistics: every tick's start lateness, execution time and round trip go into
+//!   allocation-free histograms; health reports carry their percentiles.
 
+use crate::clock::{monotonic_ns, Wait};
 use crate::contract::{
     ack_status, command, flags, role, state, Ack, Command, Control, Health, Sensor, TruthBlock,
 };
-use crate::ipc::{leaf, poll_until, take, BlockWriter, Endpoint, IpcError};
-use crate::{Backend, LatencyHistogram};
+use crate::ipc::{leaf, poll_held, take, BlockWriter, Endpoint, IpcError, Sender};
+use crate::watchdog::{FaultPolicy, Verdict, Watchdog};
+use crate::{Backend, TickStats};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
@@ -23,7 +31,8 @@ use std::time::{Duration, Instant};
 pub enum Pacing {
     /// As fast as the controller answers; every command awaited.
     Lockstep,
-    /// One tick per servo period of wall-clock time; late commands are overruns.
+    /// One tick per servo period (wall clock, or the backend's clock); late commands are
+    /// overruns.
     RealTime,
 }
 
@@ -36,8 +45,18 @@ pub struct ServeOptions {
     pub period_s: f64,
     /// Lockstep or real time.
     pub pacing: Pacing,
+    /// How a real-time tick waits for its deadline on the wall clock.
+    pub wait: Wait,
     /// Controller silence that counts as lost: lockstep default 200 ms, real time 0.5 ms.
     pub peer_timeout: Duration,
+    /// Startup grace window (real time): overruns are not charged to the budget and silence
+    /// is lost only when it lasts the window. Default 50 ms.
+    pub grace: Duration,
+    /// The sustained fraction of late ticks the overrun budget absorbs (default 0.05).
+    pub overrun_rate: f64,
+    /// The overrun budget's burst: overruns beyond the sustained rate at once, in s of ticks
+    /// (default 2 ms: the hypervisor stalls of a cloud VM fit).
+    pub overrun_burst_s: f64,
     /// How long to wait for the controller (and recorder) to subscribe.
     pub startup_timeout: Duration,
     /// Also wait for a truth subscriber (the recorder) before the first tick.
@@ -53,21 +72,45 @@ pub struct ServeOptions {
 
 impl ServeOptions {
     /// Defaults for `ticks` at `period_s` with `pacing`: peer timeout 200 ms (lockstep) or
-    /// 0.5 ms (real time; the DAC is at 0 V within 1 ms of the last command), 2 ms of safe state.
+    /// 0.5 ms (real time; the DAC is at 0 V within 1 ms of the last command), 50 ms grace,
+    /// overrun budget 5 % sustained with 2 ms bursts, spin waits, 2 ms of safe state.
     pub fn new(ticks: u64, period_s: f64, pacing: Pacing) -> Self {
         ServeOptions {
             ticks,
             period_s,
             pacing,
+            wait: Wait::Spin,
             peer_timeout: match pacing {
                 Pacing::Lockstep => Duration::from_millis(200),
                 Pacing::RealTime => Duration::from_micros(500),
             },
+            grace: Duration::from_millis(50),
+            overrun_rate: 0.05,
+            overrun_burst_s: 2e-3,
             startup_timeout: Duration::from_secs(30),
             wait_for_recorder: true,
             wait_for_start: false,
             safe_ticks: (2e-3 / period_s).ceil() as u64,
             linger: Duration::from_secs(5),
+        }
+    }
+
+    /// The watchdog's limits (lockstep: only the peer timeout; no budget, no grace).
+    pub fn fault_policy(&self) -> FaultPolicy {
+        let realtime = self.pacing == Pacing::RealTime;
+        FaultPolicy {
+            peer_timeout_ns: self.peer_timeout.as_nanos() as u64,
+            grace_ns: if realtime {
+                self.grace.as_nanos() as u64
+            } else {
+                0
+            },
+            overrun_rate: self.overrun_rate,
+            overrun_burst: if realtime {
+                self.overrun_burst_s / self.period_s
+            } else {
+                f64::INFINITY
+            },
         }
     }
 }
@@ -79,14 +122,20 @@ pub struct ServeReport {
     pub ticks: u64,
     /// Late commands (real time).
     pub overruns: u64,
-    /// Sticky fault bits ([`flags::FAULT_PEER_LOST`]).
+    /// Of those, in the startup grace window (not charged to the budget).
+    pub grace_overruns: u64,
+    /// Sticky fault bits ([`flags::FAULT_PEER_LOST`], [`flags::FAULT_OVERRUN_BUDGET`]).
     pub faults: u32,
-    /// Tick at which the controller was declared lost.
+    /// Tick at which the run was faulted.
     pub fault_tick: Option<u64>,
     /// Why it stopped early, a [`crate::stop_cause`] (0: it ran to its end or faulted).
     pub stop_cause: u32,
     /// Round trip sensor → command, plant side.
     pub latency: crate::Latency,
+    /// Start lateness of each tick after its deadline (real time; zero in lockstep).
+    pub lateness: crate::Latency,
+    /// The plant's execution time per tick (publish, step, truth; not the wait).
+    pub execution: crate::Latency,
     /// Wall time from the first tick in s.
     pub wall_s: f64,
     /// Truth blocks the transport refused.
@@ -110,66 +159,43 @@ pub enum ServeError {
 }
 
 /// Fills the running counts of a health report.
-fn progress(health: &mut Health, ticks: u64, report: &ServeReport, t0: Instant) {
+fn progress(health: &mut Health, ticks: u64, report: &ServeReport, stats: &TickStats, t0: Instant) {
     health.ticks = ticks;
     health.overruns = report.overruns;
     health.faults = report.faults;
     health.wall_s = t0.elapsed().as_secs_f64();
+    stats.report(health);
 }
 
-/// Serves `backend` to the controller of run `ep` until `opts.ticks` commands, a STOP, `stop`
-/// (nonzero: a signal number or any request to end), or a lost controller. Health is published every 2048 ticks and at the end.
-pub fn serve<B: Backend>(
+/// Waits until the controller (and the recorder, and a START if asked) are there.
+fn wait_for_peers(
     ep: &Endpoint,
-    backend: &mut B,
     opts: &ServeOptions,
     stop: &AtomicUsize,
-) -> Result<ServeReport, ServeError> {
+    control_sub: &crate::ipc::Subscriber<Control>,
+    health_pub: &mut Sender<Health>,
+    ack: &mut impl FnMut(&Control, u64),
+) -> Result<(), ServeError> {
+    use iceoryx2::prelude::PortFactory;
     let sensor_service = ep.service::<Sensor>(leaf::SENSOR)?;
     let truth_service = ep.service::<TruthBlock>(leaf::TRUTH)?;
-    let sensor_pub = ep.publisher::<Sensor>(leaf::SENSOR)?;
-    let truth_pub = ep.publisher::<TruthBlock>(leaf::TRUTH)?;
-    let command_sub = ep.subscriber::<Command>(leaf::COMMAND)?;
-    let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
-    let health_pub = ep.publisher::<Health>(leaf::HEALTH)?;
-    let ack_pub = ep.publisher::<Ack>(leaf::ACK)?;
-    let ack = |c: &Control, tick: u64| {
-        let status = match c.command {
-            command::START | command::STOP => ack_status::APPLIED,
-            _ => return, // the controller's (gain)
-        };
-        crate::ipc::send(
-            &ack_pub,
-            Ack {
-                id: c.id,
-                tick,
-                value: c.value,
-                command: c.command,
-                status,
-                role: role::PLANT,
-                ..Default::default()
-            },
-        );
-    };
-    let mut health = Health {
+    let health = Health {
         role: role::PLANT,
         state: state::WAITING,
         ..Default::default()
     };
-
-    use iceoryx2::prelude::PortFactory;
     let waiting = Instant::now();
     let mut started = !opts.wait_for_start;
     loop {
         let controller = sensor_service.dynamic_config().number_of_subscribers() > 0;
         let recorder =
             !opts.wait_for_recorder || truth_service.dynamic_config().number_of_subscribers() > 0;
-        while let Some(c) = take(&control_sub) {
+        while let Some(c) = take(control_sub) {
             started |= c.command == command::START;
             ack(&c, 0);
         }
         if controller && recorder && started {
-            break;
+            return Ok(());
         }
         if waiting.elapsed() > opts.startup_timeout || stop.load(Ordering::Relaxed) != 0 {
             let who = match (controller, recorder) {
@@ -183,21 +209,64 @@ pub fn serve<B: Backend>(
                 opts.startup_timeout,
             ));
         }
-        crate::ipc::send(&health_pub, health);
+        health_pub.send(health);
+        health_pub.prepare();
         std::thread::sleep(Duration::from_millis(5));
     }
+}
+
+/// Serves `backend` to the controller of run `ep` until `opts.ticks` commands, a STOP, `stop`
+/// (nonzero: a signal number or any request to end), or a fault. Health is published every
+/// 2048 ticks and at the end.
+pub fn serve<B: Backend>(
+    ep: &Endpoint,
+    backend: &mut B,
+    opts: &ServeOptions,
+    stop: &AtomicUsize,
+) -> Result<ServeReport, ServeError> {
+    let truth_service = ep.service::<TruthBlock>(leaf::TRUTH)?;
+    let mut sensor_pub = Sender::new(ep.publisher::<Sensor>(leaf::SENSOR)?);
+    let truth_pub = ep.publisher::<TruthBlock>(leaf::TRUTH)?;
+    let command_sub = ep.subscriber::<Command>(leaf::COMMAND)?;
+    let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
+    let mut health_pub = Sender::new(ep.publisher::<Health>(leaf::HEALTH)?);
+    let mut ack_pub = Sender::new(ep.publisher::<Ack>(leaf::ACK)?);
+    let mut ack = |c: &Control, tick: u64| {
+        let status = match c.command {
+            command::START | command::STOP => ack_status::APPLIED,
+            _ => return, // the controller's (gain)
+        };
+        ack_pub.send(Ack {
+            id: c.id,
+            tick,
+            value: c.value,
+            command: c.command,
+            status,
+            role: role::PLANT,
+            ..Default::default()
+        });
+        ack_pub.prepare();
+    };
+    wait_for_peers(ep, opts, stop, &control_sub, &mut health_pub, &mut ack)?;
 
     // Pay every connection set-up now, not inside the timed ticks.
-    crate::ipc::connect(&sensor_pub);
+    sensor_pub.connect();
     crate::ipc::connect(&truth_pub);
-    crate::ipc::connect(&health_pub);
+    health_pub.connect();
     while take(&control_sub).is_some() {}
-    let period = Duration::from_secs_f64(opts.period_s);
-    let mut latency = LatencyHistogram::new();
+    let period_ns = (opts.period_s * 1e9).round() as u64;
+    let realtime = opts.pacing == Pacing::RealTime;
+    let mut stats = TickStats::default();
+    let mut watchdog = Watchdog::new(opts.fault_policy());
     let run_id = crate::peers::random_id();
     let mut truth = BlockWriter::<TruthBlock>::new(run_id);
     let mut report = ServeReport {
         run_id,
+        ..Default::default()
+    };
+    let mut health = Health {
+        role: role::PLANT,
+        state: state::RUNNING,
         ..Default::default()
     };
     let mut sample = Sensor {
@@ -206,49 +275,77 @@ pub fn serve<B: Backend>(
         ..backend.initial()
     };
     let mut dac_v = 0.0;
-    let mut last_command = Instant::now();
     let mut end_tick = opts.ticks;
-    health.state = state::RUNNING;
     let mut t0 = Instant::now();
+    // The wall-clock time base: tick k's deadline is base + k·T (set after tick 0).
+    let mut base_ns = 0;
     let mut k = 0u64;
     while k < end_tick {
         if k == 1 {
-            t0 = Instant::now() - period;
+            t0 = Instant::now();
+            base_ns = monotonic_ns() - period_ns;
         }
-        let tick_start = t0 + period.mul_f64(k as f64);
-        if opts.pacing == Pacing::RealTime {
-            while Instant::now() < tick_start {
-                std::hint::spin_loop();
+        // The tick's deadline and when it really started.
+        let (deadline_ns, start_ns) = match backend.wait_for_tick(k) {
+            Some(edge_ns) => (edge_ns, monotonic_ns()),
+            None if realtime && k > 0 => {
+                let deadline = base_ns + k * period_ns;
+                (deadline, opts.wait.until(deadline))
             }
+            None => {
+                let now = monotonic_ns();
+                (now, now)
+            }
+        };
+        if k > 0 && realtime {
+            stats.lateness.record(start_ns.saturating_sub(deadline_ns));
         }
-        crate::ipc::send(&sensor_pub, sample);
-        let published = Instant::now();
+        sample.published_ns = monotonic_ns();
+        sensor_pub.send(sample);
+        let published_ns = sample.published_ns;
         let mut tick_flags = 0;
+        let mut answered_ns = published_ns;
         if report.fault_tick.is_none() {
             // Tick 0 is untimed: its exchange sets up the shared-memory connections (the
-            // first receive maps the peer's segment); the wall-clock time base starts after it.
-            let deadline = match opts.pacing {
-                _ if k == 0 => published + opts.startup_timeout,
-                Pacing::Lockstep => published + opts.peer_timeout,
-                Pacing::RealTime => tick_start + period,
+            // first receive maps the peer's segment); the time base starts after it.
+            let command_deadline = match opts.pacing {
+                _ if k == 0 => published_ns + opts.startup_timeout.as_nanos() as u64,
+                Pacing::Lockstep => published_ns + opts.peer_timeout.as_nanos() as u64,
+                Pacing::RealTime => deadline_ns + period_ns,
             };
-            match poll_until(&command_sub, deadline, |c| c.seq == k) {
-                Some(c) => {
-                    last_command = Instant::now();
-                    latency.record((last_command - published).as_nanos() as u64);
-                    dac_v = c.dac_v;
+            let mut heard = false;
+            let got = poll_held(&command_sub, command_deadline, |c| {
+                heard = true;
+                c.seq == k
+            });
+            answered_ns = monotonic_ns();
+            let late = got.is_none();
+            if let Some(c) = got {
+                stats.round_trip.record(answered_ns - published_ns);
+                dac_v = c.dac_v;
+            } else {
+                report.overruns += realtime as u64;
+                tick_flags |= flags::OVERRUN;
+            }
+            let verdict = if k == 0 {
+                if late {
+                    Verdict::PeerLost
+                } else {
+                    Verdict::Ok
                 }
-                None => {
-                    report.overruns += (opts.pacing == Pacing::RealTime) as u64;
-                    tick_flags |= flags::OVERRUN;
-                    // Silence is wall time since the last command: a plant that was itself
-                    // descheduled finds the controller's answers waiting and is not fooled.
-                    if last_command.elapsed() >= opts.peer_timeout {
-                        report.fault_tick = Some(k);
-                        report.faults |= flags::FAULT_PEER_LOST;
-                        end_tick = k + opts.safe_ticks;
-                    }
-                }
+            } else {
+                let rel = |t: u64| t.saturating_sub(base_ns);
+                watchdog.tick(rel(answered_ns), rel(published_ns), late, heard)
+            };
+            let fault = match verdict {
+                Verdict::Ok => 0,
+                Verdict::PeerLost => flags::FAULT_PEER_LOST,
+                Verdict::OverrunBudget => flags::FAULT_OVERRUN_BUDGET,
+            };
+            if fault != 0 {
+                report.fault_tick = Some(k);
+                report.faults |= fault;
+                end_tick = k + opts.safe_ticks;
             }
         }
         if report.fault_tick.is_some() {
@@ -267,6 +364,11 @@ pub fn serve<B: Backend>(
             t.flags |= tick_flags;
             truth.push(&truth_pub, t);
         }
+        if k > 0 {
+            let own = (published_ns - start_ns) + (monotonic_ns() - answered_ns);
+            stats.execution.record(own);
+        }
+        sensor_pub.prepare();
         k += 1;
         if k.is_multiple_of(2048) {
             while let Some(c) = take(&control_sub) {
@@ -281,16 +383,19 @@ pub fn serve<B: Backend>(
                 end_tick = end_tick.min(k);
                 report.stop_cause = u32::try_from(asked).unwrap_or(crate::stop_cause::CONTROL);
             }
-            // The latency percentiles scan the histogram: only in the final report.
-            progress(&mut health, k, &report, t0);
-            crate::ipc::send(&health_pub, health);
+            progress(&mut health, k, &report, &stats, t0);
+            health_pub.send(health);
+            health_pub.prepare();
         }
     }
     sample.flags |= flags::END | report.faults;
-    crate::ipc::send(&sensor_pub, sample);
+    sensor_pub.send(sample);
     truth.flush(&truth_pub, flags::END | report.faults);
     report.ticks = k;
-    report.latency = latency.summary();
+    report.grace_overruns = watchdog.grace_overruns();
+    report.latency = stats.round_trip.summary();
+    report.lateness = stats.lateness.summary();
+    report.execution = stats.execution.summary();
     report.wall_s = t0.elapsed().as_secs_f64();
     report.truth_refused = truth.refused();
     report.peer_timeout = opts.peer_timeout;
@@ -299,10 +404,9 @@ pub fn serve<B: Backend>(
     } else {
         state::DONE
     };
-    progress(&mut health, k, &report, t0);
-    health.latency = report.latency;
+    progress(&mut health, k, &report, &stats, t0);
     health.stop_cause = report.stop_cause;
-    crate::ipc::send(&health_pub, health);
+    health_pub.send(health);
     crate::ipc::linger(&truth_service, opts.linger);
     Ok(report)
 }

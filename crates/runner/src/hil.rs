@@ -8,6 +8,7 @@
 //! and the gap is counted as dropped frames); a lost controller puts the plant in the safe
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
+use crate::config::Role;
 use crate::error::RunError;
 use crate::gain_range::{gain_range, GainRange};
 use crate::plan::Plan;
@@ -17,8 +18,9 @@ use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
+use daq_io::clock::monotonic_ns;
 use daq_io::contract::{command, role, state};
-use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
+use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Sender, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{ack_status, flags, Ack, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
 use recorder::{Frame, Recorder};
@@ -46,23 +48,39 @@ pub struct PlantOptions {
     pub peer_timeout: Option<Duration>,
 }
 
+/// The plant server's options for `plan` (`[realtime]` decides the wait, the peer timeout in
+/// real time, the grace window and the overrun budget; `p` overrides the peer timeout).
+pub fn serve_options(plan: &Plan, p: &PlantOptions) -> ServeOptions {
+    let c = &plan.config;
+    let rt = &c.realtime;
+    let mut opts = ServeOptions::new(c.ticks(), c.plant.period_s(), p.pacing);
+    opts.wait_for_recorder = p.wait_for_recorder;
+    opts.wait_for_start = p.wait_for_start;
+    opts.startup_timeout = STARTUP_TIMEOUT;
+    if p.pacing == Pacing::RealTime {
+        opts.wait = rt.wait();
+        opts.peer_timeout = Duration::from_secs_f64(rt.peer_timeout_s);
+        opts.grace = Duration::from_secs_f64(rt.grace_s);
+        opts.overrun_rate = rt.overrun_rate;
+        opts.overrun_burst_s = rt.overrun_burst_s;
+    }
+    if let Some(t) = p.peer_timeout {
+        opts.peer_timeout = t;
+    }
+    opts
+}
+
 /// `servo plant`: serves the simulated stage of `plan` to the run `prefix` until its duration,
-/// a STOP, `stop`, or a lost controller.
+/// a STOP, `stop`, or a fault. Applies `[realtime]`'s plant settings first.
 pub fn plant(
     plan: &Plan,
     prefix: &str,
     p: &PlantOptions,
     stop: &StopRequest,
 ) -> Result<daq_io::serve::ServeReport, RunError> {
-    let c = &plan.config;
+    daq_io::realtime::apply(&plan.config.realtime.settings(Role::Plant))?;
     let mut backend = SimBackend::for_run(plan);
-    let mut opts = ServeOptions::new(c.ticks(), c.plant.period_s(), p.pacing);
-    opts.wait_for_recorder = p.wait_for_recorder;
-    opts.wait_for_start = p.wait_for_start;
-    opts.startup_timeout = STARTUP_TIMEOUT;
-    if let Some(t) = p.peer_timeout {
-        opts.peer_timeout = t;
-    }
+    let opts = serve_options(plan, p);
     let ep = Endpoint::open(prefix, "plant")?;
     Ok(serve(&ep, &mut backend, &opts, stop.cell())?)
 }
@@ -79,29 +97,37 @@ pub struct ControllerEnd {
 
 /// `servo controller`: runs the controller of `plan` against the plant of run `prefix` until
 /// the plant closes the run. `stop` (Ctrl-C) asks the plant to stop; so does a trip, after the
-/// safe state was held.
+/// safe state was held. Applies `[realtime]`'s controller settings first; keeps each tick's
+/// start lateness (after the sample's publication) and execution time (sample to command) and
+/// reports them in its health messages.
 pub fn controller(
     plan: &Plan,
     prefix: &str,
     stop: &StopRequest,
 ) -> Result<ControllerEnd, RunError> {
+    let rt = &plan.config.realtime;
+    daq_io::realtime::apply(&rt.settings(Role::Controller))?;
     // The orchestrator checked stability too; a controller never trusts that it did
     // (gain_range refuses an unstable loop).
     let gains = gain_range(plan)?;
     let mut servo = ServoLoop::new(plan)?;
     let ep = Endpoint::open(prefix, "controller")?;
-    let ack_pub = ep.publisher::<Ack>(leaf::ACK)?;
+    let mut ack_pub = Sender::new(ep.publisher::<Ack>(leaf::ACK)?);
     let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;
     let telemetry_pub = ep.publisher::<TelemetryBlock>(leaf::TELEMETRY)?;
     let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
-    let health_pub = ep.publisher::<Health>(leaf::HEALTH)?;
+    let mut health_pub = Sender::new(ep.publisher::<Health>(leaf::HEALTH)?);
     let stopper = ControlSender::new(&ep)?;
     let mut telemetry = BlockWriter::<TelemetryBlock>::new(0);
+    let mut stats = daq_io::TickStats::default();
     let mut health = Health {
         role: role::CONTROLLER,
         state: state::RUNNING,
         ..Default::default()
     };
+    // With sleep-then-spin the controller sleeps until shortly before the next sample is due.
+    let wait = rt.wait();
+    let period_ns = (plan.config.plant.period_s() * 1e9).round() as u64;
     let mut stop_sent = false;
     let start = Instant::now();
     let result = loop {
@@ -109,21 +135,37 @@ pub fn controller(
             Ok(s) => s,
             Err(e) => break Err(RunError::PlantLost(e)),
         };
+        let started_ns = monotonic_ns();
         if s.seq == 0 {
             // The run's identity, from its first sample (the link refuses samples of another).
             telemetry = BlockWriter::new(link.run_id());
             // Tick 0 is untimed (see daq_io::serve): set up every connection now.
             daq_io::ipc::connect(&telemetry_pub);
-            daq_io::ipc::send(&health_pub, health);
+            health_pub.connect();
+            health_pub.send(health);
+            health_pub.prepare();
             while take(&control_sub).is_some() {}
         }
         let (cmd, t) = servo.tick(&s);
-        if let Some(t) = t {
-            telemetry.push(&telemetry_pub, t);
-        }
-        let Some(cmd) = cmd else { break Ok(s.seq) };
+        let Some(cmd) = cmd else {
+            if let Some(t) = t {
+                telemetry.push(&telemetry_pub, t);
+            }
+            break Ok(s.seq);
+        };
         if let Err(e) = link.write(cmd) {
             break Err(RunError::PlantLost(e));
+        }
+        if s.seq > 0 {
+            stats.execution.record(monotonic_ns() - started_ns);
+            if s.published_ns != 0 {
+                stats
+                    .lateness
+                    .record(started_ns.saturating_sub(s.published_ns));
+            }
+        }
+        if let Some(t) = t {
+            telemetry.push(&telemetry_pub, t);
         }
         if servo.run_over(s.seq) && !stop_sent {
             stop_sent = stopper.send(stop_for(daq_io::stop_cause::TRIPPED)).is_ok();
@@ -135,7 +177,8 @@ pub fn controller(
                     if ack.status == ack_status::APPLIED {
                         servo.set_gain_scale(c.value);
                     }
-                    daq_io::ipc::send(&ack_pub, ack);
+                    ack_pub.send(ack);
+                    ack_pub.prepare();
                 }
             }
             if stop.is_set() && !stop_sent {
@@ -144,7 +187,12 @@ pub fn controller(
             }
             health.ticks = s.seq;
             health.wall_s = start.elapsed().as_secs_f64();
-            daq_io::ipc::send(&health_pub, health);
+            stats.report(&mut health);
+            health_pub.send(health);
+            health_pub.prepare();
+        }
+        if s.published_ns != 0 {
+            wait.sleep_before(s.published_ns + period_ns);
         }
     };
     let end = match result {
@@ -157,7 +205,8 @@ pub fn controller(
     } else {
         state::FAULTED
     };
-    daq_io::ipc::send(&health_pub, health);
+    stats.report(&mut health);
+    health_pub.send(health);
     let service = ep.service::<TelemetryBlock>(leaf::TELEMETRY)?;
     daq_io::ipc::linger(&service, Duration::from_secs(5));
     result.map(|ticks| ControllerEnd {
@@ -282,6 +331,8 @@ pub fn record(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Summary, RunError> {
     let c = &plan.config;
+    // Off the servo path: low priority, off the servo CPUs.
+    daq_io::realtime::apply(&c.realtime.settings(Role::Other))?;
     let description = plan.controller.description.clone();
     let ep = Endpoint::open(prefix, "recorder")?;
     let tap = Tap::new(&ep)?;
@@ -297,7 +348,9 @@ pub fn record(
     let mut summary = SummaryBuilder::new(c.run.settle());
     let mut join = Joiner::default();
     let mut plant_health = Health::default();
-    let (mut telemetry_end, mut truth_end, mut plant_fault) = (false, false, false);
+    let mut controller_health = Health::default();
+    let (mut telemetry_end, mut truth_end) = (false, false);
+    let mut plant_faults = 0;
     let mut last_data: Option<Instant> = None;
     let waiting = Instant::now();
     let mut write_failed = false;
@@ -315,11 +368,13 @@ pub fn record(
             same_run(&mut run_id, b.run_id, "truth")?;
             join.truth(&b.ticks[..b.count as usize]);
             truth_end |= b.flags & flags::END != 0;
-            plant_fault |= b.flags & flags::FAULT_PEER_LOST != 0;
+            plant_faults |= b.flags & flags::PLANT_FAULTS;
         }
         while let Some(h) = take(&tap.health) {
-            if h.role == role::PLANT {
-                plant_health = h;
+            match h.role {
+                role::PLANT => plant_health = h,
+                role::CONTROLLER => controller_health = h,
+                _ => {}
             }
         }
         while let Some(a) = take(&tap.ack) {
@@ -335,7 +390,7 @@ pub fn record(
             None => waiting.elapsed() > STARTUP_TIMEOUT,
         };
         // A plant that lost its controller ends the run alone; a lost plant ends it by silence.
-        let finished = (truth_end && (telemetry_end || plant_fault)) || silent;
+        let finished = (truth_end && (telemetry_end || plant_faults != 0)) || silent;
         join.drain(finished, |f: Frame| {
             summary.add(&f);
             if let Some(r) = &mut rec {
@@ -365,7 +420,9 @@ pub fn record(
         });
     }
     let ticks = summary.ticks();
-    let reason = if plant_fault {
+    let reason = if plant_faults & flags::FAULT_OVERRUN_BUDGET != 0 {
+        EndReason::OverrunBudget
+    } else if plant_faults != 0 {
         EndReason::PeerLost
     } else if ticks < total {
         // The plant's final report says who stopped it (a signal, `servo ctl stop`).
@@ -385,6 +442,18 @@ pub fn record(
             format!("tick {}: output scale {}", a.tick, a.value),
         );
     }
+    let hil = HilMeta {
+        realtime,
+        overruns: plant_health.overruns,
+        latency: plant_health.latency,
+        faults: plant_health.faults,
+        truth_only_ticks: join.truth_only,
+        plant_lateness: plant_health.lateness,
+        plant_execution: plant_health.execution,
+        controller_lateness: controller_health.lateness,
+        controller_execution: controller_health.execution,
+    };
+    end.extend(hil.record());
     let stats = match rec {
         Some(r) => Some(r.finish(end)?),
         None => None,
@@ -395,13 +464,7 @@ pub fn record(
         end_reason: Some(reason.name().into()),
         recorded_messages: stats.map(|s| s.messages),
         dropped_frames: Some(join.dropped + stats.map_or(0, |s| s.dropped_frames)),
-        hil: Some(HilMeta {
-            realtime,
-            overruns: plant_health.overruns,
-            latency: plant_health.latency,
-            faults: plant_health.faults,
-            truth_only_ticks: join.truth_only,
-        }),
+        hil: Some(hil),
         ..RunMeta::of(c, description)
     }))
 }

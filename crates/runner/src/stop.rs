@@ -60,6 +60,9 @@ pub enum EndReason {
     Signal(i32),
     /// The plant or the controller was lost (HIL).
     PeerLost,
+    /// The controller answered late more often than the overrun budget allows (HIL, real
+    /// time): the plant drove zero current and ended the run.
+    OverrunBudget,
     /// The recording could not be written (disk full, I/O error): the run was ended safely.
     WriteFailed,
     /// Machine protection tripped the loop; it held the safe state, then the run ended.
@@ -94,6 +97,7 @@ impl EndReason {
             EndReason::Stopped => "stopped",
             EndReason::Signal(_) => "interrupted",
             EndReason::PeerLost => "peer-lost",
+            EndReason::OverrunBudget => "overrun-budget",
             EndReason::WriteFailed => "write-failed",
             EndReason::Tripped => "tripped",
         }
@@ -112,12 +116,12 @@ impl EndReason {
 
     /// The process exit code that says it: 0 completed or stopped on request, 128 + the
     /// signal number when interrupted (130 SIGINT, 143 SIGTERM, 129 SIGHUP, as shells do),
-    /// 3 a lost peer, 4 a failed recording, 5 a machine-protection trip.
+    /// 3 a lost peer or an exceeded overrun budget (the plant faulted the run), 4 a failed recording, 5 a machine-protection trip.
     pub fn exit_code(self) -> u8 {
         match self {
             EndReason::Completed | EndReason::Stopped => 0,
             EndReason::Signal(s) => (128 + s.clamp(0, 127)) as u8,
-            EndReason::PeerLost => 3,
+            EndReason::PeerLost | EndReason::OverrunBudget => 3,
             EndReason::WriteFailed => 4,
             EndReason::Tripped => 5,
         }

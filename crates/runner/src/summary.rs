@@ -316,18 +316,50 @@ impl fmt::Display for Summary {
             _ => {}
         }
         if let Some(h) = &m.hil {
-            let l = &h.latency;
+            let us = |l: &Latency| {
+                format!(
+                    "p50 {:.2} / p99 {:.2} / p99.99 {:.2} / max {:.1} µs",
+                    l.p50_ns as f64 * 1e-3,
+                    l.p99_ns as f64 * 1e-3,
+                    l.p9999_ns as f64 * 1e-3,
+                    l.max_ns as f64 * 1e-3
+                )
+            };
+            let ticks = h.latency.count.max(1) as f64;
             writeln!(
                 f,
-                "  {:<26}{} overruns; round trip min {:.2} / median {:.2} / p99 {:.2} / p99.9 {:.2} / max {:.1} µs",
-                if h.realtime { "HIL, real time" } else { "HIL, lockstep" },
+                "  {:<26}{} overruns ({:.4} %); round trip {}",
+                if h.realtime {
+                    "HIL, real time"
+                } else {
+                    "HIL, lockstep"
+                },
                 h.overruns,
-                l.min_ns as f64 * 1e-3,
-                l.p50_ns as f64 * 1e-3,
-                l.p99_ns as f64 * 1e-3,
-                l.p999_ns as f64 * 1e-3,
-                l.max_ns as f64 * 1e-3
+                100.0 * h.overruns as f64 / ticks,
+                us(&h.latency)
             )?;
+            if h.realtime {
+                writeln!(f, "  {:<26}{}", "plant lateness", us(&h.plant_lateness))?;
+            }
+            writeln!(f, "  {:<26}{}", "plant execution", us(&h.plant_execution))?;
+            writeln!(
+                f,
+                "  {:<26}{}",
+                "controller lateness",
+                us(&h.controller_lateness)
+            )?;
+            writeln!(
+                f,
+                "  {:<26}{}",
+                "controller execution",
+                us(&h.controller_execution)
+            )?;
+            if h.faults & daq_io::flags::FAULT_OVERRUN_BUDGET != 0 {
+                writeln!(
+                    f,
+                    "  FAULT                     overrun budget exceeded: the controller answered late too often; the plant drove zero current"
+                )?;
+            }
             if h.faults & daq_io::flags::FAULT_PEER_LOST != 0 {
                 writeln!(
                     f,
@@ -353,6 +385,41 @@ pub struct HilMeta {
     pub faults: u32,
     /// Ticks recorded from the plant's truth alone (no telemetry: controller lost).
     pub truth_only_ticks: u64,
+    /// The plant's tick start after its deadline, ns (real time).
+    pub plant_lateness: Latency,
+    /// The plant's own work per tick (publish, step, truth), ns.
+    pub plant_execution: Latency,
+    /// The controller's tick start after the sample's publication, ns.
+    pub controller_lateness: Latency,
+    /// The controller's sample-to-command time per tick (TET), ns.
+    pub controller_execution: Latency,
+}
+
+impl HilMeta {
+    /// The percentiles as `key → "p50 … / p99 … / p99.99 … / max … ns"` entries for the
+    /// recording's end record.
+    pub fn record(&self) -> Vec<(String, String)> {
+        let line = |l: &Latency| {
+            format!(
+                "count {} / p50 {} / p99 {} / p99.9 {} / p99.99 {} / max {} ns",
+                l.count, l.p50_ns, l.p99_ns, l.p999_ns, l.p9999_ns, l.max_ns
+            )
+        };
+        vec![
+            ("hil.overruns".into(), self.overruns.to_string()),
+            ("hil.round_trip".into(), line(&self.latency)),
+            ("hil.plant.lateness".into(), line(&self.plant_lateness)),
+            ("hil.plant.execution".into(), line(&self.plant_execution)),
+            (
+                "hil.controller.lateness".into(),
+                line(&self.controller_lateness),
+            ),
+            (
+                "hil.controller.execution".into(),
+                line(&self.controller_execution),
+            ),
+        ]
+    }
 }
 
 impl RunMeta {

@@ -14,7 +14,7 @@ pub const EXIT_FAULT: u8 = 3;
 /// HIL: serve the simulated stage to a controller process.
 ///
 /// Lockstep or real time. A lost controller (no command for 200 ms lockstep / 0.5 ms real
-/// time) → zero current, exit 3.
+/// time), or one late more often than the overrun budget allows → zero current, exit 3.
 /// Example: servo plant --prefix bench --realtime
 #[derive(Args, Debug)]
 pub struct PlantCmd {
@@ -35,7 +35,7 @@ pub struct PlantCmd {
 impl PlantCmd {
     /// Serves until the run ends; exit 3 when the controller was lost.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let plan = Plan::new(&self.run.load()?)?;
+        let plan = Plan::new(&self.hil.load(&self.run)?)?;
         let prefix = self.hil.prefix()?;
         let options = runner::hil::PlantOptions {
             pacing: self.hil.pacing(),
@@ -48,10 +48,17 @@ impl PlantCmd {
         if r.faults == 0 {
             return Ok(ExitCode::from(stop.reason().exit_code()));
         }
+        let why = if r.faults & daq_io::flags::FAULT_OVERRUN_BUDGET != 0 {
+            format!(
+                "overrun budget exceeded ({} overruns; [realtime] overrun_rate {}, overrun_burst_s {})",
+                r.overruns, plan.config.realtime.overrun_rate, plan.config.realtime.overrun_burst_s
+            )
+        } else {
+            format!("controller lost (no command for {:?})", r.peer_timeout)
+        };
         eprintln!(
-            "servo plant: FAULT — controller lost at tick {} (no command for {:?}); drove zero current for {} ticks and ended the run",
+            "servo plant: FAULT — {why} at tick {}; drove zero current for {} ticks and ended the run",
             r.fault_tick.unwrap_or(0),
-            r.peer_timeout,
             r.ticks - r.fault_tick.unwrap_or(0)
         );
         Ok(ExitCode::from(EXIT_FAULT))
@@ -72,7 +79,7 @@ pub struct ControllerCmd {
 impl ControllerCmd {
     /// Runs until the plant closes the run.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let plan = Plan::new(&self.run.load()?)?;
+        let plan = Plan::new(&self.hil.load(&self.run)?)?;
         let stop = stop_on_signals();
         let end = runner::hil::controller(&plan, &self.hil.prefix()?, &stop)?;
         if let Some((cause, tick)) = end.trip {
@@ -103,7 +110,7 @@ pub struct RecordCmd {
 impl RecordCmd {
     /// Records until the run ends and prints its summary.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let plan = Plan::new(&self.run.load()?)?;
+        let plan = Plan::new(&self.hil.load(&self.run)?)?;
         let prefix = self.hil.prefix()?;
         let rec = &self.recording;
         let out = rec.out(DEFAULT_RECORDING.as_ref());

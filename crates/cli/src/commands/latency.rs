@@ -1,21 +1,13 @@
 //! `servo latency`: qualify a host before a real-time run — the periodic loop alone at a rate,
 //! its start-lateness histogram, and what the kernel settings allow.
 
+use crate::args::RtPolicy;
 use crate::output::{print_json, tick_bar, CliError};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use daq_io::qualify::{measure, readiness, Check, Wait, WallClock};
-use runner::config::Origin;
+use daq_io::realtime::RtSettings;
+use runner::config::{Origin, WaitKind};
 use std::process::ExitCode;
-use std::time::Duration;
-
-/// Wait strategies (see `daq_io::qualify::Wait`).
-#[derive(Debug, Clone, Copy, ValueEnum)]
-enum WaitKind {
-    /// Busy-poll the clock.
-    Spin,
-    /// Sleep until --spin-margin-us before each deadline, then spin.
-    SleepSpin,
-}
 
 /// Qualify this host for real time: runs the servo loop's pacing alone at --rate-hz for
 /// --duration and prints its start lateness (p50, p99, p99.9, p99.99, max), the overruns (a
@@ -40,6 +32,16 @@ pub struct LatencyCmd {
     /// Pin the loop to this CPU (default: wherever the scheduler puts it).
     #[arg(long)]
     cpu: Option<usize>,
+    /// Scheduling policy of the loop (fifo/rr need CAP_SYS_NICE or RLIMIT_RTPRIO; with spin
+    /// the loop keeps one CPU busy at real-time priority: never on every CPU of a host).
+    #[arg(long, value_enum, default_value = "other")]
+    rt_policy: RtPolicy,
+    /// Real-time priority for fifo/rr, 1..=98.
+    #[arg(long, default_value_t = 10)]
+    rt_priority: i32,
+    /// Lock memory (mlockall) and pre-fault the stack, as the servo processes can.
+    #[arg(long)]
+    lock_memory: bool,
     /// JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -56,12 +58,19 @@ struct Report {
     ticks: u64,
     wait: String,
     cpu: Option<usize>,
+    policy: String,
+    priority: Option<i32>,
+    lock_memory: bool,
     lateness_ns: Percentiles,
     overruns: u64,
     overrun_rate: f64,
     /// A controller-loss timeout no stall of this run reached (4 × the worst lateness, at
     /// least 1 ms), in ms.
     recommended_peer_timeout_ms: u64,
+    /// An overrun budget this host keeps: burst 2 × the worst stall (at least 2 ms), in ms …
+    recommended_overrun_burst_ms: u64,
+    /// … and sustained rate 2 × the measured overrun rate (at least 1 %).
+    recommended_overrun_rate: f64,
     readiness: Vec<Check>,
 }
 
@@ -92,13 +101,32 @@ impl LatencyCmd {
                 .invalid("--spin-margin-us", self.spin_margin_us, "[0, 10000] µs")
                 .into());
         }
-        if let Some(cpu) = self.cpu {
-            pin_to(cpu)?;
+        let policy = self.rt_policy.policy();
+        if policy.is_realtime()
+            && self.wait == WaitKind::Spin
+            && daq_io::realtime::online_cpus() < 2
+        {
+            return Err(at
+                .invalid(
+                    "--rt-policy",
+                    policy.name(),
+                    "other with --wait spin on a 1-CPU host (a spinning real-time loop on every CPU starves it)",
+                )
+                .into());
         }
+        daq_io::realtime::apply(&RtSettings {
+            policy,
+            priority: self.rt_priority,
+            cpus: self.cpu.into_iter().collect(),
+            lock_memory: self.lock_memory,
+            prefault_bytes: 256 * 1024,
+            nice: 0,
+        })
+        .map_err(|e| CliError::Processes(e.to_string()))?;
         let wait = match self.wait {
             WaitKind::Spin => Wait::Spin,
             WaitKind::SleepSpin => Wait::SleepThenSpin {
-                margin: Duration::from_secs_f64(self.spin_margin_us * 1e-6),
+                margin_ns: (self.spin_margin_us * 1e3).round() as u64,
             },
         };
         let period_ns = (1e9 / self.rate_hz).round() as u64;
@@ -125,13 +153,11 @@ impl LatencyCmd {
             rate_hz: self.rate_hz,
             period_ns,
             ticks,
-            wait: match wait {
-                Wait::Spin => "spin".into(),
-                Wait::SleepThenSpin { margin } => {
-                    format!("sleep-then-spin ({} µs margin)", margin.as_micros())
-                }
-            },
+            wait: wait.describe(),
             cpu: self.cpu,
+            policy: policy.name().into(),
+            priority: policy.is_realtime().then_some(self.rt_priority),
+            lock_memory: self.lock_memory,
             lateness_ns: Percentiles {
                 min: l.min_ns,
                 p50: l.p50_ns,
@@ -143,6 +169,8 @@ impl LatencyCmd {
             overruns,
             overrun_rate: overruns as f64 / ticks as f64,
             recommended_peer_timeout_ms: (4 * l.max_ns).div_ceil(1_000_000).max(1),
+            recommended_overrun_burst_ms: (2 * l.max_ns).div_ceil(1_000_000).max(2),
+            recommended_overrun_rate: (2.0 * overruns as f64 / ticks as f64).max(0.01),
             readiness: readiness(),
         };
         if self.json {
@@ -154,30 +182,19 @@ impl LatencyCmd {
     }
 }
 
-/// Pins this process to `cpu`, or a clear error.
-fn pin_to(cpu: usize) -> Result<(), CliError> {
-    let mut set = nix::sched::CpuSet::new();
-    set.set(cpu)
-        .and_then(|()| nix::sched::sched_setaffinity(nix::unistd::Pid::from_raw(0), &set))
-        .map_err(|e| {
-            let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
-            CliError::Processes(format!(
-                "--cpu {cpu}: the host refused the affinity ({e}); this host has CPUs 0–{}",
-                cpus - 1
-            ))
-        })
-}
-
 fn print_report(r: &Report) {
     let us = |ns: u64| ns as f64 * 1e-3;
     let l = &r.lateness_ns;
     println!(
-        "servo latency: {} ticks at {:.1} kHz (period {:.3} µs), {}{}",
+        "servo latency: {} ticks at {:.1} kHz (period {:.3} µs), {}{}, SCHED_{}{}{}",
         r.ticks,
         r.rate_hz / 1e3,
         us(r.period_ns),
         r.wait,
-        r.cpu.map_or(String::new(), |c| format!(", CPU {c}"))
+        r.cpu.map_or(String::new(), |c| format!(", CPU {c}")),
+        r.policy.to_uppercase(),
+        r.priority.map_or(String::new(), |p| format!(" {p}")),
+        if r.lock_memory { ", memory locked" } else { "" }
     );
     println!(
         "  start lateness   min {:.2} / p50 {:.2} / p99 {:.2} / p99.9 {:.2} / p99.99 {:.2} / max {:.1} µs",
@@ -196,6 +213,10 @@ fn print_report(r: &Report) {
     println!(
         "  peer timeout     ≥ {} ms recommended (4 × the worst stall seen): --peer-timeout-ms",
         r.recommended_peer_timeout_ms
+    );
+    println!(
+        "  overrun budget   --overrun-burst-ms {} --overrun-rate {:.3} recommended (2 × the worst stall, 2 × the overrun rate)",
+        r.recommended_overrun_burst_ms, r.recommended_overrun_rate
     );
     println!("  readiness:");
     for c in &r.readiness {

@@ -34,7 +34,7 @@ impl Run {
     /// Runs it; the exit code says how it ended (see [`runner::stop::EndReason::exit_code`];
     /// with `--hil`, the first failing child's).
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let plan = Plan::new(&self.run.load()?)?;
+        let plan = Plan::new(&self.hil_args.load(&self.run)?)?;
         let rec = &self.recording;
         let out = rec.out(DEFAULT_RECORDING.as_ref());
         let (summary, code) = if self.hil {

@@ -63,6 +63,9 @@ pub fn run(
 ) -> Result<(Summary, ExitCode), CliError> {
     plan.check_stable()?;
     timeout.timeout()?;
+    // This process supervises: low priority, off the servo CPUs (as the recorder).
+    daq_io::realtime::apply(&plan.config.realtime.settings(runner::config::Role::Other))
+        .map_err(RunError::from)?;
     let (realtime, quiet) = (hil.realtime, rec.quiet);
     if let Some(o) = &out {
         // Checked before any process starts (the recorder process checks it again).

@@ -6,10 +6,12 @@ mod machining;
 mod origin;
 pub mod presets;
 mod protection;
+mod realtime;
 
 pub use machining::{Machining, SurfaceConfig};
 pub use origin::{line_of, ConfigError, Origin};
 pub use protection::{ProtectionConfig, SafeState};
+pub use realtime::{RealtimeConfig, Role, WaitKind};
 
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::PlantParams;
@@ -30,6 +32,8 @@ pub struct RunConfig {
     pub plant: PlantParams,
     /// Machine-protection limits and the safe state a trip takes the loop to.
     pub protection: ProtectionConfig,
+    /// How the HIL processes run in real time: scheduling, cores, waits, fault settings.
+    pub realtime: RealtimeConfig,
 }
 
 /// Run length and statistics.
@@ -380,7 +384,8 @@ impl RunConfig {
             ));
         }
         self.protection
-            .validate(at, c.limit_v, self.plant.dc_gain_m_per_v())
+            .validate(at, c.limit_v, self.plant.dc_gain_m_per_v())?;
+        self.realtime.validate(at)
     }
 }
 
