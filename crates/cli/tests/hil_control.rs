@@ -4,7 +4,7 @@
 mod common;
 
 use common::hil::{long_hil_run, prefix, wait_for_ticks};
-use common::{json, servo, succeeded, tmp};
+use common::{as_nobody, euid, json, servo, succeeded, tmp};
 use std::process::Stdio;
 
 /// The control plane: `servo ctl gain` scales the controller output from the next health
@@ -260,19 +260,6 @@ fn a_trip_ends_the_run_with_exit_5_in_process_and_in_hil() {
     assert!(hil.frames.len() >= n && hil.frames.len() <= n + 2048);
     assert_eq!(inproc.frames[..], hil.frames[..n]);
     assert!(hil.frames[n..].iter().all(|f| f.telemetry.control_v == 0.0));
-}
-
-/// This process's effective uid (from /proc).
-fn euid() -> u32 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap();
-    let line = status.lines().find(|l| l.starts_with("Uid:")).unwrap();
-    line.split_whitespace().nth(2).unwrap().parse().unwrap()
-}
-
-/// Runs `cmd` as the unprivileged user `nobody` (uid/gid 65534).
-fn as_nobody(mut cmd: std::process::Command) -> std::process::Output {
-    use std::os::unix::process::CommandExt;
-    cmd.uid(65534).gid(65534).output().unwrap()
 }
 
 /// Another user on the machine (`nobody`, acting from root's tests; skipped when the suite

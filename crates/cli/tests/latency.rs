@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{json, servo};
+use common::{as_nobody, euid, json, servo};
 
 #[test]
 fn a_short_measurement_reports_consistent_statistics_and_the_readiness() {
@@ -30,7 +30,8 @@ fn a_short_measurement_reports_consistent_statistics_and_the_readiness() {
     );
     assert_eq!(v["ticks"], 1000);
     assert_eq!(v["period_ns"], 50_000);
-    assert_eq!(v["cpu"], 0);
+    assert_eq!(v["cpus"], serde_json::json!([0]));
+    assert_eq!(v["policy"], "other");
     let l = &v["lateness_ns"];
     let q: Vec<u64> = ["min", "p50", "p99", "p999", "p9999", "max"]
         .iter()
@@ -45,6 +46,13 @@ fn a_short_measurement_reports_consistent_statistics_and_the_readiness() {
     );
     // A stall of max ns: the recommended timeout is at least four of them.
     assert!(v["recommended_peer_timeout_ms"].as_u64().unwrap() * 1_000_000 >= 4 * q[5]);
+    // The recommended budget absorbs twice the worst stall and twice the overrun rate.
+    assert!(v["recommended_overrun_burst_ms"].as_u64().unwrap() * 1_000_000 >= 2 * q[5]);
+    let rate = v["recommended_overrun_rate"].as_f64().unwrap();
+    assert!(
+        rate >= 0.01 && rate >= 2.0 * overruns as f64 / 1000.0,
+        "{rate}"
+    );
     let names: Vec<&str> = v["readiness"]
         .as_array()
         .unwrap()
@@ -66,7 +74,25 @@ fn settings_the_host_or_the_ranges_refuse_are_clear_errors() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("--cpu 100000") && err.contains("this host has CPUs 0–"),
+        err.contains("CPU affinity 100000") && err.contains("this host has CPUs 0–"),
+        "{err}"
+    );
+    let out = servo()
+        .args([
+            "latency",
+            "--duration",
+            "0.01",
+            "--rt-policy",
+            "fifo",
+            "--rt-priority",
+            "99",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("priority 99") && err.contains("1..=98"),
         "{err}"
     );
     for (flag, value) in [
@@ -82,4 +108,92 @@ fn settings_the_host_or_the_ranges_refuse_are_clear_errors() {
         assert_eq!(out.status.code(), Some(2), "{flag}: {err}");
         assert!(err.contains(flag), "{err}");
     }
+}
+
+/// One core, a low FIFO priority, sleeping between ticks, a tenth of a second: what the kernel
+/// then reports is what was asked (as root; the machine is never starved: the loop sleeps).
+#[test]
+fn a_real_time_policy_and_core_are_applied_as_asked() {
+    if euid() != 0 {
+        eprintln!("skipped: SCHED_FIFO needs CAP_SYS_NICE");
+        return;
+    }
+    let v = json(
+        &servo()
+            .args([
+                "latency",
+                "--json",
+                "--rate-hz",
+                "2000",
+                "--duration",
+                "0.1",
+            ])
+            .args(["--rt-policy", "fifo", "--rt-priority", "3", "--cpu", "0"])
+            .args(["--wait", "sleep-spin", "--spin-margin-us", "100"])
+            .output()
+            .unwrap(),
+    );
+    assert_eq!(v["policy"], "fifo", "{v}");
+    assert_eq!(v["priority"], 3, "{v}");
+    assert_eq!(v["cpus"], serde_json::json!([0]), "{v}");
+    assert_eq!(v["ticks"], 200);
+}
+
+/// An unprivileged user asking for SCHED_FIFO, for the loop qualification and for a HIL
+/// process, is refused before anything runs, with what to change.
+#[test]
+fn a_host_that_refuses_real_time_gets_a_clear_error() {
+    if euid() != 0 {
+        eprintln!("skipped: acting as another user needs root");
+        return;
+    }
+    let exe = env!("CARGO_BIN_EXE_servo");
+    for args in [
+        &["latency", "--duration", "0.01", "--rt-policy", "fifo"][..],
+        &[
+            "plant",
+            "--prefix",
+            "nobody-rt",
+            "--realtime",
+            "--rt-policy",
+            "fifo",
+            "--wait",
+            "sleep-spin",
+        ][..],
+    ] {
+        let mut cmd = std::process::Command::new(exe);
+        cmd.args(args).current_dir("/");
+        let out = as_nobody(cmd);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("scheduling policy fifo priority 10")
+                && err.contains("the host refused")
+                && err.contains("CAP_SYS_NICE"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
+/// Two spinning real-time processes on a host without a spare CPU would starve it: refused
+/// from the configuration, naming the key and what to use instead.
+#[test]
+fn spinning_real_time_hil_processes_that_would_starve_the_host_are_refused() {
+    let out = servo()
+        .args([
+            "run",
+            "--hil",
+            "--realtime",
+            "--no-record",
+            "--rt-policy",
+            "fifo",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("realtime.policy") && err.contains("sleep-spin"),
+        "{err}"
+    );
 }

@@ -6,12 +6,19 @@
 //! The hardware here is a fake so the example runs anywhere: a 16-bit ADC and an 18-bit DAC
 //! (±10 V, plant-sim's converters) around an 800 Hz, ζ = 0.05 mass-spring stage read by a 1 V/µm gap sensor.
 //!
+//! The plant as the clock: with `--clock adc` the fake ADC has a sample clock of its own and
+//! `Backend::wait_for_tick` blocks until each conversion is done (as a driver's blocking read
+//! or an interrupt would); `serve` paces on it and measures its lateness against it. Without
+//! it, `serve` paces on the wall clock (`--realtime`) or runs in lockstep.
+//!
 //! ```text
 //! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --realtime
 //! servo controller --prefix lab          # in another terminal (or your own controller)
 //! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --demo   # both, here
+//! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --demo --clock adc
 //! ```
 
+use daq_io::clock::{monotonic_ns, Wait};
 use daq_io::ipc::{ControllerLink, Endpoint};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Backend, Command, Daq, Sensor};
@@ -29,6 +36,14 @@ struct FakeHardware {
     x_m: f64,
     v_m_s: f64,
     t_s: f64,
+    /// The ADC's own sample clock (`--clock adc`): when conversions complete, ns.
+    adc_clock: Option<AdcClock>,
+}
+
+/// A free-running conversion clock: tick k's conversion is done at `first_ns + (k − 1)·T`.
+struct AdcClock {
+    first_ns: u64,
+    period_ns: u64,
 }
 
 impl FakeHardware {
@@ -37,18 +52,35 @@ impl FakeHardware {
     const ZETA: f64 = 0.05;
     const SENSOR_V_PER_M: f64 = 1e6;
 
-    fn new() -> Self {
+    fn new(own_clock: bool) -> Self {
         FakeHardware {
             adc: Quantizer::new(16, 10.0),
             dac: Quantizer::new(18, 10.0),
             x_m: 0.0,
             v_m_s: 0.0,
             t_s: 0.0,
+            adc_clock: own_clock.then_some(AdcClock {
+                first_ns: 0,
+                period_ns: (1e9 / RATE_HZ).round() as u64,
+            }),
         }
     }
 }
 
 impl Backend for FakeHardware {
+    /// Blocks until the conversion of tick `k` is done (the clock starts with tick 1: tick 0
+    /// is the untimed start-up exchange) and returns when it was.
+    fn wait_for_tick(&mut self, k: u64) -> Option<u64> {
+        let clock = self.adc_clock.as_mut()?;
+        if k <= 1 {
+            clock.first_ns = monotonic_ns();
+            return Some(clock.first_ns);
+        }
+        let edge = clock.first_ns + (k - 1) * clock.period_ns;
+        Wait::Spin.until(edge);
+        Some(edge)
+    }
+
     fn step(&mut self, dac_v: f64) -> Sensor {
         let (out_v, _, dac_clipped) = self.dac.convert(dac_v);
         let w = 2.0 * std::f64::consts::PI * Self::F_N_HZ;
@@ -104,39 +136,53 @@ fn main() {
     let seconds: f64 = value("--seconds").map_or(1.0, |s| s.parse().expect("--seconds"));
     let realtime = args.iter().any(|a| a == "--realtime");
     let demo = args.iter().any(|a| a == "--demo");
+    let own_clock = value("--clock").is_some_and(|c| c == "adc");
 
     let ep = Endpoint::open(&prefix, "plant").expect("join the run");
-    let pacing = if realtime {
+    let pacing = if realtime || own_clock {
         Pacing::RealTime
     } else {
         Pacing::Lockstep
     };
     let mut opts = ServeOptions::new((seconds * RATE_HZ) as u64, 1.0 / RATE_HZ, pacing);
     opts.wait_for_recorder = false;
+    if demo && pacing == Pacing::RealTime {
+        // The demo's controller is a thread of this process on a machine that may be shared:
+        // a loss timeout above the ~1 ms stalls of a VM (what `servo latency` recommends).
+        opts.peer_timeout = Duration::from_millis(5);
+    }
     let controller = demo.then(|| {
         let p = prefix.clone();
         std::thread::spawn(move || demo_controller(&p))
     });
     println!(
-        "daq daemon: serving fake hardware on fts-servo/{prefix}/… at {RATE_HZ} Hz ({:?}){}",
+        "daq daemon: serving fake hardware on fts-servo/{prefix}/… at {RATE_HZ} Hz ({:?}, {} clock){}",
         pacing,
+        if own_clock { "the ADC's" } else { "the wall" },
         if demo {
             ""
         } else {
             "; start a controller with the same --prefix"
         }
     );
-    let report = serve(&ep, &mut FakeHardware::new(), &opts, &AtomicUsize::new(0))
-        .unwrap_or_else(|e| panic!("daq daemon: {e}"));
-    let l = report.latency;
+    let report = serve(
+        &ep,
+        &mut FakeHardware::new(own_clock),
+        &opts,
+        &AtomicUsize::new(0),
+    )
+    .unwrap_or_else(|e| panic!("daq daemon: {e}"));
+    let (l, late) = (report.latency, report.lateness);
     println!(
-        "  {} ticks in {:.3} s, {} overruns, faults {:#x}; round trip median {:.2} µs, p99.9 {:.2} µs",
+        "  {} ticks in {:.3} s, {} overruns, faults {:#x}; round trip median {:.2} µs, p99.9 {:.2} µs; start lateness median {:.2} µs, max {:.1} µs",
         report.ticks,
         report.wall_s,
         report.overruns,
         report.faults,
         l.p50_ns as f64 * 1e-3,
-        l.p999_ns as f64 * 1e-3
+        l.p999_ns as f64 * 1e-3,
+        late.p50_ns as f64 * 1e-3,
+        late.max_ns as f64 * 1e-3
     );
     if let Some(c) = controller {
         let (x_m, ticks) = c.join().expect("demo controller");

@@ -132,7 +132,8 @@ pub struct ServeReport {
     pub stop_cause: u32,
     /// Round trip sensor → command, plant side.
     pub latency: crate::Latency,
-    /// Start lateness of each tick after its deadline (real time; zero in lockstep).
+    /// Start lateness of each tick after its deadline or its backend's clock edge (empty in
+    /// lockstep on the wall clock).
     pub lateness: crate::Latency,
     /// The plant's execution time per tick (publish, step, truth; not the wait).
     pub execution: crate::Latency,
@@ -286,8 +287,12 @@ pub fn serve<B: Backend>(
             base_ns = monotonic_ns() - period_ns;
         }
         // The tick's deadline and when it really started.
+        let mut clocked = realtime;
         let (deadline_ns, start_ns) = match backend.wait_for_tick(k) {
-            Some(edge_ns) => (edge_ns, monotonic_ns()),
+            Some(edge_ns) => {
+                clocked = true;
+                (edge_ns, monotonic_ns())
+            }
             None if realtime && k > 0 => {
                 let deadline = base_ns + k * period_ns;
                 (deadline, opts.wait.until(deadline))
@@ -297,7 +302,7 @@ pub fn serve<B: Backend>(
                 (now, now)
             }
         };
-        if k > 0 && realtime {
+        if k > 0 && clocked {
             stats.lateness.record(start_ns.saturating_sub(deadline_ns));
         }
         sample.published_ns = monotonic_ns();

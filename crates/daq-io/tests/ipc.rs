@@ -212,3 +212,63 @@ fn every_run_gets_its_own_id() {
         .collect();
     assert!(ids[0] != 0 && ids[1] != 0 && ids[0] != ids[1], "{ids:x?}");
 }
+
+/// A backend with a clock of its own: each tick's edge lies a scripted time in the past.
+struct Clocked {
+    lag: Lag,
+    late_ns: Vec<u64>,
+}
+
+impl daq_io::Backend for Clocked {
+    fn step(&mut self, dac_v: f64) -> daq_io::Sensor {
+        self.lag.step(dac_v)
+    }
+    fn wait_for_tick(&mut self, k: u64) -> Option<u64> {
+        let late = self.late_ns[k as usize % self.late_ns.len()];
+        Some(daq_io::clock::monotonic_ns() - late)
+    }
+}
+
+/// The plant as the clock: the server measures each tick's start against its backend's clock
+/// edge. Every edge here is a known time in the past (1–100 µs, twenty ticks each), so the
+/// lateness percentiles are the reference's plus the few ns between the two clock reads (a
+/// machine that preempts the server in between adds to one tick: at most one 1 µs step).
+#[test]
+fn the_server_measures_lateness_against_the_backends_own_clock() {
+    let ticks = 2_000u64;
+    let late_ns: Vec<u64> = (0..=ticks)
+        .map(|k| ((k * 7919) % 100 + 1) * 1_000)
+        .collect();
+    let p = prefix("own-clock");
+    let p2 = p.clone();
+    let script = late_ns.clone();
+    let plant = std::thread::spawn(move || {
+        let ep = Endpoint::open(&p2, "plant").unwrap();
+        let mut opts = ServeOptions::new(ticks, 1e-5, Pacing::Lockstep);
+        opts.wait_for_recorder = false;
+        let mut hw = Clocked {
+            lag: Lag::default(),
+            late_ns: script,
+        };
+        serve(&ep, &mut hw, &opts, &AtomicUsize::new(0)).unwrap()
+    });
+    let ep = Endpoint::open(&p, "controller").unwrap();
+    let mut link =
+        ControllerLink::new(&ep, Duration::from_secs(10), Duration::from_secs(1)).unwrap();
+    control(&mut link);
+    let l = plant.join().unwrap().lateness;
+    // Ticks 1.. are timed (tick 0 is the untimed start-up exchange).
+    let mut reference = late_ns[1..ticks as usize].to_vec();
+    reference.sort_unstable();
+    let n = reference.len();
+    assert_eq!(l.count, n as u64);
+    let at = |q: f64| reference[((q * n as f64).ceil() as usize).clamp(1, n) - 1];
+    for (q, got) in [(0.5, l.p50_ns), (0.99, l.p99_ns), (0.999, l.p999_ns)] {
+        let want = at(q);
+        assert!(
+            got + 10 >= want && got <= want + 1_010,
+            "q {q}: {got} ns against {want} ns"
+        );
+    }
+    assert!(l.min_ns >= 1_000 && l.max_ns >= 100_000, "{l:?}");
+}

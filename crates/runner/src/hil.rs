@@ -9,8 +9,8 @@
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
 use crate::config::Role;
+use crate::control_plane::{ControlPlane, SERVICE_TICKS};
 use crate::error::RunError;
-use crate::gain_range::{gain_range, GainRange};
 use crate::plan::Plan;
 use crate::protection::TripCause;
 use crate::recording;
@@ -19,8 +19,8 @@ use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
 use daq_io::clock::monotonic_ns;
-use daq_io::contract::{command, role, state};
-use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Sender, Tap};
+use daq_io::contract::{command, role};
+use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{ack_status, flags, Ack, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
 use recorder::{Frame, Recorder};
@@ -107,29 +107,20 @@ pub fn controller(
 ) -> Result<ControllerEnd, RunError> {
     let rt = &plan.config.realtime;
     daq_io::realtime::apply(&rt.settings(Role::Controller))?;
-    // The orchestrator checked stability too; a controller never trusts that it did
-    // (gain_range refuses an unstable loop).
-    let gains = gain_range(plan)?;
     let mut servo = ServoLoop::new(plan)?;
     let ep = Endpoint::open(prefix, "controller")?;
-    let mut ack_pub = Sender::new(ep.publisher::<Ack>(leaf::ACK)?);
+    // The orchestrator checked stability too; a controller never trusts that it did (the
+    // control plane's gain range refuses an unstable loop).
+    let mut plane = ControlPlane::new(&ep, plan, false)?;
     let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;
     let telemetry_pub = ep.publisher::<TelemetryBlock>(leaf::TELEMETRY)?;
-    let control_sub = ep.subscriber::<Control>(leaf::CONTROL)?;
-    let mut health_pub = Sender::new(ep.publisher::<Health>(leaf::HEALTH)?);
     let stopper = ControlSender::new(&ep)?;
     let mut telemetry = BlockWriter::<TelemetryBlock>::new(0);
     let mut stats = daq_io::TickStats::default();
-    let mut health = Health {
-        role: role::CONTROLLER,
-        state: state::RUNNING,
-        ..Default::default()
-    };
     // With sleep-then-spin the controller sleeps until shortly before the next sample is due.
     let wait = rt.wait();
     let period_ns = (plan.config.plant.period_s() * 1e9).round() as u64;
     let mut stop_sent = false;
-    let start = Instant::now();
     let result = loop {
         let s = match link.read() {
             Ok(s) => s,
@@ -141,10 +132,7 @@ pub fn controller(
             telemetry = BlockWriter::new(link.run_id());
             // Tick 0 is untimed (see daq_io::serve): set up every connection now.
             daq_io::ipc::connect(&telemetry_pub);
-            health_pub.connect();
-            health_pub.send(health);
-            health_pub.prepare();
-            while take(&control_sub).is_some() {}
+            plane.begin();
         }
         let (cmd, t) = servo.tick(&s);
         let Some(cmd) = cmd else {
@@ -159,9 +147,8 @@ pub fn controller(
         if s.seq > 0 {
             stats.execution.record(monotonic_ns() - started_ns);
             if s.published_ns != 0 {
-                stats
-                    .lateness
-                    .record(started_ns.saturating_sub(s.published_ns));
+                let late = started_ns.saturating_sub(s.published_ns);
+                stats.lateness.record(late);
             }
         }
         if let Some(t) = t {
@@ -170,72 +157,30 @@ pub fn controller(
         if servo.run_over(s.seq) && !stop_sent {
             stop_sent = stopper.send(stop_for(daq_io::stop_cause::TRIPPED)).is_ok();
         }
-        if s.seq.is_multiple_of(2048) {
-            while let Some(c) = take(&control_sub) {
-                if c.command == command::SET_GAIN_SCALE {
-                    let ack = gain_change(&gains, &c, s.seq + 1);
-                    if ack.status == ack_status::APPLIED {
-                        servo.set_gain_scale(c.value);
-                    }
-                    ack_pub.send(ack);
-                    ack_pub.prepare();
-                }
-            }
+        if s.seq.is_multiple_of(SERVICE_TICKS) {
+            plane.service(&mut servo, s.seq + 1, 0, &stats);
             if stop.is_set() && !stop_sent {
                 let cause = stop.cell().load(std::sync::atomic::Ordering::Relaxed) as u32;
                 stop_sent = stopper.send(stop_for(cause)).is_ok();
             }
-            health.ticks = s.seq;
-            health.wall_s = start.elapsed().as_secs_f64();
-            stats.report(&mut health);
-            health_pub.send(health);
-            health_pub.prepare();
         }
         if s.published_ns != 0 {
             wait.sleep_before(s.published_ns + period_ns);
         }
     };
-    let end = match result {
-        Ok(_) => flags::END,
-        Err(_) => flags::END | flags::FAULT_PEER_LOST,
+    let (end, faults) = match result {
+        Ok(_) => (flags::END, 0),
+        Err(_) => (flags::END | flags::FAULT_PEER_LOST, flags::FAULT_PEER_LOST),
     };
     telemetry.flush(&telemetry_pub, end);
-    health.state = if result.is_ok() {
-        state::DONE
-    } else {
-        state::FAULTED
-    };
-    stats.report(&mut health);
-    health_pub.send(health);
+    let ticks = *result.as_ref().unwrap_or(&0);
+    plane.finish(ticks, 0, &stats, faults, 0);
     let service = ep.service::<TelemetryBlock>(leaf::TELEMETRY)?;
     daq_io::ipc::linger(&service, Duration::from_secs(5));
     result.map(|ticks| ControllerEnd {
         ticks,
         trip: servo.trip(),
     })
-}
-
-/// The answer to gain change `c` seen before tick `tick` (applied from that tick if allowed):
-/// refused when not a number or outside the range that keeps [`crate::gain_range::MARGIN`].
-fn gain_change(gains: &GainRange, c: &Control, tick: u64) -> Ack {
-    Ack {
-        id: c.id,
-        tick,
-        value: c.value,
-        low: gains.low(),
-        high: gains.high(),
-        unstable_at: gains.unstable_above,
-        command: c.command,
-        status: if !c.value.is_finite() {
-            ack_status::REFUSED_INVALID
-        } else if gains.allows(c.value) {
-            ack_status::APPLIED
-        } else {
-            ack_status::REFUSED_MARGIN
-        },
-        role: role::CONTROLLER,
-        reserved: 0,
-    }
 }
 
 /// Keeps the recorder to one run: the first block's run id is the run's; a block of another is

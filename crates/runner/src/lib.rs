@@ -20,6 +20,7 @@
 
 pub mod closed_loop;
 pub mod config;
+pub mod control_plane;
 pub mod controller;
 pub mod controller_file;
 mod error;

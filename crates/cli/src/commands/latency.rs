@@ -57,9 +57,10 @@ struct Report {
     period_ns: u64,
     ticks: u64,
     wait: String,
-    cpu: Option<usize>,
+    /// The policy, priority and CPUs as the kernel reports them after applying the settings.
     policy: String,
     priority: Option<i32>,
+    cpus: Vec<usize>,
     lock_memory: bool,
     lateness_ns: Percentiles,
     overruns: u64,
@@ -123,6 +124,7 @@ impl LatencyCmd {
             nice: 0,
         })
         .map_err(|e| CliError::Processes(e.to_string()))?;
+        let applied = daq_io::realtime::current();
         let wait = match self.wait {
             WaitKind::Spin => Wait::Spin,
             WaitKind::SleepSpin => Wait::SleepThenSpin {
@@ -154,9 +156,9 @@ impl LatencyCmd {
             period_ns,
             ticks,
             wait: wait.describe(),
-            cpu: self.cpu,
-            policy: policy.name().into(),
-            priority: policy.is_realtime().then_some(self.rt_priority),
+            policy: applied.0.name().into(),
+            priority: applied.0.is_realtime().then_some(applied.1),
+            cpus: daq_io::realtime::current_cpus(),
             lock_memory: self.lock_memory,
             lateness_ns: Percentiles {
                 min: l.min_ns,
@@ -191,7 +193,7 @@ fn print_report(r: &Report) {
         r.rate_hz / 1e3,
         us(r.period_ns),
         r.wait,
-        r.cpu.map_or(String::new(), |c| format!(", CPU {c}")),
+        format!(", CPUs {}", daq_io::realtime::list(&r.cpus)),
         r.policy.to_uppercase(),
         r.priority.map_or(String::new(), |p| format!(" {p}")),
         if r.lock_memory { ", memory locked" } else { "" }

@@ -32,3 +32,18 @@ pub fn json(out: &Output) -> serde_json::Value {
     succeeded(out);
     serde_json::from_slice(&out.stdout).expect("JSON summary")
 }
+
+/// This process's effective uid (from /proc).
+#[allow(dead_code)]
+pub fn euid() -> u32 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let line = status.lines().find(|l| l.starts_with("Uid:")).unwrap();
+    line.split_whitespace().nth(2).unwrap().parse().unwrap()
+}
+
+/// Runs `cmd` as the unprivileged user `nobody` (uid/gid 65534).
+#[allow(dead_code)]
+pub fn as_nobody(mut cmd: std::process::Command) -> std::process::Output {
+    use std::os::unix::process::CommandExt;
+    cmd.uid(65534).gid(65534).output().unwrap()
+}
