@@ -188,12 +188,12 @@ fn print_report(r: &Report) {
     let us = |ns: u64| ns as f64 * 1e-3;
     let l = &r.lateness_ns;
     println!(
-        "servo latency: {} ticks at {:.1} kHz (period {:.3} µs), {}{}, SCHED_{}{}{}",
+        "servo latency: {} ticks at {:.1} kHz (period {:.3} µs), {}, CPUs {}, SCHED_{}{}{}",
         r.ticks,
         r.rate_hz / 1e3,
         us(r.period_ns),
         r.wait,
-        format!(", CPUs {}", daq_io::realtime::list(&r.cpus)),
+        daq_io::realtime::list(&r.cpus),
         r.policy.to_uppercase(),
         r.priority.map_or(String::new(), |p| format!(" {p}")),
         if r.lock_memory { ", memory locked" } else { "" }
