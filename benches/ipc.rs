@@ -225,6 +225,7 @@ fn echo_ours(prefix: &str) {
             ..Default::default()
         })
         .unwrap();
+        link.prepare();
     }
 }
 
@@ -237,8 +238,7 @@ fn round_trip_ours() -> LatencyHistogram {
     let service = ep.service::<Sensor>(leaf::SENSOR).unwrap();
     let mut child = peer("ours", &prefix);
     pin(0);
-    use iceoryx2::prelude::PortFactory;
-    while service.dynamic_config().number_of_subscribers() == 0 {
+    while daq_io::ipc::subscriber_count(&service) == 0 {
         std::thread::sleep(Duration::from_millis(1));
     }
     sensor.connect();

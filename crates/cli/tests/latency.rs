@@ -155,10 +155,14 @@ fn a_host_that_refuses_real_time_gets_a_clear_error() {
             "--prefix",
             "nobody-rt",
             "--realtime",
+            "--rate",
+            "20000",
             "--rt-policy",
             "fifo",
             "--wait",
             "sleep-spin",
+            "--spin-margin-us",
+            "20",
         ][..],
     ] {
         let mut cmd = std::process::Command::new(exe);

@@ -216,11 +216,16 @@ impl Endpoint {
     }
 }
 
+/// The subscribers `service` has now (a controller, a recorder, taps).
+pub fn subscriber_count<T: Debug + ZeroCopySend>(service: &Service<T>) -> usize {
+    service.dynamic_config().number_of_subscribers()
+}
+
 /// Waits up to `timeout` for the subscribers of `service` to leave (they take the last
 /// samples first: samples of a publisher that is gone cannot be received).
 pub fn linger<T: Debug + ZeroCopySend>(service: &Service<T>, timeout: Duration) {
     let start = Instant::now();
-    while service.dynamic_config().number_of_subscribers() > 0 && start.elapsed() < timeout {
+    while subscriber_count(service) > 0 && start.elapsed() < timeout {
         std::thread::sleep(Duration::from_millis(1));
     }
 }
@@ -295,7 +300,7 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sender<T> {
 /// Busy-polls `s` until `accept` takes a sample or the monotonic clock passes `deadline_ns`
 /// ([`monotonic_ns`]). Returns the sample, still held (returning it to the publisher costs a
 /// cross-core cache miss: drop it after the reply is sent). Polls without a pause hint and reads
-/// the clock only every 64 empty polls; yields the core after 50 µs of waiting so processes
+/// the clock at the first empty poll, then every 64; yields the core after 50 µs of waiting so processes
 /// sharing a core still progress.
 #[inline]
 pub fn poll_held<T: Debug + ZeroCopySend + Copy>(
@@ -311,8 +316,10 @@ pub fn poll_held<T: Debug + ZeroCopySend + Copy>(
                 return Some(v);
             }
         }
+        // The clock is read at the first empty poll (an overdue tick of a plant catching up
+        // after a stall returns at once) and then every 64.
         spins = spins.wrapping_add(1);
-        if spins.is_multiple_of(64) {
+        if spins % 64 == 1 {
             let now = monotonic_ns();
             if now >= deadline_ns {
                 return None;
@@ -387,7 +394,7 @@ impl<B: Block> BlockWriter<B> {
 /// The controller's [`crate::Daq`] over iceoryx2. It keeps to the run of the first sample:
 /// a sample with another [`Sensor::run_id`] (another plant on the prefix) is an error. The
 /// sample read is held until its command is written (its release is off the round trip), and
-/// the next command's sample is loaned after each write.
+/// [`ControllerLink::prepare`] loans the next command's sample after the tick's work.
 pub struct ControllerLink {
     sensor: Subscriber<Sensor>,
     command: Sender<Command>,
@@ -419,6 +426,12 @@ impl ControllerLink {
     /// The run of the samples read so far (0 before the first).
     pub fn run_id(&self) -> u64 {
         self.run_id
+    }
+
+    /// Loans the next command's sample now, off the exchange (call after the tick's work; a
+    /// [`crate::Daq::write`] without it loans at the send).
+    pub fn prepare(&mut self) {
+        self.command.prepare();
     }
 }
 
@@ -461,7 +474,6 @@ impl crate::Daq for ControllerLink {
     fn write(&mut self, command: Command) -> Result<(), crate::DaqError> {
         let sent = self.command.send(command);
         self.held = None;
-        self.command.prepare();
         if sent {
             Ok(())
         } else {

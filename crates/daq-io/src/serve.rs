@@ -5,9 +5,11 @@
 //! - Lockstep: tick k's command is awaited (busy poll) up to `peer_timeout`; nothing is ever
 //!   held or skipped, so a run is bit-identical to the in-process one.
 //! - Real time: tick k starts at its deadline — `t0 + k·T` on the wall clock (waiting by
-//!   [`ServeOptions::wait`]), or the backend's own clock edge ([`Backend::wait_for_tick`]); a
-//!   command not in by the next deadline is an overrun: the DAC holds its last value (as
-//!   hardware does) and the count goes up.
+//!   [`ServeOptions::wait`]), or the backend's own clock edge ([`Backend::wait_for_tick`]), or
+//!   at once when the plant is behind; a command not in by the next deadline, or one period
+//!   after its sample went out (whichever is later), is an overrun: the DAC holds its last
+//!   value (as hardware does) and the count goes up. A plant catching up after a stall of its
+//!   own thus keeps the loop closed at the exchange's pace.
 //! - Faults ([`crate::watchdog`]): a controller silent for `peer_timeout` (lost), or late more
 //!   often than the overrun budget allows, puts the DAC at 0 V (zero current), raises
 //!   [`flags::FAULT_PEER_LOST`] or [`flags::FAULT_OVERRUN_BUDGET`], runs `safe_ticks` more
@@ -177,7 +179,7 @@ fn wait_for_peers(
     health_pub: &mut Sender<Health>,
     ack: &mut impl FnMut(&Control, u64),
 ) -> Result<(), ServeError> {
-    use iceoryx2::prelude::PortFactory;
+    use crate::ipc::subscriber_count;
     let sensor_service = ep.service::<Sensor>(leaf::SENSOR)?;
     let truth_service = ep.service::<TruthBlock>(leaf::TRUTH)?;
     let health = Health {
@@ -188,9 +190,8 @@ fn wait_for_peers(
     let waiting = Instant::now();
     let mut started = !opts.wait_for_start;
     loop {
-        let controller = sensor_service.dynamic_config().number_of_subscribers() > 0;
-        let recorder =
-            !opts.wait_for_recorder || truth_service.dynamic_config().number_of_subscribers() > 0;
+        let controller = subscriber_count(&sensor_service) > 0;
+        let recorder = !opts.wait_for_recorder || subscriber_count(&truth_service) > 0;
         while let Some(c) = take(control_sub) {
             started |= c.command == command::START;
             ack(&c, 0);
@@ -316,7 +317,10 @@ pub fn serve<B: Backend>(
             let command_deadline = match opts.pacing {
                 _ if k == 0 => published_ns + opts.startup_timeout.as_nanos() as u64,
                 Pacing::Lockstep => published_ns + opts.peer_timeout.as_nanos() as u64,
-                Pacing::RealTime => deadline_ns + period_ns,
+                // The controller has one period from the sample's publication: a plant that
+                // catches up after a stall of its own keeps the loop closed (the controller
+                // sees every sample in order) and catches up at the exchange's pace.
+                Pacing::RealTime => (deadline_ns + period_ns).max(published_ns + period_ns),
             };
             let mut heard = false;
             let got = poll_held(&command_sub, command_deadline, |c| {

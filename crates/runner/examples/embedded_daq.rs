@@ -10,8 +10,12 @@
 //! The "hardware" here is the simulated stage (`SimBackend`), so the example runs anywhere;
 //! a lab replaces it with its ADC/DAC driver (any `daq_io::Backend`).
 //!
+//! Options: `--prefix P`, `--seconds S` (default 1), `--config FILE` (a `servo` config: rate,
+//! controller, `[realtime]` CPU / policy / wait for this loop; `servo record` off the CPU),
+//! `--wait-recorder` (the first tick waits for `servo record`), `--demo`.
+//!
 //! ```text
-//! cargo run --release -p runner --example embedded_daq -- --prefix lab --seconds 10
+//! cargo run --release -p runner --example embedded_daq -- --prefix lab --seconds 10 --wait-recorder
 //! servo record --prefix lab --duration 10 --out lab.mcap     # in another terminal
 //! servo ctl --prefix lab gain 0.8                            # acknowledged, recorded
 //! cargo run --release -p runner --example embedded_daq -- --prefix lab --demo   # self-check
@@ -34,8 +38,14 @@ struct Report {
     stop_cause: u32,
 }
 
-/// The daemon: `plan`'s loop on `hw`, paced to the wall clock, served on `prefix`.
-fn daemon(plan: &Plan, prefix: &str, hw: &mut impl Backend) -> Result<Report, runner::RunError> {
+/// The daemon: `plan`'s loop on `hw`, paced to the wall clock, served on `prefix`; with
+/// `wait_recorder`, the first tick waits (up to 30 s) for a recorder to subscribe.
+fn daemon(
+    plan: &Plan,
+    prefix: &str,
+    hw: &mut impl Backend,
+    wait_recorder: bool,
+) -> Result<Report, runner::RunError> {
     daq_io::realtime::apply(&plan.config.realtime.settings(Role::Plant))?;
     let ep = Endpoint::open(prefix, "plant")?;
     // This process is the run's controller too: `servo ctl gain` looks for one.
@@ -47,6 +57,15 @@ fn daemon(plan: &Plan, prefix: &str, hw: &mut impl Backend) -> Result<Report, ru
     let run_id = daq_io::peers::random_id();
     let mut telemetry = BlockWriter::<TelemetryBlock>::new(run_id);
     let mut truth = BlockWriter::<TruthBlock>::new(run_id);
+    if wait_recorder {
+        let truth_service = ep.service::<TruthBlock>(leaf::TRUTH)?;
+        let asked = std::time::Instant::now();
+        while daq_io::ipc::subscriber_count(&truth_service) == 0
+            && asked.elapsed() < Duration::from_secs(30)
+        {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
     daq_io::ipc::connect(&telemetry_pub);
     daq_io::ipc::connect(&truth_pub);
     plane.begin();
@@ -166,7 +185,10 @@ fn main() {
     let seconds: f64 = value("--seconds").map_or(if demo { 30.0 } else { 1.0 }, |s| {
         s.parse().expect("--seconds: a number of seconds")
     });
-    let mut loaded = Loaded::default();
+    let mut loaded = match value("--config") {
+        Some(path) => Loaded::from_file(path.as_ref()).unwrap_or_else(|e| panic!("{e}")),
+        None => Loaded::default(),
+    };
     loaded.config.run.duration_s = seconds;
     let plan = Plan::new(&loaded).unwrap_or_else(|e| panic!("embedded daq: {e}"));
     let peer = demo.then(|| {
@@ -178,7 +200,9 @@ fn main() {
         plan.config.plant.timing.servo_rate_hz, seconds
     );
     let mut hw = SimBackend::for_run(&plan);
-    let r = daemon(&plan, &prefix, &mut hw).unwrap_or_else(|e| panic!("embedded daq: {e}"));
+    let wait_recorder = args.iter().any(|a| a == "--wait-recorder");
+    let r = daemon(&plan, &prefix, &mut hw, wait_recorder)
+        .unwrap_or_else(|e| panic!("embedded daq: {e}"));
     let us = |ns: u64| ns as f64 * 1e-3;
     let (l, e) = (r.stats.lateness.summary(), r.stats.execution.summary());
     println!(

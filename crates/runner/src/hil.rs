@@ -121,6 +121,7 @@ pub fn controller(
     let wait = rt.wait();
     let period_ns = (plan.config.plant.period_s() * 1e9).round() as u64;
     let mut stop_sent = false;
+    let mut expected_seq = 0;
     let result = loop {
         let s = match link.read() {
             Ok(s) => s,
@@ -147,13 +148,18 @@ pub fn controller(
         if s.seq > 0 {
             stats.execution.record(monotonic_ns() - started_ns);
             if s.published_ns != 0 {
-                let late = started_ns.saturating_sub(s.published_ns);
+                // After the publication of the sample it should have taken: a controller that
+                // fell behind takes the newest and skips the rest, a period each.
+                let skipped = s.seq.saturating_sub(expected_seq) * period_ns;
+                let late = started_ns.saturating_sub(s.published_ns) + skipped;
                 stats.lateness.record(late);
             }
         }
+        expected_seq = s.seq + 1;
         if let Some(t) = t {
             telemetry.push(&telemetry_pub, t);
         }
+        link.prepare();
         if servo.run_over(s.seq) && !stop_sent {
             stop_sent = stopper.send(stop_for(daq_io::stop_cause::TRIPPED)).is_ok();
         }

@@ -63,9 +63,6 @@ pub fn run(
 ) -> Result<(Summary, ExitCode), CliError> {
     plan.check_stable()?;
     timeout.timeout()?;
-    // This process supervises: low priority, off the servo CPUs (as the recorder).
-    daq_io::realtime::apply(&plan.config.realtime.settings(runner::config::Role::Other))
-        .map_err(RunError::from)?;
     let (realtime, quiet) = (hil.realtime, rec.quiet);
     if let Some(o) = &out {
         // Checked before any process starts (the recorder process checks it again).
@@ -129,6 +126,10 @@ pub fn run(
         plant_args.extend(["--peer-timeout-ms", t]);
     }
     let plant = spawn(&plant_args, Stdio::inherit())?;
+    // This process supervises: low priority, off the servo CPUs (as the recorder). Only now:
+    // children inherit niceness and affinity, and an unprivileged user cannot undo them.
+    daq_io::realtime::apply(&plan.config.realtime.settings(runner::config::Role::Other))
+        .map_err(RunError::from)?;
     let mut children = [
         ("plant", plant),
         ("controller", controller),

@@ -385,7 +385,7 @@ impl RunConfig {
         }
         self.protection
             .validate(at, c.limit_v, self.plant.dc_gain_m_per_v())?;
-        self.realtime.validate(at)
+        self.realtime.validate(at, self.plant.period_s())
     }
 }
 

@@ -55,7 +55,9 @@ pub struct RealtimeConfig {
     /// the budget, and silence is a loss only if it lasts the whole window.
     pub grace_s: f64,
     /// Overrun budget, sustained part: the fraction of late ticks absorbed indefinitely
-    /// (default 0.05). A controller late more often than this is faulted.
+    /// (default 0.05). A controller late more often than this is faulted. Charged are the
+    /// overruns of ticks where the controller was heard from (it always has at least one period
+    /// from the sample's publication); a silent controller is the peer timeout's case.
     pub overrun_rate: f64,
     /// Overrun budget, burst part: how many ticks' worth of overruns beyond the sustained rate
     /// are absorbed at once, in s (default 2 ms, above the ~1 ms hypervisor stalls of a cloud
@@ -139,9 +141,10 @@ impl RealtimeConfig {
         }
     }
 
-    /// Checks every value against its allowed range, and refuses settings that would starve
-    /// the host: spinning real-time processes on every CPU.
-    pub fn validate(&self, at: &Origin) -> Result<(), ConfigError> {
+    /// Checks every value against its allowed range (`period_s`: the servo period in s), and
+    /// refuses settings that would starve the host: spinning real-time processes on every CPU,
+    /// or "sleeping" ones whose spin margin leaves them less than half of each period asleep.
+    pub fn validate(&self, at: &Origin, period_s: f64) -> Result<(), ConfigError> {
         let r = self;
         if r.policy.is_realtime() && !(1..=98).contains(&r.priority) {
             return Err(at.invalid("realtime.priority", r.priority, "1..=98"));
@@ -178,6 +181,16 @@ impl RealtimeConfig {
         if !(0..=19).contains(&r.others_nice) {
             return Err(at.invalid("realtime.others_nice", r.others_nice, "0..=19"));
         }
+        if r.policy.is_realtime()
+            && r.wait == WaitKind::SleepSpin
+            && r.spin_margin_s > 0.5 * period_s
+        {
+            return Err(at.invalid(
+                "realtime.spin_margin_s",
+                r.spin_margin_s,
+                &format!("(0, {:.3e}] s with a real-time policy: at most half the {:.3e} s period, so each servo process sleeps at least half of it (a larger margin spins, and two spinning real-time processes starve a host without a spare CPU)", 0.5 * period_s, period_s),
+            ));
+        }
         if r.policy.is_realtime() && r.wait == WaitKind::Spin {
             // Plant and controller both spin: with a real-time policy they must each have a
             // CPU of their own and leave one for everything else.
@@ -205,21 +218,35 @@ mod tests {
             policy: Policy::Fifo,
             ..Default::default()
         };
-        let e = fifo.validate(&at).unwrap_err().to_string();
+        let period = 50e-6; // 20 kHz
+        let e = fifo.validate(&at, period).unwrap_err().to_string();
         assert!(
             e.contains("realtime.policy") && e.contains("sleep-spin"),
             "{e}"
         );
         let sleeping = RealtimeConfig {
             wait: WaitKind::SleepSpin,
+            spin_margin_s: 20e-6,
             ..fifo
         };
-        assert!(sleeping.validate(&at).is_ok());
+        assert!(sleeping.validate(&at, period).is_ok());
+        // A 50 µs margin at 20 kHz never sleeps: the same as spinning.
+        let e = RealtimeConfig {
+            spin_margin_s: 50e-6,
+            ..sleeping
+        }
+        .validate(&at, period)
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("realtime.spin_margin_s") && e.contains("half"),
+            "{e}"
+        );
         let e = RealtimeConfig {
             priority: 99,
             ..sleeping
         }
-        .validate(&at)
+        .validate(&at, period)
         .unwrap_err()
         .to_string();
         assert!(
@@ -230,7 +257,7 @@ mod tests {
             plant_cpu: Some(4096),
             ..Default::default()
         }
-        .validate(&at)
+        .validate(&at, period)
         .unwrap_err()
         .to_string();
         assert!(
