@@ -42,7 +42,40 @@ fn hil_equals_in_process(tag: &str, common: &[&str], seconds: f64) {
     }
     assert_eq!(hil["meta"]["dropped_frames"], 0);
     assert_eq!(hil["meta"]["hil"]["faults"], 0);
-    assert_eq!(hil["ticks"], (seconds * 199_600.0).round() as u64);
+    let ticks = (seconds * 199_600.0).round() as u64;
+    assert_eq!(hil["ticks"], ticks);
+    // Every timed tick (all but the start-up exchange) in the plant's and the controller's
+    // statistics, percentiles in order; lockstep has no deadlines, so no lateness.
+    let h = &hil["meta"]["hil"];
+    for key in [
+        "plant_execution",
+        "controller_execution",
+        "controller_lateness",
+    ] {
+        let l = &h[key];
+        assert_eq!(l["count"], ticks - 1, "{key}: {l}");
+        let q: Vec<u64> = [
+            "min_ns", "p50_ns", "p99_ns", "p999_ns", "p9999_ns", "max_ns",
+        ]
+        .iter()
+        .map(|k| l[k].as_u64().unwrap())
+        .collect();
+        assert!(
+            q.windows(2).all(|w| w[0] <= w[1]) && q[1] > 0,
+            "{key}: {q:?}"
+        );
+    }
+    assert_eq!(h["plant_lateness"]["count"], 0);
+    // The recording's end record keeps them.
+    let bytes = std::fs::read(&b).unwrap();
+    let text = String::from_utf8_lossy(&bytes);
+    for key in [
+        "hil.plant.execution",
+        "hil.controller.execution",
+        "hil.round_trip",
+    ] {
+        assert!(text.contains(key), "{key} in the end record");
+    }
 }
 
 #[test]
