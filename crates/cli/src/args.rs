@@ -27,6 +27,26 @@ pub struct PlantArgs {
 }
 
 impl PlantArgs {
+    /// These flags as a command line would give them (` -c cfg.toml --rate 20000 --mass
+    /// heavy`): what a suggested follow-up command needs to run on the same plant.
+    pub fn flags(&self) -> String {
+        let mut out = String::new();
+        if let Some(c) = &self.config {
+            out += &format!(" -c {}", c.display());
+        }
+        if let Some(r) = self.rate {
+            out += &format!(" --rate {r}");
+        }
+        if let Some(m) = self.mass {
+            let name = clap::ValueEnum::to_possible_value(&m).map(|v| v.get_name().to_owned());
+            out += &format!(" --mass {}", name.unwrap_or_default());
+        }
+        if let Some(n) = &self.noise {
+            out += &format!(" --noise {n}");
+        }
+        out
+    }
+
     /// The configuration: defaults, then the file, then these flags.
     pub fn load(&self) -> Result<Loaded, ConfigError> {
         let mut l = match &self.config {
@@ -103,6 +123,9 @@ pub struct ControllerArgs {
     /// Controller file for --controller ss (relative to the working directory).
     #[arg(long)]
     pub ss_file: Option<PathBuf>,
+    /// Run a controller (file or tuned gains) made for another plant or rate anyway.
+    #[arg(long)]
+    pub force: bool,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub accel: AccelArgs,
@@ -117,6 +140,7 @@ impl ControllerArgs {
         if let Some(p) = &self.ss_file {
             c.ss_file = Some(std::env::current_dir().map_or(p.clone(), |d| d.join(p)));
         }
+        c.force |= self.force;
         self.accel.apply(l);
     }
 }

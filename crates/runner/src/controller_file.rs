@@ -2,6 +2,7 @@
 //! MATLAB, python-control) as TOML, checked for shape, finiteness and sample rate.
 
 use crate::config::{ConfigError, Origin};
+use crate::provenance::MadeFor;
 use nalgebra::DMatrix;
 use serde::Deserialize;
 use std::path::Path;
@@ -24,6 +25,9 @@ pub struct SsFile {
     pub c: Vec<Vec<f64>>,
     /// 1 × 1.
     pub d: Vec<Vec<f64>>,
+    /// What it was designed for (`servo synth` writes it; files from elsewhere may omit it and
+    /// are checked for their sample rate only).
+    pub made_for: Option<MadeFor>,
 }
 
 /// A loaded controller file: `[[A, B], [C, D]]` and its order.
@@ -36,17 +40,11 @@ pub struct ControllerFile {
 }
 
 impl ControllerFile {
-    /// Loads `path`, checking shapes, finiteness and that it was designed for `servo_rate_hz`.
-    pub fn load(path: &Path, servo_rate_hz: f64) -> Result<Self, ConfigError> {
-        Self::parse(
-            &crate::config::input_file::read_text(path)?,
-            path,
-            servo_rate_hz,
-        )
-    }
-
-    /// Parses the text of the controller file `path` (errors located there).
-    pub fn parse(text: &str, path: &Path, servo_rate_hz: f64) -> Result<Self, ConfigError> {
+    /// Parses the text of the controller file `path` (errors located there), checking shapes,
+    /// finiteness, that it was designed for the run's servo rate, and — when it says what it
+    /// was made for — for the run's plant (`run`), unless `force`.
+    pub fn parse(text: &str, path: &Path, run: &MadeFor, force: bool) -> Result<Self, ConfigError> {
+        let servo_rate_hz = run.servo_rate_hz;
         let file: SsFile = toml::from_str(text).map_err(|e| ConfigError::Parse {
             path: path.to_owned(),
             message: e.to_string(),
@@ -92,6 +90,9 @@ impl ControllerFile {
                 file.sample_rate_hz,
                 &format!("{servo_rate_hz} Hz (the run's plant.timing.servo_rate_hz)"),
             ));
+        }
+        if let Some(made_for) = &file.made_for {
+            made_for.check(run, &at, "made_for", force)?;
         }
         let mut m = DMatrix::zeros(n + 1, n + 1);
         for i in 0..n {

@@ -124,7 +124,10 @@ impl Plan {
         mut inputs: Vec<Input>,
     ) -> Result<Self, RunError> {
         let c = &config.controller;
-        let rate = config.plant.timing.servo_rate_hz;
+        let run = crate::provenance::MadeFor::of(&config.plant);
+        if let Some(made_for) = &c.made_for {
+            made_for.check(&run, &origin, "controller.made_for", c.force)?;
+        }
         let file = match (&c.kind, &c.ss_file) {
             (ControllerKind::Ss, Some(path)) => {
                 let read = inputs.iter().find(|i| i.name == CONTROLLER_INPUT);
@@ -140,7 +143,7 @@ impl Plan {
                         text
                     }
                 };
-                Some(ControllerFile::parse(&text, path, rate)?)
+                Some(ControllerFile::parse(&text, path, &run, c.force)?)
             }
             _ => {
                 inputs.retain(|i| i.name != CONTROLLER_INPUT);

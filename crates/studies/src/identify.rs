@@ -94,7 +94,24 @@ pub fn read_frf_csv(
         line,
         what: what.to_owned(),
     };
-    let mut lines = text.lines().enumerate();
+    let mut lines = text.lines().enumerate().peekable();
+    // Comment lines first; `servo frf` says there which quantity the file holds.
+    while let Some((i, line)) = lines.next_if(|(_, l)| l.starts_with('#')) {
+        let quantity = line
+            .split("quantity =")
+            .nth(1)
+            .and_then(|q| q.split_whitespace().next());
+        if let Some(q) = quantity.filter(|&q| q != "P") {
+            return Err(bad(
+                i + 1,
+                &format!(
+                    "quantity {q}: identification fits the plant P (an open-loop FRF, `servo frf --loop open`); this file holds {}",
+                    line.split('(').nth(1).and_then(|d| d.split(')').next()).unwrap_or(q)
+                ),
+            ));
+        }
+    }
+    let header_line = lines.peek().map_or(1, |(i, _)| i + 1);
     let header: Vec<&str> = lines
         .next()
         .map(|(_, h)| h.split(',').map(str::trim).collect())
@@ -102,7 +119,7 @@ pub fn read_frf_csv(
     let col = |name: &str| {
         header.iter().position(|h| *h == name).ok_or_else(|| {
             bad(
-                1,
+                header_line,
                 &format!("no column `{name}` (header: {})", header.join(",")),
             )
         })

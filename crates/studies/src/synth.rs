@@ -9,6 +9,7 @@ use crate::error::StudyError;
 use design::h2::{h2syn_discrete, GeneralizedPlant};
 use lti::StateSpace;
 use nalgebra::DMatrix;
+use runner::provenance::MadeFor;
 use runner::Plan;
 
 /// The designed controller in the form `servo run --controller ss` loads (input: position
@@ -23,6 +24,8 @@ pub struct Design {
     pub h2_norm: f64,
     /// Closed-loop spectral radius of the design model.
     pub spectral_radius: f64,
+    /// The plant and rate it was designed for (written into the controller file).
+    pub made_for: MadeFor,
 }
 
 impl Design {
@@ -47,7 +50,7 @@ impl Design {
             "# H2-optimal controller designed by `servo synth h2` on the simulator's exact model.\n\
              # x⁺ = A x + B e, u = C x + D e; e = reference − measurement in sensor volts, u in V.\n\
              # {} states; design closed-loop H2 norm {:.6e}, spectral radius {:.6}.\n\
-             sample_rate_hz = {}\na = {}\nb = {}\nc = {}\nd = {}\n",
+             sample_rate_hz = {}\na = {}\nb = {}\nc = {}\nd = {}\n\n{}",
             k.nx(),
             self.h2_norm,
             self.spectral_radius,
@@ -55,7 +58,8 @@ impl Design {
             rows(&k.a),
             rows(&k.b),
             rows(&k.c),
-            rows(&k.d)
+            rows(&k.d),
+            self.made_for.to_toml("made_for")
         )
     }
 }
@@ -141,6 +145,7 @@ pub fn h2_design(plan: &Plan, effort_nm_per_v: f64) -> Result<Design, StudyError
         sample_rate_hz: c.plant.timing.servo_rate_hz,
         h2_norm: k.h2_norm,
         spectral_radius: k.spectral_radius,
+        made_for: MadeFor::of(&plan.config.plant),
     })
 }
 
@@ -277,5 +282,6 @@ pub fn thesis_design(plan: &Plan, w: &ThesisWeights, effort: f64) -> Result<Desi
         sample_rate_hz: fs,
         h2_norm: k.h2_norm,
         spectral_radius: k.spectral_radius,
+        made_for: MadeFor::of(&plan.config.plant),
     })
 }

@@ -57,6 +57,11 @@ pub struct TuneReport {
     pub reference: PidReport,
     /// The tuned gains (`[controller.pid]` of a run config).
     pub pid: PidGains,
+    /// The plant and rate they were tuned for.
+    pub made_for: runner::provenance::MadeFor,
+    /// The plant they were tuned for (written into the fragment, so `servo run -c` runs it).
+    #[serde(skip)]
+    pub plant: plant_sim::PlantParams,
 }
 
 impl TuneReport {
@@ -66,7 +71,9 @@ impl TuneReport {
         format!(
             "# PID tuned by `servo tune` for |S| <= {}, |T| <= {}, |T| >= -3 dB at {} Hz:\n\
              # max|S| {:.3}, closed-loop bandwidth {:.0} Hz, predicted RMS following {:.3} nm / true {:.3} nm.\n\
-             [controller.pid]\nkp = {:e}\nki = {:e}\nkd = {:e}\ntf_s = {:e}\n",
+             # The fragment carries the plant the gains were tuned for: `servo run -c FILE` runs on\n\
+             # it, and a run on another plant or rate refuses the gains (controller.made_for).\n\
+             [controller.pid]\nkp = {:e}\nki = {:e}\nkd = {:e}\ntf_s = {:e}\n\n{}\n{}",
             self.ms,
             self.mt,
             self.bandwidth_target_hz,
@@ -77,9 +84,20 @@ impl TuneReport {
             p.kp,
             p.ki,
             p.kd,
-            p.tf_s
+            p.tf_s,
+            self.made_for.to_toml("controller.made_for"),
+            plant_table(&self.plant)
         )
     }
+}
+
+/// `plant` as the `[plant…]` tables of a run config.
+fn plant_table(plant: &plant_sim::PlantParams) -> String {
+    #[derive(serde::Serialize)]
+    struct Fragment<'a> {
+        plant: &'a plant_sim::PlantParams,
+    }
+    toml::to_string(&Fragment { plant }).expect("plant parameters always serialise")
 }
 
 fn with_gains(plan: &Plan, k: [f64; 3]) -> Result<Plan, StudyError> {
@@ -227,5 +245,7 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
             kd: gains[2],
             tf_s: plan.config.controller.pid.tf_s,
         },
+        made_for: runner::provenance::MadeFor::of(&plan.config.plant),
+        plant: plan.config.plant,
     })
 }

@@ -166,11 +166,12 @@ impl SynthCmd {
             p.following_rms_m * 1e9,
             p.true_rms_m * 1e9
         );
+        // The same plant flags the design was made with: the file refuses any other plant.
         println!(
-            "  wrote {} — run it: servo run --controller ss --ss-file {} --rate {}",
+            "  wrote {} — run it: servo run --controller ss --ss-file {}{}",
             out.display(),
             out.display(),
-            design.sample_rate_hz
+            self.plant.flags()
         );
         Ok(ExitCode::SUCCESS)
     }

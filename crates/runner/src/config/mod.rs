@@ -203,6 +203,12 @@ pub struct ControllerConfig {
     /// designed from the sampled closed-loop model, with the preview it needs; thesis §9.3.1's
     /// missing feedforward).
     pub feedforward: FeedforwardKind,
+    /// What the gains or the controller file were made for (written by `servo tune`; a
+    /// controller file carries its own `[made_for]`): checked against this run's plant and
+    /// rate, a mismatch refused with both named.
+    pub made_for: Option<crate::provenance::MadeFor>,
+    /// Run a controller made for another plant or rate anyway (`--force`).
+    pub force: bool,
     /// Zero-phase smoothing of the previewed trajectory before the controller and the
     /// feedforward, in Hz: a Hann window of `rate / smoothing_hz` ticks (about its −6 dB
     /// point), adding half of it to the preview. For surfaces with kinks or steps (beam
@@ -240,6 +246,8 @@ impl Default for ControllerConfig {
             ss_file: None,
             limit_v: 10.0,
             feedforward: FeedforwardKind::None,
+            made_for: None,
+            force: false,
             smoothing_hz: 0.0,
         }
     }

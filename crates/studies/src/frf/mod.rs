@@ -25,6 +25,27 @@ pub enum FrfLoop {
     Closed,
 }
 
+impl FrfLoop {
+    /// The quantity measured: `P` (the plant, open loop) or `PS` (the process sensitivity
+    /// P/(1 + PC), closed loop).
+    pub fn quantity(self) -> &'static str {
+        match self {
+            FrfLoop::Open => "P",
+            FrfLoop::Closed => "PS",
+        }
+    }
+
+    /// What the quantity is, for people.
+    pub fn describe(self) -> &'static str {
+        match self {
+            FrfLoop::Open => "the plant P, open loop: DAC command → measured position",
+            FrfLoop::Closed => {
+                "the process sensitivity P/(1 + PC), closed loop: injection at the controller output → measured position"
+            }
+        }
+    }
+}
+
 /// One measured frequency.
 #[derive(Debug, Clone, Serialize)]
 pub struct FrfPoint {

@@ -5,14 +5,29 @@ use crate::report::{data, plots, ReportError, Written};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// `frf.csv`, `frf.json`, `bode_magnitude.{png,svg}`, `bode_phase.{png,svg}`.
+/// The comment line that opens `frf.csv`: which quantity, in which unit, made for which plant
+/// (`servo identify` reads the quantity and refuses anything but P).
+pub fn provenance_line(which: super::FrfLoop, made_for: &runner::provenance::MadeFor) -> String {
+    format!(
+        "# fts-servo frf: quantity = {} ({}); unit m/V; made for {}; {}\n",
+        which.quantity(),
+        which.describe(),
+        made_for.describe(),
+        made_for.tool
+    )
+}
+
+/// `frf.csv` (opened by [`provenance_line`]), `frf.json`, `bode_magnitude.{png,svg}`,
+/// `bode_phase.{png,svg}`.
 pub fn write(
     points: &[super::FrfPoint],
     model: &[(f64, num_complex::Complex64)],
     title: &str,
+    provenance: &str,
     dir: &Path,
 ) -> Result<Written, ReportError> {
-    let mut csv = String::from("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v\n");
+    let mut csv = String::from(provenance);
+    csv.push_str("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v\n");
     for p in points {
         writeln!(
             csv,
