@@ -122,3 +122,68 @@ fn identify_refuses_an_frf_that_is_not_the_plant() {
         "{e}"
     );
 }
+
+/// Measure → identify → tune on the identified plant → run: the FRF of the heavy stage,
+/// identified from the light stage's values, gives a model file whose stage is the heavy one
+/// (m1 + m2 within 1 %), which `servo tune -c` tunes on; the gains then run on that model and
+/// are refused on another plant.
+#[test]
+fn an_identified_model_is_a_plant_the_other_commands_take() {
+    let dir = tmp("workflow");
+    let frf = dir.join("frf");
+    let heavy = ["--mass", "heavy"];
+    let out = servo()
+        .args([
+            "frf", "--loop", "open", "--points", "80", "--from", "20", "--to", "10000",
+        ])
+        .args(heavy)
+        .arg("--out-dir")
+        .arg(&frf)
+        .output()
+        .unwrap();
+    succeeded(&out);
+    let model = dir.join("model.toml");
+    let out = servo()
+        .arg("identify")
+        .arg(frf.join("frf.csv"))
+        .arg("--out")
+        .arg(&model)
+        .output()
+        .unwrap();
+    succeeded(&out);
+    let text = std::fs::read_to_string(&model).unwrap();
+    assert!(
+        text.contains("quantity P") && text.contains("SHA-256"),
+        "{text}"
+    );
+    let loaded = runner::config::Loaded::from_file(&model).unwrap();
+    let s = loaded.config.plant.stage;
+    let truth = runner::config::presets::StagePreset::Heavy.params();
+    let moving = |s: &plant_sim::params::StageParams| s.m1_kg + s.m2_kg;
+    assert!(
+        (moving(&s) / moving(&truth) - 1.0).abs() < 0.01,
+        "identified {} kg against {} kg",
+        moving(&s),
+        moving(&truth)
+    );
+    let pid = dir.join("pid.toml");
+    let out = servo()
+        .args(["tune", "-c"])
+        .arg(&model)
+        .arg("--out")
+        .arg(&pid)
+        .output()
+        .unwrap();
+    succeeded(&out);
+    let run = |extra: &[&str]| {
+        servo()
+            .args(["run", "--no-record", "-q", "--duration", "0.01", "-c"])
+            .arg(&pid)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    succeeded(&run(&[]));
+    let other = run(&["--mass", "light"]);
+    assert_eq!(other.status.code(), Some(2), "{}", stderr(&other));
+}

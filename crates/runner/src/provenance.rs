@@ -90,6 +90,15 @@ impl MadeFor {
     }
 }
 
+/// `plant` as the `[plant…]` tables of a run config: a fragment any command takes with `-c`.
+pub fn plant_toml(plant: &PlantParams) -> String {
+    #[derive(Serialize)]
+    struct Fragment<'a> {
+        plant: &'a PlantParams,
+    }
+    toml::to_string(&Fragment { plant }).expect("plant parameters always serialise")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -67,6 +67,38 @@ pub struct Identified {
     pub points: usize,
 }
 
+impl Identified {
+    /// The identified plant as a run-config fragment (`servo tune -c model.toml`, `servo synth
+    /// h2 -c model.toml`, `servo run -c model.toml`): `plan`'s plant with the fitted stage,
+    /// opened by comments saying where it came from (`source`: the FRF file and its SHA-256)
+    /// and how well it fits.
+    pub fn model_toml(&self, plan: &Plan, source: &str) -> String {
+        let plant = plant_sim::PlantParams {
+            stage: with_table_5_2(&plan.config.plant.stage, &self.fitted),
+            ..plan.config.plant
+        };
+        let mut out = format!(
+            "# Plant identified by `servo identify` from {source} (quantity P): fit {:.2} % on {} points\n\
+             # (thesis §5.5.3: 97.7 %); the configured plant with the fitted Table 5-2 stage values:\n",
+            self.fit_percent, self.points
+        );
+        for i in 0..self.names.len() {
+            out += &format!(
+                "#   {:<12} {:.5e} ± {:.2} % (1σ)\n",
+                self.names[i],
+                self.fitted[i],
+                100.0 * self.rel_std[i]
+            );
+        }
+        out += &format!(
+            "# made for {}; {}\n",
+            runner::provenance::MadeFor::of(&plant).describe(),
+            runner::provenance::MadeFor::of(&plant).tool
+        );
+        out + &runner::provenance::plant_toml(&plant)
+    }
+}
+
 /// Largest plausible magnitude of an open-loop stage FRF, m/V: a nm-stage moves micrometres
 /// per volt (the thesis prototype ≈ 2.5 µm/V static), so a response near 1 is a closed-loop T
 /// or S (m/m), not a plant.

@@ -86,18 +86,9 @@ impl TuneReport {
             p.kd,
             p.tf_s,
             self.made_for.to_toml("controller.made_for"),
-            plant_table(&self.plant)
+            runner::provenance::plant_toml(&self.plant)
         )
     }
-}
-
-/// `plant` as the `[plant…]` tables of a run config.
-fn plant_table(plant: &plant_sim::PlantParams) -> String {
-    #[derive(serde::Serialize)]
-    struct Fragment<'a> {
-        plant: &'a plant_sim::PlantParams,
-    }
-    toml::to_string(&Fragment { plant }).expect("plant parameters always serialise")
 }
 
 fn with_gains(plan: &Plan, k: [f64; 3]) -> Result<Plan, StudyError> {

@@ -11,14 +11,18 @@ use std::process::ExitCode;
 ///
 /// Fits m1 + m2, k2, c2, m4, k4, c4 from an open-loop FRF CSV (as `servo frf --loop open`
 /// writes), with the simulator's exact sampled model as the grey box, starting from the
-/// configured stage.
-/// Example: servo frf --loop open --points 80 && servo identify frf/frf.csv
+/// configured stage; writes the identified plant as a config fragment (`--out`) that `servo
+/// tune`, `servo synth` and `servo run` take with `-c`.
+/// Example: servo frf --loop open --points 80 && servo identify frf/frf.csv && servo tune -c model.toml
 #[derive(Args, Debug)]
 pub struct IdentifyCmd {
     /// FRF CSV with columns freq_hz, magnitude_m_per_v, phase_deg (clipped rows skipped).
     file: PathBuf,
     #[command(flatten)]
     plant: PlantArgs,
+    /// The identified plant as a config fragment the other commands take (`-c FILE`).
+    #[arg(short, long, default_value = "model.toml")]
+    out: PathBuf,
     /// Print the result as JSON.
     #[arg(long)]
     json: bool,
@@ -31,6 +35,18 @@ impl IdentifyCmd {
         let nyquist_hz = plan.config.plant.timing.servo_rate_hz / 2.0;
         let (f, g) = studies::identify::read_frf_csv(&self.file, nyquist_hz)?;
         let id = studies::identify::identify(&plan, &f, &g)?;
+        let frf_bytes = std::fs::read(&self.file).unwrap_or_default();
+        let source = format!(
+            "{} (SHA-256 {})",
+            self.file.display(),
+            runner::recording::sha256_hex(&frf_bytes)
+        );
+        std::fs::write(&self.out, id.model_toml(&plan, &source)).map_err(|source| {
+            CliError::Write {
+                path: self.out.clone(),
+                source,
+            }
+        })?;
         if self.json {
             print_json(&id);
             return Ok(ExitCode::SUCCESS);
@@ -56,6 +72,10 @@ impl IdentifyCmd {
                 id.start[i]
             );
         }
+        println!(
+            "  wrote {} — the identified plant: servo tune -c {0}, servo synth h2 -c {0}",
+            self.out.display()
+        );
         Ok(ExitCode::SUCCESS)
     }
 }
