@@ -1,8 +1,8 @@
 //! Controller files: a discrete state-space controller designed elsewhere (`servo synth`,
 //! MATLAB, python-control) as TOML, checked for shape, finiteness and sample rate.
 
+use crate::config::MadeFor;
 use crate::config::{ConfigError, Origin};
-use crate::provenance::MadeFor;
 use nalgebra::DMatrix;
 use serde::Deserialize;
 use std::path::Path;

@@ -31,7 +31,6 @@ pub mod machining;
 pub mod plan;
 pub mod preview;
 pub mod protection;
-pub mod provenance;
 pub mod recording;
 pub mod run;
 pub mod servo_loop;

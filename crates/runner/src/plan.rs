@@ -124,7 +124,7 @@ impl Plan {
         mut inputs: Vec<Input>,
     ) -> Result<Self, RunError> {
         let c = &config.controller;
-        let run = crate::provenance::MadeFor::of(&config.plant);
+        let run = crate::config::MadeFor::of(&config.plant);
         if let Some(made_for) = &c.made_for {
             made_for.check(&run, &origin, "controller.made_for", c.force)?;
         }

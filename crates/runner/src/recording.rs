@@ -5,13 +5,13 @@
 //! themselves are attachments. A recording is therefore self-contained: reading it never
 //! opens a path named inside it.
 
+use crate::config::sha256_hex;
 use crate::config::{ConfigError, Loaded, RunConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::stop::EndReason;
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use recorder::{FileState, Frame, Overwrite, ReadReport, RecordOptions, Recorder, Visit};
-use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use std::num::NonZeroU32;
 use std::path::{Path, PathBuf};
@@ -139,14 +139,6 @@ pub fn end_record(
 /// The metadata key holding the SHA-256 of the input attachment `name`.
 fn input_key(name: &str) -> String {
     format!("input.{name}.sha256")
-}
-
-/// Lower-case hex SHA-256 of `data`.
-pub fn sha256_hex(data: &[u8]) -> String {
-    Sha256::digest(data)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
 }
 
 /// What a recording says about its run, complete before its first frame.

@@ -159,7 +159,7 @@ proptest! {
     #[test]
     fn controller_files_are_read_or_refused_with_the_file_named(text in controller_text()) {
         let path = Path::new("fuzz-controller.toml");
-        let run = runner::provenance::MadeFor::of(&Default::default());
+        let run = runner::config::MadeFor::of(&Default::default());
         match ControllerFile::parse(&text, path, &run, false) {
             Ok(f) => {
                 prop_assert!(f.m.iter().all(|x| x.is_finite()), "{text}");

@@ -92,10 +92,10 @@ impl Identified {
         }
         out += &format!(
             "# made for {}; {}\n",
-            runner::provenance::MadeFor::of(&plant).describe(),
-            runner::provenance::MadeFor::of(&plant).tool
+            runner::config::MadeFor::of(&plant).describe(),
+            runner::config::MadeFor::of(&plant).tool
         );
-        out + &runner::provenance::plant_toml(&plant)
+        out + &runner::config::plant_toml(&plant)
     }
 }
 

@@ -9,7 +9,7 @@ use crate::error::StudyError;
 use design::h2::{h2syn_discrete, GeneralizedPlant};
 use lti::StateSpace;
 use nalgebra::DMatrix;
-use runner::provenance::MadeFor;
+use runner::config::MadeFor;
 use runner::Plan;
 
 /// The designed controller in the form `servo run --controller ss` loads (input: position

@@ -58,7 +58,7 @@ pub struct TuneReport {
     /// The tuned gains (`[controller.pid]` of a run config).
     pub pid: PidGains,
     /// The plant and rate they were tuned for.
-    pub made_for: runner::provenance::MadeFor,
+    pub made_for: runner::config::MadeFor,
     /// The plant they were tuned for (written into the fragment, so `servo run -c` runs it).
     #[serde(skip)]
     pub plant: plant_sim::PlantParams,
@@ -86,7 +86,7 @@ impl TuneReport {
             p.kd,
             p.tf_s,
             self.made_for.to_toml("controller.made_for"),
-            runner::provenance::plant_toml(&self.plant)
+            runner::config::plant_toml(&self.plant)
         )
     }
 }
@@ -236,7 +236,7 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
             kd: gains[2],
             tf_s: plan.config.controller.pid.tf_s,
         },
-        made_for: runner::provenance::MadeFor::of(&plan.config.plant),
+        made_for: runner::config::MadeFor::of(&plan.config.plant),
         plant: plan.config.plant,
     })
 }

@@ -62,7 +62,7 @@ impl FrfCmd {
         let pts = self.measure(&plan)?;
         let curve = frf::model_curve(&plan, self.which, self.from, self.to, 600)?;
         let title = format!("{:?}-loop FRF", self.which);
-        let made_for = runner::provenance::MadeFor::of(&plan.config.plant);
+        let made_for = runner::config::MadeFor::of(&plan.config.plant);
         let provenance = frf::report::provenance_line(self.which, &made_for);
         let written = frf::report::write(&pts, &curve, &title, &provenance, &self.out_dir)
             .map_err(StudyError::from)?;

@@ -39,7 +39,7 @@ impl IdentifyCmd {
         let source = format!(
             "{} (SHA-256 {})",
             self.file.display(),
-            runner::recording::sha256_hex(&frf_bytes)
+            runner::config::sha256_hex(&frf_bytes)
         );
         std::fs::write(&self.out, id.model_toml(&plan, &source)).map_err(|source| {
             CliError::Write {

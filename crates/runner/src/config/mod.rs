@@ -3,12 +3,14 @@
 
 pub mod input_file;
 mod machining;
+mod made_for;
 mod origin;
 pub mod presets;
 mod protection;
 mod realtime;
 
 pub use machining::{Machining, SurfaceConfig};
+pub use made_for::{plant_toml, sha256_hex, MadeFor};
 pub use origin::{line_of, ConfigError, Origin};
 pub use protection::{ProtectionConfig, SafeState};
 pub use realtime::{RealtimeConfig, Role, WaitKind};
@@ -206,7 +208,7 @@ pub struct ControllerConfig {
     /// What the gains or the controller file were made for (written by `servo tune`; a
     /// controller file carries its own `[made_for]`): checked against this run's plant and
     /// rate, a mismatch refused with both named.
-    pub made_for: Option<crate::provenance::MadeFor>,
+    pub made_for: Option<made_for::MadeFor>,
     /// Run a controller made for another plant or rate anyway (`--force`).
     pub force: bool,
     /// Zero-phase smoothing of the previewed trajectory before the controller and the

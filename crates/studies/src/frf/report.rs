@@ -7,7 +7,7 @@ use std::path::Path;
 
 /// The comment line that opens `frf.csv`: which quantity, in which unit, made for which plant
 /// (`servo identify` reads the quantity and refuses anything but P).
-pub fn provenance_line(which: super::FrfLoop, made_for: &runner::provenance::MadeFor) -> String {
+pub fn provenance_line(which: super::FrfLoop, made_for: &runner::config::MadeFor) -> String {
     format!(
         "# fts-servo frf: quantity = {} ({}); unit m/V; made for {}; {}\n",
         which.quantity(),

@@ -1,11 +1,20 @@
-//! What a result was made for (issue 17's provenance): the plant — the SHA-256 of its
+//! What a result was made for (provenance): the plant — the SHA-256 of its
 //! parameters as TOML and a readable stage name — the servo rate and the tool version. Written
 //! into controller files and tuning fragments; the run that loads them checks it and refuses a
 //! mismatch with both sides named, unless told to accept it (`--force`).
 
-use crate::config::{presets::StagePreset, ConfigError, Origin};
+use super::{presets::StagePreset, ConfigError, Origin};
 use plant_sim::PlantParams;
 use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+/// Lower-case hex SHA-256 of `data`.
+pub fn sha256_hex(data: &[u8]) -> String {
+    Sha256::digest(data)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
 
 /// The plant, rate and tool a controller (or another result) was made for.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -40,7 +49,7 @@ impl MadeFor {
             });
         MadeFor {
             tool: format!("fts-servo {}", env!("CARGO_PKG_VERSION")),
-            plant_sha256: crate::recording::sha256_hex(text.as_bytes()),
+            plant_sha256: sha256_hex(text.as_bytes()),
             stage: stage.into(),
             servo_rate_hz: plant.timing.servo_rate_hz,
         }
