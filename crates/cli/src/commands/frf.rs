@@ -63,9 +63,9 @@ impl FrfCmd {
         let curve = frf::model_curve(&plan, self.which, self.from, self.to, 600)?;
         let title = format!("{:?}-loop FRF", self.which);
         let made_for = runner::config::MadeFor::of(&plan.config.plant);
-        let provenance = frf::report::provenance_line(self.which, &made_for);
-        let written = frf::report::write(&pts, &curve, &title, &provenance, &self.out_dir)
-            .map_err(StudyError::from)?;
+        let written =
+            frf::report::write(&pts, &curve, &title, (self.which, &made_for), &self.out_dir)
+                .map_err(StudyError::from)?;
         if self.json {
             print_json(&pts);
             return Ok(ExitCode::SUCCESS);

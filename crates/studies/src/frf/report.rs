@@ -7,7 +7,7 @@ use std::path::Path;
 
 /// The comment line that opens `frf.csv`: which quantity, in which unit, made for which plant
 /// (`servo identify` reads the quantity and refuses anything but P).
-pub fn provenance_line(which: super::FrfLoop, made_for: &runner::config::MadeFor) -> String {
+fn provenance_line(which: super::FrfLoop, made_for: &runner::config::MadeFor) -> String {
     format!(
         "# fts-servo frf: quantity = {} ({}); unit m/V; made for {}; {}\n",
         which.quantity(),
@@ -17,16 +17,26 @@ pub fn provenance_line(which: super::FrfLoop, made_for: &runner::config::MadeFor
     )
 }
 
-/// `frf.csv` (opened by [`provenance_line`]), `frf.json`, `bode_magnitude.{png,svg}`,
-/// `bode_phase.{png,svg}`.
+/// What `frf.json` holds: the quantity, its unit, what it was measured on, the points.
+#[derive(serde::Serialize)]
+struct FrfFile<'a> {
+    quantity: &'static str,
+    description: &'static str,
+    unit: &'static str,
+    made_for: &'a runner::config::MadeFor,
+    points: &'a [super::FrfPoint],
+}
+
+/// `frf.csv` (opened by a comment line naming the quantity, its unit and plant), `frf.json`
+/// (the same as fields), `bode_magnitude.{png,svg}`, `bode_phase.{png,svg}`.
 pub fn write(
     points: &[super::FrfPoint],
     model: &[(f64, num_complex::Complex64)],
     title: &str,
-    provenance: &str,
+    (which, made_for): (super::FrfLoop, &runner::config::MadeFor),
     dir: &Path,
 ) -> Result<Written, ReportError> {
-    let mut csv = String::from(provenance);
+    let mut csv = provenance_line(which, made_for);
     csv.push_str("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v\n");
     for p in points {
         writeln!(
@@ -43,7 +53,14 @@ pub fn write(
         )
         .unwrap();
     }
-    let mut out = data(dir, "frf", &csv, points)?;
+    let file = FrfFile {
+        quantity: which.quantity(),
+        description: which.describe(),
+        unit: "m/V",
+        made_for,
+        points,
+    };
+    let mut out = data(dir, "frf", &csv, &file)?;
     let f: Vec<f64> = points.iter().map(|p| p.freq_hz).collect();
     let mf: Vec<f64> = model.iter().map(|m| m.0).collect();
     let model_series = |y: Vec<f64>| Series::line("model (sampled loop)", mf.clone(), y);
