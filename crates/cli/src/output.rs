@@ -8,6 +8,30 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::StudyError;
 
+/// Writes a result file (a controller, tuned gains, an identified model) that another command
+/// takes: created new, never replacing an existing file unless `overwrite`.
+pub fn write_result(path: &std::path::Path, text: &str, overwrite: bool) -> Result<(), CliError> {
+    use std::io::Write;
+    let io = |source| CliError::Write {
+        path: path.to_owned(),
+        source,
+    };
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true);
+    if overwrite {
+        options.create(true).truncate(true);
+    } else {
+        options.create_new(true);
+    }
+    let mut file = options.open(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::AlreadyExists => io(std::io::Error::other(
+            "it exists: not overwritten (pass --overwrite to replace it)",
+        )),
+        _ => io(e),
+    })?;
+    file.write_all(text.as_bytes()).map_err(io)
+}
+
 /// Why a command failed.
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {

@@ -97,6 +97,24 @@ fn tuned_gains_carry_their_plant_and_refuse_another() {
         e.contains("controller.made_for") && e.contains("stage heavy") && e.contains("stage light"),
         "{e}"
     );
+    // The fragment is never silently replaced.
+    let before = std::fs::read(&file).unwrap();
+    let again = servo()
+        .args(["tune", "--out"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let e = stderr(&again);
+    assert_eq!(again.status.code(), Some(1), "{e}");
+    assert!(e.contains("pid-heavy.toml") && e.contains("--overwrite"), "{e}");
+    assert_eq!(std::fs::read(&file).unwrap(), before);
+    let replaced = servo()
+        .args(["tune", "--overwrite", "--out"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    succeeded(&replaced);
+    assert_ne!(std::fs::read(&file).unwrap(), before, "the light stage's tuning");
 }
 
 #[test]

@@ -23,6 +23,9 @@ pub struct IdentifyCmd {
     /// The identified plant as a config fragment the other commands take (`-c FILE`).
     #[arg(short, long, default_value = "model.toml")]
     out: PathBuf,
+    /// Replace the output file if it exists.
+    #[arg(long)]
+    overwrite: bool,
     /// Print the result as JSON.
     #[arg(long)]
     json: bool,
@@ -41,12 +44,7 @@ impl IdentifyCmd {
             self.file.display(),
             runner::config::sha256_hex(&frf_bytes)
         );
-        std::fs::write(&self.out, id.model_toml(&plan, &source)).map_err(|source| {
-            CliError::Write {
-                path: self.out.clone(),
-                source,
-            }
-        })?;
+        crate::output::write_result(&self.out, &id.model_toml(&plan, &source), self.overwrite)?;
         if self.json {
             print_json(&id);
             return Ok(ExitCode::SUCCESS);

@@ -41,6 +41,9 @@ pub struct SynthCmd {
     /// Controller file to write.
     #[arg(short, long, default_value = "h2.toml")]
     out: PathBuf,
+    /// Replace the output file if it exists.
+    #[arg(long)]
+    overwrite: bool,
     /// Print the design's predictions as JSON.
     #[arg(long)]
     json: bool,
@@ -127,10 +130,7 @@ impl SynthCmd {
             design = reduced;
         }
         let out = &self.out;
-        std::fs::write(out, design.to_toml()).map_err(|source| CliError::Write {
-            path: out.clone(),
-            source,
-        })?;
+        crate::output::write_result(out, &design.to_toml(), self.overwrite)?;
         // Predict what it does with the budget of the loop it closes.
         let with = plan.with_controller(ControllerConfig {
             kind: ControllerKind::Ss,

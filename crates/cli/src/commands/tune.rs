@@ -29,6 +29,9 @@ pub struct TuneCmd {
     /// Run-config fragment with the tuned gains (`servo run -c FILE`).
     #[arg(short, long, default_value = "pid.toml")]
     out: PathBuf,
+    /// Replace the output file if it exists.
+    #[arg(long)]
+    overwrite: bool,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -41,10 +44,7 @@ impl TuneCmd {
         let (ms, mt, bw) = (self.ms, self.mt, self.bandwidth_hz);
         let r = studies::tune::tune(&plan, bw, ms, mt)?;
         let out = &self.out;
-        std::fs::write(out, r.to_toml()).map_err(|source| CliError::Write {
-            path: out.clone(),
-            source,
-        })?;
+        crate::output::write_result(out, &r.to_toml(), self.overwrite)?;
         if self.json {
             print_json(&r);
             return Ok(ExitCode::SUCCESS);
