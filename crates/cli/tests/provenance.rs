@@ -99,14 +99,13 @@ fn tuned_gains_carry_their_plant_and_refuse_another() {
     );
     // The fragment is never silently replaced.
     let before = std::fs::read(&file).unwrap();
-    let again = servo()
-        .args(["tune", "--out"])
-        .arg(&file)
-        .output()
-        .unwrap();
+    let again = servo().args(["tune", "--out"]).arg(&file).output().unwrap();
     let e = stderr(&again);
     assert_eq!(again.status.code(), Some(1), "{e}");
-    assert!(e.contains("pid-heavy.toml") && e.contains("--overwrite"), "{e}");
+    assert!(
+        e.contains("pid-heavy.toml") && e.contains("--overwrite"),
+        "{e}"
+    );
     assert_eq!(std::fs::read(&file).unwrap(), before);
     let replaced = servo()
         .args(["tune", "--overwrite", "--out"])
@@ -114,7 +113,11 @@ fn tuned_gains_carry_their_plant_and_refuse_another() {
         .output()
         .unwrap();
     succeeded(&replaced);
-    assert_ne!(std::fs::read(&file).unwrap(), before, "the light stage's tuning");
+    assert_ne!(
+        std::fs::read(&file).unwrap(),
+        before,
+        "the light stage's tuning"
+    );
 }
 
 #[test]
