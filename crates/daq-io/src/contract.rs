@@ -7,7 +7,7 @@
 //! types). The layouts are versioned: [`CONTRACT_VERSION`] is in every iceoryx2 type name
 //! (`fts_servo::v4::…`) and in every node name, and a peer of another version is refused at
 //! connect with both versions named ([`crate::ipc::Endpoint::open`]). Change a layout, bump
-//! the version (a test pins [`LAYOUT_FINGERPRINT`]).
+//! the version (a test pins [`crate::layout::LAYOUT_FINGERPRINT`]).
 
 /// The version of the sample contract's layouts (every `#[repr(C)]` type here).
 pub const CONTRACT_VERSION: u32 = 4;

@@ -6,7 +6,11 @@
 //! - [`Daq`] (controller side) and [`Backend`] (plant side, simulator or hardware); [`InProcess`]
 //!   joins them in one thread — what `servo run` uses.
 //! - [`ipc`]: the same contract over iceoryx2 shared memory under a per-run prefix; [`serve`]
-//!   runs the plant side (lockstep or real time, overruns, lost-peer safe state).
+//!   runs the plant side (lockstep or real time — on the wall clock or the backend's own —,
+//!   overruns, lost-peer and overrun-budget safe state).
+//! - Real time: [`clock`] (monotonic time, tick waits), [`watchdog`] (peer timeout, overrun
+//!   budget, grace window), [`realtime`] (scheduling, CPUs, locked memory), [`qualify`] (host
+//!   qualification), [`TickStats`] (lateness and execution-time histograms).
 //!
 //! Without the default `ipc` feature the crate is the contract alone (no iceoryx2): what
 //! the simulated stage uses to report its samples.
