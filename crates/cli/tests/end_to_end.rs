@@ -257,6 +257,14 @@ fn budget_writes_data_and_plots() {
         .map(|c| c["following_rms_m"].as_f64().unwrap().powi(2))
         .sum();
     assert!((sum.sqrt() / b["following_rms_m"].as_f64().unwrap() - 1.0).abs() < 1e-12);
+    // What it was made for: the heavy stage at the default rate, the default PID.
+    assert_eq!(b["made_for"]["stage"], "heavy");
+    assert_eq!(b["made_for"]["servo_rate_hz"], 199_600.0);
+    assert!(
+        b["controller"].as_str().unwrap().starts_with("PID"),
+        "{}",
+        b["controller"]
+    );
     let csv = std::fs::read_to_string(dir.join("budget.csv")).unwrap();
     assert!(csv.starts_with("freq_hz,following_psd_sensor_m2_per_hz"));
     assert_eq!(csv.lines().count(), 201);

@@ -59,8 +59,10 @@ impl BudgetCmd {
             plan.controller.description,
             stage.m1_kg + stage.m2_kg
         );
-        let written =
-            studies::budget::report::write(&b, &title, &self.out_dir).map_err(StudyError::from)?;
+        let made_for = runner::config::MadeFor::of(&plan.config.plant);
+        let made = (&made_for, plan.controller.description.as_str());
+        let written = studies::budget::report::write(&b, &title, made, &self.out_dir)
+            .map_err(StudyError::from)?;
         let sweeps = if self.sweep {
             Some(self.sweeps(&plan)?)
         } else {

@@ -7,8 +7,24 @@ use runner::closed_loop::SOURCES;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// `budget.csv`, `budget.json`, `budget_psd.{png,svg}`, `budget_cas.{png,svg}`.
-pub fn write(b: &Budget, title: &str, dir: &Path) -> Result<Written, ReportError> {
+/// What `budget.json` holds: the budget, and what it was made for (the plant and rate, and the
+/// controller).
+#[derive(serde::Serialize)]
+struct BudgetFile<'a> {
+    made_for: &'a runner::config::MadeFor,
+    controller: &'a str,
+    #[serde(flatten)]
+    budget: &'a Budget,
+}
+
+/// `budget.csv`, `budget.json` (with what it was made for: `made_for`, the plant and rate;
+/// `controller`, its description), `budget_psd.{png,svg}`, `budget_cas.{png,svg}`.
+pub fn write(
+    b: &Budget,
+    title: &str,
+    (made_for, controller): (&runner::config::MadeFor, &str),
+    dir: &Path,
+) -> Result<Written, ReportError> {
     let mut csv = String::from("freq_hz");
     for (name, _) in SOURCES {
         let n = name.replace(' ', "_");
@@ -27,7 +43,12 @@ pub fn write(b: &Budget, title: &str, dir: &Path) -> Result<Written, ReportError
         }
         writeln!(csv, ",{:.6e},{:.6e}", b.following_cas[i], b.true_cas[i]).unwrap();
     }
-    let mut out = data(dir, "budget", &csv, b)?;
+    let file = BudgetFile {
+        made_for,
+        controller,
+        budget: b,
+    };
+    let mut out = data(dir, "budget", &csv, &file)?;
     let nm2 = |v: &Vec<f64>| v.iter().map(|x| x * 1e18).collect::<Vec<f64>>();
     let total = |psd: &Vec<Vec<f64>>| {
         (0..b.freq_hz.len())
