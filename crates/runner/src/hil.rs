@@ -353,13 +353,15 @@ pub fn record(
                 }
             }
         });
+        if got {
+            // Before the end check: a short run can arrive whole in one poll.
+            last_data = Some(Instant::now());
+            progress(join.next_truth, total);
+        }
         if finished {
             break;
         }
-        if got {
-            last_data = Some(Instant::now());
-            progress(join.next_truth, total);
-        } else {
+        if !got {
             std::thread::sleep(Duration::from_millis(5));
         }
     }
