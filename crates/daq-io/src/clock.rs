@@ -97,11 +97,6 @@ impl WallClock {
             wait,
         }
     }
-
-    /// The monotonic time of its start, ns.
-    pub fn start_ns(&self) -> u64 {
-        self.start_ns
-    }
 }
 
 impl TickClock for WallClock {

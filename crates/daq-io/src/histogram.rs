@@ -99,11 +99,6 @@ impl LatencyHistogram {
         self.max = self.max.max(other.max);
     }
 
-    /// Records held.
-    pub fn count(&self) -> u64 {
-        self.count
-    }
-
     /// The latency below which a fraction `q` (0..=1) of the records lie, in ns (bin centre,
     /// clamped to the exact min and max).
     pub fn quantile(&self, q: f64) -> u64 {

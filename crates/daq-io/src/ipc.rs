@@ -333,16 +333,6 @@ pub fn poll_held<T: Debug + ZeroCopySend + Copy>(
     }
 }
 
-/// [`poll_held`], returning a copy of the sample.
-#[inline]
-pub fn poll_until<T: Debug + ZeroCopySend + Copy>(
-    s: &Subscriber<T>,
-    deadline_ns: u64,
-    accept: impl FnMut(&T) -> bool,
-) -> Option<T> {
-    poll_held(s, deadline_ns, accept).map(|v| *v)
-}
-
 /// Accumulates per-tick records into blocks of [`crate::BLOCK_TICKS`] and publishes full
 /// blocks, stamped with the run's identity.
 pub struct BlockWriter<B> {
