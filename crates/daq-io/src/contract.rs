@@ -339,6 +339,22 @@ pub struct Ack {
     pub reserved: u32,
 }
 
+impl Ack {
+    /// The reply of process `role` (one of [`role`]) to `request`, seen or applied at `tick`,
+    /// with `status` (one of [`ack_status`]); no range.
+    pub fn to(request: &Control, tick: u64, status: u32, role: u32) -> Self {
+        Self {
+            id: request.id,
+            tick,
+            value: request.value,
+            command: request.command,
+            status,
+            role,
+            ..Default::default()
+        }
+    }
+}
+
 /// Why a run was stopped early: a signal's number (1 SIGHUP, 2 SIGINT, 15 SIGTERM), or
 /// [`stop_cause::CONTROL`].
 pub mod stop_cause {
@@ -384,6 +400,15 @@ pub mod state {
     pub const DONE: u32 = 3;
     /// Stopped by a fault (see the flags).
     pub const FAULTED: u32 = 4;
+
+    /// The final state of a run that ended with fault bits `faults`: [`FAULTED`] if any.
+    pub const fn ended(faults: u32) -> u32 {
+        if faults != 0 {
+            FAULTED
+        } else {
+            DONE
+        }
+    }
 }
 
 /// Percentiles of a per-tick time in ns: round trip (sensor published → command received),

@@ -238,15 +238,7 @@ pub fn serve<B: Backend>(
             command::START | command::STOP => ack_status::APPLIED,
             _ => return, // the controller's (gain)
         };
-        ack_pub.send(Ack {
-            id: c.id,
-            tick,
-            value: c.value,
-            command: c.command,
-            status,
-            role: role::PLANT,
-            ..Default::default()
-        });
+        ack_pub.send(Ack::to(c, tick, status, role::PLANT));
         ack_pub.prepare();
     };
     wait_for_peers(ep, opts, stop, &control_sub, &mut health_pub, &mut ack)?;
@@ -408,11 +400,7 @@ pub fn serve<B: Backend>(
     report.wall_s = t0.elapsed().as_secs_f64();
     report.truth_refused = truth.refused();
     report.peer_timeout = opts.peer_timeout;
-    health.state = if report.faults != 0 {
-        state::FAULTED
-    } else {
-        state::DONE
-    };
+    health.state = state::ended(report.faults);
     progress(&mut health, k, &report, &stats, t0);
     health.stop_cause = report.stop_cause;
     health_pub.send(health);

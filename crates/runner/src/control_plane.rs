@@ -123,35 +123,16 @@ impl ControlPlane {
         faults: u32,
         stop_cause: u32,
     ) {
-        self.health.state = if faults != 0 {
-            state::FAULTED
-        } else {
-            state::DONE
-        };
+        self.health.state = state::ended(faults);
         self.health.faults = faults;
         self.health.stop_cause = stop_cause;
         self.report(tick, overruns, stats);
     }
 }
 
-fn reply(c: &Control, tick: u64, status: u32) -> Ack {
-    Ack {
-        id: c.id,
-        tick,
-        value: c.value,
-        command: c.command,
-        status,
-        role: role::CONTROLLER,
-        ..Default::default()
-    }
-}
-
 /// The plant's acknowledgement of STOP / START.
 fn plant_reply(c: &Control, tick: u64) -> Ack {
-    Ack {
-        role: role::PLANT,
-        ..reply(c, tick, ack_status::APPLIED)
-    }
+    Ack::to(c, tick, ack_status::APPLIED, role::PLANT)
 }
 
 /// The answer to gain change `c` seen before tick `tick` (applied from that tick if allowed):
@@ -161,7 +142,7 @@ fn gain_change(gains: &GainRange, c: &Control, tick: u64) -> Ack {
         low: gains.low(),
         high: gains.high(),
         unstable_at: gains.unstable_above,
-        ..reply(
+        ..Ack::to(
             c,
             tick,
             if !c.value.is_finite() {
@@ -171,6 +152,7 @@ fn gain_change(gains: &GainRange, c: &Control, tick: u64) -> Ack {
             } else {
                 ack_status::REFUSED_MARGIN
             },
+            role::CONTROLLER,
         )
     }
 }
