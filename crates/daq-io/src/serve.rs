@@ -161,12 +161,23 @@ pub enum ServeError {
     NoPeer(&'static str, String, Duration),
 }
 
-/// Fills the running counts of a health report.
-fn progress(health: &mut Health, ticks: u64, report: &ServeReport, stats: &TickStats, t0: Instant) {
+/// Seconds of monotonic time since `start_ns`.
+fn seconds_since(start_ns: u64) -> f64 {
+    monotonic_ns().saturating_sub(start_ns) as f64 * 1e-9
+}
+
+/// Fills the running counts of a health report; `start_ns` is when tick 1 was due.
+fn progress(
+    health: &mut Health,
+    ticks: u64,
+    report: &ServeReport,
+    stats: &TickStats,
+    start_ns: u64,
+) {
     health.ticks = ticks;
     health.overruns = report.overruns;
     health.faults = report.faults;
-    health.wall_s = t0.elapsed().as_secs_f64();
+    health.wall_s = seconds_since(start_ns);
     stats.report(health);
 }
 
@@ -270,13 +281,11 @@ pub fn serve<B: Backend>(
     };
     let mut dac_v = 0.0;
     let mut end_tick = opts.ticks;
-    let mut t0 = Instant::now();
-    // The wall-clock time base: tick k's deadline is base + k·T (set after tick 0).
-    let mut base_ns = 0;
+    // The wall-clock time base: tick k's deadline is base + k·T (reset after tick 0).
+    let mut base_ns = monotonic_ns().saturating_sub(period_ns);
     let mut k = 0u64;
     while k < end_tick {
         if k == 1 {
-            t0 = Instant::now();
             base_ns = monotonic_ns() - period_ns;
         }
         // The tick's deadline and when it really started.
@@ -384,7 +393,7 @@ pub fn serve<B: Backend>(
                 end_tick = end_tick.min(k);
                 report.stop_cause = u32::try_from(asked).unwrap_or(crate::stop_cause::CONTROL);
             }
-            progress(&mut health, k, &report, &stats, t0);
+            progress(&mut health, k, &report, &stats, base_ns + period_ns);
             health_pub.send(health);
             health_pub.prepare();
         }
@@ -397,11 +406,11 @@ pub fn serve<B: Backend>(
     report.latency = stats.round_trip.summary();
     report.lateness = stats.lateness.summary();
     report.execution = stats.execution.summary();
-    report.wall_s = t0.elapsed().as_secs_f64();
+    report.wall_s = seconds_since(base_ns + period_ns);
     report.truth_refused = truth.refused();
     report.peer_timeout = opts.peer_timeout;
     health.state = state::ended(report.faults);
-    progress(&mut health, k, &report, &stats, t0);
+    progress(&mut health, k, &report, &stats, base_ns + period_ns);
     health.stop_cause = report.stop_cause;
     health_pub.send(health);
     crate::ipc::linger(&truth_service, opts.linger);
