@@ -4,9 +4,8 @@
 use crate::args::RtPolicy;
 use crate::output::{print_json, tick_bar, CliError};
 use clap::Args;
-use daq_io::qualify::{measure, readiness, Check, Wait, WallClock};
-use daq_io::realtime::RtSettings;
-use runner::config::{Origin, WaitKind};
+use daq_io::qualify::{measure, readiness, Check, WallClock};
+use runner::config::{Origin, RealtimeConfig, Role, WaitKind};
 use std::process::ExitCode;
 
 /// Qualify this host for real time: runs the servo loop's pacing alone at --rate-hz for
@@ -115,22 +114,20 @@ impl LatencyCmd {
                 )
                 .into());
         }
-        daq_io::realtime::apply(&RtSettings {
+        // The loop measured is the plant's: its settings as a run would apply them.
+        let rt = RealtimeConfig {
             policy,
             priority: self.rt_priority,
-            cpus: self.cpu.into_iter().collect(),
+            plant_cpu: self.cpu,
             lock_memory: self.lock_memory,
-            prefault_bytes: 256 * 1024,
-            nice: 0,
-        })
-        .map_err(|e| CliError::Processes(e.to_string()))?;
-        let applied = daq_io::realtime::current();
-        let wait = match self.wait {
-            WaitKind::Spin => Wait::Spin,
-            WaitKind::SleepSpin => Wait::SleepThenSpin {
-                margin_ns: (self.spin_margin_us * 1e3).round() as u64,
-            },
+            wait: self.wait,
+            spin_margin_s: self.spin_margin_us * 1e-6,
+            ..RealtimeConfig::default()
         };
+        daq_io::realtime::apply(&rt.settings(Role::Plant))
+            .map_err(|e| CliError::Processes(e.to_string()))?;
+        let applied = daq_io::realtime::current();
+        let wait = rt.wait();
         let period_ns = (1e9 / self.rate_hz).round() as u64;
         let ticks = (self.duration * self.rate_hz).round() as u64;
         let bar = tick_bar(self.quiet || self.json, "measuring");
