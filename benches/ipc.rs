@@ -93,6 +93,24 @@ type Bare<P, S> = (
     iceoryx2::port::subscriber::Subscriber<ipc::Service, S, ()>,
 );
 
+/// A one-to-one service of the latest sample only, as the servo's are, opened or created.
+fn service<T: std::fmt::Debug + ZeroCopySend + Copy + 'static>(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()> {
+    let name: ServiceName = name.try_into().unwrap();
+    node.service_builder(&name)
+        .publish_subscribe::<T>()
+        .subscriber_max_buffer_size(1)
+        .history_size(0)
+        .enable_safe_overflow(true)
+        .max_publishers(1)
+        .max_subscribers(1)
+        .max_nodes(2)
+        .open_or_create()
+        .unwrap()
+}
+
 fn bare<P, S>(prefix: &str, out: &str, back: &str) -> Bare<P, S>
 where
     P: std::fmt::Debug + ZeroCopySend + Copy + 'static,
@@ -100,37 +118,12 @@ where
 {
     set_log_level(LogLevel::Error);
     let node = NodeBuilder::new().create::<ipc::Service>().unwrap();
-    let open = |leaf: &str| -> ServiceName {
-        format!("bench-bare/{prefix}/{leaf}")
-            .as_str()
-            .try_into()
-            .unwrap()
-    };
-    let publisher = node
-        .service_builder(&open(out))
-        .publish_subscribe::<P>()
-        .subscriber_max_buffer_size(1)
-        .history_size(0)
-        .enable_safe_overflow(true)
-        .max_publishers(1)
-        .max_subscribers(1)
-        .max_nodes(2)
-        .open_or_create()
-        .unwrap()
+    let name = |leaf: &str| format!("bench-bare/{prefix}/{leaf}");
+    let publisher = service::<P>(&node, &name(out))
         .publisher_builder()
         .create()
         .unwrap();
-    let subscriber = node
-        .service_builder(&open(back))
-        .publish_subscribe::<S>()
-        .subscriber_max_buffer_size(1)
-        .history_size(0)
-        .enable_safe_overflow(true)
-        .max_publishers(1)
-        .max_subscribers(1)
-        .max_nodes(2)
-        .open_or_create()
-        .unwrap()
+    let subscriber = service::<S>(&node, &name(back))
         .subscriber_builder()
         .create()
         .unwrap();
