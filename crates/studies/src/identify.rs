@@ -90,11 +90,8 @@ impl Identified {
                 100.0 * self.rel_std[i]
             );
         }
-        out += &format!(
-            "# made for {}; {}\n",
-            runner::config::MadeFor::of(&plant).describe(),
-            runner::config::MadeFor::of(&plant).tool
-        );
+        let made_for = runner::config::MadeFor::of(&plant);
+        out += &format!("# made for {}; {}\n", made_for.describe(), made_for.tool);
         out + &runner::config::plant_toml(&plant)
     }
 }
