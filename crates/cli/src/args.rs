@@ -18,6 +18,10 @@ pub struct PlantArgs {
     /// Servo (loop) rate in Hz.
     #[arg(long)]
     pub rate: Option<f64>,
+    /// Plant file: a `[plant]` table only, e.g. the model.toml `servo identify` writes
+    /// (replaces the configured plant; --rate and --noise still apply).
+    #[arg(long, conflicts_with = "mass")]
+    pub plant: Option<PathBuf>,
     /// Stage preset (replaces [plant.stage]).
     #[arg(long, value_enum)]
     pub mass: Option<StagePreset>,
@@ -33,6 +37,9 @@ impl PlantArgs {
         let mut out = String::new();
         if let Some(c) = &self.config {
             out += &format!(" -c {}", c.display());
+        }
+        if let Some(p) = &self.plant {
+            out += &format!(" --plant {}", p.display());
         }
         if let Some(r) = self.rate {
             out += &format!(" --rate {r}");
@@ -54,6 +61,9 @@ impl PlantArgs {
             None => Loaded::default(),
         };
         let c = &mut l.config;
+        if let Some(p) = &self.plant {
+            c.plant = runner::config::read_plant_file(p)?;
+        }
         set(&mut c.plant.timing.servo_rate_hz, self.rate);
         if let Some(m) = self.mass {
             c.plant.stage = m.params();

@@ -146,8 +146,8 @@ fn identify_refuses_an_frf_that_is_not_the_plant() {
 
 /// Measure → identify → tune on the identified plant → run: the FRF of the heavy stage,
 /// identified from the light stage's values, gives a model file whose stage is the heavy one
-/// (m1 + m2 within 1 %), which `servo tune -c` tunes on; the gains then run on that model and
-/// are refused on another plant.
+/// (m1 + m2 within 1 %), which `servo tune --plant` tunes on; the gains then run on that model
+/// (`-c pid.toml`, or `--plant model.toml` beside it) and are refused on another plant.
 #[test]
 fn an_identified_model_is_a_plant_the_other_commands_take() {
     let dir = tmp("workflow");
@@ -189,7 +189,7 @@ fn an_identified_model_is_a_plant_the_other_commands_take() {
     );
     let pid = dir.join("pid.toml");
     let out = servo()
-        .args(["tune", "-c"])
+        .args(["tune", "--plant"])
         .arg(&model)
         .arg("--out")
         .arg(&pid)
@@ -205,6 +205,11 @@ fn an_identified_model_is_a_plant_the_other_commands_take() {
             .unwrap()
     };
     succeeded(&run(&[]));
+    succeeded(&run(&["--plant", model.to_str().unwrap()]));
     let other = run(&["--mass", "light"]);
     assert_eq!(other.status.code(), Some(2), "{}", stderr(&other));
+    // A plant file and a stage preset both name the stage: refused.
+    let both = run(&["--plant", model.to_str().unwrap(), "--mass", "heavy"]);
+    assert_eq!(both.status.code(), Some(2), "{}", stderr(&both));
+    assert!(stderr(&both).contains("--mass"), "{}", stderr(&both));
 }

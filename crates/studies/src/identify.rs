@@ -68,8 +68,8 @@ pub struct Identified {
 }
 
 impl Identified {
-    /// The identified plant as a run-config fragment (`servo tune -c model.toml`, `servo synth
-    /// h2 -c model.toml`, `servo run -c model.toml`): `plan`'s plant with the fitted stage,
+    /// The identified plant as a run-config fragment (`servo tune --plant model.toml`, `servo synth
+    /// h2 --plant model.toml`, `servo run --plant model.toml`): `plan`'s plant with the fitted stage,
     /// opened by comments saying where it came from (`source`: the FRF file and its SHA-256)
     /// and how well it fits.
     pub fn model_toml(&self, plan: &Plan, source: &str) -> String {

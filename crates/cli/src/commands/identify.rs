@@ -13,7 +13,7 @@ use std::process::ExitCode;
 /// writes), with the simulator's exact sampled model as the grey box, starting from the
 /// configured stage; writes the identified plant as a config fragment (`--out`) that `servo
 /// tune`, `servo synth` and `servo run` take with `-c`.
-/// Example: servo frf --loop open --points 80 && servo identify frf/frf.csv && servo tune -c model.toml
+/// Example: servo frf --loop open --points 80 && servo identify frf/frf.csv && servo tune --plant model.toml
 #[derive(Args, Debug)]
 pub struct IdentifyCmd {
     /// FRF CSV with columns freq_hz, magnitude_m_per_v, phase_deg (clipped rows skipped).
@@ -71,7 +71,7 @@ impl IdentifyCmd {
             );
         }
         println!(
-            "  wrote {} — the identified plant: servo tune -c {0}, servo synth h2 -c {0}",
+            "  wrote {} — the identified plant: servo tune --plant {0}, servo synth h2 --plant {0}",
             self.out.display()
         );
         Ok(ExitCode::SUCCESS)

@@ -5,6 +5,7 @@ pub mod input_file;
 mod machining;
 mod made_for;
 mod origin;
+mod plant_file;
 pub mod presets;
 mod protection;
 mod realtime;
@@ -12,6 +13,7 @@ mod realtime;
 pub use machining::{Machining, SurfaceConfig};
 pub use made_for::{plant_toml, sha256_hex, MadeFor};
 pub use origin::{line_of, ConfigError, Origin};
+pub use plant_file::read_plant_file;
 pub use protection::{ProtectionConfig, SafeState};
 pub use realtime::{RealtimeConfig, Role, WaitKind};
 
