@@ -121,16 +121,21 @@ impl Psd {
     /// The cumulative amplitude spectrum of this estimate, summing whole bins (rectangle rule,
     /// so that the value at Nyquist is exactly the band power of all bins).
     pub fn cas(&self) -> Vec<f64> {
-        let bin = self.bin_hz();
-        let mut acc = 0.0;
-        self.density
-            .iter()
-            .map(|d| {
-                acc += d * bin;
-                acc.sqrt()
-            })
-            .collect()
+        cas_of_bins(&self.density, self.bin_hz())
     }
+}
+
+/// The cumulative amplitude spectrum of a PSD on uniform bins `bin_hz` apart, summing whole
+/// bins (rectangle rule): the last value is the RMS of all the bins.
+pub fn cas_of_bins(density: &[f64], bin_hz: f64) -> Vec<f64> {
+    let mut acc = 0.0;
+    density
+        .iter()
+        .map(|d| {
+            acc += d * bin_hz;
+            acc.sqrt()
+        })
+        .collect()
 }
 
 /// Welch's averaged periodogram of `x` sampled at `fs_hz`.

@@ -49,18 +49,32 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// Validates and builds the run of `loaded`.
+    /// Validates and builds the run of `loaded`, reading the files it names.
     pub fn new(loaded: &Loaded) -> Result<Self, RunError> {
+        Self::with_inputs(loaded, Vec::new())
+    }
+
+    /// Validates and builds the run of `loaded`, taking the input files it names (controller
+    /// file, surface image) from `inputs` by attachment name where there ([`CONTROLLER_INPUT`],
+    /// [`SURFACE_INPUT`]) — a recording's embedded copies — and reading the others.
+    pub fn with_inputs(loaded: &Loaded, mut inputs: Vec<Input>) -> Result<Self, RunError> {
         let origin = loaded.origin.clone();
         let mut config = loaded.config.clone();
         config.validate(&origin)?;
         resolve_paths(&mut config, &origin);
         let sim = Simulator::new(&config.plant, config.run.seed, &config.scenario.cutting())
             .map_err(|e| plant_error(e, &origin))?;
-        let mut inputs = Vec::new();
         let surface = match &config.scenario {
             Scenario::Machine(m) => {
                 let image = match &m.surface {
+                    SurfaceConfig::Image { .. }
+                        if inputs.iter().any(|i| i.name == SURFACE_INPUT) =>
+                    {
+                        inputs
+                            .iter()
+                            .find(|i| i.name == SURFACE_INPUT)
+                            .map(|i| i.data.as_slice())
+                    }
                     SurfaceConfig::Image { path, .. } => {
                         let bytes = read_input(path, MAX_IMAGE_BYTES).map_err(|e| {
                             origin.invalid(

@@ -154,6 +154,27 @@ pub struct RunHeader {
     pub every: NonZeroU32,
 }
 
+impl RunHeader {
+    /// The recorded run rebuilt: its configuration with the embedded controller file and
+    /// surface image (nothing read from disk), so its closed loop is the one that ran.
+    pub fn plan(&self) -> Result<Plan, RunError> {
+        let media = |name: &str| match name {
+            crate::plan::SURFACE_INPUT => "image/png",
+            _ => "application/toml",
+        };
+        let inputs = self
+            .inputs
+            .iter()
+            .map(|(name, data)| recorder::Input {
+                name: name.clone(),
+                media_type: media(name).into(),
+                data: data.clone(),
+            })
+            .collect();
+        Plan::with_inputs(&self.loaded, inputs)
+    }
+}
+
 /// What else reads the frames of a recording in the same pass (a study's analysis).
 pub trait FrameSink {
     /// Called once, before the first frame.

@@ -15,6 +15,7 @@
 //! | [`synth`] | Ch. 6 | H2-optimal controller files |
 //! | [`tune`] | Ch. 7 | PID tuning under Ms, Mt and a bandwidth |
 //! | [`form`] | Ch. 8 | machined form error, grid amplitude, trajectory |
+//! | [`spectrum`] | §5.7.4, Fig 5-15/5-16 | PSD and CAS of a recording beside the budget's prediction |
 //! | [`spindle`] | Appendix D | three-probe spindle error separation |
 
 pub mod budget;
@@ -26,6 +27,7 @@ pub mod intermittent;
 pub mod margins;
 pub mod plot;
 pub mod report;
+pub mod spectrum;
 pub mod spindle;
 pub mod stiffness;
 pub mod sweep;

@@ -13,6 +13,7 @@ pub mod latency;
 pub mod machine;
 pub mod run;
 pub mod run_hil;
+pub mod spectrum;
 pub mod spindle_errors;
 pub mod stiffness;
 pub mod synth;

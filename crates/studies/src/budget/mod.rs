@@ -56,36 +56,57 @@ fn variance(sys: &StateSpace, out: usize, inp: usize, var: f64) -> Result<f64, L
     Ok((c * p * c.transpose())[(0, 0)] + d * d * var)
 }
 
-impl Budget {
-    /// The budget of `cl` on a log grid of `points` frequencies from 1 Hz to Nyquist.
-    pub fn new(cl: &ClosedLoop, points: usize) -> Result<Self, LtiError> {
-        let fs = 1.0 / cl.period_s;
-        let nyquist = fs / 2.0;
-        let freq_hz = lti::spectral::log_space(1.0, nyquist, points);
-        let mut contributions = Vec::new();
-        let (mut following_psd, mut true_psd) = (Vec::new(), Vec::new());
-        let responses: Vec<DMatrix<num_complex::Complex64>> = freq_hz
+/// One-sided PSD at `freq_hz` of each of `outputs` (one of [`output`]) caused by each noise
+/// source of [`SOURCES`], `[output][source][frequency]`, in the output's unit²/Hz (a white
+/// per-tick variance σ² is a one-sided input PSD of 2σ²/fs).
+pub fn source_psds<const N: usize>(
+    cl: &ClosedLoop,
+    freq_hz: &[f64],
+    outputs: [usize; N],
+) -> Result<[Vec<Vec<f64>>; N], LtiError> {
+    let fs = 1.0 / cl.period_s;
+    let responses: Vec<DMatrix<num_complex::Complex64>> = freq_hz
+        .iter()
+        .map(|&f| cl.sys.freq_response_discrete(f, cl.period_s))
+        .collect::<Result<_, _>>()?;
+    Ok(outputs.map(|out| {
+        SOURCES
             .iter()
-            .map(|&f| cl.sys.freq_response_discrete(f, cl.period_s))
-            .collect::<Result<_, _>>()?;
-        for (k, (name, inp)) in SOURCES.iter().enumerate() {
-            let var = cl.noise_variance[k];
-            // White per-tick variance σ² ↔ one-sided PSD 2σ²/fs.
-            let scale = 2.0 * var / fs;
-            let psd = |out: usize| {
+            .enumerate()
+            .map(|(k, (_, inp))| {
+                let scale = 2.0 * cl.noise_variance[k] / fs;
                 responses
                     .iter()
                     .map(|h| h[(out, *inp)].norm_sqr() * scale)
-                    .collect::<Vec<f64>>()
-            };
-            following_psd.push(psd(output::FOLLOWING_ERROR_M));
-            true_psd.push(psd(output::TRUE_ERROR_M));
-            contributions.push(Contribution {
-                source: name.to_string(),
-                following_rms_m: variance(&cl.sys, output::FOLLOWING_ERROR_M, *inp, var)?.sqrt(),
-                true_rms_m: variance(&cl.sys, output::TRUE_ERROR_M, *inp, var)?.sqrt(),
-            });
-        }
+                    .collect()
+            })
+            .collect()
+    }))
+}
+
+impl Budget {
+    /// The budget of `cl` on a log grid of `points` frequencies from 1 Hz to Nyquist.
+    pub fn new(cl: &ClosedLoop, points: usize) -> Result<Self, LtiError> {
+        let nyquist = 0.5 / cl.period_s;
+        let freq_hz = lti::spectral::log_space(1.0, nyquist, points);
+        let [following_psd, true_psd] = source_psds(
+            cl,
+            &freq_hz,
+            [output::FOLLOWING_ERROR_M, output::TRUE_ERROR_M],
+        )?;
+        let contributions = SOURCES
+            .iter()
+            .enumerate()
+            .map(|(k, (name, inp))| {
+                let var = cl.noise_variance[k];
+                Ok(Contribution {
+                    source: name.to_string(),
+                    following_rms_m: variance(&cl.sys, output::FOLLOWING_ERROR_M, *inp, var)?
+                        .sqrt(),
+                    true_rms_m: variance(&cl.sys, output::TRUE_ERROR_M, *inp, var)?.sqrt(),
+                })
+            })
+            .collect::<Result<Vec<_>, LtiError>>()?;
         let total = |psds: &Vec<Vec<f64>>| {
             (0..freq_hz.len())
                 .map(|i| psds.iter().map(|p| p[i]).sum())

@@ -1,0 +1,126 @@
+//! `servo spectrum`: PSD and CAS of a recording's following error, true error and control
+//! output beside the error budget of the recorded configuration (thesis §5.7.4, Fig 5-15).
+
+use crate::output::{print_json, print_written, CliError};
+use clap::Args;
+use runner::config::Origin;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use studies::spectrum::{BandRms, SpectrumSink, RESOLUTION_RANGE_HZ};
+use studies::StudyError;
+
+/// Spectrum of a recorded run beside its error budget (thesis §5.7.4, Fig 5-15).
+///
+/// Welch PSD (Hann, 50 % overlap) and CAS of the following error, the control output and —
+/// for a simulated run — the true tool error, from the settle time to the end (or a trip),
+/// with the budget's prediction for the recorded configuration and the RMS difference per
+/// decade band. Streams the file in constant memory.
+/// Example: servo run --duration 2 && servo spectrum run.mcap
+#[derive(Args, Debug)]
+pub struct SpectrumCmd {
+    /// The MCAP file written by `servo run` or `servo record`.
+    file: PathBuf,
+    /// Frequency resolution (bin spacing) in Hz, 0.1 – 1000 (the segment is fs / resolution
+    /// samples; finer bins average fewer segments).
+    #[arg(long, default_value_t = 10.0)]
+    resolution_hz: f64,
+    /// Output directory for CSV, JSON, PNG and SVG.
+    #[arg(long, default_value = "spectrum")]
+    out_dir: PathBuf,
+    /// Print the result as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl SpectrumCmd {
+    /// Reads, analyses, writes and prints.
+    pub fn exec(&self) -> Result<ExitCode, CliError> {
+        let (lo, hi) = RESOLUTION_RANGE_HZ;
+        if !(lo..=hi).contains(&self.resolution_hz) {
+            return Err(Origin::default()
+                .invalid(
+                    "--resolution-hz",
+                    self.resolution_hz,
+                    &format!("[{lo}, {hi}] Hz"),
+                )
+                .into());
+        }
+        let mut sink = SpectrumSink::new(self.resolution_hz);
+        let read = runner::recording::inspect_with(&self.file, &mut sink)?;
+        let s = sink.finish()?;
+        let title = self
+            .file
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let written = studies::spectrum::report::write(&s, &title, &self.out_dir)
+            .map_err(StudyError::from)?;
+        if self.json {
+            print_json(&s);
+            return Ok(ExitCode::SUCCESS);
+        }
+        println!(
+            "Spectrum of {} ({}): {} samples at {:.0} Hz from {:.3} s, {:.2} Hz bins, {} segments",
+            self.file.display(),
+            read.read,
+            s.samples,
+            s.sample_rate_hz,
+            s.settle_s,
+            s.resolution_hz,
+            s.segments
+        );
+        println!("  made for {}; {}", s.made_for.describe(), s.controller);
+        if let Some(n) = &s.prediction_note {
+            println!("  no budget overlay: {n}");
+        }
+        println!(
+            "  {:<17} {:>28} {:>28} {:>28}",
+            "band (Hz)",
+            "following error (nm RMS)",
+            "true error (nm RMS)",
+            "control output (mV RMS)"
+        );
+        println!(
+            "  {:<17} {:>9} {:>9} {:>8}  {:>9} {:>9} {:>8}  {:>9} {:>9} {:>8}",
+            "",
+            "recorded",
+            "budget",
+            "diff",
+            "recorded",
+            "budget",
+            "diff",
+            "recorded",
+            "budget",
+            "diff"
+        );
+        let rows = s
+            .bands
+            .iter()
+            .map(|b| (format!("{:.0} – {:.0}", b.from_hz, b.to_hz), &b.rms))
+            .chain([("all".to_string(), &s.total)]);
+        for (name, rms) in rows {
+            println!(
+                "  {name:<17} {}  {}  {}",
+                cells(Some(&rms.following_error_m), 1e9),
+                cells(rms.true_error_m.as_ref(), 1e9),
+                cells(Some(&rms.control_v), 1e3)
+            );
+        }
+        print_written(&written);
+        Ok(ExitCode::SUCCESS)
+    }
+}
+
+/// `recorded budget diff` of one signal, scaled by `k`, blank where absent.
+fn cells(b: Option<&BandRms>, k: f64) -> String {
+    let v = |x: Option<f64>, d: usize| x.map_or("–".into(), |x| format!("{:.*}", d, x * k));
+    match b {
+        Some(b) => format!(
+            "{:>9} {:>9} {:>8}",
+            v(Some(b.recorded), 4),
+            v(b.predicted, 4),
+            b.difference_percent
+                .map_or("–".into(), |d| format!("{d:+.1} %"))
+        ),
+        None => format!("{:>9} {:>9} {:>8}", "–", "–", "–"),
+    }
+}

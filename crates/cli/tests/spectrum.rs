@@ -1,0 +1,154 @@
+//! `servo spectrum` (thesis §5.7.4, Fig 5-15): a recording's spectra agree with the error
+//! budget of its own configuration — rebuilt from the recording alone — per decade band, and
+//! a decimated recording is analysed without a comparison that aliasing would falsify.
+
+mod common;
+
+use common::{json, servo, succeeded, tmp};
+use serde_json::Value;
+use std::path::Path;
+
+fn spectrum(file: &Path, out_dir: &str) -> Value {
+    json(
+        &servo()
+            .arg("spectrum")
+            .arg(file)
+            .arg("--out-dir")
+            .arg(tmp(out_dir))
+            .arg("--json")
+            .output()
+            .unwrap(),
+    )
+}
+
+/// Every band's recorded RMS of `signal` within `tol` of the budget's.
+fn assert_bands_agree(s: &Value, signal: &str, tol_percent: f64) {
+    let bands = s["bands"].as_array().unwrap();
+    assert!(bands.len() >= 3, "{bands:?}");
+    for b in bands.iter().chain(std::iter::once(&s["total"])) {
+        let rms = b.get("rms").unwrap_or(b);
+        let d = rms[signal]["difference_percent"].as_f64().unwrap();
+        assert!(
+            d.abs() <= tol_percent,
+            "{signal} {}–{} Hz: recorded {} vs budget {} ({d:+.1} %)",
+            b["from_hz"],
+            b["to_hz"],
+            rms[signal]["recorded"],
+            rms[signal]["predicted"]
+        );
+    }
+}
+
+#[test]
+fn a_pid_run_agrees_with_its_budget_in_every_decade_band() {
+    let file = tmp("pid.mcap");
+    succeeded(
+        &servo()
+            .args(["run", "-q", "--duration", "1", "--out"])
+            .arg(&file)
+            .output()
+            .unwrap(),
+    );
+    let s = spectrum(&file, "spectrum-pid");
+    assert_eq!(s["sample_rate_hz"], 199_600.0);
+    assert_eq!(s["resolution_hz"], 10.0);
+    // 0.9 s after the settle time: 17 segments of 0.1 s at 50 % overlap.
+    assert_eq!(s["segments"], 17);
+    assert_eq!(s["made_for"]["stage"], "light");
+    for signal in ["following_error_m", "true_error_m", "control_v"] {
+        assert_bands_agree(&s, signal, 10.0);
+    }
+    // The whole band against the budget's exact RMS (discrete Lyapunov, `servo budget`): the
+    // bins below 10 Hz and the estimate's variance leave a few percent.
+    let budget = json(
+        &servo()
+            .args(["budget", "--json", "--out-dir"])
+            .arg(tmp("budget-pid"))
+            .output()
+            .unwrap(),
+    );
+    for (signal, key) in [
+        ("following_error_m", "following_rms_m"),
+        ("true_error_m", "true_rms_m"),
+    ] {
+        let recorded = s["total"][signal]["recorded"].as_f64().unwrap();
+        let exact = budget["budget"][key].as_f64().unwrap();
+        assert!(
+            (recorded / exact - 1.0).abs() < 0.03,
+            "{signal}: {recorded} vs {exact}"
+        );
+    }
+    for f in ["spectrum.csv", "spectrum.json"] {
+        assert!(tmp("spectrum-pid").join(f).exists(), "{f}");
+    }
+}
+
+/// An H2 controller file recorded, then deleted: the recording's embedded copy rebuilds the
+/// closed loop the budget is computed on.
+#[test]
+fn the_prediction_comes_from_the_recording_not_from_files_on_disk() {
+    let h2 = tmp("h2-spectrum.toml");
+    succeeded(
+        &servo()
+            .args(["synth", "h2", "--rate", "20000", "--out"])
+            .arg(&h2)
+            .output()
+            .unwrap(),
+    );
+    let file = tmp("h2.mcap");
+    succeeded(
+        &servo()
+            .args(["run", "-q", "--duration", "2", "--rate", "20000"])
+            .args(["--controller", "ss", "--ss-file"])
+            .arg(&h2)
+            .arg("--out")
+            .arg(&file)
+            .output()
+            .unwrap(),
+    );
+    std::fs::remove_file(&h2).unwrap();
+    let s = spectrum(&file, "spectrum-h2");
+    assert!(s["prediction_note"].is_null(), "{}", s["prediction_note"]);
+    assert!(
+        s["controller"].as_str().unwrap().contains("state space"),
+        "{}",
+        s["controller"]
+    );
+    assert_bands_agree(&s, "following_error_m", 10.0);
+    assert_bands_agree(&s, "true_error_m", 10.0);
+}
+
+#[test]
+fn a_decimated_recording_is_analysed_without_a_comparison_aliasing_would_falsify() {
+    let file = tmp("every4.mcap");
+    succeeded(
+        &servo()
+            .args([
+                "run",
+                "-q",
+                "--duration",
+                "1",
+                "--record-every",
+                "4",
+                "--out",
+            ])
+            .arg(&file)
+            .output()
+            .unwrap(),
+    );
+    let s = spectrum(&file, "spectrum-every4");
+    assert_eq!(s["sample_rate_hz"], 49_900.0);
+    assert!(s["predicted_psd"].is_null());
+    let note = s["prediction_note"].as_str().unwrap();
+    assert!(
+        note.contains("every 4 ticks") && note.contains("--record-every 1"),
+        "{note}"
+    );
+    let bad = servo()
+        .args(["spectrum", "--resolution-hz", "0"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--resolution-hz"));
+}

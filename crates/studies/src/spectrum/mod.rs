@@ -1,0 +1,301 @@
+//! Spectrum analysis of a recorded run (thesis §5.7.4, Fig 5-15/5-16): Welch PSD and CAS of
+//! the following error, the control output and — where the recording carries the simulator's
+//! truth — the true tool error, beside the error budget's prediction for the recorded
+//! configuration, with the difference per decade band.
+//!
+//! The recording streams through in constant memory (one Welch segment per signal). Only the
+//! steady part counts: from the run's settle time to its end, or to a trip.
+
+pub mod report;
+
+use crate::budget::source_psds;
+use crate::StudyError;
+use lti::spectral::{Psd, Welch, WelchConfig};
+use recorder::Frame;
+use runner::closed_loop::output;
+use runner::config::MadeFor;
+use runner::recording::{FrameSink, RunHeader};
+use runner::RunError;
+use serde::Serialize;
+
+/// Lowest and highest frequency resolution accepted, Hz.
+pub const RESOLUTION_RANGE_HZ: (f64, f64) = (0.1, 1000.0);
+
+/// The three signals analysed, in their recorded units.
+#[derive(Debug, Clone, Serialize)]
+pub struct Signals<T> {
+    /// Following error `r − measured`, m.
+    pub following_error_m: T,
+    /// True tool error `tool − r`, m (simulator truth; absent for a hardware recording).
+    pub true_error_m: Option<T>,
+    /// Control output (DAC command), V.
+    pub control_v: T,
+}
+
+/// RMS of each signal in one frequency band: recorded, predicted, difference.
+#[derive(Debug, Clone, Serialize)]
+pub struct BandRms {
+    /// Recorded RMS in the band (signal unit).
+    pub recorded: f64,
+    /// The budget's RMS in the band, on the same bins.
+    pub predicted: Option<f64>,
+    /// `recorded / predicted − 1`, %.
+    pub difference_percent: Option<f64>,
+}
+
+/// One decade band (the first and last cut at the lowest bin and at Nyquist).
+#[derive(Debug, Clone, Serialize)]
+pub struct Band {
+    /// Lower edge, Hz (inclusive).
+    pub from_hz: f64,
+    /// Upper edge, Hz (exclusive; Nyquist inclusive for the last band).
+    pub to_hz: f64,
+    /// Welch bins in the band.
+    pub bins: usize,
+    /// Per signal.
+    pub rms: Signals<BandRms>,
+}
+
+/// The spectra of a recording and the budget's prediction for it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Spectrum {
+    /// The plant and rate of the recorded configuration.
+    pub made_for: MadeFor,
+    /// The recorded controller's description.
+    pub controller: String,
+    /// Sample rate of the analysed telemetry, Hz (servo rate / recording decimation).
+    pub sample_rate_hz: f64,
+    /// Bin spacing, Hz.
+    pub resolution_hz: f64,
+    /// Samples analysed (after the settle time, before any trip).
+    pub samples: u64,
+    /// Welch segments averaged (Hann, 50 % overlap): each bin's relative standard deviation is
+    /// about 1/√segments.
+    pub segments: usize,
+    /// Analysis start, s of run time.
+    pub settle_s: f64,
+    /// Bin frequencies, Hz (DC left out).
+    pub freq_hz: Vec<f64>,
+    /// Recorded one-sided PSDs (signal unit²/Hz).
+    pub recorded_psd: Signals<Vec<f64>>,
+    /// The budget's PSDs for the recorded configuration on the same bins (noise sources only:
+    /// a scenario's reference adds tracking error that is not in it).
+    pub predicted_psd: Option<Signals<Vec<f64>>>,
+    /// Why there is no prediction, when there is none.
+    pub prediction_note: Option<String>,
+    /// Per decade band.
+    pub bands: Vec<Band>,
+    /// Whole band (lowest bin to Nyquist).
+    pub total: Signals<BandRms>,
+}
+
+/// The Welch estimates filled as the frames stream past.
+struct Estimates {
+    settle_ns: u64,
+    fs_hz: f64,
+    following: Welch,
+    true_error: Welch,
+    control: Welch,
+    truth_seen: bool,
+    samples: u64,
+    tripped: bool,
+}
+
+/// Reads the frames of a recording into spectra ([`FrameSink`] for
+/// [`runner::recording::inspect_with`]); [`SpectrumSink::finish`] gives the result.
+pub struct SpectrumSink {
+    resolution_hz: f64,
+    header: Option<(MadeFor, String, f64)>,
+    prediction: Result<runner::Plan, String>,
+    estimates: Option<Estimates>,
+}
+
+impl SpectrumSink {
+    /// Spectra with bins `resolution_hz` apart (within [`RESOLUTION_RANGE_HZ`]).
+    pub fn new(resolution_hz: f64) -> Self {
+        SpectrumSink {
+            resolution_hz,
+            header: None,
+            prediction: Err("the recording has no header".into()),
+            estimates: None,
+        }
+    }
+}
+
+impl FrameSink for SpectrumSink {
+    fn header(&mut self, h: &RunHeader) -> Result<(), RunError> {
+        let config = &h.loaded.config;
+        let every = h.every.get();
+        let fs_hz = config.plant.timing.servo_rate_hz / f64::from(every);
+        let segment_len = (fs_hz / self.resolution_hz).round().max(2.0) as usize;
+        let welch = || {
+            Welch::new(fs_hz, &WelchConfig::hann(segment_len)).map_err(|e| {
+                h.loaded
+                    .origin
+                    .invalid("--resolution-hz", self.resolution_hz, &e.to_string())
+            })
+        };
+        self.estimates = Some(Estimates {
+            settle_ns: (config.run.settle() * 1e9).round() as u64,
+            fs_hz,
+            following: welch()?,
+            true_error: welch()?,
+            control: welch()?,
+            truth_seen: false,
+            samples: 0,
+            tripped: false,
+        });
+        self.header = Some((
+            MadeFor::of(&config.plant),
+            h.controller.clone(),
+            config.run.settle(),
+        ));
+        self.prediction = if every > 1 {
+            Err(format!(
+                "recorded every {every} ticks without an anti-alias filter: the spectrum above \
+                 {:.0} Hz is folded into it; record at full rate (--record-every 1) to compare",
+                fs_hz / 2.0
+            ))
+        } else {
+            h.plan()
+                .map_err(|e| format!("the recorded configuration does not build: {e}"))
+        };
+        Ok(())
+    }
+
+    fn frame(&mut self, f: &Frame) {
+        let Some(e) = &mut self.estimates else {
+            return;
+        };
+        if f.telemetry.flags as u32 & daq_io::flags::TRIPPED != 0 {
+            e.tripped = true;
+        }
+        if e.tripped || f.time_ns < e.settle_ns {
+            return;
+        }
+        e.following.push(f64::from(f.telemetry.following_error_m));
+        e.control.push(f64::from(f.telemetry.control_v));
+        e.true_error.push(f64::from(f.truth.true_error_m));
+        e.truth_seen |= f.truth.tool_m != 0.0 || f.truth.gap_m != 0.0;
+        e.samples += 1;
+    }
+}
+
+impl SpectrumSink {
+    /// The spectra, the prediction and the band table.
+    pub fn finish(self) -> Result<Spectrum, StudyError> {
+        let (Some(e), Some((made_for, controller, settle_s))) = (self.estimates, self.header)
+        else {
+            return Err(lti::spectral::SpectralError::Argument("no run header was read").into());
+        };
+        let body = |p: Psd| p.density[1..].to_vec();
+        let following = e.following.finish()?;
+        let resolution_hz = following.bin_hz();
+        let freq_hz = following.freq_hz[1..].to_vec();
+        let recorded_psd = Signals {
+            following_error_m: body(following),
+            true_error_m: if e.truth_seen {
+                Some(body(e.true_error.finish()?))
+            } else {
+                None
+            },
+            control_v: body(e.control.finish()?),
+        };
+        let (predicted_psd, prediction_note) = match self.prediction {
+            Ok(plan) => {
+                let [f, t, c] = source_psds(
+                    &plan.closed_loop,
+                    &freq_hz,
+                    [
+                        output::FOLLOWING_ERROR_M,
+                        output::TRUE_ERROR_M,
+                        output::CONTROL_V,
+                    ],
+                )?;
+                let total = |per_source: Vec<Vec<f64>>| -> Vec<f64> {
+                    (0..freq_hz.len())
+                        .map(|i| per_source.iter().map(|p| p[i]).sum())
+                        .collect()
+                };
+                (
+                    Some(Signals {
+                        following_error_m: total(f),
+                        true_error_m: e.truth_seen.then(|| total(t)),
+                        control_v: total(c),
+                    }),
+                    None,
+                )
+            }
+            Err(why) => (None, Some(why)),
+        };
+        let band = |lo: f64, hi: f64, last: bool| {
+            let inside = |f: f64| f >= lo && (f < hi || (last && f <= hi));
+            let rms = |psd: &[f64]| {
+                (freq_hz
+                    .iter()
+                    .zip(psd)
+                    .filter(|(f, _)| inside(**f))
+                    .map(|(_, d)| d)
+                    .sum::<f64>()
+                    * resolution_hz)
+                    .sqrt()
+            };
+            let compare = |rec: &[f64], pred: Option<&[f64]>| {
+                let recorded = rms(rec);
+                let predicted = pred.map(rms);
+                BandRms {
+                    recorded,
+                    predicted,
+                    difference_percent: predicted.map(|p| 100.0 * (recorded / p - 1.0)),
+                }
+            };
+            let p = predicted_psd.as_ref();
+            Signals {
+                following_error_m: compare(
+                    &recorded_psd.following_error_m,
+                    p.map(|p| p.following_error_m.as_slice()),
+                ),
+                true_error_m: recorded_psd
+                    .true_error_m
+                    .as_ref()
+                    .map(|rec| compare(rec, p.and_then(|p| p.true_error_m.as_deref()))),
+                control_v: compare(&recorded_psd.control_v, p.map(|p| p.control_v.as_slice())),
+            }
+        };
+        let (first, nyquist) = (freq_hz[0], e.fs_hz / 2.0);
+        let mut bands = Vec::new();
+        let mut lo = first;
+        while lo < nyquist {
+            let hi = (10f64.powf(lo.log10().floor() + 1.0)).min(nyquist);
+            let last = hi >= nyquist;
+            let bins = freq_hz
+                .iter()
+                .filter(|f| **f >= lo && (**f < hi || (last && **f <= hi)))
+                .count();
+            if bins > 0 {
+                bands.push(Band {
+                    from_hz: lo,
+                    to_hz: hi,
+                    bins,
+                    rms: band(lo, hi, last),
+                });
+            }
+            lo = hi;
+        }
+        Ok(Spectrum {
+            made_for,
+            controller,
+            sample_rate_hz: e.fs_hz,
+            resolution_hz,
+            samples: e.samples,
+            segments: e.following.segments(),
+            settle_s,
+            total: band(first, nyquist, true),
+            freq_hz,
+            recorded_psd,
+            predicted_psd,
+            prediction_note,
+            bands,
+        })
+    }
+}
