@@ -21,6 +21,10 @@ use serde::Serialize;
 /// Lowest and highest frequency resolution accepted, Hz.
 pub const RESOLUTION_RANGE_HZ: (f64, f64) = (0.1, 1000.0);
 
+/// The first Welch bin the band comparison uses (bins below it lie within the Hann window's
+/// main lobe around DC and are biased by the steep low-frequency rise).
+pub const COMPARED_FROM_BIN: usize = 4;
+
 /// The three signals analysed, in their recorded units.
 #[derive(Debug, Clone, Serialize)]
 pub struct Signals<T> {
@@ -43,7 +47,7 @@ pub struct BandRms {
     pub difference_percent: Option<f64>,
 }
 
-/// One decade band (the first and last cut at the lowest bin and at Nyquist).
+/// One decade band (the first cut at bin [`COMPARED_FROM_BIN`], the last at Nyquist).
 #[derive(Debug, Clone, Serialize)]
 pub struct Band {
     /// Lower edge, Hz (inclusive).
@@ -85,7 +89,7 @@ pub struct Spectrum {
     pub prediction_note: Option<String>,
     /// Per decade band.
     pub bands: Vec<Band>,
-    /// Whole band (lowest bin to Nyquist).
+    /// Whole band ([`COMPARED_FROM_BIN`] bins to Nyquist).
     pub total: Signals<BandRms>,
 }
 
@@ -228,8 +232,10 @@ impl SpectrumSink {
             }
             Err(why) => (None, Some(why)),
         };
-        let band = |lo: f64, hi: f64, last: bool| {
-            let inside = |f: f64| f >= lo && (f < hi || (last && f <= hi));
+        let nyquist = e.fs_hz / 2.0;
+        // The band [lo, hi) (hi included at Nyquist): its bins and each signal's RMS.
+        let band = |lo: f64, hi: f64| {
+            let inside = |f: f64| f >= lo && (f < hi || (hi >= nyquist && f <= hi));
             let rms = |psd: &[f64]| {
                 (freq_hz
                     .iter()
@@ -250,7 +256,7 @@ impl SpectrumSink {
                 }
             };
             let p = predicted_psd.as_ref();
-            Signals {
+            let rms = Signals {
                 following_error_m: compare(
                     &recorded_psd.following_error_m,
                     p.map(|p| p.following_error_m.as_slice()),
@@ -260,28 +266,33 @@ impl SpectrumSink {
                     .as_ref()
                     .map(|rec| compare(rec, p.and_then(|p| p.true_error_m.as_deref()))),
                 control_v: compare(&recorded_psd.control_v, p.map(|p| p.control_v.as_slice())),
+            };
+            Band {
+                from_hz: lo,
+                to_hz: hi,
+                bins: freq_hz.iter().filter(|f| inside(**f)).count(),
+                rms,
             }
         };
-        let (first, nyquist) = (freq_hz[0], e.fs_hz / 2.0);
-        let mut bands = Vec::new();
-        let mut lo = first;
-        while lo < nyquist {
-            let hi = (10f64.powf(lo.log10().floor() + 1.0)).min(nyquist);
-            let last = hi >= nyquist;
-            let bins = freq_hz
-                .iter()
-                .filter(|f| **f >= lo && (**f < hi || (last && **f <= hi)))
-                .count();
-            if bins > 0 {
-                bands.push(Band {
-                    from_hz: lo,
-                    to_hz: hi,
-                    bins,
-                    rms: band(lo, hi, last),
-                });
-            }
-            lo = hi;
+        // The Hann window's main lobe is four bins wide: the lowest bins mix in the mean and
+        // the steep rise below them, so the comparison starts at the fourth.
+        let first = COMPARED_FROM_BIN as f64 * resolution_hz;
+        let mut edges = vec![first];
+        let mut decade = 10f64.powf(first.log10().floor() + 1.0);
+        while decade < nyquist {
+            edges.push(decade);
+            decade *= 10.0;
         }
+        edges.push(nyquist);
+        // A first partial decade of a few bins says nothing on its own: it joins the next.
+        if edges.len() > 2 && (edges[1] - first) / resolution_hz < COMPARED_FROM_BIN as f64 {
+            edges.remove(1);
+        }
+        let bands: Vec<Band> = edges
+            .windows(2)
+            .map(|w| band(w[0], w[1]))
+            .filter(|b| b.bins > 0)
+            .collect();
         Ok(Spectrum {
             made_for,
             controller,
@@ -290,7 +301,7 @@ impl SpectrumSink {
             samples: e.samples,
             segments: e.following.segments(),
             settle_s,
-            total: band(first, nyquist, true),
+            total: band(first, nyquist).rms,
             freq_hz,
             recorded_psd,
             predicted_psd,
