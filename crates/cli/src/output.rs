@@ -73,7 +73,12 @@ impl CliError {
     /// the loop unstable), 4 when the recording could not be written mid-run (the run was
     /// ended safely), 1 for other failures while running.
     pub fn exit_code(&self) -> u8 {
-        let input = |r: &RunError| matches!(r, RunError::Config(_) | RunError::Unstable { .. });
+        let input = |r: &RunError| {
+            matches!(
+                r,
+                RunError::Config(_) | RunError::Unstable { .. } | RunError::NoTruth(_)
+            )
+        };
         let write_failed = |r: &RunError| {
             matches!(
                 r,

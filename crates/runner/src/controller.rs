@@ -221,8 +221,11 @@ impl Controller {
         // The PID sees e = −gap (zero reference): gain −1 on the gap channel.
         let pid_linear = on_channel(dm(&pa), dm(&pb), dm(&pc), pd, 0, -1.0);
         let gains = format!(
-            "Kp {} Ki {} Kd {:e} Tf {:e}",
-            pid_cfg.kp, pid_cfg.ki, pid_cfg.kd, pid_cfg.tf_s
+            "Kp {} Ki {} Kd {} Tf {}",
+            short(pid_cfg.kp),
+            short(pid_cfg.ki),
+            short(pid_cfg.kd),
+            short(pid_cfg.tf_s)
         );
         Ok(match c.kind {
             ControllerKind::Pid => Controller {
@@ -319,6 +322,54 @@ impl Controller {
                 accel: accel_v,
             }),
             Kind::Ss(s) => s.tick(error_v),
+        }
+    }
+}
+
+/// `x` to four significant digits, trailing zeros dropped, in e-notation below 0.01 or from
+/// 1e5 (`1.65`, `562`, `0.1194`, `9.5e-4`, `7.507e-4`).
+fn short(x: f64) -> String {
+    let trim = |t: String| {
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
+    };
+    if x == 0.0 || !x.is_finite() {
+        return x.to_string();
+    }
+    if x.abs() < 1e-2 || x.abs() >= 1e5 {
+        let text = format!("{x:.3e}");
+        match text.split_once('e') {
+            Some((mantissa, exp)) => format!("{}e{exp}", trim(mantissa.to_string())),
+            None => text,
+        }
+    } else {
+        let decimals = (3 - x.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        trim(format!("{x:.decimals$}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::short;
+
+    #[test]
+    fn gains_print_to_four_significant_digits() {
+        let cases = [
+            (1.65, "1.65"),
+            (562.0, "562"),
+            (0.11939859668622438, "0.1194"),
+            (380.6313145801348, "380.6"),
+            (9.5e-4, "9.5e-4"),
+            (7.506682896438059e-4, "7.507e-4"),
+            (0.0, "0"),
+            (-2.5, "-2.5"),
+            (123456.0, "1.235e5"),
+        ];
+        for (x, text) in cases {
+            assert_eq!(short(x), text, "{x}");
         }
     }
 }

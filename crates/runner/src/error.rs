@@ -73,6 +73,10 @@ pub enum RunError {
     /// A recording without the metadata `servo run` writes.
     #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
     NotARun(PathBuf),
+    /// A recording of a plant without simulator truth (a DAQ daemon, a real stage) asked to
+    /// replay on the simulator's own stage.
+    #[error("{}: recorded against a plant without simulator truth (a DAQ daemon or a real stage): its plant and noise cannot be re-run as they were; replay it on an identified model with --plant model.toml", .0.display())]
+    NoTruth(PathBuf),
 }
 
 /// A spectral radius as a reader wants it: six decimals near 1, powers of ten when huge.

@@ -4,7 +4,8 @@
 //! configuration (TOML, thesis defaults, located errors), the controller from servo-core, the
 //! simulated stage from plant-sim behind daq-io's `Backend`, a pre-run stability check on the
 //! exact sampled loop, the recording (MCAP) and the summary — in one process ([`run`]) or as
-//! the plant, controller and recorder processes of a HIL run ([`hil`]). The offline studies
+//! the plant, controller and recorder processes of a HIL run ([`hil`]), and a recording re-run
+//! from what it holds ([`replay`]). The offline studies
 //! live in the `studies` crate; the `servo` binary is a thin shell over both.
 //!
 //! ```no_run
@@ -32,6 +33,7 @@ pub mod plan;
 pub mod preview;
 pub mod protection;
 pub mod recording;
+pub mod replay;
 pub mod run;
 pub mod servo_loop;
 pub mod sim_backend;

@@ -158,20 +158,23 @@ impl RunHeader {
     /// The recorded run rebuilt: its configuration with the embedded controller file and
     /// surface image (nothing read from disk), so its closed loop is the one that ran.
     pub fn plan(&self) -> Result<Plan, RunError> {
+        Plan::with_inputs(&self.loaded, self.inputs())
+    }
+
+    /// The embedded input files, as a run takes them.
+    pub fn inputs(&self) -> Vec<recorder::Input> {
         let media = |name: &str| match name {
             crate::plan::SURFACE_INPUT => "image/png",
             _ => "application/toml",
         };
-        let inputs = self
-            .inputs
+        self.inputs
             .iter()
             .map(|(name, data)| recorder::Input {
                 name: name.clone(),
                 media_type: media(name).into(),
                 data: data.clone(),
             })
-            .collect();
-        Plan::with_inputs(&self.loaded, inputs)
+            .collect()
     }
 }
 

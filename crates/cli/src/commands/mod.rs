@@ -11,6 +11,7 @@ pub mod inspect;
 pub mod intermittent;
 pub mod latency;
 pub mod machine;
+pub mod replay;
 pub mod run;
 pub mod run_hil;
 pub mod spectrum;
