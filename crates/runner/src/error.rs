@@ -73,6 +73,23 @@ pub enum RunError {
     /// A recording without the metadata `servo run` writes.
     #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
     NotARun(PathBuf),
+    /// The plant served on the prefix ended its run (its duration, a STOP, a fault) before
+    /// this side was done with it.
+    #[error("the plant ended its run at tick {ticks}{} before this measurement finished: start it with a longer --duration", if *faults != 0 { format!(" with faults {faults:#x}") } else { String::new() })]
+    PlantEnded {
+        /// The tick of its last sample.
+        ticks: u64,
+        /// Its fault flags ([`daq_io::flags::PLANT_FAULTS`] bits), 0 when it ended normally.
+        faults: u32,
+    },
+    /// The plant on the prefix serves another rate than this side is configured for.
+    #[error("the plant serves {served_hz:.1} Hz; this side is configured for {configured_hz:.1} Hz: give --rate {served_hz:.0} (or start the plant at the configured rate)")]
+    RateMismatch {
+        /// The plant's rate (from its sample times), Hz.
+        served_hz: f64,
+        /// The configured servo rate, Hz.
+        configured_hz: f64,
+    },
     /// A recording of a plant without simulator truth (a DAQ daemon, a real stage) asked to
     /// replay on the simulator's own stage.
     #[error("{}: recorded against a plant without simulator truth (a DAQ daemon or a real stage): its plant and noise cannot be re-run as they were; replay it on an identified model with --plant model.toml", .0.display())]

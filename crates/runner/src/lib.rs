@@ -33,6 +33,7 @@ pub mod plan;
 pub mod preview;
 pub mod protection;
 pub mod recording;
+pub mod remote_plant;
 pub mod replay;
 pub mod run;
 pub mod servo_loop;

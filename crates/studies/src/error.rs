@@ -70,6 +70,15 @@ pub enum StudyError {
         /// What is wrong.
         what: String,
     },
+    /// A measurement on a plant served on a prefix stopped to keep the stage safe: the plant
+    /// was put back to 0 V and its run closed.
+    #[error("FRF aborted at {freq_hz:.1} Hz: {what}; the plant was set to 0 V and its run closed — lower --amplitude (or the band)")]
+    FrfAborted {
+        /// The frequency being measured, Hz.
+        freq_hz: f64,
+        /// What clipped.
+        what: &'static str,
+    },
     /// Writing results.
     #[error(transparent)]
     Report(#[from] crate::report::ReportError),

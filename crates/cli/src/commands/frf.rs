@@ -1,19 +1,25 @@
-//! `servo frf`: measure a frequency response on the running simulator beside its model.
+//! `servo frf`: measure a frequency response — on the simulator in this process, or through
+//! the transport on any plant serving a prefix — beside the model.
 
 use crate::args::{ControllerArgs, PlantArgs};
 use crate::output::{points_bar, print_json, print_written, CliError};
 use clap::Args;
+use runner::remote_plant::RemotePlant;
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use studies::frf::{self, FrfLoop, FrfMethod, FrfPoint, FrfSettings, CHIRP_REPEATS, CHIRP_S};
+use studies::frf::{
+    self, Chirp, FrfLoop, FrfMethod, FrfPlant, FrfPoint, FrfSettings, CHIRP_REPEATS, CHIRP_S,
+};
 use studies::StudyError;
 
-/// Measure a frequency response on the running simulator and compare it with the model.
+/// Measure a frequency response and compare it with the model.
 ///
-/// Stepped sine (§5.5.1: ramp, settle, integer periods, exact-bin DFT) and compare it with
-/// the model: open loop (DAC command → measured position) or closed loop (injection at the
-/// controller output, §5.7.5).
+/// Stepped sine (§5.5.1: ramp, settle, integer periods, exact-bin DFT) or chirp, open loop
+/// (DAC command → measured position) or closed loop (injection at the controller output,
+/// §5.7.5). On the simulator in this process, or with --prefix on the plant serving that run
+/// (`servo plant --prefix P --no-recorder --duration S`, or a DAQ daemon): this process joins
+/// as its controller and injects the excitation; a clipped reading or command aborts to 0 V.
 /// Example: servo frf --loop closed --from 10 --to 20000 --points 40
 #[derive(Args, Debug)]
 pub struct FrfCmd {
@@ -47,6 +53,10 @@ pub struct FrfCmd {
     /// Output directory for CSV, JSON, PNG and SVG.
     #[arg(long, default_value = "frf")]
     out_dir: PathBuf,
+    /// Measure on the plant serving this run prefix (the simulator process or a DAQ daemon)
+    /// instead of the simulator in this process.
+    #[arg(long)]
+    prefix: Option<String>,
     /// Print the measured points as JSON.
     #[arg(long)]
     json: bool,
@@ -59,13 +69,23 @@ impl FrfCmd {
         self.controller.apply(&mut l);
         crate::args::set(&mut l.config.run.seed, self.seed);
         let plan = Plan::new(&l)?;
-        let pts = self.measure(&plan)?;
+        let (pts, measured_on) = match &self.prefix {
+            None => (
+                self.measure(&plan, &mut frf::simulated(&plan))?,
+                format!("the simulated stage, seed {}", plan.config.run.seed),
+            ),
+            Some(prefix) => self.measure_remote(&plan, prefix)?,
+        };
         let curve = frf::model_curve(&plan, self.which, self.from, self.to, 600)?;
         let title = format!("{:?}-loop FRF", self.which);
         let made_for = runner::config::MadeFor::of(&plan.config.plant);
-        let written =
-            frf::report::write(&pts, &curve, &title, (self.which, &made_for), &self.out_dir)
-                .map_err(StudyError::from)?;
+        let provenance = frf::report::Provenance {
+            which: self.which,
+            made_for: &made_for,
+            measured_on: &measured_on,
+        };
+        let written = frf::report::write(&pts, &curve, &title, &provenance, &self.out_dir)
+            .map_err(StudyError::from)?;
         if self.json {
             print_json(&pts);
             return Ok(ExitCode::SUCCESS);
@@ -75,26 +95,74 @@ impl FrfCmd {
         Ok(ExitCode::SUCCESS)
     }
 
-    fn measure(&self, plan: &Plan) -> Result<Vec<FrfPoint>, StudyError> {
-        let band = (self.from, self.to);
+    /// The stepped-sine settings and frequencies.
+    fn stepped(&self) -> (FrfSettings, Vec<f64>) {
+        let mut settings = FrfSettings::for_loop(self.which);
+        crate::args::set(&mut settings.amplitude_v, self.amplitude);
+        let freqs = lti::spectral::log_space(self.from, self.to, usize::from(self.points));
+        (settings, freqs)
+    }
+
+    /// The chirp.
+    fn chirp(&self) -> Chirp {
+        Chirp {
+            band: (self.from, self.to),
+            amplitude_v: self.amplitude.unwrap_or(frf::chirp_amplitude_v(self.which)),
+            duration_s: CHIRP_S,
+            repeats: CHIRP_REPEATS,
+        }
+    }
+
+    fn measure(&self, plan: &Plan, plant: &mut dyn FrfPlant) -> Result<Vec<FrfPoint>, StudyError> {
         match self.method {
             FrfMethod::Stepped => {
-                let mut settings = FrfSettings::for_loop(self.which);
-                crate::args::set(&mut settings.amplitude_v, self.amplitude);
-                let n = usize::from(self.points);
-                let freqs = lti::spectral::log_space(self.from, self.to, n);
-                let bar = points_bar(n, "stepped sine", "frequencies");
-                let pts = frf::stepped_sine(plan, self.which, &freqs, &settings, &mut |d, _| {
-                    bar.set_position(d as u64)
-                });
+                let (settings, freqs) = self.stepped();
+                let bar = points_bar(freqs.len(), "stepped sine", "frequencies");
+                let pts = frf::stepped_sine_on(
+                    plan,
+                    self.which,
+                    &freqs,
+                    &settings,
+                    plant,
+                    &mut |d, _| bar.set_position(d as u64),
+                );
                 bar.finish_and_clear();
                 pts
             }
-            FrfMethod::Chirp => {
-                let a = self.amplitude.unwrap_or(frf::chirp_amplitude_v(self.which));
-                frf::chirp(plan, self.which, band, a, CHIRP_S, CHIRP_REPEATS)
-            }
+            FrfMethod::Chirp => frf::chirp_on(plan, self.which, &self.chirp(), plant),
         }
+    }
+
+    /// Measures on the plant serving `prefix`, saying first how long it must serve.
+    fn measure_remote(
+        &self,
+        plan: &Plan,
+        prefix: &str,
+    ) -> Result<(Vec<FrfPoint>, String), CliError> {
+        let fs = plan.config.plant.timing.servo_rate_hz;
+        let ticks = match self.method {
+            FrfMethod::Stepped => {
+                let (settings, freqs) = self.stepped();
+                frf::stepped_sine_ticks(plan, &freqs, &settings)?
+            }
+            FrfMethod::Chirp => self.chirp().ticks(fs),
+        };
+        eprintln!(
+            "servo frf: measuring on the plant serving fts-servo/{prefix}/…: {ticks} ticks \
+             ({:.2} s of plant time at {fs} Hz; start it with at least that --duration)",
+            ticks as f64 / fs
+        );
+        let mut plant = RemotePlant::join(prefix, plan.config.plant.period_s())?;
+        let pts = self.measure(plan, &mut plant)?;
+        if plant.skipped() > 0 {
+            eprintln!(
+                "servo frf: warning — {} samples were published before this side answered them \
+                 (a real-time plant moved on): those ticks held the previous command",
+                plant.skipped()
+            );
+        }
+        plant.close();
+        Ok((pts, format!("the plant serving fts-servo/{prefix}")))
     }
 
     fn print(&self, pts: &[FrfPoint]) {

@@ -1,16 +1,20 @@
-//! Frequency responses measured on the running simulator by stepped sine (thesis §5.5.1:
-//! amplitude ramp, settling, integer periods, DFT at the exact bin), open loop (DAC → sensor)
-//! or closed loop (disturbance added to the controller output, §5.7.5), beside the model's
-//! response from the same sampled loop.
+//! Frequency responses measured by stepped sine (thesis §5.5.1: amplitude ramp, settling,
+//! integer periods, DFT at the exact bin) or chirp, open loop (DAC → sensor) or closed loop
+//! (disturbance added to the controller output, §5.7.5), beside the model's response from the
+//! same sampled loop — on the simulator in this process, or on any plant served on a prefix
+//! (the simulator process or a DAQ daemon, [`FrfPlant`]), this process taking the controller's
+//! place and injecting the excitation.
 
 pub mod report;
 
 use crate::error::StudyError;
+use daq_io::{Backend, Sensor};
 use lti::spectral::h1_at_bin;
 use num_complex::Complex64;
-use plant_sim::{SensorSample, Simulator};
 use runner::closed_loop::ClosedLoop;
 use runner::controller::{Controller, LinearController};
+use runner::remote_plant::RemotePlant;
+use runner::sim_backend::SimBackend;
 use runner::Plan;
 use serde::Serialize;
 use servo_core::{Block, SteppedSineConfig};
@@ -150,24 +154,70 @@ pub fn chirp_amplitude_v(which: FrfLoop) -> f64 {
     }
 }
 
-/// Simulator, controller and model of one measurement, and the drive tick.
-struct Rig {
-    sim: Simulator,
+/// Where a measurement's excitation goes and its readings come from.
+pub trait FrfPlant {
+    /// The readings before the first command.
+    fn initial(&mut self) -> Sensor;
+    /// Holds `dac_v` (V) for one tick; the readings at its end.
+    fn step(&mut self, dac_v: f64) -> Result<Sensor, StudyError>;
+    /// Whether a clipped reading or command aborts the measurement (a real stage is not driven
+    /// on into its limits) rather than only marking the point.
+    fn aborts_on_clip(&self) -> bool;
+}
+
+/// The simulated stage in this process: clipped points are marked, not aborted.
+impl FrfPlant for SimBackend {
+    fn initial(&mut self) -> Sensor {
+        Backend::initial(self)
+    }
+
+    fn step(&mut self, dac_v: f64) -> Result<Sensor, StudyError> {
+        Ok(Backend::step(self, dac_v))
+    }
+
+    fn aborts_on_clip(&self) -> bool {
+        false
+    }
+}
+
+/// A plant served on a prefix: a clip aborts to 0 V and the run is closed.
+impl FrfPlant for RemotePlant {
+    fn initial(&mut self) -> Sensor {
+        RemotePlant::initial(self)
+    }
+
+    fn step(&mut self, dac_v: f64) -> Result<Sensor, StudyError> {
+        Ok(RemotePlant::step(self, dac_v)?)
+    }
+
+    fn aborts_on_clip(&self) -> bool {
+        true
+    }
+}
+
+/// The stage of `plan` simulated in this process (seeded; a scenario's cutting force acts as
+/// it would on the machine).
+pub fn simulated(plan: &Plan) -> SimBackend {
+    SimBackend::new(plan.sim.clone())
+}
+
+/// Plant, controller and model of one measurement, and the drive tick.
+struct Rig<'p> {
+    plant: &'p mut dyn FrfPlant,
     ctrl: Controller,
     model: ClosedLoop,
     which: FrfLoop,
-    sample: SensorSample,
+    sample: Sensor,
     sensitivity: f64,
 }
 
-impl Rig {
-    /// The rig of `plan`'s stage (seeded; a scenario's cutting force acts as it would on the
-    /// machine) and controller.
-    fn new(plan: &Plan, which: FrfLoop) -> Result<Self, StudyError> {
+impl<'p> Rig<'p> {
+    /// The rig of `plan`'s controller and model driving `plant`.
+    fn new(plan: &Plan, which: FrfLoop, plant: &'p mut dyn FrfPlant) -> Result<Self, StudyError> {
         let c = &plan.config;
-        let sim = plan.sim.clone();
         let ctrl = plan.controller.clone();
-        let linear = sim
+        let linear = plan
+            .sim
             .linear_tick()
             .ok_or(StudyError::NeedsLinearPlant { what: "the FRF" })?;
         let model_ctrl = match which {
@@ -175,29 +225,41 @@ impl Rig {
             FrfLoop::Closed => ctrl.linear.clone(),
         };
         let sensitivity = c.plant.capa.sensitivity_v_per_m;
-        let model = ClosedLoop::new(&linear, &model_ctrl, sensitivity, sim.period_s());
+        let model = ClosedLoop::new(&linear, &model_ctrl, sensitivity, plan.sim.period_s());
         Ok(Rig {
-            sim,
+            sample: plant.initial(),
+            plant,
             ctrl,
             model,
             which,
-            sample: SensorSample::default(),
             sensitivity,
         })
     }
 
-    /// One tick with injection `d` (V) added to the controller output (or alone, open loop);
-    /// returns the measured position (m) the tick started from, paired with `d` as the model
-    /// pairs them.
+    /// One tick at frequency `f_hz` with injection `d` (V) added to the controller output (or
+    /// alone, open loop); returns the measured position (m) the tick started from, paired
+    /// with `d` as the model pairs them. On a plant that aborts on a clip, a clipped reading
+    /// or command ends the measurement.
     #[inline]
-    fn tick(&mut self, d: f64) -> f64 {
+    fn tick(&mut self, f_hz: f64, d: f64) -> Result<f64, StudyError> {
         let u = match self.which {
             FrfLoop::Open => 0.0,
             FrfLoop::Closed => self.ctrl.update(-self.sample.gap_v, self.sample.accel_v),
         } + d;
         let measured = self.sample.gap_v / self.sensitivity;
-        self.sample = self.sim.step(u).0;
-        measured
+        self.sample = self.plant.step(u)?;
+        let clip = self.sample.flags & (daq_io::flags::GAP_CLIPPED | daq_io::flags::DAC_CLIPPED);
+        if clip != 0 && self.plant.aborts_on_clip() {
+            return Err(StudyError::FrfAborted {
+                freq_hz: f_hz,
+                what: if clip & daq_io::flags::GAP_CLIPPED != 0 {
+                    "the sensor reading clipped at the ADC range"
+                } else {
+                    "the command clipped at the DAC range"
+                },
+            });
+        }
+        Ok(measured)
     }
 
     fn clipped(&self) -> bool {
@@ -238,7 +300,8 @@ pub fn model_curve(
     to_hz: f64,
     n: usize,
 ) -> Result<Vec<(f64, Complex64)>, StudyError> {
-    let rig = Rig::new(plan, which)?;
+    let mut sim = simulated(plan);
+    let rig = Rig::new(plan, which, &mut sim)?;
     lti::spectral::log_space(from_hz, to_hz, n)
         .into_iter()
         .map(|f| Ok((f, rig.model_at(f)?)))
@@ -251,13 +314,56 @@ pub fn model_curve(
 pub fn chirp(
     plan: &Plan,
     which: FrfLoop,
-    (from_hz, to_hz): (f64, f64),
+    band: (f64, f64),
     amplitude_v: f64,
     duration_s: f64,
     repeats: usize,
 ) -> Result<Vec<FrfPoint>, StudyError> {
+    let chirp = Chirp {
+        band,
+        amplitude_v,
+        duration_s,
+        repeats,
+    };
+    chirp_on(plan, which, &chirp, &mut simulated(plan))
+}
+
+/// A repeated exponential chirp: the band in Hz, amplitude in V, one sweep's length in s and
+/// the sweeps averaged (one more runs first to settle).
+#[derive(Debug, Clone, Copy)]
+pub struct Chirp {
+    /// From and to, Hz.
+    pub band: (f64, f64),
+    /// Amplitude, V.
+    pub amplitude_v: f64,
+    /// One sweep, s.
+    pub duration_s: f64,
+    /// Sweeps averaged.
+    pub repeats: usize,
+}
+
+impl Chirp {
+    /// Ticks the measurement takes at `fs_hz`.
+    pub fn ticks(&self, fs_hz: f64) -> u64 {
+        (self.duration_s * fs_hz).round() as u64 * (self.repeats as u64 + 1)
+    }
+}
+
+/// [`chirp`] on `plant`.
+pub fn chirp_on(
+    plan: &Plan,
+    which: FrfLoop,
+    c: &Chirp,
+    plant: &mut dyn FrfPlant,
+) -> Result<Vec<FrfPoint>, StudyError> {
     use lti::spectral::{h1_welch, WelchConfig, Window};
-    let mut rig = Rig::new(plan, which)?;
+    let Chirp {
+        band: (from_hz, to_hz),
+        amplitude_v,
+        duration_s,
+        repeats,
+    } = *c;
+    let mut rig = Rig::new(plan, which, plant)?;
     let fs = plan.config.plant.timing.servo_rate_hz;
     let chirp_cfg = servo_core::ChirpConfig {
         amplitude: amplitude_v,
@@ -279,7 +385,7 @@ pub fn chirp(
         })?;
         for _ in 0..per {
             let d = gen.update(()).position;
-            let y = rig.tick(d);
+            let y = rig.tick(from_hz, d)?;
             if pass > 0 {
                 u_rec.push(d);
                 y_rec.push(y);
@@ -316,24 +422,62 @@ pub fn stepped_sine(
     s: &FrfSettings,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<FrfPoint>, StudyError> {
-    let mut rig = Rig::new(plan, which)?;
+    stepped_sine_on(plan, which, freqs_hz, s, &mut simulated(plan), progress)
+}
+
+/// The excitation of the one stepped-sine frequency in `one` (Hz), its periods per block and
+/// its amplitude (V).
+fn one_frequency<'f>(
+    plan: &Plan,
+    one: &'f [f64; 1],
+    s: &FrfSettings,
+) -> Result<(servo_core::SteppedSine<'f>, u32, f64), StudyError> {
     let fs = plan.config.plant.timing.servo_rate_hz;
+    let f_hz = one[0];
+    let periods_per_block = ((s.block_s * f_hz).ceil() as u32).max(4);
+    let amplitude = s.amplitude_at(f_hz);
+    let sweep_cfg = SteppedSineConfig {
+        frequencies_hz: one,
+        amplitude,
+        ramp_periods: ((0.2 * s.settle_s * f_hz).ceil() as u32).max(3),
+        settle_periods: ((s.settle_s * f_hz).ceil() as u32).max(10),
+        measure_periods: periods_per_block * s.blocks as u32,
+    };
+    let gen = sweep_cfg.try_build(1.0 / fs).map_err(|e| {
+        plan.origin
+            .invalid("frf frequency", e, &format!("(0, {}) Hz", fs / 2.0))
+    })?;
+    Ok((gen, periods_per_block, amplitude))
+}
+
+/// Ticks the stepped sine of `plan` at `freqs_hz` takes.
+pub fn stepped_sine_ticks(
+    plan: &Plan,
+    freqs_hz: &[f64],
+    s: &FrfSettings,
+) -> Result<u64, StudyError> {
+    freqs_hz.iter().try_fold(0u64, |sum, &f| {
+        let one = [f];
+        let (gen, _, _) = one_frequency(plan, &one, s)?;
+        Ok(sum + u64::from(gen.segment(0).expect("one segment").end()))
+    })
+}
+
+/// [`stepped_sine`] on `plant`.
+pub fn stepped_sine_on(
+    plan: &Plan,
+    which: FrfLoop,
+    freqs_hz: &[f64],
+    s: &FrfSettings,
+    plant: &mut dyn FrfPlant,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<FrfPoint>, StudyError> {
+    let mut rig = Rig::new(plan, which, plant)?;
     let mut out = Vec::new();
     for (i, &f) in freqs_hz.iter().enumerate() {
         progress(i, freqs_hz.len());
-        let periods_per_block = ((s.block_s * f).ceil() as u32).max(4);
         let one = [f];
-        let sweep_cfg = SteppedSineConfig {
-            frequencies_hz: &one,
-            amplitude: s.amplitude_at(f),
-            ramp_periods: ((0.2 * s.settle_s * f).ceil() as u32).max(3),
-            settle_periods: ((s.settle_s * f).ceil() as u32).max(10),
-            measure_periods: periods_per_block * s.blocks as u32,
-        };
-        let mut gen = sweep_cfg.try_build(1.0 / fs).map_err(|e| {
-            plan.origin
-                .invalid("frf frequency", e, &format!("(0, {}) Hz", fs / 2.0))
-        })?;
+        let (mut gen, periods_per_block, amplitude) = one_frequency(plan, &one, s)?;
         let seg = gen.segment(0).expect("one segment");
         let (mut u_rec, mut y_rec) = (
             Vec::with_capacity(seg.measure_len as usize),
@@ -342,7 +486,7 @@ pub fn stepped_sine(
         let mut clipped = false;
         for k in 0..seg.end() {
             let d = gen.update(()).position;
-            let y = rig.tick(d);
+            let y = rig.tick(seg.frequency_hz, d)?;
             if k >= seg.measure_start {
                 u_rec.push(d);
                 y_rec.push(y);
@@ -350,7 +494,7 @@ pub fn stepped_sine(
             }
         }
         let (h, coherence) = h1_at_bin(&u_rec, &y_rec, periods_per_block as usize, s.blocks);
-        out.push(rig.point(seg.frequency_hz, h, coherence, clipped, sweep_cfg.amplitude)?);
+        out.push(rig.point(seg.frequency_hz, h, coherence, clipped, amplitude)?);
     }
     progress(freqs_hz.len(), freqs_hz.len());
     Ok(out)

@@ -5,15 +5,29 @@ use crate::report::{data, plots, ReportError, Written};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// The comment line that opens `frf.csv`: which quantity, in which unit, made for which plant
-/// (`servo identify` reads the quantity and refuses anything but P).
-fn provenance_line(which: super::FrfLoop, made_for: &runner::config::MadeFor) -> String {
+/// What an FRF was measured for and on: the quantity, the configured plant and rate (the
+/// model beside it), and the plant that answered (the simulator in this process, or the one
+/// serving a prefix).
+#[derive(Debug, Clone, Copy)]
+pub struct Provenance<'a> {
+    /// Which loop, hence which quantity.
+    pub which: super::FrfLoop,
+    /// The configured plant and rate.
+    pub made_for: &'a runner::config::MadeFor,
+    /// Where it was measured (`the simulated stage, seed 1`, `the plant serving fts-servo/lab`).
+    pub measured_on: &'a str,
+}
+
+/// The comment line that opens `frf.csv`: which quantity, in which unit, made for which plant,
+/// measured on which (`servo identify` reads the quantity and refuses anything but P).
+fn provenance_line(p: &Provenance) -> String {
     format!(
-        "# fts-servo frf: quantity = {} ({}); unit m/V; made for {}; {}\n",
-        which.quantity(),
-        which.describe(),
-        made_for.describe(),
-        made_for.tool
+        "# fts-servo frf: quantity = {} ({}); unit m/V; made for {}; measured on {}; {}\n",
+        p.which.quantity(),
+        p.which.describe(),
+        p.made_for.describe(),
+        p.measured_on,
+        p.made_for.tool
     )
 }
 
@@ -24,6 +38,7 @@ struct FrfFile<'a> {
     description: &'static str,
     unit: &'static str,
     made_for: &'a runner::config::MadeFor,
+    measured_on: &'a str,
     points: &'a [super::FrfPoint],
 }
 
@@ -33,10 +48,15 @@ pub fn write(
     points: &[super::FrfPoint],
     model: &[(f64, num_complex::Complex64)],
     title: &str,
-    (which, made_for): (super::FrfLoop, &runner::config::MadeFor),
+    provenance: &Provenance,
     dir: &Path,
 ) -> Result<Written, ReportError> {
-    let mut csv = provenance_line(which, made_for);
+    let Provenance {
+        which,
+        made_for,
+        measured_on,
+    } = *provenance;
+    let mut csv = provenance_line(provenance);
     csv.push_str("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v\n");
     for p in points {
         writeln!(
@@ -58,6 +78,7 @@ pub fn write(
         description: which.describe(),
         unit: "m/V",
         made_for,
+        measured_on,
         points,
     };
     let mut out = data(dir, "frf", &csv, &file)?;
