@@ -459,7 +459,7 @@ pub fn stepped_sine_ticks(
     freqs_hz.iter().try_fold(0u64, |sum, &f| {
         let one = [f];
         let (gen, _, _) = one_frequency(plan, &one, s)?;
-        Ok(sum + u64::from(gen.segment(0).expect("one segment").end()))
+        Ok(sum + gen.segment(0).expect("one segment").end())
     })
 }
 
