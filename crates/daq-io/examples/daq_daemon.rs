@@ -11,11 +11,19 @@
 //! or an interrupt would); `serve` paces on it and measures its lateness against it. Without
 //! it, `serve` paces on the wall clock (`--realtime`) or runs in lockstep.
 //!
+//! A practice stage for the measure → identify → design workflow: with `--practice-seed N`
+//! the daemon serves the thesis stage with its Table 5-2 parameters drawn from the seed and a
+//! sensor-mount resonance the identification model does not contain
+//! (`plant_sim::practice`); the client is never told the draw. `--reveal FILE` writes it (TOML)
+//! when the run ends, to grade the identification against.
+//!
 //! ```text
 //! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --realtime
 //! servo controller --prefix lab          # in another terminal (or your own controller)
 //! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --demo   # both, here
 //! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --demo --clock adc
+//! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --practice-seed 42 --seconds 30
+//! servo frf --prefix lab --loop open --points 80 --from 20 --to 10000   # then servo identify
 //! ```
 
 use daq_io::clock::{monotonic_ns, Wait};
@@ -23,6 +31,8 @@ use daq_io::ipc::{ControllerLink, Endpoint};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Backend, Command, Daq, Sensor};
 use plant_sim::convert::Quantizer;
+use plant_sim::practice::PracticeStage;
+use plant_sim::PlantParams;
 use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
@@ -137,6 +147,9 @@ fn main() {
     let realtime = args.iter().any(|a| a == "--realtime");
     let demo = args.iter().any(|a| a == "--demo");
     let own_clock = value("--clock").is_some_and(|c| c == "adc");
+    let practice: Option<u64> =
+        value("--practice-seed").map(|s| s.parse().expect("--practice-seed"));
+    let reveal = value("--reveal");
 
     let ep = Endpoint::open(&prefix, "plant").expect("join the run");
     let pacing = if realtime || own_clock {
@@ -156,7 +169,12 @@ fn main() {
         std::thread::spawn(move || demo_controller(&p))
     });
     println!(
-        "daq daemon: serving fake hardware on fts-servo/{prefix}/… at {RATE_HZ} Hz ({:?}, {} clock){}",
+        "daq daemon: serving {} on fts-servo/{prefix}/… at {RATE_HZ} Hz ({:?}, {} clock){}",
+        if practice.is_some() {
+            "a practice stage (hidden parameters)"
+        } else {
+            "fake hardware"
+        },
         pacing,
         if own_clock { "the ADC's" } else { "the wall" },
         if demo {
@@ -165,12 +183,27 @@ fn main() {
             "; start a controller with the same --prefix"
         }
     );
-    let report = serve(
-        &ep,
-        &mut FakeHardware::new(own_clock),
-        &opts,
-        &AtomicUsize::new(0),
-    )
+    let stop = AtomicUsize::new(0);
+    let report = match practice {
+        Some(seed) => {
+            let mut stage = PracticeStage::new(&PlantParams::default(), seed)
+                .unwrap_or_else(|e| panic!("daq daemon: practice stage: {e}"));
+            let report = serve(&ep, &mut stage, &opts, &stop);
+            if let Some(path) = &reveal {
+                // A new file only: the draw is never written over something else.
+                let mut file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .create_new(true)
+                    .open(path)
+                    .unwrap_or_else(|e| panic!("daq daemon: --reveal {path}: {e}"));
+                let text = toml::to_string(stage.truth()).expect("the draw serialises");
+                std::io::Write::write_all(&mut file, text.as_bytes())
+                    .unwrap_or_else(|e| panic!("daq daemon: --reveal {path}: {e}"));
+            }
+            report
+        }
+        None => serve(&ep, &mut FakeHardware::new(own_clock), &opts, &stop),
+    }
     .unwrap_or_else(|e| panic!("daq daemon: {e}"));
     let (l, late) = (report.latency, report.lateness);
     println!(

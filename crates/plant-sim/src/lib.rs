@@ -12,6 +12,7 @@ pub mod impedance;
 pub mod metrology;
 pub mod model;
 pub mod params;
+pub mod practice;
 pub mod sim;
 mod tick_matrix;
 

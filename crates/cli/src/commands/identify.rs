@@ -70,6 +70,24 @@ impl IdentifyCmd {
                 id.start[i]
             );
         }
+        for m in &id.misfits {
+            println!(
+                "  NOT EXPLAINED by the four-mass model: {:.0} – {:.0} Hz ({} points, up to {:+.1} dB / {:.0} %): an unmodelled resonance or a disturbed measurement",
+                m.from_hz,
+                m.to_hz,
+                m.points,
+                m.worst_db,
+                100.0 * m.worst_relative
+            );
+        }
+        match (&id.extra_resonance, id.misfits.is_empty()) {
+            (Some(r), _) => println!(
+                "  fitted there beside the stage: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB — not part of the identified plant",
+                r.pole_hz, r.pole_zeta, r.zero_hz, r.zero_zeta, r.peak_db
+            ),
+            (None, false) => println!("  those points were left out of the fit"),
+            (None, true) => {}
+        }
         println!(
             "  wrote {} — the identified plant: servo tune --plant {0}, servo synth h2 --plant {0}",
             self.out.display()

@@ -3,6 +3,12 @@
 //! `servo frf --loop open` writes it) with the simulator's exact sampled model as the grey box
 //! (delays, current loop, sensor filter known), by [`design::identify`].
 
+mod misfit;
+mod resonance;
+
+pub use misfit::{Misfit, MISFIT_MIN_RELATIVE, MISFIT_SIGMAS};
+pub use resonance::ExtraResonance;
+
 use crate::error::StudyError;
 use num_complex::Complex64;
 use plant_sim::params::StageParams;
@@ -63,8 +69,15 @@ pub struct Identified {
     pub weighted_fit_percent: f64,
     /// Levenberg–Marquardt iterations.
     pub iterations: usize,
-    /// FRF points used.
+    /// FRF points used in the fit (the misfit bands' points are left out unless a resonance
+    /// explains them).
     pub points: usize,
+    /// Bands of the FRF the four-mass model alone does not explain (an unmodelled resonance, a
+    /// disturbed measurement): reported rather than absorbed.
+    pub misfits: Vec<Misfit>,
+    /// The resonance fitted beside the stage where the worst misfit was, when it explains
+    /// it (not part of the identified plant: the model file leaves it out and says so).
+    pub extra_resonance: Option<ExtraResonance>,
 }
 
 impl Identified {
@@ -88,6 +101,18 @@ impl Identified {
                 self.names[i],
                 self.fitted[i],
                 100.0 * self.rel_std[i]
+            );
+        }
+        for m in &self.misfits {
+            out += &format!(
+                "# not explained by the four-mass model: {:.0} – {:.0} Hz ({} points, up to {:+.1} dB)\n",
+                m.from_hz, m.to_hz, m.points, m.worst_db
+            );
+        }
+        if let Some(r) = &self.extra_resonance {
+            out += &format!(
+                "# fitted beside the stage, NOT in this model: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB\n",
+                r.pole_hz, r.pole_zeta, r.zero_hz, r.zero_zeta, r.peak_db
             );
         }
         let made_for = runner::config::MadeFor::of(&plant);
@@ -229,8 +254,11 @@ fn open_loop(plan: &Plan, stage: StageParams, freq_hz: &[f64]) -> Result<Vec<Com
 }
 
 /// Fits the Table 5-2 parameters to `(freq_hz, measured)`, starting from `plan`'s stage, each
-/// bounded to a factor 4 around its start; fails with [`StudyError::FitNotCredible`] when
-/// the fit explains less than [`MIN_CREDIBLE_FIT_PERCENT`] of the data.
+/// bounded to a factor 4 around its start. Points the four-mass model cannot explain are
+/// found and left out ([`misfit`]); where they show a resonance, it is fitted as a factor
+/// beside the stage on every point ([`resonance`]) and reported. Fails with
+/// [`StudyError::FitNotCredible`] when the fit explains less than [`MIN_CREDIBLE_FIT_PERCENT`]
+/// of the data.
 pub fn identify(
     plan: &Plan,
     freq_hz: &[f64],
@@ -241,8 +269,59 @@ pub fn identify(
     let mut lower = start.map(|v| v / 4.0);
     lower[0] = lower[0].max(1.05 * base.m1_kg);
     let upper = start.map(|v| v * 4.0);
-    let mut model = |p: &[f64]| open_loop(plan, with_table_5_2(&base, p), freq_hz);
-    let f = design::identify::fit(&mut model, measured, &start, &lower, &upper, 200)?;
+    let stage = |p: &[f64], f: &[f64]| -> Result<Vec<Complex64>, String> {
+        open_loop(plan, with_table_5_2(&base, p), f)
+    };
+    let invalid = |e: String| StudyError::from(design::identify::IdentifyError::Invalid(e));
+    let (f, keep, fitted) = misfit::fit_excluding(freq_hz, measured, MIN_POINTS, |kf, km| {
+        let mut model = |p: &[f64]| stage(p, kf);
+        let f = design::identify::fit(&mut model, km, &start, &lower, &upper, 200)?;
+        let fitted = stage(&f.params, freq_hz).map_err(invalid)?;
+        Ok((f, fitted))
+    })?;
+    let ratio: Vec<Complex64> = (0..freq_hz.len())
+        .map(|i| measured[i] / fitted[i])
+        .collect();
+    let misfits = misfit::misfit_bands(freq_hz, &keep, &ratio);
+    // The worst misfit band as a resonance beside the stage, on every point: kept when it
+    // explains the band (no misfit left) from where the band was.
+    let with_resonance = misfits
+        .iter()
+        .max_by(|a, b| a.worst_relative.total_cmp(&b.worst_relative))
+        .and_then(|band| {
+            let worst = ratio[freq_hz.iter().position(|&x| x == band.worst_hz)?].norm();
+            let (r0, rlo, rhi) = resonance::start_and_bounds(band, worst);
+            let cat = |a: &[f64], b: [f64; 4]| [a, &b[..]].concat();
+            let mut model = |p: &[f64]| {
+                let g = stage(&p[..6], freq_hz)?;
+                Ok(g.iter()
+                    .zip(freq_hz)
+                    .map(|(g, &fq)| g * resonance::factor(&p[6..], fq))
+                    .collect())
+            };
+            let f = design::identify::fit(
+                &mut model,
+                measured,
+                &cat(&f.params, r0),
+                &cat(&lower, rlo),
+                &cat(&upper, rhi),
+                200,
+            )
+            .ok()?;
+            let extra = resonance::ExtraResonance::of(&f.params[6..]);
+            resonance::plausible(&extra, band).ok()?;
+            let fitted = model(&f.params).ok()?;
+            let all = vec![true; freq_hz.len()];
+            let explained =
+                misfit::kept_after(&misfit::relative_residuals(measured, &fitted), &all)
+                    .iter()
+                    .all(|k| *k);
+            explained.then_some((f, extra))
+        });
+    let (f, points, extra_resonance) = match with_resonance {
+        Some((f, extra)) => (f, freq_hz.len(), Some(extra)),
+        None => (f, keep.iter().filter(|k| **k).count(), None),
+    };
     if f.fit_percent.is_nan() || f.fit_percent < MIN_CREDIBLE_FIT_PERCENT {
         return Err(StudyError::FitNotCredible {
             fit_percent: f.fit_percent,
@@ -250,12 +329,14 @@ pub fn identify(
     }
     Ok(Identified {
         names: NAMES.iter().map(|s| s.to_string()).collect(),
-        fitted: f.params,
-        rel_std: f.rel_std,
+        fitted: f.params[..6].to_vec(),
+        rel_std: f.rel_std[..6].to_vec(),
         start: start.to_vec(),
         fit_percent: f.fit_percent,
         weighted_fit_percent: f.weighted_fit_percent,
         iterations: f.iterations,
-        points: freq_hz.len(),
+        points,
+        misfits,
+        extra_resonance,
     })
 }
