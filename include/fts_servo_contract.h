@@ -1,5 +1,5 @@
 /*
- * fts-servo sample contract, version 4: the messages plant, controller and recorder exchange
+ * fts-servo sample contract, version 5: the messages plant, controller and recorder exchange
  * over iceoryx2 (publish-subscribe services `fts-servo/<prefix>/<leaf>`), for a DAQ daemon
  * written in C or C++ (iceoryx2's C/C++ bindings).
  *
@@ -8,11 +8,11 @@
  * (crates/daq-io/tests/c_header.rs), so this file cannot drift from them.
  *
  * To interoperate, a peer must:
- *   - use the iceoryx2 type names "fts_servo::v4::<Type>" (FTS_SERVO_TYPE_NAME below) for
+ *   - use the iceoryx2 type names "fts_servo::v5::<Type>" (FTS_SERVO_TYPE_NAME below) for
  *     the services of its leaf (sensor: fts_Sensor, command: fts_Command, telemetry:
  *     fts_TelemetryBlock, truth: fts_TruthBlock, control: fts_Control, ack: fts_Ack,
- *     health: fts_Health);
- *   - name its iceoryx2 node "fts-servo/v4/<prefix>/<role>" (role: plant, controller,
+ *     health: fts_Health, controller_load: fts_ControllerLoad);
+ *   - name its iceoryx2 node "fts-servo/v5/<prefix>/<role>" (role: plant, controller,
  *     recorder, …): peers refuse a run whose nodes speak another contract version, naming both.
  * Units are SI; times in s; flags are the FTS_FLAG_* bits.
  */
@@ -21,9 +21,10 @@
 
 #include <stdint.h>
 
-#define FTS_SERVO_CONTRACT_VERSION 4
-#define FTS_SERVO_TYPE_NAME(type) "fts_servo::v4::" #type
+#define FTS_SERVO_CONTRACT_VERSION 5
+#define FTS_SERVO_TYPE_NAME(type) "fts_servo::v5::" #type
 #define FTS_SERVO_BLOCK_TICKS 64
+#define FTS_SERVO_MAX_LOAD_BYTES 65536
 
 /* Status bits of every flags word. 0-7 plant (converters), 8-15 controller, 16+ transport. */
 #define FTS_FLAG_GAP_CLIPPED (1u << 0)
@@ -47,11 +48,13 @@
 #define FTS_COMMAND_STOP 1u
 #define FTS_COMMAND_SET_GAIN_SCALE 2u
 #define FTS_COMMAND_START 3u
+#define FTS_COMMAND_LOAD_CONTROLLER 4u /* fts_Ack.command answering an fts_ControllerLoad */
 
 /* Acknowledgement status (fts_Ack.status). */
 #define FTS_ACK_APPLIED 1u
 #define FTS_ACK_REFUSED_MARGIN 2u
 #define FTS_ACK_REFUSED_INVALID 3u
+#define FTS_ACK_REFUSED_PROVENANCE 4u
 
 /* Roles (fts_Health.role, fts_Ack.role) and states (fts_Health.state). */
 #define FTS_ROLE_PLANT 1u
@@ -181,5 +184,14 @@ typedef struct fts_Health {
     fts_Latency lateness;  /* tick start after its deadline (controller: after publication) */
     fts_Latency execution; /* per-tick execution time (TET) */
 } fts_Health;
+
+/* Anyone -> controller: a controller file (or [controller] config fragment, UTF-8 TOML) to swap
+ * in while the loop runs; answered by an fts_Ack with command FTS_COMMAND_LOAD_CONTROLLER. */
+typedef struct fts_ControllerLoad {
+    uint64_t id;  /* request id the fts_Ack echoes (nonzero) */
+    uint32_t len; /* bytes of data used */
+    uint32_t reserved;
+    uint8_t data[FTS_SERVO_MAX_LOAD_BYTES];
+} fts_ControllerLoad;
 
 #endif /* FTS_SERVO_CONTRACT_H */

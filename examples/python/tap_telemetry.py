@@ -44,7 +44,7 @@ class Telemetry(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "fts_servo::v4::Telemetry"
+        return "fts_servo::v5::Telemetry"
 
 
 class TelemetryBlock(ctypes.Structure):
@@ -60,7 +60,7 @@ class TelemetryBlock(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "fts_servo::v4::TelemetryBlock"
+        return "fts_servo::v5::TelemetryBlock"
 
 
 def open_subscriber(prefix: str):
@@ -69,7 +69,7 @@ def open_subscriber(prefix: str):
     # tap of this version on the run.
     node = (
         iox2.NodeBuilder.new()
-        .name(iox2.NodeName.new(f"fts-servo/v4/{prefix}/tap-{os.getpid()}"))
+        .name(iox2.NodeName.new(f"fts-servo/v5/{prefix}/tap-{os.getpid()}"))
         .create(iox2.ServiceType.Ipc)
     )
     service = (

@@ -5,12 +5,12 @@
 //! [`TelemetryBlock`] with `ctypes`, and `include/fts_servo_contract.h` declares them for a C
 //! or C++ DAQ daemon (CI compiles a C file asserting every size and offset against these
 //! types). The layouts are versioned: [`CONTRACT_VERSION`] is in every iceoryx2 type name
-//! (`fts_servo::v4::…`) and in every node name, and a peer of another version is refused at
+//! (`fts_servo::v5::…`) and in every node name, and a peer of another version is refused at
 //! connect with both versions named ([`crate::ipc::Endpoint::open`]). Change a layout, bump
 //! the version (a test pins [`crate::layout::LAYOUT_FINGERPRINT`]).
 
 /// The version of the sample contract's layouts (every `#[repr(C)]` type here).
-pub const CONTRACT_VERSION: u32 = 4;
+pub const CONTRACT_VERSION: u32 = 5;
 
 #[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
@@ -79,7 +79,7 @@ pub mod flags {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Sensor"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Sensor"))]
 pub struct Sensor {
     /// Tick index (0 for the reading before the first command).
     pub seq: u64,
@@ -107,7 +107,7 @@ pub struct Sensor {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Command"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Command"))]
 pub struct Command {
     /// The tick this command answers (the echoed [`Sensor::seq`]).
     pub seq: u64,
@@ -123,7 +123,7 @@ pub struct Command {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Telemetry"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Telemetry"))]
 pub struct Telemetry {
     /// Tick index.
     pub seq: u64,
@@ -149,7 +149,7 @@ pub struct Telemetry {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Truth"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Truth"))]
 pub struct Truth {
     /// Tick index.
     pub seq: u64,
@@ -187,7 +187,7 @@ pub const BLOCK_TICKS: usize = 64;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::TelemetryBlock"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::TelemetryBlock"))]
 pub struct TelemetryBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -205,7 +205,7 @@ pub struct TelemetryBlock {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::TruthBlock"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::TruthBlock"))]
 pub struct TruthBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -282,13 +282,16 @@ pub mod command {
     /// Multiply the controller output (all gains of a linear controller) by `value`
     /// (dimensionless, 0.1..=10).
     pub const SET_GAIN_SCALE: u32 = 2;
+    /// Replace the controller (the [`super::Ack::command`] answering a
+    /// [`super::ControllerLoad`]; not sent as a [`super::Control`]).
+    pub const LOAD_CONTROLLER: u32 = 4;
 }
 
 /// A control-plane message (anyone → plant and controller).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Control"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Control"))]
 pub struct Control {
     /// One of [`command`].
     pub command: u32,
@@ -307,15 +310,18 @@ pub mod ack_status {
     /// Refused: the change would leave the loop with less than the required stability
     /// margin ([`super::Ack::low`]..=[`super::Ack::high`] is what is allowed).
     pub const REFUSED_MARGIN: u32 = 2;
-    /// Refused: not a number, or a command this process does not take.
+    /// Refused: not a number, or a command this process does not take (a controller file
+    /// that does not parse or build).
     pub const REFUSED_INVALID: u32 = 3;
+    /// Refused: a controller made for another plant or rate than the run's.
+    pub const REFUSED_PROVENANCE: u32 = 4;
 }
 
 /// The reply to a [`Control`] message with an `id` (controller or plant → anyone).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Ack"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Ack"))]
 pub struct Ack {
     /// The request's [`Control::id`].
     pub id: u64,
@@ -352,6 +358,56 @@ impl Ack {
             role,
             ..Default::default()
         }
+    }
+}
+
+/// Largest controller file a [`ControllerLoad`] carries, bytes (a state-space controller of
+/// order 40, the largest a run takes, is ≈ 40 kB as `servo synth` writes it).
+pub const MAX_LOAD_BYTES: usize = 65_536;
+
+/// A controller to swap in while the loop runs (anyone → controller): the bytes of a controller
+/// file or a `[controller]` config fragment. Answered by an [`Ack`] with
+/// [`command::LOAD_CONTROLLER`].
+#[derive(Clone, Copy)]
+#[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
+#[repr(C)]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::ControllerLoad"))]
+pub struct ControllerLoad {
+    /// Request id the [`Ack`] echoes (nonzero).
+    pub id: u64,
+    /// Bytes of `data` used.
+    pub len: u32,
+    /// Reserved, 0.
+    pub reserved: u32,
+    /// The file, UTF-8 TOML.
+    pub data: [u8; MAX_LOAD_BYTES],
+}
+
+impl ControllerLoad {
+    /// Request `id` carrying `file`, or `None` when it exceeds [`MAX_LOAD_BYTES`].
+    pub fn new(id: u64, file: &[u8]) -> Option<Self> {
+        let mut load = ControllerLoad {
+            id,
+            len: u32::try_from(file.len()).ok()?,
+            reserved: 0,
+            data: [0; MAX_LOAD_BYTES],
+        };
+        load.data.get_mut(..file.len())?.copy_from_slice(file);
+        Some(load)
+    }
+
+    /// The file's bytes (empty when `len` is out of range).
+    pub fn file(&self) -> &[u8] {
+        self.data.get(..self.len as usize).unwrap_or(&[])
+    }
+}
+
+impl core::fmt::Debug for ControllerLoad {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("ControllerLoad")
+            .field("id", &self.id)
+            .field("len", &self.len)
+            .finish_non_exhaustive()
     }
 }
 
@@ -416,7 +472,7 @@ pub mod state {
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Latency"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Latency"))]
 pub struct Latency {
     /// Exchanges measured.
     pub count: u64,
@@ -438,7 +494,7 @@ pub struct Latency {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v4::Health"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Health"))]
 pub struct Health {
     /// One of [`role`].
     pub role: u32,

@@ -55,6 +55,9 @@ pub mod leaf {
     pub const HEALTH: &str = "health";
     /// Plant and controller → anyone: replies to control messages ([`crate::Ack`]).
     pub const ACK: &str = "ack";
+    /// Anyone → controller (and recorder): a controller to swap in
+    /// ([`crate::contract::ControllerLoad`]).
+    pub const CONTROLLER_LOAD: &str = "controller_load";
 }
 
 /// Queue sizes and port limits of one service (identical in every process that opens it).
@@ -76,6 +79,11 @@ pub fn settings(leaf: &str) -> ServiceSettings {
         leaf::TELEMETRY | leaf::TRUTH => ServiceSettings {
             buffer: 1024,
             publishers: 1,
+            subscribers: 3,
+        },
+        leaf::CONTROLLER_LOAD => ServiceSettings {
+            buffer: 2,
+            publishers: 4,
             subscribers: 3,
         },
         leaf::CONTROL | leaf::HEALTH | leaf::ACK => ServiceSettings {

@@ -3,7 +3,8 @@
 //! and what [`LAYOUT_FINGERPRINT`] hashes.
 
 use crate::contract::{
-    Ack, Command, Control, Health, Latency, Sensor, Telemetry, TelemetryBlock, Truth, TruthBlock,
+    Ack, Command, Control, ControllerLoad, Health, Latency, Sensor, Telemetry, TelemetryBlock,
+    Truth, TruthBlock,
 };
 use core::mem::{align_of, offset_of, size_of};
 
@@ -43,6 +44,7 @@ layouts! {
     Ack { id, tick, value, low, high, unstable_at, command, status, role, reserved }
     Latency { count, min_ns, p50_ns, p99_ns, p999_ns, p9999_ns, max_ns }
     Health { role, state, ticks, overruns, faults, stop_cause, wall_s, latency, lateness, execution }
+    ControllerLoad { id, len, reserved, data }
 }
 
 /// FNV-1a over every size, alignment and offset of [`LAYOUTS`]: changes whenever a layout
@@ -79,7 +81,7 @@ mod tests {
         // fingerprint.
         assert_eq!(
             (CONTRACT_VERSION, LAYOUT_FINGERPRINT),
-            (4, 0x0f7b_ac79_8305_3499),
+            (5, 0x0b6b_cb69_a4c3_b83d),
             "fingerprint {LAYOUT_FINGERPRINT:#018x}"
         );
     }

@@ -37,8 +37,8 @@ pub mod serve;
 pub mod watchdog;
 
 pub use contract::{
-    ack_status, flags, stop_cause, Ack, Command, Control, Health, Latency, Sensor, Telemetry,
-    TelemetryBlock, Truth, TruthBlock, BLOCK_TICKS, CONTRACT_VERSION,
+    ack_status, flags, stop_cause, Ack, Command, Control, ControllerLoad, Health, Latency, Sensor,
+    Telemetry, TelemetryBlock, Truth, TruthBlock, BLOCK_TICKS, CONTRACT_VERSION, MAX_LOAD_BYTES,
 };
 pub use daq::{Backend, Daq, DaqError, InProcess};
 pub use histogram::{LatencyHistogram, TickStats};

@@ -3,7 +3,7 @@
 //! the flag, command and status constants, must compile (`cc -std=c11 -Werror`). A header
 //! that drifts from the Rust types fails to compile and names the field.
 
-use daq_io::contract::{ack_status, command, role, state, stop_cause};
+use daq_io::contract::{ack_status, command, role, state, stop_cause, MAX_LOAD_BYTES};
 use daq_io::{flags, layout::LAYOUTS, BLOCK_TICKS, CONTRACT_VERSION};
 use std::fmt::Write;
 use std::process::Command;
@@ -14,6 +14,7 @@ fn constants() -> Vec<(&'static str, u64)> {
     vec![
         ("FTS_SERVO_CONTRACT_VERSION", u64::from(CONTRACT_VERSION)),
         ("FTS_SERVO_BLOCK_TICKS", BLOCK_TICKS as u64),
+        ("FTS_SERVO_MAX_LOAD_BYTES", MAX_LOAD_BYTES as u64),
         f("FTS_FLAG_GAP_CLIPPED", flags::GAP_CLIPPED),
         f("FTS_FLAG_ACCEL_CLIPPED", flags::ACCEL_CLIPPED),
         f("FTS_FLAG_DAC_CLIPPED", flags::DAC_CLIPPED),
@@ -32,9 +33,11 @@ fn constants() -> Vec<(&'static str, u64)> {
         f("FTS_COMMAND_STOP", command::STOP),
         f("FTS_COMMAND_SET_GAIN_SCALE", command::SET_GAIN_SCALE),
         f("FTS_COMMAND_START", command::START),
+        f("FTS_COMMAND_LOAD_CONTROLLER", command::LOAD_CONTROLLER),
         f("FTS_ACK_APPLIED", ack_status::APPLIED),
         f("FTS_ACK_REFUSED_MARGIN", ack_status::REFUSED_MARGIN),
         f("FTS_ACK_REFUSED_INVALID", ack_status::REFUSED_INVALID),
+        f("FTS_ACK_REFUSED_PROVENANCE", ack_status::REFUSED_PROVENANCE),
         f("FTS_ROLE_PLANT", role::PLANT),
         f("FTS_ROLE_CONTROLLER", role::CONTROLLER),
         f("FTS_STATE_WAITING", state::WAITING),
