@@ -1,16 +1,21 @@
 //! The controller's side of a run's control plane, for any process that runs a [`ServoLoop`]:
 //! `servo controller`, or a DAQ daemon that embeds the loop (`examples/embedded_daq.rs`).
 //! Gain changes are checked against the loop's stability margin ([`gain_range`]) and
-//! acknowledged; STOP requests are acknowledged when the process also serves the plant; health
-//! reports carry the tick statistics.
+//! acknowledged; controllers sent to the running loop (`servo ctl load`) are prepared off the
+//! ticking thread ([`crate::hot_swap`]), handed over bumplessly at a tick boundary and
+//! acknowledged with that tick, or refused with the reason's status; STOP requests are
+//! acknowledged when the process also serves the plant; health reports carry the tick
+//! statistics.
 
+use crate::controller::Controller;
 use crate::error::RunError;
 use crate::gain_range::{gain_range, GainRange};
+use crate::hot_swap::{Loader, Prepared};
 use crate::plan::Plan;
 use crate::servo_loop::ServoLoop;
 use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, Endpoint, Sender, Subscriber};
-use daq_io::{ack_status, Ack, Control, Health, TickStats};
+use daq_io::{ack_status, Ack, Control, ControllerLoad, Health, TickStats};
 use std::time::Instant;
 
 /// Ticks between two looks at the control plane (and two health reports): 10 ms at 199.6 kHz.
@@ -34,6 +39,15 @@ pub struct ControlPlane {
     health: Health,
     serves_plant: bool,
     start: Instant,
+    loads: Subscriber<ControllerLoad>,
+    loader: Loader,
+    /// The load request the loader works on.
+    loading: Option<u64>,
+    /// A controller handed over, acknowledged once its tick is known: (request, spectral
+    /// radius of the new loop).
+    handing_over: Option<(u64, f64)>,
+    /// A replaced controller the loader could not take yet (dropped there later).
+    parked: Option<Controller>,
 }
 
 impl ControlPlane {
@@ -57,6 +71,11 @@ impl ControlPlane {
             },
             serves_plant,
             start: Instant::now(),
+            loads: ep.subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD)?,
+            loader: Loader::start(plan),
+            loading: None,
+            handing_over: None,
+            parked: None,
         })
     }
 
@@ -66,11 +85,93 @@ impl ControlPlane {
         self.health_pub.send(self.health);
         self.health_pub.prepare();
         while take(&self.control).is_some() {}
+        while let Ok(Some(_)) = self.loads.receive() {}
         self.start = Instant::now();
     }
 
-    /// Every [`SERVICE_TICKS`] ticks: applies gain changes to `servo` from tick `tick`,
-    /// acknowledges requests, publishes health with `stats`. Returns a STOP to act on.
+    /// The controller-load part of [`ControlPlane::service`]: acknowledges a handover once it
+    /// took effect, passes a new request to the loader (one at a time), hands a prepared
+    /// controller to `servo` or refuses it, and sends replaced controllers to be dropped.
+    fn deploy(&mut self, servo: &mut ServoLoop, tick: u64) {
+        if let Some(old) = self.parked.take().or_else(|| servo.take_replaced()) {
+            self.parked = self.loader.dispose(old).err();
+        }
+        if let (Some((id, radius)), Some(at)) = (self.handing_over, servo.handed_over_at()) {
+            self.handing_over = None;
+            let ack = self.load_ack(id, at, ack_status::APPLIED, radius);
+            self.reply(ack);
+        }
+        while let Ok(Some(request)) = self.loads.receive() {
+            let busy = self.loading.is_some() || self.handing_over.is_some();
+            if !busy && self.loader.submit(request.id, request.file()) {
+                self.loading = Some(request.id);
+            } else {
+                let ack = self.load_ack(request.id, tick, ack_status::REFUSED_INVALID, f64::NAN);
+                self.reply(ack);
+            }
+        }
+        let Some(prepared) = self.loader.poll() else {
+            return;
+        };
+        self.loading = None;
+        match prepared {
+            Prepared::Ready {
+                id,
+                controller,
+                gains,
+                spectral_radius,
+            } if gains.allows(servo.gain_scale()) => {
+                servo.hand_over(controller);
+                self.gains = gains;
+                self.handing_over = Some((id, spectral_radius));
+            }
+            Prepared::Ready {
+                id,
+                controller,
+                spectral_radius,
+                ..
+            } => {
+                // Stable at scale 1, not at the scale the run is at now.
+                self.parked = self.loader.dispose(controller).err();
+                let ack = self.load_ack(id, tick, ack_status::REFUSED_MARGIN, spectral_radius);
+                self.reply(ack);
+            }
+            Prepared::Refused {
+                id,
+                status,
+                spectral_radius,
+            } => {
+                let ack = self.load_ack(id, tick, status, spectral_radius);
+                self.reply(ack);
+            }
+        }
+    }
+
+    /// The answer to load request `id` at `tick`: `status`, the new loop's spectral radius as
+    /// the value, the gain range the run now has.
+    fn load_ack(&self, id: u64, tick: u64, status: u32, spectral_radius: f64) -> Ack {
+        Ack {
+            id,
+            tick,
+            value: spectral_radius,
+            low: self.gains.low(),
+            high: self.gains.high(),
+            unstable_at: self.gains.unstable_above,
+            command: command::LOAD_CONTROLLER,
+            status,
+            role: role::CONTROLLER,
+            reserved: 0,
+        }
+    }
+
+    fn reply(&mut self, ack: Ack) {
+        self.ack.send(ack);
+        self.ack.prepare();
+    }
+
+    /// Every [`SERVICE_TICKS`] ticks: applies gain changes to `servo` from tick `tick`, moves
+    /// controller loads along ([`ControlPlane::deploy`]), acknowledges requests, publishes
+    /// health with `stats`. Returns a STOP to act on.
     pub fn service(
         &mut self,
         servo: &mut ServoLoop,
@@ -97,9 +198,9 @@ impl ControlPlane {
                 command::START if self.serves_plant => plant_reply(&c, tick),
                 _ => continue, // the plant's
             };
-            self.ack.send(ack);
-            self.ack.prepare();
+            self.reply(ack);
         }
+        self.deploy(servo, tick);
         self.report(tick, overruns, stats);
         request
     }

@@ -22,10 +22,15 @@ use daq_io::clock::monotonic_ns;
 use daq_io::contract::{command, role};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
-use daq_io::{ack_status, flags, Ack, Control, Daq, Health, Telemetry, TelemetryBlock, Truth};
+use daq_io::{
+    ack_status, flags, Ack, Control, ControllerLoad, Daq, Health, Telemetry, TelemetryBlock, Truth,
+};
 use recorder::{Frame, Recorder};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
+
+/// Load requests the recorder remembers while waiting for their acknowledgement.
+const MAX_PENDING_LOADS: usize = 16;
 
 /// How long a process waits for its peers to appear.
 pub const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
@@ -306,6 +311,11 @@ pub fn record(
     let waiting = Instant::now();
     let mut write_failed = false;
     let mut gain_changes: Vec<Ack> = Vec::new();
+    // Controllers sent to the loop (`servo ctl load`): each request's SHA-256 and size, and
+    // those the controller applied, in order.
+    let loads = ep.subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD)?;
+    let mut load_requests: Vec<(u64, String, usize)> = Vec::new();
+    let mut swaps: Vec<(Ack, String, usize)> = Vec::new();
     loop {
         let mut got = false;
         while let Some(b) = take(&tap.telemetry) {
@@ -328,9 +338,24 @@ pub fn record(
                 _ => {}
             }
         }
+        while let Ok(Some(l)) = loads.receive() {
+            load_requests.push((l.id, crate::config::sha256_hex(l.file()), l.file().len()));
+            if load_requests.len() > MAX_PENDING_LOADS {
+                load_requests.remove(0);
+            }
+        }
         while let Some(a) = take(&tap.ack) {
-            if a.status == ack_status::APPLIED && a.command == command::SET_GAIN_SCALE {
-                gain_changes.push(a);
+            if a.status != ack_status::APPLIED {
+                continue;
+            }
+            match a.command {
+                command::SET_GAIN_SCALE => gain_changes.push(a),
+                command::LOAD_CONTROLLER => {
+                    if let Some((_, sha, len)) = load_requests.iter().find(|r| r.0 == a.id) {
+                        swaps.push((a, sha.clone(), *len));
+                    }
+                }
+                _ => {}
             }
         }
         if let (None, Some(id), Some(to)) = (&rec, run_id, &out) {
@@ -393,6 +418,16 @@ pub fn record(
         end.insert(
             format!("gain_change.{}", i + 1),
             format!("tick {}: output scale {}", a.tick, a.value),
+        );
+    }
+    for (i, (a, sha, len)) in swaps.iter().enumerate() {
+        // Every controller swapped in (`servo ctl load`), with its tick and file hash.
+        end.insert(
+            format!("controller_load.{}", i + 1),
+            format!(
+                "tick {}: controller file sha256 {sha} ({len} bytes), closed-loop spectral radius {}",
+                a.tick, a.value
+            ),
         );
     }
     let hil = HilMeta {

@@ -28,6 +28,7 @@ mod error;
 pub mod feedforward;
 pub mod gain_range;
 pub mod hil;
+pub mod hot_swap;
 pub mod machining;
 pub mod plan;
 pub mod preview;

@@ -103,16 +103,33 @@ impl Plan {
     /// a controller file path is taken as it is, like the plan's own resolved paths, and the
     /// file already read is reused when the path is unchanged).
     pub fn with_controller(&self, controller: ControllerConfig) -> Result<Self, RunError> {
-        let same_file = controller.ss_file == self.config.controller.ss_file;
+        self.with_controller_file(controller, None)
+    }
+
+    /// [`Plan::with_controller`] whose controller file (for `ss`) is `file`'s bytes, not read
+    /// from disk (a controller sent to a running loop).
+    pub fn with_controller_file(
+        &self,
+        controller: ControllerConfig,
+        file: Option<Vec<u8>>,
+    ) -> Result<Self, RunError> {
+        let same_file = file.is_none() && controller.ss_file == self.config.controller.ss_file;
         let mut config = self.config.clone();
         config.controller = controller;
         config.validate(&self.origin)?;
-        let inputs = self
+        let mut inputs: Vec<Input> = self
             .inputs
             .iter()
             .filter(|i| same_file || i.name != CONTROLLER_INPUT)
             .cloned()
             .collect();
+        if let Some(data) = file {
+            inputs.push(Input {
+                name: CONTROLLER_INPUT.into(),
+                media_type: "application/toml".into(),
+                data,
+            });
+        }
         Plan::assemble(
             config,
             self.origin.clone(),

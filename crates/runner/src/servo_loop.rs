@@ -137,7 +137,22 @@ pub struct ServoLoop {
     sensitivity: f64,
     accel_scale: f64,
     period_s: f64,
+    /// A controller handed over, taking the loop at the next tick.
+    incoming: Option<Controller>,
+    /// The controller it replaced, to be dropped off the ticking thread.
+    replaced: Option<Controller>,
+    /// The tick the last handover took effect.
+    handed_over_at: Option<u64>,
+    /// Bumpless handover: the old controller's output minus the new one's at the swap tick
+    /// (V, after the gain scale), added to the output and decaying by `handover_decay` a tick.
+    handover_v: f64,
+    handover_decay: f64,
 }
+
+/// Time constant of a bumpless handover (s): the difference between the old and the new
+/// controller's output at the swap tick fades with it (5 ms: slower than the loop's 1–3 kHz
+/// bandwidth, so the new controller's own states take over without a kick).
+pub const HANDOVER_TIME_CONSTANT_S: f64 = 5e-3;
 
 impl ServoLoop {
     /// The controller, reference and feedforward of `plan`, in their initial state.
@@ -180,7 +195,35 @@ impl ServoLoop {
             sensitivity: c.plant.capa.sensitivity_v_per_m,
             accel_scale: 1.0 / c.plant.accel.sensitivity_v_per_m_s2,
             period_s: c.plant.period_s(),
+            incoming: None,
+            replaced: None,
+            handed_over_at: None,
+            handover_v: 0.0,
+            handover_decay: (-c.plant.period_s() / HANDOVER_TIME_CONSTANT_S).exp(),
         })
+    }
+
+    /// Hands the loop to `controller` at the next tick, bumplessly: at that tick the command
+    /// is the old controller's, and the difference to the new one's fades with
+    /// [`HANDOVER_TIME_CONSTANT_S`]. Built off the ticking thread (this only moves it).
+    pub fn hand_over(&mut self, controller: Controller) {
+        self.incoming = Some(controller);
+        self.handed_over_at = None;
+    }
+
+    /// The scale on the controller output (`servo ctl gain`), dimensionless.
+    pub fn gain_scale(&self) -> f64 {
+        self.gain_scale
+    }
+
+    /// The tick the last handover took effect, once it has.
+    pub fn handed_over_at(&self) -> Option<u64> {
+        self.handed_over_at
+    }
+
+    /// The controller the last handover replaced, to drop off the ticking thread.
+    pub fn take_replaced(&mut self) -> Option<Controller> {
+        self.replaced.take()
     }
 
     /// Multiplies the controller output (all gains of a linear controller) by `scale`
@@ -313,10 +356,20 @@ impl ServoLoop {
             }
             Feedforward::Zpetc(z) => (z.update(w.smooth(z.preview() as isize)), 0.0),
         };
-        let raw = self
-            .controller
-            .update(reference * self.sensitivity - s.gap_v, s.accel_v);
+        let (error_v, accel_v) = (reference * self.sensitivity - s.gap_v, s.accel_v);
+        let mut raw = self.controller.update(error_v, accel_v);
+        if let Some(new) = self.incoming.take() {
+            // The swap: both see this tick; the command stays the old one's.
+            let old = std::mem::replace(&mut self.controller, new);
+            let raw_new = self.controller.update(error_v, accel_v);
+            self.handover_v = (raw - raw_new) * self.gain_scale;
+            raw = raw_new;
+            self.replaced = Some(old);
+            self.handed_over_at = Some(s.seq);
+        }
+        let handover = self.handover_v;
+        self.handover_v *= self.handover_decay;
         let limit = self.controller.limit_v;
-        (raw * self.gain_scale + u_ff).clamp(-limit, limit)
+        (raw * self.gain_scale + handover + u_ff).clamp(-limit, limit)
     }
 }

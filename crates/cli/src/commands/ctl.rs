@@ -1,24 +1,26 @@
 //! `servo ctl`: the control plane of a running HIL run. Every command is acknowledged by the
-//! process that acts on it (the plant for start/stop, the controller for gain changes, which
-//! it checks against the running loop's stability margins first); `ctl` prints what the run
-//! did, or fails.
+//! process that acts on it (the plant for start/stop, the controller for gain changes and
+//! controller loads, which it checks against the running loop's stability first); `ctl`
+//! prints what the run did, or fails.
 
 use crate::output::CliError;
 use clap::{Args, Subcommand};
 use daq_io::contract::{ack_status, command};
 use daq_io::ipc::{leaf, take, ControlSender, Endpoint};
-use daq_io::{Ack, Control};
+use daq_io::{Ack, Control, ControllerLoad, MAX_LOAD_BYTES};
 use runner::RunError;
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-/// HIL control plane: start a waiting plant, stop a run, or scale the controller's gains;
-/// prints the run's acknowledgement.
+/// HIL control plane: start a waiting plant, stop a run, scale the controller's gains, or load
+/// another controller into the running loop; prints the run's acknowledgement.
 ///
 /// Exit 0 when the run applied the command; 1 when it refused it (a gain outside the loop's
-/// stable range less a 6 dB margin, or not a number), when no run holds the prefix (at once),
-/// or when no acknowledgement came within --timeout-s.
-/// Example: servo ctl --prefix bench gain 1.2
+/// stable range less a 6 dB margin, or not a number; a controller made for another plant or
+/// rate, unstable on the run's model, or not a controller), when no run holds the prefix (at
+/// once), or when no acknowledgement came within --timeout-s.
+/// Example: servo ctl --prefix bench gain 1.2; servo ctl --prefix bench load pid.toml
 #[derive(Args, Debug)]
 pub struct CtlCmd {
     /// Run prefix.
@@ -34,7 +36,7 @@ pub struct CtlCmd {
 }
 
 /// `servo ctl` messages.
-#[derive(Subcommand, Debug, Clone, Copy)]
+#[derive(Subcommand, Debug, Clone)]
 enum CtlAction {
     /// Start a plant waiting for it (`servo plant --wait-start`).
     Start,
@@ -46,15 +48,22 @@ enum CtlAction {
         /// Scale factor (dimensionless).
         scale: f64,
     },
+    /// Swap the controller at a tick boundary, bumplessly: a state-space file (`servo synth`)
+    /// or a config fragment with a [controller] table (`servo tune`'s pid.toml), at most
+    /// 64 KiB; refused when made for another plant or rate, or unstable on the run's model.
+    Load {
+        /// The controller file.
+        file: PathBuf,
+    },
 }
 
 impl CtlAction {
-    /// The control-plane message with request id `id`.
-    fn message(self, id: u64) -> Control {
+    /// The control-plane message with request id `id` (not for a load).
+    fn message(&self, id: u64) -> Control {
         let (command, value) = match self {
             CtlAction::Start => (command::START, 0.0),
-            CtlAction::Stop => (command::STOP, 0.0),
-            CtlAction::Gain { scale } => (command::SET_GAIN_SCALE, scale),
+            CtlAction::Stop | CtlAction::Load { .. } => (command::STOP, 0.0),
+            CtlAction::Gain { scale } => (command::SET_GAIN_SCALE, *scale),
         };
         Control {
             command,
@@ -65,16 +74,17 @@ impl CtlAction {
     }
 
     /// The process that acts on it.
-    fn target(self) -> &'static str {
+    fn target(&self) -> &'static str {
         match self {
             CtlAction::Start | CtlAction::Stop => "plant",
-            CtlAction::Gain { .. } => "controller",
+            CtlAction::Gain { .. } | CtlAction::Load { .. } => "controller",
         }
     }
 
     /// What the run did, as one line.
-    fn report(self, a: &Ack) -> Result<String, String> {
+    fn report(&self, a: &Ack) -> Result<String, String> {
         match (self, a.status) {
+            (CtlAction::Load { file }, status) => load_report(file, a, status),
             (CtlAction::Gain { scale }, ack_status::APPLIED) => Ok(format!(
                 "gain ×{scale} applied from tick {} (allowed ×{:.3}–×{:.3}: the loop goes unstable above ×{:.3}, {:.1} dB of gain margin at ×1)",
                 a.tick,
@@ -117,11 +127,28 @@ impl CtlCmd {
             )));
         }
         let acks = ep.subscriber::<Ack>(leaf::ACK).map_err(RunError::from)?;
-        let sender = ControlSender::new(&ep).map_err(RunError::from)?;
         let id = daq_io::peers::random_id();
-        sender
-            .send(self.action.message(id))
-            .map_err(RunError::from)?;
+        // The publisher lives until the answer came: iceoryx2 takes a sample back from the
+        // subscribers when its publisher goes.
+        let (_load, _control) = match &self.action {
+            CtlAction::Load { file } => {
+                let load = read_load(file, id)?;
+                let publisher = ep
+                    .publisher::<ControllerLoad>(leaf::CONTROLLER_LOAD)
+                    .map_err(RunError::from)?;
+                if !daq_io::ipc::send(&publisher, load) {
+                    return Err(CliError::Processes(
+                        "the transport refused the controller load".into(),
+                    ));
+                }
+                (Some(publisher), None)
+            }
+            action => {
+                let sender = ControlSender::new(&ep).map_err(RunError::from)?;
+                sender.send(action.message(id)).map_err(RunError::from)?;
+                (None, Some(sender))
+            }
+        };
         let start = Instant::now();
         let timeout = Duration::from_secs_f64(self.timeout_s);
         while start.elapsed() < timeout {
@@ -142,5 +169,44 @@ impl CtlCmd {
             "no acknowledgement from the {target} of run {prefix:?} within {} s (is it still running?)",
             self.timeout_s
         )))
+    }
+}
+
+/// The load request `id` of controller file `path` (at most [`MAX_LOAD_BYTES`]).
+fn read_load(path: &std::path::Path, id: u64) -> Result<ControllerLoad, CliError> {
+    let bytes = runner::config::input_file::read_input(path, MAX_LOAD_BYTES as u64)?;
+    ControllerLoad::new(id, &bytes).ok_or_else(|| {
+        runner::config::Origin::default()
+            .invalid(
+                "load FILE",
+                path.display(),
+                &format!("at most {MAX_LOAD_BYTES} bytes"),
+            )
+            .into()
+    })
+}
+
+/// What the run did with controller `file` (acknowledged with `status`), as one line.
+fn load_report(file: &std::path::Path, a: &Ack, status: u32) -> Result<String, String> {
+    let name = file.display();
+    match status {
+        ack_status::APPLIED => Ok(format!(
+            "controller {name} took the loop at tick {}, bumplessly (the old output fades over 5 ms); closed-loop spectral radius {:.6}; gain scale now allowed ×{:.3}–×{:.3}",
+            a.tick, a.value, a.low, a.high
+        )),
+        ack_status::REFUSED_PROVENANCE => Err(format!(
+            "controller {name} refused: made for another plant or rate than the run's ({}); the controller process names both",
+            runner::config::MadeFor::describe_file(file).unwrap_or_else(|| "its made_for".into())
+        )),
+        ack_status::REFUSED_MARGIN if a.value >= 1.0 => Err(format!(
+            "controller {name} refused: the closed loop on the run's model would be unstable (spectral radius {:.6} ≥ 1); the running controller stays",
+            a.value
+        )),
+        ack_status::REFUSED_MARGIN => Err(format!(
+            "controller {name} refused: stable at gain ×1 but not at the run's present gain scale; reset it (`servo ctl gain 1`) and load again"
+        )),
+        _ => Err(format!(
+            "controller {name} refused: not a controller this run can build, or another load is in progress (the controller process says which)"
+        )),
     }
 }

@@ -55,6 +55,21 @@ impl MadeFor {
         }
     }
 
+    /// What the TOML file at `path` says it was made for (its `[made_for]` or
+    /// `[controller.made_for]` table), described; `None` when it does not say.
+    pub fn describe_file(path: &std::path::Path) -> Option<String> {
+        let text = super::input_file::read_text(path).ok()?;
+        let table: toml::Table = toml::from_str(&text).ok()?;
+        let made_for = table.get("made_for").or_else(|| {
+            table
+                .get("controller")
+                .and_then(|c| c.as_table())
+                .and_then(|c| c.get("made_for"))
+        })?;
+        let m: MadeFor = made_for.clone().try_into().ok()?;
+        Some(format!("made for {}", m.describe()))
+    }
+
     /// `stage heavy at 20000 Hz, plant 1a2b3c4d…`.
     pub fn describe(&self) -> String {
         format!(

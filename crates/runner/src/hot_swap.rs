@@ -1,0 +1,195 @@
+//! Deploying a controller into a running loop (`servo ctl load`). A loader thread beside the
+//! ticking one parses the file, builds the controller for the run's configuration, checks what
+//! it was made for and the new closed loop's stability on the run's model, and hands it back
+//! ready; the ticking thread only copies the request's bytes into a buffer it owns, moves the
+//! prepared controller into the loop ([`crate::servo_loop::ServoLoop::hand_over`]) and sends
+//! the replaced one back to be dropped — no allocation, no lock, no parsing while ticking.
+
+use crate::config::{ConfigError, ControllerConfig, ControllerKind, RunConfig};
+use crate::controller::Controller;
+use crate::error::RunError;
+use crate::gain_range::{gain_range, GainRange};
+use crate::plan::Plan;
+use daq_io::contract::{ack_status, MAX_LOAD_BYTES};
+use std::path::PathBuf;
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError, TrySendError};
+
+/// The name a loaded state-space file takes in messages and in the run's inputs.
+pub const LOADED_FILE: &str = "controller loaded by servo ctl load";
+
+/// A controller ready to take the loop, or why not.
+pub enum Prepared {
+    /// Built and checked.
+    Ready {
+        /// The request.
+        id: u64,
+        /// The controller, in its initial state.
+        controller: Controller,
+        /// The gain scales it stays stable under.
+        gains: GainRange,
+        /// The spectral radius of the new sampled closed loop.
+        spectral_radius: f64,
+    },
+    /// Refused.
+    Refused {
+        /// The request.
+        id: u64,
+        /// One of [`ack_status`]: `REFUSED_INVALID`, `REFUSED_PROVENANCE`, `REFUSED_MARGIN`.
+        status: u32,
+        /// The new loop's spectral radius when it was unstable (NaN otherwise).
+        spectral_radius: f64,
+    },
+}
+
+enum Job {
+    Load(u64, Vec<u8>),
+    Drop(Controller),
+}
+
+/// The loader thread and the ticking thread's ends of its channels.
+pub struct Loader {
+    jobs: SyncSender<Job>,
+    results: Receiver<(Prepared, Vec<u8>)>,
+    /// The request buffer, while it is not with the loader.
+    spare: Option<Vec<u8>>,
+}
+
+impl Loader {
+    /// Starts the loader thread for the run of `plan` (its configuration and model are what a
+    /// loaded controller is built for and checked against).
+    pub fn start(plan: &Plan) -> Self {
+        let (jobs, inbox) = sync_channel::<Job>(4);
+        let (outbox, results) = sync_channel(1);
+        let plan = plan.clone();
+        std::thread::Builder::new()
+            .name("controller-loader".into())
+            .spawn(move || {
+                while let Ok(job) = inbox.recv() {
+                    if let Job::Load(id, buf) = job {
+                        let prepared = prepare(&plan, id, &buf);
+                        if outbox.send((prepared, buf)).is_err() {
+                            return;
+                        }
+                    }
+                    // A Job::Drop is dropped here, off the ticking thread.
+                }
+            })
+            .expect("a thread for the controller loader");
+        Loader {
+            jobs,
+            results,
+            spare: Some(Vec::with_capacity(MAX_LOAD_BYTES)),
+        }
+    }
+
+    /// On the ticking thread: hands request `id`'s `file` to the loader (a copy into the
+    /// buffer this side owns; no allocation). False while a previous request is in work.
+    pub fn submit(&mut self, id: u64, file: &[u8]) -> bool {
+        let Some(mut buf) = self.spare.take() else {
+            return false;
+        };
+        buf.clear();
+        buf.extend_from_slice(&file[..file.len().min(MAX_LOAD_BYTES)]);
+        match self.jobs.try_send(Job::Load(id, buf)) {
+            Ok(()) => true,
+            Err(TrySendError::Full(job) | TrySendError::Disconnected(job)) => {
+                if let Job::Load(_, buf) = job {
+                    self.spare = Some(buf);
+                }
+                false
+            }
+        }
+    }
+
+    /// On the ticking thread: the result of the request in work, once ready.
+    pub fn poll(&mut self) -> Option<Prepared> {
+        match self.results.try_recv() {
+            Ok((prepared, buf)) => {
+                self.spare = Some(buf);
+                Some(prepared)
+            }
+            Err(TryRecvError::Empty | TryRecvError::Disconnected) => None,
+        }
+    }
+
+    /// On the ticking thread: drops `controller` on the loader thread. If the loader cannot
+    /// take it now, it is kept and handed back (the caller retries later).
+    pub fn dispose(&mut self, controller: Controller) -> Result<(), Controller> {
+        match self.jobs.try_send(Job::Drop(controller)) {
+            Err(TrySendError::Full(Job::Drop(c)) | TrySendError::Disconnected(Job::Drop(c))) => {
+                Err(c)
+            }
+            // Sent (a Load cannot come back from sending a Drop).
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Parses, builds and checks request `id`'s `file` for the run of `plan`: a state-space
+/// controller file (as `servo synth` writes it), or a config fragment whose `[controller]`
+/// table is taken (as `servo tune` writes it). Refusals are printed with their reason.
+fn prepare(plan: &Plan, id: u64, file: &[u8]) -> Prepared {
+    let refused = |status: u32, spectral_radius: f64, why: &dyn std::fmt::Display| {
+        eprintln!("servo controller: load {id} refused: {why}");
+        Prepared::Refused {
+            id,
+            status,
+            spectral_radius,
+        }
+    };
+    let text = match std::str::from_utf8(file) {
+        Ok(t) => t,
+        Err(e) => return refused(ack_status::REFUSED_INVALID, f64::NAN, &e),
+    };
+    let (controller, bytes) = match config_of(plan, text) {
+        Ok(c) => c,
+        Err(e) => return refused(ack_status::REFUSED_INVALID, f64::NAN, &e),
+    };
+    let built = plan
+        .with_controller_file(controller, bytes)
+        .and_then(|p| gain_range(&p).map(|g| (p, g)));
+    match built {
+        Ok((p, gains)) => {
+            let spectral_radius = p.check_stable().unwrap_or(f64::NAN);
+            Prepared::Ready {
+                id,
+                controller: p.controller,
+                gains,
+                spectral_radius,
+            }
+        }
+        Err(RunError::Unstable { radius, .. }) => refused(
+            ack_status::REFUSED_MARGIN,
+            radius,
+            &"the new closed loop is unstable",
+        ),
+        Err(e) if made_for_mismatch(&e) => refused(ack_status::REFUSED_PROVENANCE, f64::NAN, &e),
+        Err(e) => refused(ack_status::REFUSED_INVALID, f64::NAN, &e),
+    }
+}
+
+/// Whether `e` refuses a controller made for another plant or rate.
+fn made_for_mismatch(e: &RunError) -> bool {
+    matches!(e, RunError::Config(ConfigError::Invalid { key, .. })
+        if key == "made_for" || key.ends_with(".made_for"))
+}
+
+/// The controller configuration `text` describes, and the file's bytes when it is a
+/// state-space controller file.
+fn config_of(plan: &Plan, text: &str) -> Result<(ControllerConfig, Option<Vec<u8>>), String> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
+    if table.contains_key("controller") {
+        let config: RunConfig = toml::from_str(text).map_err(|e| e.to_string())?;
+        if config.controller.kind == ControllerKind::Ss {
+            return Err("a [controller] fragment of kind ss names a file: load the file".into());
+        }
+        Ok((config.controller, None))
+    } else {
+        let controller = ControllerConfig {
+            kind: ControllerKind::Ss,
+            ss_file: Some(PathBuf::from(LOADED_FILE)),
+            ..plan.config.controller.clone()
+        };
+        Ok((controller, Some(text.as_bytes().to_vec())))
+    }
+}
