@@ -18,6 +18,8 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError, TrySendE
 pub const LOADED_FILE: &str = "controller loaded by servo ctl load";
 
 /// A controller ready to take the loop, or why not.
+// Moved by value: a box would be freed on the ticking thread when the controller leaves it.
+#[allow(clippy::large_enum_variant)]
 pub enum Prepared {
     /// Built and checked.
     Ready {
@@ -41,6 +43,8 @@ pub enum Prepared {
     },
 }
 
+// Moved by value, for the same reason as `Prepared`.
+#[allow(clippy::large_enum_variant)]
 enum Job {
     Load(u64, Vec<u8>),
     Drop(Controller),
