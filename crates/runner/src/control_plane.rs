@@ -94,7 +94,7 @@ impl ControlPlane {
     /// controller to `servo` or refuses it, and sends replaced controllers to be dropped.
     fn deploy(&mut self, servo: &mut ServoLoop, tick: u64) {
         if let Some(old) = self.parked.take().or_else(|| servo.take_replaced()) {
-            self.parked = self.loader.dispose(old).err();
+            self.parked = self.loader.dispose(old);
         }
         if let (Some((id, radius)), Some(at)) = (self.handing_over, servo.handed_over_at()) {
             self.handing_over = None;
@@ -132,7 +132,7 @@ impl ControlPlane {
                 ..
             } => {
                 // Stable at scale 1, not at the scale the run is at now.
-                self.parked = self.loader.dispose(controller).err();
+                self.parked = self.loader.dispose(controller);
                 let ack = self.load_ack(id, tick, ack_status::REFUSED_MARGIN, spectral_radius);
                 self.reply(ack);
             }

@@ -117,14 +117,14 @@ impl Loader {
     }
 
     /// On the ticking thread: drops `controller` on the loader thread. If the loader cannot
-    /// take it now, it is kept and handed back (the caller retries later).
-    pub fn dispose(&mut self, controller: Controller) -> Result<(), Controller> {
+    /// take it now, it is handed back (the caller keeps it and retries later).
+    pub fn dispose(&mut self, controller: Controller) -> Option<Controller> {
         match self.jobs.try_send(Job::Drop(controller)) {
             Err(TrySendError::Full(Job::Drop(c)) | TrySendError::Disconnected(Job::Drop(c))) => {
-                Err(c)
+                Some(c)
             }
             // Sent (a Load cannot come back from sending a Drop).
-            _ => Ok(()),
+            _ => None,
         }
     }
 }
