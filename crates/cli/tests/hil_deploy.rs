@@ -128,17 +128,6 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
         at_swap <= p999,
         "step {at_swap} V at the swap vs p99.9 {p999} V"
     );
-    // The new controller is another one: the command amplitude after the handover (well past
-    // its 5 ms) differs from before.
-    let amplitude = |r: std::ops::Range<usize>| u[r].iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let (before, after) = (
-        amplitude(swap - 4_000..swap),
-        amplitude(swap + 4_000..swap + 8_000),
-    );
-    assert!(
-        (after / before - 1.0).abs() > 0.05,
-        "{before} V vs {after} V"
-    );
     // Recorded: the tick and the file's SHA-256.
     let noted = &read.end["controller_load.1"];
     let sha = runner::config::sha256_hex(&std::fs::read(&pid).unwrap());
