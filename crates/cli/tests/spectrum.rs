@@ -175,3 +175,68 @@ fn a_decimated_recording_is_analysed_without_a_comparison_aliasing_would_falsify
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--resolution-hz"));
 }
+
+/// A window of the run, and a prediction for another controller (after a `servo ctl load`,
+/// the part after the swap against the loaded controller's budget): a window outside the run
+/// is refused; the other controller's budget is that controller's, not the recorded one's.
+#[test]
+fn a_window_and_another_controller_are_what_the_spectrum_predicts() {
+    let file = tmp("window.mcap");
+    succeeded(
+        &servo()
+            .args(["run", "-q", "--duration", "2", "--out"])
+            .arg(&file)
+            .output()
+            .unwrap(),
+    );
+    let window = json(
+        &servo()
+            .arg("spectrum")
+            .arg(&file)
+            .args(["--from-s", "1", "--json", "--out-dir"])
+            .arg(tmp("spectrum-window"))
+            .output()
+            .unwrap(),
+    );
+    let samples = window["samples"].as_u64().unwrap();
+    assert!(samples.abs_diff(199_600) <= 1, "{samples}");
+    assert_eq!(window["from_s"], 1.0);
+    let pid = tmp("spectrum-pid-1500.toml");
+    succeeded(
+        &servo()
+            .args(["tune", "--bandwidth-hz", "1500", "--out"])
+            .arg(&pid)
+            .output()
+            .unwrap(),
+    );
+    let other = spectrum_with(&file, &["--controller-from", pid.to_str().unwrap()]);
+    assert_ne!(other["predicted_with"], other["controller"]);
+    // The recorded loop (Ki 562) rejects 100 Hz – 1 kHz far better than the tuned one's
+    // prediction (Ki 381, Kp 0.12): the budget is the other controller's.
+    let band = &other["bands"][1]["rms"]["following_error_m"];
+    assert!(
+        band["difference_percent"].as_f64().unwrap() < -50.0,
+        "{band}"
+    );
+    let bad = servo()
+        .arg("spectrum")
+        .arg(&file)
+        .args(["--from-s", "5"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--from-s"));
+}
+
+fn spectrum_with(file: &Path, extra: &[&str]) -> Value {
+    json(
+        &servo()
+            .arg("spectrum")
+            .arg(file)
+            .args(["--json", "--out-dir"])
+            .arg(tmp("spectrum-other"))
+            .args(extra)
+            .output()
+            .unwrap(),
+    )
+}

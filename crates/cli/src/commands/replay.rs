@@ -115,7 +115,7 @@ impl ReplayCmd {
 
 /// The `[controller]` table of config file `path`, its controller file resolved against the
 /// file's folder.
-fn controller_of(path: &std::path::Path) -> Result<runner::config::ControllerConfig, CliError> {
+pub fn controller_of(path: &std::path::Path) -> Result<runner::config::ControllerConfig, CliError> {
     let l = Loaded::from_file(path)?;
     let mut c = l.config.controller;
     c.ss_file = c.ss_file.map(|f| l.origin.resolve(&f));

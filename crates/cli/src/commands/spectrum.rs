@@ -6,15 +6,16 @@ use clap::Args;
 use runner::config::Origin;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use studies::spectrum::{BandRms, SpectrumSink, RESOLUTION_RANGE_HZ};
+use studies::spectrum::{BandRms, SpectrumOptions, SpectrumSink, RESOLUTION_RANGE_HZ};
 use studies::StudyError;
 
 /// Spectrum of a recorded run beside its error budget (thesis §5.7.4, Fig 5-15).
 ///
 /// Welch PSD (Hann, 50 % overlap) and CAS of the following error, the control output and —
 /// for a simulated run — the true tool error, from the settle time to the end (or a trip),
-/// with the budget's prediction for the recorded configuration and the RMS difference per
-/// decade band. Streams the file in constant memory.
+/// with the budget's prediction for the recorded configuration (or for --controller-from's
+/// controller: after a `servo ctl load`, analyse from the swap with --from-s) and the RMS
+/// difference per decade band. Streams the file in constant memory.
 /// Example: servo run --duration 2 && servo spectrum run.mcap
 #[derive(Args, Debug)]
 pub struct SpectrumCmd {
@@ -24,6 +25,16 @@ pub struct SpectrumCmd {
     /// samples; finer bins average fewer segments).
     #[arg(long, default_value_t = 10.0)]
     resolution_hz: f64,
+    /// Analysis start in s of run time (default: the run's settle time).
+    #[arg(long)]
+    from_s: Option<f64>,
+    /// Analysis end in s of run time (default: the end of the run).
+    #[arg(long)]
+    to_s: Option<f64>,
+    /// Predict with the [controller] table of this config file (e.g. the pid.toml a
+    /// `servo ctl load` swapped in) instead of the recorded controller.
+    #[arg(long)]
+    controller_from: Option<PathBuf>,
     /// Output directory for CSV, JSON, PNG and SVG.
     #[arg(long, default_value = "spectrum")]
     out_dir: PathBuf,
@@ -45,7 +56,16 @@ impl SpectrumCmd {
                 )
                 .into());
         }
-        let mut sink = SpectrumSink::new(self.resolution_hz);
+        let controller = match &self.controller_from {
+            Some(p) => Some(super::replay::controller_of(p)?),
+            None => None,
+        };
+        let mut sink = SpectrumSink::new(SpectrumOptions {
+            resolution_hz: self.resolution_hz,
+            from_s: self.from_s,
+            to_s: self.to_s,
+            controller,
+        });
         let read = runner::recording::inspect_with(&self.file, &mut sink)?;
         let s = sink.finish()?;
         let title = self
@@ -64,11 +84,14 @@ impl SpectrumCmd {
             read.read,
             s.samples,
             s.sample_rate_hz,
-            s.settle_s,
+            s.from_s,
             s.resolution_hz,
             s.segments
         );
         println!("  made for {}; {}", s.made_for.describe(), s.controller);
+        if let Some(c) = s.predicted_with.as_ref().filter(|c| **c != s.controller) {
+            println!("  budget predicted with {c}");
+        }
         if let Some(n) = &s.prediction_note {
             println!("  no budget overlay: {n}");
         }

@@ -4,7 +4,9 @@
 //! configuration, with the difference per decade band.
 //!
 //! The recording streams through in constant memory (one Welch segment per signal). Only the
-//! steady part counts: from the run's settle time to its end, or to a trip.
+//! steady part counts: from the run's settle time (or a chosen start) to its end (or a chosen
+//! end), or to a trip. The prediction can be for another controller than the recorded one —
+//! the one `servo ctl load` swapped in, for the part of the run after the swap.
 
 pub mod report;
 
@@ -77,7 +79,9 @@ pub struct Spectrum {
     /// about 1/√segments.
     pub segments: usize,
     /// Analysis start, s of run time.
-    pub settle_s: f64,
+    pub from_s: f64,
+    /// The controller the prediction is for (the recorded one unless another was given).
+    pub predicted_with: Option<String>,
     /// Bin frequencies, Hz (DC left out).
     pub freq_hz: Vec<f64>,
     /// Recorded one-sided PSDs (signal unit²/Hz).
@@ -93,9 +97,24 @@ pub struct Spectrum {
     pub total: Signals<BandRms>,
 }
 
+/// What part of a recording to analyse, how finely, and with which controller to predict it.
+#[derive(Debug, Clone)]
+pub struct SpectrumOptions {
+    /// Bin spacing, Hz (within [`RESOLUTION_RANGE_HZ`]).
+    pub resolution_hz: f64,
+    /// Analysis start, s of run time (None: the run's settle time).
+    pub from_s: Option<f64>,
+    /// Analysis end, s of run time (None: the end of the recording).
+    pub to_s: Option<f64>,
+    /// Predict with this controller instead of the recorded one (the one a `servo ctl load`
+    /// swapped in, to compare the part of the run after the swap).
+    pub controller: Option<runner::config::ControllerConfig>,
+}
+
 /// The Welch estimates filled as the frames stream past.
 struct Estimates {
-    settle_ns: u64,
+    from_ns: u64,
+    to_ns: u64,
     fs_hz: f64,
     following: Welch,
     true_error: Welch,
@@ -108,17 +127,17 @@ struct Estimates {
 /// Reads the frames of a recording into spectra ([`FrameSink`] for
 /// [`runner::recording::inspect_with`]); [`SpectrumSink::finish`] gives the result.
 pub struct SpectrumSink {
-    resolution_hz: f64,
+    options: SpectrumOptions,
     header: Option<(MadeFor, String, f64)>,
     prediction: Result<runner::Plan, String>,
     estimates: Option<Estimates>,
 }
 
 impl SpectrumSink {
-    /// Spectra with bins `resolution_hz` apart (within [`RESOLUTION_RANGE_HZ`]).
-    pub fn new(resolution_hz: f64) -> Self {
+    /// Spectra as `options` ask.
+    pub fn new(options: SpectrumOptions) -> Self {
         SpectrumSink {
-            resolution_hz,
+            options,
             header: None,
             prediction: Err("the recording has no header".into()),
             estimates: None,
@@ -131,16 +150,36 @@ impl FrameSink for SpectrumSink {
         let config = &h.loaded.config;
         let every = h.every.get();
         let fs_hz = config.plant.timing.servo_rate_hz / f64::from(every);
-        let segment_len = (fs_hz / self.resolution_hz).round().max(2.0) as usize;
+        let o = &self.options;
+        let segment_len = (fs_hz / o.resolution_hz).round().max(2.0) as usize;
         let welch = || {
             Welch::new(fs_hz, &WelchConfig::hann(segment_len)).map_err(|e| {
                 h.loaded
                     .origin
-                    .invalid("--resolution-hz", self.resolution_hz, &e.to_string())
+                    .invalid("--resolution-hz", o.resolution_hz, &e.to_string())
             })
         };
+        let duration = config.run.duration_s;
+        let from_s = o.from_s.unwrap_or(config.run.settle());
+        let to_s = o.to_s.unwrap_or(duration);
+        let at = runner::config::Origin::default();
+        if !(0.0..duration).contains(&from_s) {
+            return Err(at
+                .invalid(
+                    "--from-s",
+                    from_s,
+                    &format!("[0, {duration}) s, the run's length"),
+                )
+                .into());
+        }
+        if !(to_s > from_s && to_s <= duration) {
+            return Err(at
+                .invalid("--to-s", to_s, &format!("({from_s}, {duration}] s"))
+                .into());
+        }
         self.estimates = Some(Estimates {
-            settle_ns: (config.run.settle() * 1e9).round() as u64,
+            from_ns: (from_s * 1e9).round() as u64,
+            to_ns: (to_s * 1e9).round() as u64,
             fs_hz,
             following: welch()?,
             true_error: welch()?,
@@ -149,11 +188,7 @@ impl FrameSink for SpectrumSink {
             samples: 0,
             tripped: false,
         });
-        self.header = Some((
-            MadeFor::of(&config.plant),
-            h.controller.clone(),
-            config.run.settle(),
-        ));
+        self.header = Some((MadeFor::of(&config.plant), h.controller.clone(), from_s));
         self.prediction = if every > 1 {
             Err(format!(
                 "recorded every {every} ticks without an anti-alias filter: the spectrum above \
@@ -161,8 +196,14 @@ impl FrameSink for SpectrumSink {
                 fs_hz / 2.0
             ))
         } else {
-            h.plan()
-                .map_err(|e| format!("the recorded configuration does not build: {e}"))
+            match &o.controller {
+                Some(c) => h.replan(runner::config::RunConfig {
+                    controller: c.clone(),
+                    ..config.clone()
+                }),
+                None => h.plan(),
+            }
+            .map_err(|e| format!("the configuration to predict with does not build: {e}"))
         };
         Ok(())
     }
@@ -174,7 +215,7 @@ impl FrameSink for SpectrumSink {
         if f.telemetry.flags as u32 & daq_io::flags::TRIPPED != 0 {
             e.tripped = true;
         }
-        if e.tripped || f.time_ns < e.settle_ns {
+        if e.tripped || f.time_ns < e.from_ns || f.time_ns > e.to_ns {
             return;
         }
         e.following.push(f64::from(f.telemetry.following_error_m));
@@ -188,8 +229,7 @@ impl FrameSink for SpectrumSink {
 impl SpectrumSink {
     /// The spectra, the prediction and the band table.
     pub fn finish(self) -> Result<Spectrum, StudyError> {
-        let (Some(e), Some((made_for, controller, settle_s))) = (self.estimates, self.header)
-        else {
+        let (Some(e), Some((made_for, controller, from_s))) = (self.estimates, self.header) else {
             return Err(lti::spectral::SpectralError::Argument("no run header was read").into());
         };
         let body = |p: Psd| p.density[1..].to_vec();
@@ -205,6 +245,11 @@ impl SpectrumSink {
             },
             control_v: body(e.control.finish()?),
         };
+        let predicted_with = self
+            .prediction
+            .as_ref()
+            .ok()
+            .map(|p| p.controller.description.clone());
         let (predicted_psd, prediction_note) = match self.prediction {
             Ok(plan) => {
                 let [f, t, c] = source_psds(
@@ -300,7 +345,8 @@ impl SpectrumSink {
             resolution_hz,
             samples: e.samples,
             segments: e.following.segments(),
-            settle_s,
+            from_s,
+            predicted_with,
             total: band(first, nyquist).rms,
             freq_hz,
             recorded_psd,
