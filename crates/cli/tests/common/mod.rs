@@ -11,11 +11,18 @@ pub fn servo() -> Command {
     Command::new(env!("CARGO_BIN_EXE_servo"))
 }
 
-/// `name` in this test process's scratch folder (made if needed).
+/// `name` in this test process's scratch folder: created exclusively with a random name,
+/// private to the user (0700), made at the first call and kept for the process.
 pub fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("fts-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    static DIR: std::sync::OnceLock<tempfile::TempDir> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        tempfile::Builder::new()
+            .prefix("fts-cli-")
+            .tempdir()
+            .unwrap()
+    })
+    .path()
+    .join(name)
 }
 
 /// Asserts that `out` is a successful run, showing its stderr otherwise.

@@ -47,10 +47,9 @@ mod tests {
     use super::*;
     use crate::config::plant_toml;
 
-    fn write(name: &str, text: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("fts-plant-file-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
+    /// `text` as file `name` in `dir` (a private folder of the test's own).
+    fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> std::path::PathBuf {
+        let p = dir.path().join(name);
         std::fs::write(&p, text).unwrap();
         p
     }
@@ -60,16 +59,18 @@ mod tests {
         let mut plant = PlantParams::default();
         plant.stage.m1_kg *= 1.07;
         plant.stage.k2_n_per_m *= 0.93;
-        let p = write("model.toml", &plant_toml(&plant));
+        let dir = tempfile::tempdir().unwrap();
+        let p = write(&dir, "model.toml", &plant_toml(&plant));
         assert_eq!(read_plant_file(&p).unwrap(), plant);
     }
 
     #[test]
     fn other_tables_and_bad_values_are_refused_with_file_and_key() {
-        let p = write("run.toml", "[run]\nduration_s = 1.0\n");
+        let dir = tempfile::tempdir().unwrap();
+        let p = write(&dir, "run.toml", "[run]\nduration_s = 1.0\n");
         let e = read_plant_file(&p).unwrap_err().to_string();
         assert!(e.contains("run.toml") && e.contains("[plant]"), "{e}");
-        let p = write("bad.toml", "[plant.stage]\nm1_kg = -1.0\n");
+        let p = write(&dir, "bad.toml", "[plant.stage]\nm1_kg = -1.0\n");
         let e = read_plant_file(&p).unwrap_err().to_string();
         assert!(
             e.contains("bad.toml:2") && e.contains("plant.stage.m1_kg") && e.contains("1e-6"),
