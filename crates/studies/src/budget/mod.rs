@@ -56,6 +56,15 @@ fn variance(sys: &StateSpace, out: usize, inp: usize, var: f64) -> Result<f64, L
     Ok((c * p * c.transpose())[(0, 0)] + d * d * var)
 }
 
+/// The PSD of all sources together, `per_source[source][frequency]` summed over the sources
+/// (they are independent: powers add, eq 5-15).
+pub fn total_psd(per_source: &[Vec<f64>]) -> Vec<f64> {
+    let n = per_source.first().map_or(0, Vec::len);
+    (0..n)
+        .map(|i| per_source.iter().map(|p| p[i]).sum())
+        .collect()
+}
+
 /// One-sided PSD at `freq_hz` of each of `outputs` (one of [`output`]) caused by each noise
 /// source of [`SOURCES`], `[output][source][frequency]`, in the output's unit²/Hz (a white
 /// per-tick variance σ² is a one-sided input PSD of 2σ²/fs).
@@ -107,13 +116,8 @@ impl Budget {
                 })
             })
             .collect::<Result<Vec<_>, LtiError>>()?;
-        let total = |psds: &Vec<Vec<f64>>| {
-            (0..freq_hz.len())
-                .map(|i| psds.iter().map(|p| p[i]).sum())
-                .collect::<Vec<f64>>()
-        };
-        let following_cas = cas(&freq_hz, &total(&following_psd));
-        let true_cas = cas(&freq_hz, &total(&true_psd));
+        let following_cas = cas(&freq_hz, &total_psd(&following_psd));
+        let true_cas = cas(&freq_hz, &total_psd(&true_psd));
         let rss = |f: fn(&Contribution) -> f64| {
             contributions
                 .iter()

@@ -50,21 +50,16 @@ pub fn write(
     };
     let mut out = data(dir, "budget", &csv, &file)?;
     let nm2 = |v: &Vec<f64>| v.iter().map(|x| x * 1e18).collect::<Vec<f64>>();
-    let total = |psd: &Vec<Vec<f64>>| {
-        (0..b.freq_hz.len())
-            .map(|i| psd.iter().map(|p| p[i]).sum::<f64>())
-            .collect::<Vec<f64>>()
-    };
     let mut psd_series = vec![
         Series::line(
             "following error, total",
             b.freq_hz.clone(),
-            nm2(&total(&b.following_psd)),
+            nm2(&super::total_psd(&b.following_psd)),
         ),
         Series::line(
             "true error, total",
             b.freq_hz.clone(),
-            nm2(&total(&b.true_psd)),
+            nm2(&super::total_psd(&b.true_psd)),
         ),
     ];
     for (k, (name, _)) in SOURCES.iter().enumerate() {

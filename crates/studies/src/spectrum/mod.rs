@@ -10,7 +10,7 @@
 
 pub mod report;
 
-use crate::budget::source_psds;
+use crate::budget::{source_psds, total_psd};
 use crate::StudyError;
 use lti::spectral::{Psd, Welch, WelchConfig};
 use recorder::Frame;
@@ -261,16 +261,11 @@ impl SpectrumSink {
                         output::CONTROL_V,
                     ],
                 )?;
-                let total = |per_source: Vec<Vec<f64>>| -> Vec<f64> {
-                    (0..freq_hz.len())
-                        .map(|i| per_source.iter().map(|p| p[i]).sum())
-                        .collect()
-                };
                 (
                     Some(Signals {
-                        following_error_m: total(f),
-                        true_error_m: e.truth_seen.then(|| total(t)),
-                        control_v: total(c),
+                        following_error_m: total_psd(&f),
+                        true_error_m: e.truth_seen.then(|| total_psd(&t)),
+                        control_v: total_psd(&c),
                     }),
                     None,
                 )
