@@ -251,6 +251,17 @@ impl RunArgs {
     }
 }
 
+/// The `[controller]` table of config file `path` (`--controller-from`: e.g. the pid.toml
+/// `servo tune` writes), its controller file resolved against the file's folder.
+pub fn controller_from(
+    path: &std::path::Path,
+) -> Result<runner::config::ControllerConfig, ConfigError> {
+    let l = Loaded::from_file(path)?;
+    let mut c = l.config.controller;
+    c.ss_file = c.ss_file.map(|f| l.origin.resolve(&f));
+    Ok(c)
+}
+
 /// Overrides `field` with a command-line `flag` when one was given.
 pub fn set<T>(field: &mut T, flag: Option<T>) {
     if let Some(v) = flag {

@@ -183,7 +183,7 @@ fn made_for_mismatch(e: &RunError) -> bool {
 fn config_of(plan: &Plan, text: &str) -> Result<(ControllerConfig, Option<Vec<u8>>), String> {
     let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
     if table.contains_key("controller") {
-        let config: RunConfig = toml::from_str(text).map_err(|e| e.to_string())?;
+        let config: RunConfig = table.try_into().map_err(|e| e.to_string())?;
         if config.controller.kind == ControllerKind::Ss {
             return Err("a [controller] fragment of kind ss names a file: load the file".into());
         }

@@ -7,7 +7,7 @@ use crate::args::{ControllerArgs, FeedforwardArgs, RecordingArgs};
 use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, CliError};
 use clap::Args;
-use runner::config::{read_plant_file, Loaded};
+use runner::config::read_plant_file;
 use runner::replay::{FrameDigest, Recorded};
 use runner::run::run_with;
 use runner::summary::Summary;
@@ -71,7 +71,7 @@ impl ReplayCmd {
         };
         let mut loaded = header.loaded.clone();
         if let Some(p) = &self.controller_from {
-            loaded.config.controller = controller_of(p)?;
+            loaded.config.controller = crate::args::controller_from(p)?;
         }
         self.controller.apply(&mut loaded);
         self.feedforward.apply(&mut loaded);
@@ -111,15 +111,6 @@ impl ReplayCmd {
         }
         Ok(crate::interrupt::exit_code(&stop, replayed.trip.is_some()))
     }
-}
-
-/// The `[controller]` table of config file `path`, its controller file resolved against the
-/// file's folder.
-pub fn controller_of(path: &std::path::Path) -> Result<runner::config::ControllerConfig, CliError> {
-    let l = Loaded::from_file(path)?;
-    let mut c = l.config.controller;
-    c.ss_file = c.ss_file.map(|f| l.origin.resolve(&f));
-    Ok(c)
 }
 
 fn print_report(r: &Report, every: u32, rate_hz: f64) {

@@ -57,7 +57,7 @@ impl SpectrumCmd {
                 .into());
         }
         let controller = match &self.controller_from {
-            Some(p) => Some(super::replay::controller_of(p)?),
+            Some(p) => Some(crate::args::controller_from(p)?),
             None => None,
         };
         let mut sink = SpectrumSink::new(SpectrumOptions {
