@@ -6,7 +6,7 @@
 mod common;
 
 use common::hil::{prefix, wait_for_ticks};
-use common::{servo, succeeded, tmp};
+use common::{servo, succeeded, tmp, tuned};
 use recorder::Frame;
 use runner::recording::FrameSink;
 use std::process::Stdio;
@@ -24,22 +24,11 @@ impl FrameSink for Commands {
 #[test]
 fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
     let rate = ["--rate", "20000"];
-    let tune = |name: &str, extra: &[&str]| {
-        let file = tmp(name);
-        succeeded(
-            &servo()
-                .arg("tune")
-                .args(rate)
-                .args(extra)
-                .arg("--out")
-                .arg(&file)
-                .output()
-                .unwrap(),
-        );
-        file
-    };
-    let pid = tune("deploy-pid.toml", &["--bandwidth-hz", "1000"]);
-    let heavy = tune("deploy-heavy.toml", &["--mass", "heavy"]);
+    let pid = tuned(
+        "deploy-pid.toml",
+        &["--rate", "20000", "--bandwidth-hz", "1000"],
+    );
+    let heavy = tuned("deploy-heavy.toml", &["--rate", "20000", "--mass", "heavy"]);
     let unstable = tmp("deploy-unstable.toml");
     std::fs::write(
         &unstable,

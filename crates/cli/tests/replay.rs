@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{json, servo, succeeded, tmp};
+use common::{json, servo, succeeded, tmp, tuned};
 use std::path::Path;
 
 fn record(file: &Path, extra: &[&str]) {
@@ -71,14 +71,7 @@ fn an_unchanged_replay_reproduces_the_recording_bit_for_bit() {
 fn a_replay_with_another_controller_is_the_run_that_controller_makes() {
     let file = tmp("pid-original.mcap");
     record(&file, &[]);
-    let pid = tmp("pid-1500.toml");
-    succeeded(
-        &servo()
-            .args(["tune", "--bandwidth-hz", "1500", "--out"])
-            .arg(&pid)
-            .output()
-            .unwrap(),
-    );
+    let pid = tuned("pid-1500.toml", &["--bandwidth-hz", "1500"]);
     let r = replay(&file, &["--controller-from", pid.to_str().unwrap()]);
     assert_eq!(r["changed"], true);
     assert_eq!(r["identical"], false);
@@ -104,14 +97,7 @@ fn a_replay_with_another_controller_is_the_run_that_controller_makes() {
         assert_ne!(r["replayed"][key], r["recorded"][key], "{key}");
     }
     // Made for another stage: refused with both named, as a run refuses it.
-    let heavy = tmp("pid-heavy.toml");
-    succeeded(
-        &servo()
-            .args(["tune", "--mass", "heavy", "--out"])
-            .arg(&heavy)
-            .output()
-            .unwrap(),
-    );
+    let heavy = tuned("pid-heavy.toml", &["--mass", "heavy"]);
     let out = servo()
         .arg("replay")
         .arg(&file)

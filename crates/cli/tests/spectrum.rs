@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{json, servo, succeeded, tmp};
+use common::{json, servo, succeeded, tmp, tuned};
 use serde_json::Value;
 use std::path::Path;
 
@@ -201,14 +201,7 @@ fn a_window_and_another_controller_are_what_the_spectrum_predicts() {
     let samples = window["samples"].as_u64().unwrap();
     assert!(samples.abs_diff(199_600) <= 1, "{samples}");
     assert_eq!(window["from_s"], 1.0);
-    let pid = tmp("spectrum-pid-1500.toml");
-    succeeded(
-        &servo()
-            .args(["tune", "--bandwidth-hz", "1500", "--out"])
-            .arg(&pid)
-            .output()
-            .unwrap(),
-    );
+    let pid = tuned("spectrum-pid-1500.toml", &["--bandwidth-hz", "1500"]);
     let other = spectrum_with(&file, &["--controller-from", pid.to_str().unwrap()]);
     assert_ne!(other["predicted_with"], other["controller"]);
     // The recorded loop (Ki 562) rejects 100 Hz – 1 kHz far better than the tuned one's

@@ -8,7 +8,7 @@
 mod common;
 
 use common::hil::prefix;
-use common::{json, servo, succeeded, tmp};
+use common::{json, servo, succeeded, tmp, tuned};
 use daq_io::ipc::Endpoint;
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use plant_sim::practice::PracticeStage;
@@ -55,15 +55,7 @@ fn a_hidden_stage_is_identified_through_shared_memory_and_its_resonance_reported
             .output()
             .unwrap(),
     );
-    let s = truth.stage;
-    let drawn = [
-        s.m1_kg + s.m2_kg,
-        s.k2_n_per_m,
-        s.c2_n_s_per_m,
-        s.m4_kg,
-        s.k4_n_per_m,
-        s.c4_n_s_per_m,
-    ];
+    let drawn = studies::identify::table_5_2(&truth.stage);
     let mut covered = 0;
     for (i, truth) in drawn.iter().enumerate() {
         let fitted = id["fitted"][i].as_f64().unwrap();
@@ -104,16 +96,7 @@ fn a_hidden_stage_is_identified_through_shared_memory_and_its_resonance_reported
     let text = std::fs::read_to_string(&model).unwrap();
     assert!(text.contains("NOT in this model"), "{text}");
     // Design on the identified model; the gains run on it.
-    let pid = dir.join("pid.toml");
-    succeeded(
-        &servo()
-            .args(["tune", "--plant"])
-            .arg(&model)
-            .arg("--out")
-            .arg(&pid)
-            .output()
-            .unwrap(),
-    );
+    let pid = tuned("practice-pid.toml", &["--plant", model.to_str().unwrap()]);
     succeeded(
         &servo()
             .args(["run", "--no-record", "-q", "--duration", "0.05", "-c"])

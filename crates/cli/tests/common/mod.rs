@@ -25,6 +25,22 @@ pub fn tmp(name: &str) -> PathBuf {
     .join(name)
 }
 
+/// `servo tune` with the flags `args`, its gains written to `name` in the scratch folder;
+/// the file's path.
+pub fn tuned(name: &str, args: &[&str]) -> PathBuf {
+    let file = tmp(name);
+    succeeded(
+        &servo()
+            .arg("tune")
+            .args(args)
+            .arg("--out")
+            .arg(&file)
+            .output()
+            .unwrap(),
+    );
+    file
+}
+
 /// Asserts that `out` is a successful run, showing its stderr otherwise.
 pub fn succeeded(out: &Output) {
     assert!(
