@@ -273,8 +273,9 @@ fn echo_socket(path: &str) {
 }
 
 fn round_trip_socket() -> LatencyHistogram {
-    let path = std::env::temp_dir().join(format!("fts-bench-{}.sock", std::process::id()));
-    let _ = std::fs::remove_file(&path);
+    // In a private folder of its own: no predictable path in the shared temp folder.
+    let scratch = tempfile::tempdir().unwrap();
+    let path = scratch.path().join("echo.sock");
     let listener = UnixListener::bind(&path).unwrap();
     let mut child = peer("socket", path.to_str().unwrap());
     let (mut s, _) = listener.accept().unwrap();
@@ -291,7 +292,6 @@ fn round_trip_socket() -> LatencyHistogram {
     }
     drop(s);
     child.wait().unwrap();
-    let _ = std::fs::remove_file(&path);
     h
 }
 

@@ -40,8 +40,8 @@ fn run_of(second: &[Frame]) -> impl Iterator<Item = Frame> + '_ {
 
 fn throughput(c: &mut Criterion) {
     let data = frames();
-    let dir = std::env::temp_dir().join(format!("fts-bench-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path();
     let path_of = |every: u32| dir.join(format!("every-{every}.mcap"));
     let mut group = c.benchmark_group("recorder_4s");
     group
@@ -95,7 +95,6 @@ fn throughput(c: &mut Criterion) {
             bytes as f64 / 1e6 / SECONDS as f64
         );
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 criterion_group!(benches, throughput);

@@ -91,19 +91,17 @@ fn assertions() -> String {
 #[test]
 fn the_c_header_matches_every_size_offset_and_constant() {
     let include = concat!(env!("CARGO_MANIFEST_DIR"), "/../../include");
-    let dir = std::env::temp_dir().join(format!("fts-c-header-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let source = dir.join("check.c");
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("check.c");
     std::fs::write(&source, assertions()).unwrap();
     let out = Command::new("cc")
         .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-c", "-o"])
-        .arg(dir.join("check.o"))
+        .arg(dir.path().join("check.o"))
         .arg("-I")
         .arg(include)
         .arg(&source)
         .output()
         .expect("a C compiler (cc) — the Rust toolchain links with it");
-    let _ = std::fs::remove_dir_all(&dir);
     assert!(
         out.status.success(),
         "include/fts_servo_contract.h differs from the Rust contract:\n{}",
@@ -125,17 +123,15 @@ fn a_drifted_header_fails_the_check() {
         1,
     );
     assert_ne!(drifted, header, "the edit applies");
-    let dir = std::env::temp_dir().join(format!("fts-c-drift-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("fts_servo_contract.h"), drifted).unwrap();
-    std::fs::write(dir.join("check.c"), assertions()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("fts_servo_contract.h"), drifted).unwrap();
+    std::fs::write(dir.path().join("check.c"), assertions()).unwrap();
     let out = Command::new("cc")
         .args(["-std=c11", "-fsyntax-only", "-I"])
-        .arg(&dir)
-        .arg(dir.join("check.c"))
+        .arg(dir.path())
+        .arg(dir.path().join("check.c"))
         .output()
         .unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("offset of fts_Sensor.gap_v"));
 }

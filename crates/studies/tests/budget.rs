@@ -225,9 +225,8 @@ fn h2_at_20_khz_beats_the_pid() {
     base.config.run.duration_s = 3.0;
     let design = h2_design(&plan(&base), 1.0).unwrap();
     assert!(design.spectral_radius < 1.0);
-    let dir = std::env::temp_dir().join(format!("fts-h2-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("h2.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("h2.toml");
     std::fs::write(&file, design.to_toml()).unwrap();
     let mut h2 = base.clone();
     h2.config.controller.kind = runner::config::ControllerKind::Ss;
@@ -264,7 +263,7 @@ fn h2_at_20_khz_beats_the_pid() {
     let full_true = studies::budget::Budget::new(&cl, 64).unwrap().true_rms_m;
     for order in [13, 8] {
         let (reduced, _, _) = design.reduced(order).unwrap();
-        let f = dir.join(format!("h2_{order}.toml"));
+        let f = dir.path().join(format!("h2_{order}.toml"));
         std::fs::write(&f, reduced.to_toml()).unwrap();
         let mut r = h2.clone();
         r.config.controller.ss_file = Some(f);
@@ -358,12 +357,11 @@ fn ms_of_eq_6_4_is_the_thesis_value() {
 fn thesis_weighted_h2_stabilises_the_exact_loop() {
     let mut cfg = heavy_468();
     cfg.config.plant.timing.servo_rate_hz = 20_000.0;
-    let dir = std::env::temp_dir().join(format!("fts-thesis-h2-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tempfile::tempdir().unwrap();
     let mut bandwidths = Vec::new();
     for effort in [1e3, 1e4] {
         let d = studies::synth::thesis_design(&plan(&cfg), &Default::default(), effort).unwrap();
-        let f = dir.join(format!("thesis_{effort}.toml"));
+        let f = dir.path().join(format!("thesis_{effort}.toml"));
         std::fs::write(&f, d.to_toml()).unwrap();
         let mut run_cfg = cfg.clone();
         run_cfg.config.controller.kind = runner::config::ControllerKind::Ss;

@@ -38,9 +38,8 @@ proptest! {
 
     #[test]
     fn frf_files_are_read_or_refused_with_the_file_named(text in csv()) {
-        let dir = std::env::temp_dir().join(format!("fts-fuzz-frf-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("fuzz-frf.csv");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("fuzz-frf.csv");
         std::fs::write(&path, &text).unwrap();
         match read_frf_csv(&path, NYQUIST_HZ) {
             Ok((f, g)) => {

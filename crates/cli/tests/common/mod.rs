@@ -11,18 +11,19 @@ pub fn servo() -> Command {
     Command::new(env!("CARGO_BIN_EXE_servo"))
 }
 
-/// `name` in this test process's scratch folder: created exclusively with a random name,
-/// private to the user (0700), made at the first call and kept for the process.
+/// `name` in this test's scratch folder: created exclusively with a random name, private to
+/// the user (0700), made at the first call and removed when the test ends. libtest runs each
+/// test on a thread of its own, so the folder is the thread's: its destructor runs when the
+/// test's thread exits, passed or failed (a static would never be dropped, and every run
+/// of the suite would leave its recordings behind in the shared temp folder).
 pub fn tmp(name: &str) -> PathBuf {
-    static DIR: std::sync::OnceLock<tempfile::TempDir> = std::sync::OnceLock::new();
-    DIR.get_or_init(|| {
-        tempfile::Builder::new()
+    thread_local! {
+        static DIR: tempfile::TempDir = tempfile::Builder::new()
             .prefix("fts-cli-")
             .tempdir()
-            .unwrap()
-    })
-    .path()
-    .join(name)
+            .expect("a private scratch folder");
+    }
+    DIR.with(|dir| dir.path().join(name))
 }
 
 /// `servo tune` with the flags `args`, its gains written to `name` in the scratch folder;

@@ -29,10 +29,16 @@ pub fn frames(n: usize) -> Vec<Frame> {
         .collect()
 }
 
+/// `name` in this test's private scratch folder (random name, 0700), removed when the test's
+/// thread — libtest gives each test its own — exits.
 pub fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("fts-recorder-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    thread_local! {
+        static DIR: tempfile::TempDir = tempfile::Builder::new()
+            .prefix("fts-recorder-")
+            .tempdir()
+            .expect("a private scratch folder");
+    }
+    DIR.with(|dir| dir.path().join(name))
 }
 
 pub fn end() -> BTreeMap<String, String> {
