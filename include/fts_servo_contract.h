@@ -73,7 +73,7 @@
 /* Plant -> controller, once per tick: the readings at the start of tick seq. */
 typedef struct fts_Sensor {
     uint64_t seq;           /* tick index */
-    double time_s;          /* s */
+    double time_s;          /* run time, s (0 at the first reading) */
     double gap_v;           /* gap sensor reading, V */
     double accel_v;         /* accelerometer reading, V */
     uint64_t encoder_count; /* spindle encoder pulses since the start */
@@ -94,7 +94,7 @@ typedef struct fts_Command {
 /* What the controller saw and did over one tick. */
 typedef struct fts_Telemetry {
     uint64_t seq;
-    double time_s;            /* end of the tick, s */
+    double time_s;            /* end of the tick, run time, s */
     double reference_m;       /* m */
     double measured_m;        /* m */
     double following_error_m; /* reference - measured, m */
@@ -107,7 +107,7 @@ typedef struct fts_Telemetry {
 /* What really happened in the plant over one tick (a simulator; a DAQ daemon may send zeros). */
 typedef struct fts_Truth {
     uint64_t seq;
-    double time_s;          /* s */
+    double time_s;          /* end of the tick, run time, s */
     double tool_m;          /* m */
     double gap_m;           /* m */
     double motor_force_n;   /* N */

@@ -5,21 +5,11 @@
 
 mod common;
 
-use common::hil::{prefix, wait_for_ticks};
-use common::{servo, succeeded, tmp, tuned};
-use recorder::Frame;
-use runner::recording::FrameSink;
+use common::hil::{
+    assert_bumpless, ctl_load, ctl_stop, prefix, recorded_commands, swap_tick, wait_for_ticks,
+};
+use common::{servo, tmp, tuned};
 use std::process::Stdio;
-
-/// Every recorded command, V, in tick order.
-#[derive(Default)]
-struct Commands(Vec<f64>);
-
-impl FrameSink for Commands {
-    fn frame(&mut self, f: &Frame) {
-        self.0.push(f64::from(f.telemetry.control_v));
-    }
-}
 
 #[test]
 fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
@@ -64,15 +54,8 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
         .spawn()
         .unwrap();
     wait_for_ticks(&p, 20_000, &mut run);
-    let load = |file: &std::path::Path| {
-        servo()
-            .args(["ctl", "--prefix", &p, "--timeout-s", "60", "load"])
-            .arg(file)
-            .output()
-            .unwrap()
-    };
     let refused = |file: &std::path::Path, why: &[&str]| {
-        let out = load(file);
+        let out = ctl_load(&p, file);
         let e = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{e}");
         for w in why {
@@ -81,44 +64,23 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
     };
     refused(&unstable, &["would be unstable", "spectral radius"]);
     refused(&heavy, &["made for another plant", "stage heavy"]);
-    let out = load(&pid);
-    succeeded(&out);
-    let said = String::from_utf8_lossy(&out.stdout).to_string();
-    let swap: usize = said
-        .split("took the loop at tick ")
-        .nth(1)
-        .and_then(|r| r.split(',').next())
-        .and_then(|t| t.parse().ok())
-        .unwrap_or_else(|| panic!("{said}"));
+    let swap = swap_tick(&ctl_load(&p, &pid));
     wait_for_ticks(&p, swap as u64 + 20_000, &mut run);
-    succeeded(
-        &servo()
-            .args(["ctl", "--prefix", &p, "--timeout-s", "60", "stop"])
-            .output()
-            .unwrap(),
-    );
+    ctl_stop(&p);
     let summary = run.wait_with_output().unwrap();
     let s: serde_json::Value = serde_json::from_slice(&summary.stdout).unwrap();
     assert!(s["trip"].is_null(), "{s}");
 
-    let mut u = Commands::default();
-    let read = runner::recording::inspect_with(&rec, &mut u).unwrap();
-    let u = u.0;
-    assert!(u.len() > swap + 10_000, "{} frames", u.len());
-    // Bumpless: the command step at the swap tick is an ordinary one — no larger than the
-    // 99.9th percentile of the tick-to-tick changes over the 10 000 ticks before.
-    let mut steps: Vec<f64> = (swap - 10_000..swap)
-        .map(|k| (u[k] - u[k - 1]).abs())
-        .collect();
-    steps.sort_by(f64::total_cmp);
-    let p999 = steps[steps.len() * 999 / 1000];
-    let at_swap = (u[swap] - u[swap - 1]).abs();
-    assert!(
-        at_swap <= p999,
-        "step {at_swap} V at the swap vs p99.9 {p999} V"
+    let (u, end) = recorded_commands(&rec);
+    assert_bumpless(&u, swap);
+    // Recorded: the tick and the file's SHA-256, and the file itself.
+    let swaps = runner::recorded_swaps::Swap::read_all(&rec).unwrap();
+    assert_eq!(swaps.len(), 1);
+    assert_eq!(
+        (swaps[0].tick, &swaps[0].file),
+        (swap as u64, &std::fs::read(&pid).unwrap())
     );
-    // Recorded: the tick and the file's SHA-256.
-    let noted = &read.end["controller_load.1"];
+    let noted = &end["controller_load.1"];
     let sha = runner::config::sha256_hex(&std::fs::read(&pid).unwrap());
     assert!(
         noted.starts_with(&format!("tick {swap}:")) && noted.contains(&sha),

@@ -1,25 +1,30 @@
-//! The measure → identify → design workflow on a DAQ daemon (issue 17): a practice stage whose
-//! Table 5-2 parameters are drawn from a seed this test holds and the client never sees, with a
-//! sensor-mount resonance the identification model does not contain, served through shared
-//! memory by `daq_io::serve` (as the `daq_daemon` example serves it); `servo frf --prefix`
-//! measures it, `servo identify` recovers the draw and reports the resonance, `servo tune`
-//! designs on the identified model.
+//! The thesis workflow on a DAQ daemon (issue 17), one chain through shared memory: a practice
+//! stage whose Table 5-2 parameters are drawn from a seed this test holds and the client never
+//! sees, with a sensor-mount resonance the identification model does not contain, served by
+//! `daq_io::serve` (as the `daq_daemon` example serves it). `servo frf --prefix` measures it
+//! open loop, `servo identify` recovers the draw and reports the resonance, `servo tune`
+//! designs on the identified model, `servo ctl load` deploys the design into a loop closed on
+//! the daemon (`servo controller` + `servo record` on the identified model) bumplessly, and
+//! `servo spectrum` of the recording agrees with the identified model's budget.
 
 mod common;
 
-use common::hil::prefix;
-use common::{json, servo, succeeded, tmp, tuned};
+use common::hil::{
+    assert_bumpless, ctl_load, ctl_stop, prefix, recorded_commands, swap_tick, wait_for_ticks,
+};
+use common::{assert_bands_agree, json, servo, succeeded, tmp, tuned};
 use daq_io::ipc::Endpoint;
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use plant_sim::practice::PracticeStage;
 use plant_sim::PlantParams;
+use std::process::Stdio;
 use std::sync::atomic::AtomicUsize;
 
 /// The seed of the draw (the test's; the client is told nothing).
 const SEED: u64 = 2026;
 
 #[test]
-fn a_hidden_stage_is_identified_through_shared_memory_and_its_resonance_reported() {
+fn a_hidden_stage_is_measured_identified_designed_for_deployed_and_compared() {
     let p = prefix("practice");
     let plant = PlantParams::default();
     let mut stage = PracticeStage::new(&plant, SEED).unwrap();
@@ -30,7 +35,8 @@ fn a_hidden_stage_is_identified_through_shared_memory_and_its_resonance_reported
         // Longer than the measurement needs: the client's STOP ends it.
         let mut opts = ServeOptions::new((120.0 * rate) as u64, 1.0 / rate, Pacing::Lockstep);
         opts.wait_for_recorder = false;
-        serve(&ep, &mut stage, &opts, &AtomicUsize::new(0)).unwrap()
+        let report = serve(&ep, &mut stage, &opts, &AtomicUsize::new(0)).unwrap();
+        (report, stage)
     });
     let dir = tmp("practice");
     let frf = dir.join("frf");
@@ -42,7 +48,7 @@ fn a_hidden_stage_is_identified_through_shared_memory_and_its_resonance_reported
             .output()
             .unwrap(),
     );
-    let report = daemon.join().unwrap();
+    let (report, stage) = daemon.join().unwrap();
     assert_eq!(report.faults, 0);
     let model = dir.join("model.toml");
     let id = json(
@@ -95,13 +101,88 @@ fn a_hidden_stage_is_identified_through_shared_memory_and_its_resonance_reported
     );
     let text = std::fs::read_to_string(&model).unwrap();
     assert!(text.contains("NOT in this model"), "{text}");
-    // Design on the identified model; the gains run on it.
-    let pid = tuned("practice-pid.toml", &["--plant", model.to_str().unwrap()]);
-    succeeded(
+    // Design on the identified model.
+    let model = model.to_str().unwrap();
+    let pid = tuned("practice-pid.toml", &["--plant", model]);
+
+    // Deploy: the daemon's next session, the loop closed on it by `servo controller` with its
+    // default gains and recorded, both configured with the identified model; the design loaded
+    // half a second in, the run stopped 2.5 s after the swap.
+    let ep = Endpoint::open(&p, "plant").unwrap();
+    let daemon = std::thread::spawn(move || {
+        let mut stage = stage;
+        let mut opts = ServeOptions::new((600.0 * rate) as u64, 1.0 / rate, Pacing::Lockstep);
+        opts.wait_for_recorder = true;
+        serve(&ep, &mut stage, &opts, &AtomicUsize::new(0)).unwrap()
+    });
+    let rec = dir.join("deployed.mcap");
+    let recorder = servo()
+        .args([
+            "record", "-q", "--json", "--plant", model, "--prefix", &p, "--out",
+        ])
+        .arg(&rec)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut controller = servo()
+        .args(["controller", "--plant", model, "--prefix", &p])
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    wait_for_ticks(&p, (0.5 * rate) as u64, &mut controller);
+    let swap = swap_tick(&ctl_load(&p, &pid));
+    wait_for_ticks(&p, swap as u64 + (2.5 * rate) as u64, &mut controller);
+    ctl_stop(&p);
+    assert!(controller.wait().unwrap().success());
+    succeeded(&recorder.wait_with_output().unwrap());
+    let report = daemon.join().unwrap();
+    assert_eq!(report.faults, 0);
+
+    let (u, _) = recorded_commands(&rec);
+    assert_bumpless(&u, swap);
+    // The recording keeps the loaded file: its spectrum, by default, is of the part after the
+    // swap (and its settle time) against the budget of the identified model under it.
+    let swaps = runner::recorded_swaps::Swap::read_all(&rec).unwrap();
+    assert_eq!(swaps.len(), 1);
+    assert_eq!(
+        (swaps[0].tick, &swaps[0].file),
+        (swap as u64, &std::fs::read(&pid).unwrap())
+    );
+    let s = json(
         &servo()
-            .args(["run", "--no-record", "-q", "--duration", "0.05", "-c"])
-            .arg(&pid)
+            .arg("spectrum")
+            .arg(&rec)
+            .arg("--json")
+            .arg("--out-dir")
+            .arg(dir.join("spectrum"))
             .output()
             .unwrap(),
     );
+    let swapped_at = swap as f64 / rate;
+    assert_eq!(s["swapped_at_s"][0].as_f64(), Some(swapped_at));
+    assert!(
+        (s["from_s"].as_f64().unwrap() - (swapped_at + 0.1)).abs() < 1e-9,
+        "{}",
+        s["from_s"]
+    );
+    let loaded = s["predicted_with"].as_str().unwrap();
+    assert!(
+        loaded.starts_with("PID") && loaded != s["controller"],
+        "{loaded}"
+    );
+    // Made for the identified model (the plant the tuned gains were made for, too).
+    let tuned = std::fs::read_to_string(&pid).unwrap();
+    let tuned_for = tuned
+        .lines()
+        .find_map(|l| l.strip_prefix("plant_sha256 = "))
+        .unwrap()
+        .trim_matches('"');
+    assert_eq!(
+        s["made_for"]["plant_sha256"], tuned_for,
+        "{}",
+        s["made_for"]
+    );
+    for signal in ["following_error_m", "control_v"] {
+        assert_bands_agree(&s, signal, 10.0);
+    }
 }

@@ -83,7 +83,7 @@ pub mod flags {
 pub struct Sensor {
     /// Tick index (0 for the reading before the first command).
     pub seq: u64,
-    /// Time of the reading in s.
+    /// Time of the reading in s since the run's first reading (run time).
     pub time_s: f64,
     /// Gap (capacitive sensor) reading in V.
     pub gap_v: f64,
@@ -127,7 +127,7 @@ pub struct Command {
 pub struct Telemetry {
     /// Tick index.
     pub seq: u64,
-    /// Time at the end of the tick in s.
+    /// Time at the end of the tick in s since the run's first reading (run time).
     pub time_s: f64,
     /// Reference position in m.
     pub reference_m: f64,
@@ -153,7 +153,7 @@ pub struct Telemetry {
 pub struct Truth {
     /// Tick index.
     pub seq: u64,
-    /// Time at the end of the tick in s.
+    /// Time at the end of the tick in s since the run's first reading (run time).
     pub time_s: f64,
     /// True tool position relative to the frame in m.
     pub tool_m: f64,

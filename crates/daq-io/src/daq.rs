@@ -53,12 +53,14 @@ pub trait Daq {
 /// The plant side: hardware (or a simulator) that holds a DAC value for one tick and reads
 /// its sensors at the end of the tick. `step` is the hot path: no allocation, no blocking.
 pub trait Backend {
-    /// The readings before the first command (time 0). Default: all zero.
+    /// The readings before the first command (served at run time 0). Default: all zero.
     fn initial(&mut self) -> Sensor {
         Sensor::default()
     }
     /// Holds `dac_v` (V) for one tick; returns the readings at the end of the tick (`seq` is
-    /// filled in by the caller; the backend sets `time_s`).
+    /// filled in by the caller; the backend sets `time_s` on its own clock, which
+    /// [`crate::serve::serve`] rebases to run time: the first command's reading at one period,
+    /// whatever an earlier session left the clock at).
     fn step(&mut self, dac_v: f64) -> Sensor;
     /// What really happened over the last step, if the backend knows (a simulator does).
     fn truth(&self) -> Option<Truth> {

@@ -277,8 +277,13 @@ pub fn serve<B: Backend>(
     let mut sample = Sensor {
         seq: 0,
         run_id,
+        time_s: 0.0,
         ..backend.initial()
     };
+    // Run time: the backend's clock rebased so that the first command's reading is at one
+    // period (a daemon's stage keeps its clock from session to session; recordings, settle
+    // times and windows count from 0). The simulator's clock starts there: rebased by 0.
+    let mut clock_zero_s = None;
     let mut dac_v = 0.0;
     let mut end_tick = opts.ticks;
     // The wall-clock time base: tick k's deadline is base + k·T (reset after tick 0).
@@ -363,14 +368,17 @@ pub fn serve<B: Backend>(
         }
         tick_flags |= report.faults;
         let s = backend.step(dac_v);
+        let zero = *clock_zero_s.get_or_insert(s.time_s - opts.period_s);
         sample = Sensor {
             seq: k + 1,
+            time_s: s.time_s - zero,
             flags: s.flags | tick_flags,
             run_id,
             ..s
         };
         if let Some(mut t) = backend.truth() {
             t.seq = k;
+            t.time_s -= zero;
             t.flags |= tick_flags;
             truth.push(&truth_pub, t);
         }

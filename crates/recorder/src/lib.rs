@@ -11,6 +11,7 @@
 #[macro_use]
 pub mod frame;
 pub mod export;
+pub mod index;
 pub mod mcap_file;
 pub mod overview;
 pub mod reader;
@@ -18,6 +19,7 @@ mod syncer;
 pub mod writer;
 
 pub use frame::{Frame, Message, Telemetry, Truth};
+pub use index::visit_indexed;
 pub use overview::{Overview, Signals, OVERVIEW_PERIOD_NS};
 pub use reader::{
     fingerprint, read, stream, BadRecord, FileState, ReadError, ReadReport, Recording, Visit,

@@ -30,6 +30,14 @@ pub enum ReadError {
         /// File.
         path: PathBuf,
     },
+    /// A finished file whose summary or an indexed record fails its check.
+    #[error("{path} is damaged: {reason}")]
+    Damaged {
+        /// File.
+        path: PathBuf,
+        /// What is wrong, and where.
+        reason: String,
+    },
 }
 
 /// What a reader is shown, in file order: the `run` metadata and the attachments before the
@@ -207,10 +215,16 @@ fn read_full(input: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
 }
 
 /// Little-endian fields of a record body, each failing with what was missing.
-struct Fields<'a>(&'a [u8]);
+pub(crate) struct Fields<'a>(pub(crate) &'a [u8]);
 
 impl<'a> Fields<'a> {
-    fn bytes(&mut self, n: usize) -> Result<&'a [u8], String> {
+    pub(crate) fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+    pub(crate) fn u8(&mut self) -> Result<u8, String> {
+        Ok(self.bytes(1)?[0])
+    }
+    pub(crate) fn bytes(&mut self, n: usize) -> Result<&'a [u8], String> {
         if self.0.len() < n {
             return Err("record too short".into());
         }
@@ -224,7 +238,7 @@ impl<'a> Fields<'a> {
     fn u32(&mut self) -> Result<u32, String> {
         Ok(u32::from_le_bytes(self.bytes(4)?.try_into().expect("4")))
     }
-    fn u64(&mut self) -> Result<u64, String> {
+    pub(crate) fn u64(&mut self) -> Result<u64, String> {
         Ok(u64::from_le_bytes(self.bytes(8)?.try_into().expect("8")))
     }
     fn str(&mut self) -> Result<String, String> {
@@ -244,7 +258,7 @@ impl<'a> Fields<'a> {
 
 /// Pairs the messages of a tick into frames.
 #[derive(Default)]
-struct Streamer {
+pub(crate) struct Streamer {
     topics: BTreeMap<u16, String>,
     epoch_ns: u64,
     pending: Option<(u32, u64, Telemetry)>,
@@ -266,7 +280,12 @@ impl Streamer {
     }
 
     /// One record of the data section.
-    fn record(&mut self, opcode: u8, body: &[u8], visit: &mut impl Visit) -> Result<(), String> {
+    pub(crate) fn record(
+        &mut self,
+        opcode: u8,
+        body: &[u8],
+        visit: &mut impl Visit,
+    ) -> Result<(), String> {
         let mut f = Fields(body);
         match opcode {
             op::CHANNEL => {

@@ -165,8 +165,10 @@ pub struct Recorder {
     dropped: u64,
     writer_alive: Arc<AtomicBool>,
     written: Arc<AtomicU64>,
-    /// The `end` metadata record, handed to the writer thread at [`Recorder::finish`].
-    end: Arc<Mutex<BTreeMap<String, String>>>,
+    /// What follows the last frame, handed to the writer thread at [`Recorder::finish`].
+    end: Arc<Mutex<Ending>>,
+    /// Attachments to write with the `end` record ([`Recorder::attach`]).
+    late: Vec<(Input, u64)>,
     thread: Option<JoinHandle<Result<u64, RecordError>>>,
 }
 
@@ -247,7 +249,7 @@ impl Recorder {
         let (ring, consumer) = rtrb::RingBuffer::new(RING_FRAMES);
         let writer_alive = Arc::new(AtomicBool::new(true));
         let written = Arc::new(AtomicU64::new(0));
-        let end = Arc::new(Mutex::new(BTreeMap::new()));
+        let end = Arc::new(Mutex::new(Ending::default()));
         let (alive, count, end_record) = (writer_alive.clone(), written.clone(), end.clone());
         let (target, overwrite) = (path.to_owned(), options.overwrite);
         let (epoch_ns, every) = (options.epoch_ns, options.every);
@@ -273,6 +275,7 @@ impl Recorder {
             writer_alive,
             written,
             end,
+            late: Vec::new(),
             thread: Some(thread),
         })
     }
@@ -306,6 +309,15 @@ impl Recorder {
         }
     }
 
+    /// Attaches `input`, a file the run took up while it ran (a controller a `servo ctl load`
+    /// swapped in), at `at_ns` of run time: written at [`Recorder::finish`], after the last
+    /// frame and before the `end` record that says what it is. Streaming readers meet it
+    /// after the frames; [`crate::index::visit_indexed`] finds it first. The caller bounds
+    /// how many it attaches (they are held in memory until then).
+    pub fn attach(&mut self, input: Input, at_ns: u64) {
+        self.late.push((input, at_ns));
+    }
+
     /// Full-rate messages written so far.
     pub fn written(&self) -> u64 {
         self.written.load(Ordering::Relaxed)
@@ -315,7 +327,10 @@ impl Recorder {
     /// (how the run ended: reason, tick, …) and the `timing` one, finishes the file, moves it
     /// to its target, and reports the counts or the writer's error.
     pub fn finish(mut self, end: BTreeMap<String, String>) -> Result<RecordStats, RecordError> {
-        *self.end.lock().unwrap_or_else(|e| e.into_inner()) = end;
+        *self.end.lock().unwrap_or_else(|e| e.into_inner()) = Ending {
+            record: end,
+            attachments: std::mem::take(&mut self.late),
+        };
         let thread = self.thread.take().expect("finish is called once");
         let dropped = self.dropped;
         drop(self); // abandons the ring: the writer drains it and closes the file
@@ -325,6 +340,15 @@ impl Recorder {
             dropped_frames: dropped,
         })
     }
+}
+
+/// What the writer thread writes after the last frame.
+#[derive(Default)]
+struct Ending {
+    /// The `end` metadata record.
+    record: BTreeMap<String, String>,
+    /// Attachments written before it, with their run time in ns.
+    attachments: Vec<(Input, u64)>,
 }
 
 /// The `run` metadata key holding the log-time epoch (ns since the Unix epoch).
@@ -377,7 +401,7 @@ impl Drain {
         mut self,
         mut ring: rtrb::Consumer<Frame>,
         count: &AtomicU64,
-        end: &Mutex<BTreeMap<String, String>>,
+        end: &Mutex<Ending>,
     ) -> std::io::Result<u64> {
         loop {
             let available = ring.slots();
@@ -404,7 +428,12 @@ impl Drain {
         let end = std::mem::take(&mut *end.lock().unwrap_or_else(|e| e.into_inner()));
         self.w.close_chunk(DATA)?;
         self.w.close_chunk(OVERVIEW)?;
-        self.w.metadata("end", &end)?;
+        for (input, at_ns) in &end.attachments {
+            let log_ns = self.epoch_ns.saturating_add(*at_ns);
+            self.w
+                .attachment(&input.name, &input.media_type, log_ns, &input.data)?;
+        }
+        self.w.metadata("end", &end.record)?;
         let timing = BTreeMap::from([
             ("finished".to_string(), utc_now()),
             (

@@ -13,6 +13,7 @@ use crate::control_plane::{ControlPlane, SERVICE_TICKS};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::protection::TripCause;
+use crate::recorded_swaps::Swap;
 use crate::recording;
 use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
@@ -311,11 +312,11 @@ pub fn record(
     let waiting = Instant::now();
     let mut write_failed = false;
     let mut gain_changes: Vec<Ack> = Vec::new();
-    // Controllers sent to the loop (`servo ctl load`): each request's SHA-256 and size, and
-    // those the controller applied, in order.
+    // Controllers sent to the loop (`servo ctl load`): each request's file, and those the
+    // controller applied, in order, with the spectral radius it checked.
     let loads = ep.subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD)?;
-    let mut load_requests: Vec<(u64, String, usize)> = Vec::new();
-    let mut swaps: Vec<(Ack, String, usize)> = Vec::new();
+    let mut load_requests: Vec<(u64, Vec<u8>)> = Vec::new();
+    let mut swaps: Vec<(Swap, f64)> = Vec::new();
     loop {
         let mut got = false;
         while let Some(b) = take(&tap.telemetry) {
@@ -339,7 +340,7 @@ pub fn record(
             }
         }
         while let Ok(Some(l)) = loads.receive() {
-            load_requests.push((l.id, crate::config::sha256_hex(l.file()), l.file().len()));
+            load_requests.push((l.id, l.file().to_vec()));
             if load_requests.len() > MAX_PENDING_LOADS {
                 load_requests.remove(0);
             }
@@ -351,8 +352,8 @@ pub fn record(
             match a.command {
                 command::SET_GAIN_SCALE => gain_changes.push(a),
                 command::LOAD_CONTROLLER => {
-                    if let Some((_, sha, len)) = load_requests.iter().find(|r| r.0 == a.id) {
-                        swaps.push((a, sha.clone(), *len));
+                    if let Some((_, file)) = load_requests.iter().find(|r| r.0 == a.id) {
+                        swaps.push((Swap::new(swaps.len() + 1, a.tick, file), a.value));
                     }
                 }
                 _ => {}
@@ -420,15 +421,9 @@ pub fn record(
             format!("tick {}: output scale {}", a.tick, a.value),
         );
     }
-    for (i, (a, sha, len)) in swaps.iter().enumerate() {
-        // Every controller swapped in (`servo ctl load`), with its tick and file hash.
-        end.insert(
-            format!("controller_load.{}", i + 1),
-            format!(
-                "tick {}: controller file sha256 {sha} ({len} bytes), closed-loop spectral radius {}",
-                a.tick, a.value
-            ),
-        );
+    for (i, (swap, radius)) in swaps.iter().enumerate() {
+        // Every controller swapped in (`servo ctl load`): its tick, hash and file.
+        swap.record(i + 1, plan.period_s(), *radius, &mut end, rec.as_mut());
     }
     let hil = HilMeta {
         realtime,

@@ -141,17 +141,7 @@ fn prepare(plan: &Plan, id: u64, file: &[u8]) -> Prepared {
             spectral_radius,
         }
     };
-    let text = match std::str::from_utf8(file) {
-        Ok(t) => t,
-        Err(e) => return refused(ack_status::REFUSED_INVALID, f64::NAN, &e),
-    };
-    let (controller, bytes) = match config_of(plan, text) {
-        Ok(c) => c,
-        Err(e) => return refused(ack_status::REFUSED_INVALID, f64::NAN, &e),
-    };
-    let built = plan
-        .with_controller_file(controller, bytes)
-        .and_then(|p| gain_range(&p).map(|g| (p, g)));
+    let built = plan_after_load(plan, file).and_then(|p| gain_range(&p).map(|g| (p, g)));
     match built {
         Ok((p, gains)) => {
             let spectral_radius = p.check_stable().unwrap_or(f64::NAN);
@@ -178,22 +168,35 @@ fn made_for_mismatch(e: &RunError) -> bool {
         if key == "made_for" || key.ends_with(".made_for"))
 }
 
-/// The controller configuration `text` describes, and the file's bytes when it is a
-/// state-space controller file.
-fn config_of(plan: &Plan, text: &str) -> Result<(ControllerConfig, Option<Vec<u8>>), String> {
-    let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
-    if table.contains_key("controller") {
-        let config: RunConfig = table.try_into().map_err(|e| e.to_string())?;
+/// The run of `plan` with the controller `file` describes — the loop a `servo ctl load` of
+/// it runs after the swap: a state-space controller file (as `servo synth` writes it), or a
+/// config fragment whose `[controller]` table is taken (as `servo tune` writes it). Built and
+/// checked as any run (stability, made-for), nothing read from disk; a file that is not UTF-8
+/// TOML of either kind is a parse error naming [`LOADED_FILE`].
+pub fn plan_after_load(plan: &Plan, file: &[u8]) -> Result<Plan, RunError> {
+    let parse = |message: String| {
+        RunError::from(ConfigError::Parse {
+            path: PathBuf::from(LOADED_FILE),
+            message,
+        })
+    };
+    let text = std::str::from_utf8(file).map_err(|e| parse(e.to_string()))?;
+    let table: toml::Table = toml::from_str(text).map_err(|e| parse(e.to_string()))?;
+    let (controller, bytes) = if table.contains_key("controller") {
+        let config: RunConfig = table.try_into().map_err(|e| parse(e.to_string()))?;
         if config.controller.kind == ControllerKind::Ss {
-            return Err("a [controller] fragment of kind ss names a file: load the file".into());
+            return Err(parse(
+                "a [controller] fragment of kind ss names a file: load the file".into(),
+            ));
         }
-        Ok((config.controller, None))
+        (config.controller, None)
     } else {
         let controller = ControllerConfig {
             kind: ControllerKind::Ss,
             ss_file: Some(PathBuf::from(LOADED_FILE)),
             ..plan.config.controller.clone()
         };
-        Ok((controller, Some(text.as_bytes().to_vec())))
-    }
+        (controller, Some(file.to_vec()))
+    };
+    plan.with_controller_file(controller, bytes)
 }

@@ -33,6 +33,7 @@ pub mod machining;
 pub mod plan;
 pub mod preview;
 pub mod protection;
+pub mod recorded_swaps;
 pub mod recording;
 pub mod remote_plant;
 pub mod replay;

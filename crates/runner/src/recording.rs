@@ -137,7 +137,7 @@ pub fn end_record(
 }
 
 /// The metadata key holding the SHA-256 of the input attachment `name`.
-fn input_key(name: &str) -> String {
+pub(crate) fn input_key(name: &str) -> String {
     format!("input.{name}.sha256")
 }
 

@@ -13,9 +13,9 @@ use studies::StudyError;
 ///
 /// Welch PSD (Hann, 50 % overlap) and CAS of the following error, the control output and —
 /// for a simulated run — the true tool error, from the settle time to the end (or a trip),
-/// with the budget's prediction for the recorded configuration (or for --controller-from's
-/// controller: after a `servo ctl load`, analyse from the swap with --from-s) and the RMS
-/// difference per decade band. Streams the file in constant memory.
+/// with the budget's prediction for the recorded configuration and the RMS difference per
+/// decade band. After a `servo ctl load`, from the settle time after the last swap, predicted
+/// for the loaded controller (the recording keeps it). Streams the file in constant memory.
 /// Example: servo run --duration 2 && servo spectrum run.mcap
 #[derive(Args, Debug)]
 pub struct SpectrumCmd {
@@ -25,14 +25,16 @@ pub struct SpectrumCmd {
     /// samples; finer bins average fewer segments).
     #[arg(long, default_value_t = 10.0)]
     resolution_hz: f64,
-    /// Analysis start in s of run time (default: the run's settle time).
+    /// Analysis start in s of run time (default: the run's settle time, counted from the last
+    /// controller swap if there was one). The prediction is for the controller in the loop
+    /// at this time.
     #[arg(long)]
     from_s: Option<f64>,
     /// Analysis end in s of run time (default: the end of the run).
     #[arg(long)]
     to_s: Option<f64>,
-    /// Predict with the [controller] table of this config file (e.g. the pid.toml a
-    /// `servo ctl load` swapped in) instead of the recorded controller.
+    /// Predict with the [controller] table of this config file (e.g. a candidate's pid.toml)
+    /// instead of the controller in the loop at the window's start.
     #[arg(long)]
     controller_from: Option<PathBuf>,
     /// Output directory for CSV, JSON, PNG and SVG.
@@ -65,6 +67,7 @@ impl SpectrumCmd {
             from_s: self.from_s,
             to_s: self.to_s,
             controller,
+            swaps: runner::recorded_swaps::Swap::read_all(&self.file)?,
         });
         let read = runner::recording::inspect_with(&self.file, &mut sink)?;
         let s = sink.finish()?;
@@ -91,6 +94,12 @@ impl SpectrumCmd {
         println!("  made for {}; {}", s.made_for.describe(), s.controller);
         if let Some(c) = s.predicted_with.as_ref().filter(|c| **c != s.controller) {
             println!("  budget predicted with {c}");
+        }
+        for t in &s.swapped_at_s {
+            println!("  controller swapped in at {t:.3} s (servo ctl load)");
+        }
+        if let Some(n) = &s.window_note {
+            println!("  note: {n}");
         }
         if let Some(n) = &s.prediction_note {
             println!("  no budget overlay: {n}");

@@ -15,12 +15,20 @@ pub fn servo() -> Command {
 /// the user (0700), made at the first call and removed when the test ends. libtest runs each
 /// test on a thread of its own, so the folder is the thread's: its destructor runs when the
 /// test's thread exits, passed or failed (a static would never be dropped, and every run
-/// of the suite would leave its recordings behind in the shared temp folder).
+/// of the suite would leave its recordings behind in the shared temp folder). To look at a
+/// test's files afterwards, set `FTS_KEEP_TEST_FILES=1`: the folder is kept and named on
+/// stderr.
 pub fn tmp(name: &str) -> PathBuf {
     thread_local! {
         static DIR: tempfile::TempDir = tempfile::Builder::new()
             .prefix("fts-cli-")
+            .disable_cleanup(std::env::var_os("FTS_KEEP_TEST_FILES").is_some())
             .tempdir()
+            .inspect(|d| {
+                if std::env::var_os("FTS_KEEP_TEST_FILES").is_some() {
+                    eprintln!("test files kept in {}", d.path().display());
+                }
+            })
             .expect("a private scratch folder");
     }
     DIR.with(|dir| dir.path().join(name))
@@ -70,4 +78,22 @@ pub fn euid() -> u32 {
 pub fn as_nobody(mut cmd: std::process::Command) -> std::process::Output {
     use std::os::unix::process::CommandExt;
     cmd.uid(65534).gid(65534).output().unwrap()
+}
+
+/// Every band's recorded RMS of `signal` within `tol` of the budget's.
+pub fn assert_bands_agree(s: &serde_json::Value, signal: &str, tol_percent: f64) {
+    let bands = s["bands"].as_array().unwrap();
+    assert!(bands.len() >= 3, "{bands:?}");
+    for b in bands.iter().chain(std::iter::once(&s["total"])) {
+        let rms = b.get("rms").unwrap_or(b);
+        let d = rms[signal]["difference_percent"].as_f64().unwrap();
+        assert!(
+            d.abs() <= tol_percent,
+            "{signal} {}–{} Hz: recorded {} vs budget {} ({d:+.1} %)",
+            b["from_hz"],
+            b["to_hz"],
+            rms[signal]["recorded"],
+            rms[signal]["predicted"]
+        );
+    }
 }

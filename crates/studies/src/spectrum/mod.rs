@@ -16,6 +16,7 @@ use lti::spectral::{Psd, Welch, WelchConfig};
 use recorder::Frame;
 use runner::closed_loop::output;
 use runner::config::MadeFor;
+use runner::recorded_swaps::Swap;
 use runner::recording::{FrameSink, RunHeader};
 use runner::RunError;
 use serde::Serialize;
@@ -80,8 +81,13 @@ pub struct Spectrum {
     pub segments: usize,
     /// Analysis start, s of run time.
     pub from_s: f64,
-    /// The controller the prediction is for (the recorded one unless another was given).
+    /// The controller the prediction is for (the one in the loop at the window's start, or
+    /// the one given).
     pub predicted_with: Option<String>,
+    /// When controllers were swapped into the run (`servo ctl load`), s of run time.
+    pub swapped_at_s: Vec<f64>,
+    /// A caveat on the window (a swap inside it: one controller's budget cannot predict it).
+    pub window_note: Option<String>,
     /// Bin frequencies, Hz (DC left out).
     pub freq_hz: Vec<f64>,
     /// Recorded one-sided PSDs (signal unit²/Hz).
@@ -106,15 +112,22 @@ pub struct SpectrumOptions {
     pub from_s: Option<f64>,
     /// Analysis end, s of run time (None: the end of the recording).
     pub to_s: Option<f64>,
-    /// Predict with this controller instead of the recorded one (the one a `servo ctl load`
-    /// swapped in, to compare the part of the run after the swap).
+    /// Predict with this controller instead of the one in the loop at the window's start.
     pub controller: Option<runner::config::ControllerConfig>,
+    /// The controllers swapped into the run (`servo ctl load`), as its recording keeps them
+    /// ([`Swap::read_all`]): the default window starts after the last one, and the
+    /// prediction is for the controller in the loop at the window's start.
+    pub swaps: Vec<Swap>,
 }
 
 /// The Welch estimates filled as the frames stream past.
 struct Estimates {
     from_ns: u64,
     to_ns: u64,
+    /// Samples per Welch segment.
+    segment_len: usize,
+    /// Time of the last frame read, ns of run time.
+    last_ns: u64,
     fs_hz: f64,
     following: Welch,
     true_error: Welch,
@@ -129,6 +142,8 @@ struct Estimates {
 pub struct SpectrumSink {
     options: SpectrumOptions,
     header: Option<(MadeFor, String, f64)>,
+    swapped_at_s: Vec<f64>,
+    window_note: Option<String>,
     prediction: Result<runner::Plan, String>,
     estimates: Option<Estimates>,
 }
@@ -139,6 +154,8 @@ impl SpectrumSink {
         SpectrumSink {
             options,
             header: None,
+            swapped_at_s: Vec::new(),
+            window_note: None,
             prediction: Err("the recording has no header".into()),
             estimates: None,
         }
@@ -159,27 +176,28 @@ impl FrameSink for SpectrumSink {
                     .invalid("--resolution-hz", o.resolution_hz, &e.to_string())
             })
         };
-        let duration = config.run.duration_s;
-        let from_s = o.from_s.unwrap_or(config.run.settle());
-        let to_s = o.to_s.unwrap_or(duration);
+        // The window is checked against the recording's own length when it has been read (a
+        // plant process, not the configured duration, decides how long a HIL run lasts).
+        // Its default start: the settle time after the start, or after the last swap.
+        let period_s = 1.0 / config.plant.timing.servo_rate_hz;
+        let swap_s = |w: &Swap| w.tick as f64 * period_s;
+        let from_s = o
+            .from_s
+            .unwrap_or_else(|| config.run.settle() + o.swaps.last().map_or(0.0, swap_s));
         let at = runner::config::Origin::default();
-        if !(0.0..duration).contains(&from_s) {
-            return Err(at
-                .invalid(
-                    "--from-s",
-                    from_s,
-                    &format!("[0, {duration}) s, the run's length"),
-                )
-                .into());
+        if !(from_s >= 0.0 && from_s.is_finite()) {
+            return Err(at.invalid("--from-s", from_s, "≥ 0 s").into());
         }
-        if !(to_s > from_s && to_s <= duration) {
+        if let Some(to_s) = o.to_s.filter(|&t| !(t > from_s && t.is_finite())) {
             return Err(at
-                .invalid("--to-s", to_s, &format!("({from_s}, {duration}] s"))
+                .invalid("--to-s", to_s, &format!("> {from_s} s (--from-s)"))
                 .into());
         }
         self.estimates = Some(Estimates {
             from_ns: (from_s * 1e9).round() as u64,
-            to_ns: (to_s * 1e9).round() as u64,
+            to_ns: o.to_s.map_or(u64::MAX, |t| (t * 1e9).round() as u64),
+            segment_len,
+            last_ns: 0,
             fs_hz,
             following: welch()?,
             true_error: welch()?,
@@ -189,6 +207,21 @@ impl FrameSink for SpectrumSink {
             tripped: false,
         });
         self.header = Some((MadeFor::of(&config.plant), h.controller.clone(), from_s));
+        // The controller in the loop at the window's start, and any swap inside the window.
+        let running = o.swaps.iter().rev().find(|w| swap_s(w) <= from_s);
+        let to_s = o.to_s.unwrap_or(f64::INFINITY);
+        let window_note = o
+            .swaps
+            .iter()
+            .find(|w| swap_s(w) > from_s && swap_s(w) < to_s)
+            .map(|w| {
+                format!(
+                    "a controller was swapped in at {:.3} s, inside the window: the budget is \
+                     for the one before it (choose --from-s / --to-s on one side)",
+                    swap_s(w)
+                )
+            });
+        let swapped_at_s = o.swaps.iter().map(swap_s).collect();
         self.prediction = if every > 1 {
             Err(format!(
                 "recorded every {every} ticks without an anti-alias filter: the spectrum above \
@@ -196,15 +229,20 @@ impl FrameSink for SpectrumSink {
                 fs_hz / 2.0
             ))
         } else {
-            match &o.controller {
-                Some(c) => h.replan(runner::config::RunConfig {
+            match (&o.controller, running) {
+                (Some(c), _) => h.replan(runner::config::RunConfig {
                     controller: c.clone(),
                     ..config.clone()
                 }),
-                None => h.plan(),
+                (None, Some(w)) => h
+                    .plan()
+                    .and_then(|p| runner::hot_swap::plan_after_load(&p, &w.file)),
+                (None, None) => h.plan(),
             }
             .map_err(|e| format!("the configuration to predict with does not build: {e}"))
         };
+        self.window_note = window_note;
+        self.swapped_at_s = swapped_at_s;
         Ok(())
     }
 
@@ -212,6 +250,7 @@ impl FrameSink for SpectrumSink {
         let Some(e) = &mut self.estimates else {
             return;
         };
+        e.last_ns = f.time_ns;
         if f.telemetry.flags as u32 & daq_io::flags::TRIPPED != 0 {
             e.tripped = true;
         }
@@ -232,6 +271,22 @@ impl SpectrumSink {
         let (Some(e), Some((made_for, controller, from_s))) = (self.estimates, self.header) else {
             return Err(lti::spectral::SpectralError::Argument("no run header was read").into());
         };
+        if e.samples < e.segment_len as u64 {
+            let segment_s = e.segment_len as f64 / e.fs_hz;
+            let end_s = e.last_ns as f64 * 1e-9;
+            return Err(runner::config::Origin::default()
+                .invalid(
+                    "--from-s",
+                    from_s,
+                    &format!(
+                        "a window of at least one {segment_s} s segment before the recording's \
+                         end at {end_s:.3} s{}: {} samples from there",
+                        if e.tripped { " (or its trip)" } else { "" },
+                        e.samples
+                    ),
+                )
+                .into());
+        }
         let body = |p: Psd| p.density[1..].to_vec();
         let following = e.following.finish()?;
         let resolution_hz = following.bin_hz();
@@ -342,6 +397,8 @@ impl SpectrumSink {
             segments: e.following.segments(),
             from_s,
             predicted_with,
+            swapped_at_s: self.swapped_at_s,
+            window_note: self.window_note,
             total: band(first, nyquist).rms,
             freq_hz,
             recorded_psd,
