@@ -80,6 +80,17 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
         (swaps[0].tick, &swaps[0].file),
         (swap as u64, &std::fs::read(&pid).unwrap())
     );
+    // A replay runs the recorded controller: bit for bit up to the swap, not compared after.
+    let replay = common::json(
+        &servo()
+            .args(["replay", "--json", "--no-record"])
+            .arg(&rec)
+            .output()
+            .unwrap(),
+    );
+    assert_eq!(replay["compared_until_swap_tick"], swap as u64, "{replay}");
+    assert_eq!(replay["frames_compared"], swap as u64, "{replay}");
+    assert_eq!(replay["identical"], true, "{replay}");
     let noted = &end["controller_load.1"];
     let sha = runner::config::sha256_hex(&std::fs::read(&pid).unwrap());
     assert!(

@@ -76,10 +76,11 @@ impl FrameDigest {
 }
 
 /// What a recording holds for a replay, read in one pass ([`FrameSink`] for
-/// [`crate::recording::inspect_with`]): its header, the digest of its frames, and whether its
-/// frames carry a simulator's truth (a hardware run's do not).
-#[derive(Default)]
+/// [`crate::recording::inspect_with`]): its header, the digest of its frames (up to a limit),
+/// and whether its frames carry a simulator's truth (a hardware run's do not).
 pub struct Recorded {
+    /// Frames digested at most (those before a controller swap a replay does not repeat).
+    pub limit: u64,
     /// The run header (configuration, controller, inputs, decimation).
     pub header: Option<RunHeader>,
     /// Digest of every recorded frame.
@@ -88,10 +89,22 @@ pub struct Recorded {
     pub has_truth: bool,
 }
 
+impl Recorded {
+    /// Reads a recording, digesting its first `limit` frames.
+    pub fn new(limit: u64) -> Self {
+        Recorded {
+            limit,
+            header: None,
+            digest: None,
+            has_truth: false,
+        }
+    }
+}
+
 impl FrameSink for Recorded {
     fn header(&mut self, header: &RunHeader) -> Result<(), RunError> {
         self.header = Some(header.clone());
-        self.digest = Some(FrameDigest::new(u64::MAX));
+        self.digest = Some(FrameDigest::new(self.limit));
         Ok(())
     }
 

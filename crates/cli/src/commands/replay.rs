@@ -57,6 +57,9 @@ struct Report<'a> {
     identical: Option<bool>,
     /// The first recorded frame that may differ.
     first_difference_frame: Option<u64>,
+    /// The tick a controller was first swapped into the recorded run (`servo ctl load`): the
+    /// replay runs the recorded controller throughout, so frames from it on are not compared.
+    compared_until_swap_tick: Option<u64>,
     recorded: &'a Summary,
     replayed: &'a Summary,
 }
@@ -64,7 +67,11 @@ struct Report<'a> {
 impl ReplayCmd {
     /// Reads, re-runs, compares and prints; the exit code says how the replay ended.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let mut rec = Recorded::default();
+        // A replay runs one controller: a recorded swap ends the part it can reproduce.
+        let swap_tick = runner::recorded_swaps::Swap::read_all(&self.file)?
+            .first()
+            .map(|s| s.tick);
+        let mut rec = Recorded::new(swap_tick.unwrap_or(u64::MAX));
         let inspected = runner::recording::inspect_with(&self.file, &mut rec)?;
         let (Some(header), Some(recorded_digest)) = (rec.header, rec.digest) else {
             return Err(RunError::NotARun(self.file.clone()).into());
@@ -81,6 +88,12 @@ impl ReplayCmd {
             return Err(RunError::NoTruth(self.file.clone()).into());
         }
         let changed = loaded.config != header.loaded.config;
+        // As long as the recording: a run stopped early (`servo ctl stop`, a signal) replays
+        // to where it stopped, not to its configured duration.
+        let recorded_s = inspected.read.last_time_ns.map_or(0.0, |t| t as f64 * 1e-9);
+        if recorded_s > 0.0 && recorded_s < loaded.config.run.duration_s {
+            loaded.config.run.duration_s = recorded_s;
+        }
         let plan = header.replan(loaded.config)?;
         let every = header.every.get();
         let mut digest = FrameDigest::new(recorded_digest.frames());
@@ -98,6 +111,7 @@ impl ReplayCmd {
             frames_compared: compared.map_or(0, |(n, _)| n),
             identical: compared.map(|(_, d)| d.is_none()),
             first_difference_frame: compared.and_then(|(_, d)| d),
+            compared_until_swap_tick: swap_tick,
             recorded: &inspected.summary,
             replayed: &replayed,
         };
@@ -134,6 +148,12 @@ fn print_report(r: &Report, every: u32, rate_hz: f64) {
             f as f64 / rate_hz
         ),
         (Some(false), None) => {}
+    }
+    if let Some(t) = r.compared_until_swap_tick {
+        println!(
+            "  controller swap      at tick {t} (servo ctl load): the replay runs the recorded \
+             controller throughout; frames from the swap on are not compared"
+        );
     }
     println!(
         "  {:<26} {:>12} {:>12} {:>9}",
