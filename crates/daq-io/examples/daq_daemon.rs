@@ -24,6 +24,7 @@
 //! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --demo --clock adc
 //! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --practice-seed 42 --seconds 30
 //! servo frf --prefix lab --loop open --points 80 --from 20 --to 10000   # then servo identify
+//! cargo run --release -p daq-io --example daq_daemon -- --prefix lab --practice-seed 42 --seconds 30 --wait-recorder
 //! ```
 
 use daq_io::clock::{monotonic_ns, Wait};
@@ -158,7 +159,8 @@ fn main() {
         Pacing::Lockstep
     };
     let mut opts = ServeOptions::new((seconds * RATE_HZ) as u64, 1.0 / RATE_HZ, pacing);
-    opts.wait_for_recorder = false;
+    // `--wait-recorder`: the first tick waits for `servo record` too (a recording from tick 0).
+    opts.wait_for_recorder = args.iter().any(|a| a == "--wait-recorder");
     if demo && pacing == Pacing::RealTime {
         // The demo's controller is a thread of this process on a machine that may be shared:
         // a loss timeout above the ~1 ms stalls of a VM (what `servo latency` recommends).

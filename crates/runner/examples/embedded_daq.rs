@@ -28,7 +28,10 @@ use daq_io::{ack_status, flags, Backend, Control, Sensor, TelemetryBlock, TickSt
 use runner::config::{Loaded, Role};
 use runner::control_plane::{ControlPlane, Request, SERVICE_TICKS};
 use runner::{Plan, ServoLoop, SimBackend};
-use std::time::Duration;
+use std::time::{Duration, Instant};
+
+/// How long the demo's peer waits for the loop to listen, and for each acknowledgement.
+const DEMO_TIMEOUT: Duration = Duration::from_secs(20);
 
 /// How the daemon's run went.
 struct Report {
@@ -134,11 +137,24 @@ fn daemon(
 }
 
 /// `--demo`: what `servo ctl` and a telemetry tap do, from a thread: an unstable gain change
-/// is refused, a stable one applied, then STOP; every telemetry block is of this run.
+/// is refused, a stable one applied, then STOP; every telemetry block is of this run. It
+/// sends once the loop listens on the control plane (a message sent before would be lost:
+/// no history is kept), and gives up, naming what it waited for, after [`DEMO_TIMEOUT`].
 fn demo_peer(prefix: &str) -> (Vec<u32>, u64) {
     let ep = Endpoint::open(prefix, &format!("ctl-{}", std::process::id())).expect("join");
     let tap = Tap::new(&ep).expect("tap");
     let sender = ControlSender::new(&ep).expect("control");
+    let control = ep
+        .service::<Control>(leaf::CONTROL)
+        .expect("control service");
+    let start = Instant::now();
+    while daq_io::ipc::subscriber_count(&control) == 0 {
+        assert!(
+            start.elapsed() < DEMO_TIMEOUT,
+            "demo: the loop did not subscribe to the control plane within {DEMO_TIMEOUT:?}"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
     let mut statuses = Vec::new();
     let mut blocks = 0;
     for (id, (cmd, value)) in [
@@ -159,6 +175,7 @@ fn demo_peer(prefix: &str) -> (Vec<u32>, u64) {
                 ..Default::default()
             })
             .expect("send");
+        let sent = Instant::now();
         let status = loop {
             while take(&tap.telemetry).is_some() {
                 blocks += 1;
@@ -166,6 +183,10 @@ fn demo_peer(prefix: &str) -> (Vec<u32>, u64) {
             if let Some(a) = take(&tap.ack).filter(|a| a.id == id) {
                 break a.status;
             }
+            assert!(
+                sent.elapsed() < DEMO_TIMEOUT,
+                "demo: no acknowledgement of control message {id} within {DEMO_TIMEOUT:?}"
+            );
             std::thread::sleep(Duration::from_millis(1));
         };
         statuses.push(status);
