@@ -64,6 +64,15 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
     };
     refused(&unstable, &["would be unstable", "spectral radius"]);
     refused(&heavy, &["made for another plant", "stage heavy"]);
+    // A load swaps the feedback controller; a feedforward change would be ignored: refused.
+    let with_feedforward = tmp("deploy-feedforward.toml");
+    let gains = std::fs::read_to_string(&pid).unwrap();
+    std::fs::write(
+        &with_feedforward,
+        format!("[controller]\nfeedforward = \"model\"\n{gains}"),
+    )
+    .unwrap();
+    refused(&with_feedforward, &["change of feedforward"]);
     let swap = swap_tick(&ctl_load(&p, &pid));
     wait_for_ticks(&p, swap as u64 + 20_000, &mut run);
     ctl_stop(&p);

@@ -143,6 +143,18 @@ fn prepare(plan: &Plan, id: u64, file: &[u8]) -> Prepared {
     };
     let built = plan_after_load(plan, file).and_then(|p| gain_range(&p).map(|g| (p, g)));
     match built {
+        Ok((p, _)) if reference_path_differs(plan, &p) => refused(
+            ack_status::REFUSED_INVALID,
+            f64::NAN,
+            &format!(
+                "the file changes the reference path (feedforward {:?} → {:?}, smoothing {} → {} Hz): \
+                 a load swaps the feedback controller only — restart the run for another feedforward",
+                plan.config.controller.feedforward,
+                p.config.controller.feedforward,
+                plan.config.controller.smoothing_hz,
+                p.config.controller.smoothing_hz
+            ),
+        ),
         Ok((p, gains)) => {
             let spectral_radius = p.check_stable().unwrap_or(f64::NAN);
             Prepared::Ready {
@@ -160,6 +172,15 @@ fn prepare(plan: &Plan, id: u64, file: &[u8]) -> Prepared {
         Err(e) if made_for_mismatch(&e) => refused(ack_status::REFUSED_PROVENANCE, f64::NAN, &e),
         Err(e) => refused(ack_status::REFUSED_INVALID, f64::NAN, &e),
     }
+}
+
+/// Whether the run of `after` shapes the reference differently from the run of `plan`
+/// (feedforward, its smoothing): the preview window those need is sized when a run starts, and
+/// a swap replaces the feedback controller only — a changed feedforward would be silently
+/// ignored, so it is refused.
+fn reference_path_differs(plan: &Plan, after: &Plan) -> bool {
+    let (a, b) = (&plan.config.controller, &after.config.controller);
+    a.feedforward != b.feedforward || a.smoothing_hz != b.smoothing_hz
 }
 
 /// Whether `e` refuses a controller made for another plant or rate.
@@ -182,14 +203,31 @@ pub fn plan_after_load(plan: &Plan, file: &[u8]) -> Result<Plan, RunError> {
     };
     let text = std::str::from_utf8(file).map_err(|e| parse(e.to_string()))?;
     let table: toml::Table = toml::from_str(text).map_err(|e| parse(e.to_string()))?;
-    let (controller, bytes) = if table.contains_key("controller") {
+    let (controller, bytes) = if let Some(fragment) = table.get("controller").cloned() {
         let config: RunConfig = table.try_into().map_err(|e| parse(e.to_string()))?;
         if config.controller.kind == ControllerKind::Ss {
             return Err(parse(
                 "a [controller] fragment of kind ss names a file: load the file".into(),
             ));
         }
-        (config.controller, None)
+        // The reference path is the run's unless the fragment says otherwise (a tuning
+        // fragment holds gains only).
+        let running = &plan.config.controller;
+        let has = |key: &str| fragment.get(key).is_some();
+        let controller = ControllerConfig {
+            feedforward: if has("feedforward") {
+                config.controller.feedforward
+            } else {
+                running.feedforward
+            },
+            smoothing_hz: if has("smoothing_hz") {
+                config.controller.smoothing_hz
+            } else {
+                running.smoothing_hz
+            },
+            ..config.controller
+        };
+        (controller, None)
     } else {
         let controller = ControllerConfig {
             kind: ControllerKind::Ss,

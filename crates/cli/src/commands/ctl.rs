@@ -206,7 +206,7 @@ fn load_report(file: &std::path::Path, a: &Ack, status: u32) -> Result<String, S
             "controller {name} refused: stable at gain ×1 but not at the run's present gain scale; reset it (`servo ctl gain 1`) and load again"
         )),
         _ => Err(format!(
-            "controller {name} refused: not a controller this run can build, or another load is in progress (the controller process says which)"
+            "controller {name} refused: not a controller this run can build, a change of feedforward (a load swaps the feedback controller only), or another load is in progress (the controller process says which)"
         )),
     }
 }
