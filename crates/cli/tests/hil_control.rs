@@ -117,6 +117,23 @@ fn control_plane_changes_gains_and_stops_a_running_loop() {
     let end = recorder::read(&b).unwrap().end;
     assert_eq!(end["gain_change.1"], format!("tick {j}: output scale 1.5"));
     assert!(!end.contains_key("gain_change.2"));
+    let log = runner::operator_log::OperatorLog::read(&b).unwrap();
+    assert_eq!(log.gain_changes.len(), 1);
+    assert_eq!(
+        (log.gain_changes[0].tick, log.gain_changes[0].scale),
+        (j as u64, 1.5)
+    );
+    // A replay runs the configuration alone: bit for bit up to the change, not after.
+    let replay = json(
+        &servo()
+            .args(["replay", "--json", "--no-record"])
+            .arg(&b)
+            .output()
+            .unwrap(),
+    );
+    assert_eq!(replay["compared_until_operator_tick"], j as u64, "{replay}");
+    assert_eq!(replay["frames_compared"], j as u64, "{replay}");
+    assert_eq!(replay["identical"], true, "{replay}");
 }
 
 /// `servo ctl` to a prefix no run holds fails at once (not after its 60 s timeout) and says so.

@@ -83,7 +83,7 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
     let (u, end) = recorded_commands(&rec);
     assert_bumpless(&u, swap);
     // Recorded: the tick and the file's SHA-256, and the file itself.
-    let swaps = runner::recorded_swaps::Swap::read_all(&rec).unwrap();
+    let swaps = runner::operator_log::OperatorLog::read(&rec).unwrap().swaps;
     assert_eq!(swaps.len(), 1);
     assert_eq!(
         (swaps[0].tick, &swaps[0].file),
@@ -97,7 +97,10 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
             .output()
             .unwrap(),
     );
-    assert_eq!(replay["compared_until_swap_tick"], swap as u64, "{replay}");
+    assert_eq!(
+        replay["compared_until_operator_tick"], swap as u64,
+        "{replay}"
+    );
     assert_eq!(replay["frames_compared"], swap as u64, "{replay}");
     assert_eq!(replay["identical"], true, "{replay}");
     let noted = &end["controller_load.1"];

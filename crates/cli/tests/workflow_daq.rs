@@ -142,7 +142,7 @@ fn a_hidden_stage_is_measured_identified_designed_for_deployed_and_compared() {
     assert_bumpless(&u, swap);
     // The recording keeps the loaded file: its spectrum, by default, is of the part after the
     // swap (and its settle time) against the budget of the identified model under it.
-    let swaps = runner::recorded_swaps::Swap::read_all(&rec).unwrap();
+    let swaps = runner::operator_log::OperatorLog::read(&rec).unwrap().swaps;
     assert_eq!(swaps.len(), 1);
     assert_eq!(
         (swaps[0].tick, &swaps[0].file),

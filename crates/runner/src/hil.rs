@@ -11,9 +11,9 @@
 use crate::config::Role;
 use crate::control_plane::{ControlPlane, SERVICE_TICKS};
 use crate::error::RunError;
+use crate::operator_log::{GainChange, Swap};
 use crate::plan::Plan;
 use crate::protection::TripCause;
-use crate::recorded_swaps::Swap;
 use crate::recording;
 use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
@@ -416,10 +416,11 @@ pub fn record(
     let mut end = recording::end_record(plan, reason, &summary);
     for (i, a) in gain_changes.iter().enumerate() {
         // Every accepted change, with the tick it took effect (`servo ctl gain`).
-        end.insert(
-            format!("gain_change.{}", i + 1),
-            format!("tick {}: output scale {}", a.tick, a.value),
-        );
+        let change = GainChange {
+            tick: a.tick,
+            scale: a.value,
+        };
+        change.record(i + 1, &mut end);
     }
     for (i, (swap, radius)) in swaps.iter().enumerate() {
         // Every controller swapped in (`servo ctl load`): its tick, hash and file.

@@ -57,9 +57,10 @@ struct Report<'a> {
     identical: Option<bool>,
     /// The first recorded frame that may differ.
     first_difference_frame: Option<u64>,
-    /// The tick a controller was first swapped into the recorded run (`servo ctl load`): the
-    /// replay runs the recorded controller throughout, so frames from it on are not compared.
-    compared_until_swap_tick: Option<u64>,
+    /// The tick an operator first changed the recorded run (`servo ctl load`, `servo ctl
+    /// gain`): the replay runs the recorded configuration throughout, so frames from it on are
+    /// not compared.
+    compared_until_operator_tick: Option<u64>,
     recorded: &'a Summary,
     replayed: &'a Summary,
 }
@@ -67,11 +68,10 @@ struct Report<'a> {
 impl ReplayCmd {
     /// Reads, re-runs, compares and prints; the exit code says how the replay ended.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        // A replay runs one controller: a recorded swap ends the part it can reproduce.
-        let swap_tick = runner::recorded_swaps::Swap::read_all(&self.file)?
-            .first()
-            .map(|s| s.tick);
-        let mut rec = Recorded::new(swap_tick.unwrap_or(u64::MAX));
+        // A replay runs the configuration alone: an operator's first change (a controller
+        // swap, a gain change) ends the part it can reproduce.
+        let steered_at = runner::operator_log::OperatorLog::read(&self.file)?.first_tick();
+        let mut rec = Recorded::new(steered_at.unwrap_or(u64::MAX));
         let inspected = runner::recording::inspect_with(&self.file, &mut rec)?;
         let (Some(header), Some(recorded_digest)) = (rec.header, rec.digest) else {
             return Err(RunError::NotARun(self.file.clone()).into());
@@ -111,7 +111,7 @@ impl ReplayCmd {
             frames_compared: compared.map_or(0, |(n, _)| n),
             identical: compared.map(|(_, d)| d.is_none()),
             first_difference_frame: compared.and_then(|(_, d)| d),
-            compared_until_swap_tick: swap_tick,
+            compared_until_operator_tick: steered_at,
             recorded: &inspected.summary,
             replayed: &replayed,
         };
@@ -149,10 +149,10 @@ fn print_report(r: &Report, every: u32, rate_hz: f64) {
         ),
         (Some(false), None) => {}
     }
-    if let Some(t) = r.compared_until_swap_tick {
+    if let Some(t) = r.compared_until_operator_tick {
         println!(
-            "  controller swap      at tick {t} (servo ctl load): the replay runs the recorded \
-             controller throughout; frames from the swap on are not compared"
+            "  steered              at tick {t} (servo ctl load / gain): the replay runs the \
+             recorded configuration throughout; frames from there on are not compared"
         );
     }
     println!(

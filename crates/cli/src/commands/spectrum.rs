@@ -67,7 +67,7 @@ impl SpectrumCmd {
             from_s: self.from_s,
             to_s: self.to_s,
             controller,
-            swaps: runner::recorded_swaps::Swap::read_all(&self.file)?,
+            swaps: runner::operator_log::OperatorLog::read(&self.file)?.swaps,
         });
         let read = runner::recording::inspect_with(&self.file, &mut sink)?;
         let s = sink.finish()?;

@@ -16,7 +16,7 @@ use lti::spectral::{Psd, Welch, WelchConfig};
 use recorder::Frame;
 use runner::closed_loop::output;
 use runner::config::MadeFor;
-use runner::recorded_swaps::Swap;
+use runner::operator_log::Swap;
 use runner::recording::{FrameSink, RunHeader};
 use runner::RunError;
 use serde::Serialize;

@@ -1,7 +1,8 @@
-//! Controllers swapped into a running loop (`servo ctl load`), as a recording keeps them: each
-//! loaded file attached (`controller_load.N.toml`, written with the `end` record) and noted in
-//! the `end` record with the tick it took the loop at and its SHA-256 — so a recording of a
-//! run that changed controllers still says, on its own, which controller ran when.
+//! What operators did to a running loop, as its recording keeps it: each controller swapped in
+//! (`servo ctl load`) attached (`controller_load.N.toml`, written with the `end` record) and
+//! noted with the tick it took the loop at and its SHA-256, and each gain change (`servo ctl
+//! gain`) with its tick and scale — so a recording of a run that was steered still says, on its
+//! own, which controller ran when and at what gain.
 
 use crate::config::sha256_hex;
 use crate::error::RunError;
@@ -89,12 +90,62 @@ impl Swap {
             );
         }
     }
+}
 
-    /// The swaps recorded in the finished recording `path`, in order, each file checked
-    /// against the SHA-256 its `end` record states (read through the file's index: the frames
-    /// are not read). Empty for a run without swaps or an unfinished file (it has no `end`
-    /// record); a swap noted without its file (beyond [`MAX_ATTACHED_SWAPS`]) ends the list.
-    pub fn read_all(path: &Path) -> Result<Vec<Swap>, RunError> {
+/// A gain change (`servo ctl gain`) a running loop applied.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GainChange {
+    /// The tick it took effect at.
+    pub tick: u64,
+    /// The new scale on the controller output, dimensionless.
+    pub scale: f64,
+}
+
+impl GainChange {
+    /// The `end` record key holding the tick of the `n`-th change.
+    fn tick_key(n: usize) -> String {
+        format!("gain_change.{n}.tick")
+    }
+
+    /// The `end` record key holding the scale of the `n`-th change.
+    fn scale_key(n: usize) -> String {
+        format!("gain_change.{n}.scale")
+    }
+
+    /// Notes the `n`-th change (from 1) in `end`: readably, and its tick and scale on keys of
+    /// their own.
+    pub fn record(&self, n: usize, end: &mut BTreeMap<String, String>) {
+        end.insert(
+            format!("gain_change.{n}"),
+            format!("tick {}: output scale {}", self.tick, self.scale),
+        );
+        end.insert(Self::tick_key(n), self.tick.to_string());
+        end.insert(Self::scale_key(n), self.scale.to_string());
+    }
+}
+
+/// Everything operators did to a recorded run, in order of kind.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OperatorLog {
+    /// Controllers swapped in.
+    pub swaps: Vec<Swap>,
+    /// Gain changes applied.
+    pub gain_changes: Vec<GainChange>,
+}
+
+impl OperatorLog {
+    /// The first tick an operator changed the loop at (a swap or a gain change), if any: up
+    /// to it, the run is its configuration's alone.
+    pub fn first_tick(&self) -> Option<u64> {
+        let swaps = self.swaps.iter().map(|s| s.tick);
+        swaps.chain(self.gain_changes.iter().map(|g| g.tick)).min()
+    }
+
+    /// The log of the finished recording `path`, read through the file's index (the frames
+    /// are not read): each swap's file checked against the SHA-256 its `end` record states.
+    /// Empty for an unsteered run or an unfinished file (it has no `end` record); a swap noted
+    /// without its file (beyond [`MAX_ATTACHED_SWAPS`]) ends the list of swaps.
+    pub fn read(path: &Path) -> Result<Self, RunError> {
         #[derive(Default)]
         struct Found {
             end: BTreeMap<String, String>,
@@ -114,13 +165,13 @@ impl Swap {
         }
         let mut found = Found::default();
         if !recorder::visit_indexed(path, &mut found)? {
-            return Ok(Vec::new());
+            return Ok(Self::default());
         }
         let mut swaps = Vec::new();
         for n in 1.. {
-            let name = Self::attachment_name(n);
+            let name = Swap::attachment_name(n);
             let (Some(tick), Some(file)) =
-                (found.end.get(&Self::tick_key(n)), found.files.remove(&name))
+                (found.end.get(&Swap::tick_key(n)), found.files.remove(&name))
             else {
                 break;
             };
@@ -138,6 +189,16 @@ impl Swap {
                 file,
             });
         }
-        Ok(swaps)
+        let gain_changes = (1..)
+            .map_while(|n| {
+                let tick = found.end.get(&GainChange::tick_key(n))?.parse().ok()?;
+                let scale = found.end.get(&GainChange::scale_key(n))?.parse().ok()?;
+                Some(GainChange { tick, scale })
+            })
+            .collect();
+        Ok(OperatorLog {
+            swaps,
+            gain_changes,
+        })
     }
 }
