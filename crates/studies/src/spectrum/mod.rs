@@ -115,7 +115,7 @@ pub struct SpectrumOptions {
     /// Predict with this controller instead of the one in the loop at the window's start.
     pub controller: Option<runner::config::ControllerConfig>,
     /// The controllers swapped into the run (`servo ctl load`), as its recording keeps them
-    /// ([`Swap::read_all`]): the default window starts after the last one, and the
+    /// ([`runner::operator_log::OperatorLog::read`]): the default window starts after the last one, and the
     /// prediction is for the controller in the loop at the window's start.
     pub swaps: Vec<Swap>,
 }
