@@ -255,8 +255,8 @@ fn open_loop(plan: &Plan, stage: StageParams, freq_hz: &[f64]) -> Result<Vec<Com
 
 /// Fits the Table 5-2 parameters to `(freq_hz, measured)`, starting from `plan`'s stage, each
 /// bounded to a factor 4 around its start. Points the four-mass model cannot explain are
-/// found and left out ([`misfit`]); where they show a resonance, it is fitted as a factor
-/// beside the stage on every point ([`resonance`]) and reported. Fails with
+/// found and left out (the `misfit` module); where they show a resonance, it is fitted as a factor
+/// beside the stage on every point (the `resonance` module) and reported. Fails with
 /// [`StudyError::FitNotCredible`] when the fit explains less than [`MIN_CREDIBLE_FIT_PERCENT`]
 /// of the data.
 pub fn identify(
