@@ -170,7 +170,7 @@ impl ControlPlane {
     }
 
     /// Every [`SERVICE_TICKS`] ticks: applies gain changes to `servo` from tick `tick`, moves
-    /// controller loads along ([`ControlPlane::deploy`]), acknowledges requests, publishes
+    /// controller loads along (`ControlPlane::deploy`), acknowledges requests, publishes
     /// health with `stats`. Returns a STOP to act on.
     pub fn service(
         &mut self,

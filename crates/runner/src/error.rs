@@ -35,7 +35,7 @@ pub enum RunError {
     /// A shared-memory resource of the run could not be opened or used.
     #[error("transport: {0}")]
     Ipc(#[from] daq_io::ipc::IpcError),
-    /// The host refused a real-time setting ([realtime] in the config).
+    /// The host refused a real-time setting (`[realtime]` in the config).
     #[error("real-time settings ([realtime]): {0}")]
     Realtime(#[from] daq_io::realtime::RtError),
     /// The plant side of a HIL run failed.
