@@ -55,9 +55,13 @@ pub mod leaf {
     pub const HEALTH: &str = "health";
     /// Plant and controller → anyone: replies to control messages ([`crate::Ack`]).
     pub const ACK: &str = "ack";
-    /// Anyone → controller (and recorder): a controller to swap in
-    /// ([`crate::contract::ControllerLoad`]).
+    /// Anyone → controller: a controller to swap in ([`crate::contract::ControllerLoad`]).
     pub const CONTROLLER_LOAD: &str = "controller_load";
+    /// Controller → recorder: each load request it took up, republished by the controller
+    /// process, which lives as long as the run (the requester may be gone before the recorder
+    /// reads its sample, and iceoryx2 takes a departed publisher's samples back); the `Ack`
+    /// with the same id says whether and at which tick it took the loop.
+    pub const CONTROLLER_LOADED: &str = "controller_loaded";
 }
 
 /// Queue sizes and port limits of one service (identical in every process that opens it).
@@ -84,6 +88,11 @@ pub fn settings(leaf: &str) -> ServiceSettings {
         leaf::CONTROLLER_LOAD => ServiceSettings {
             buffer: 2,
             publishers: 4,
+            subscribers: 3,
+        },
+        leaf::CONTROLLER_LOADED => ServiceSettings {
+            buffer: 16,
+            publishers: 1,
             subscribers: 3,
         },
         leaf::CONTROL | leaf::HEALTH | leaf::ACK => ServiceSettings {

@@ -312,10 +312,12 @@ pub fn record(
     let waiting = Instant::now();
     let mut write_failed = false;
     let mut gain_changes: Vec<Ack> = Vec::new();
-    // Controllers sent to the loop (`servo ctl load`): each request's file, and those the
-    // controller applied, in order, with the spectral radius it checked.
-    let loads = ep.subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD)?;
-    let mut load_requests: Vec<(u64, Vec<u8>)> = Vec::new();
+    // Controllers swapped into the loop (`servo ctl load`): each request the controller took
+    // up (republished by it), the acknowledgements that it took the loop, paired by id
+    // whichever comes first, in order, with the spectral radius it checked.
+    let loads = ep.subscriber::<ControllerLoad>(leaf::CONTROLLER_LOADED)?;
+    let mut load_requests: VecDeque<(u64, Vec<u8>)> = VecDeque::new();
+    let mut applied: VecDeque<Ack> = VecDeque::new();
     let mut swaps: Vec<(Swap, f64)> = Vec::new();
     loop {
         let mut got = false;
@@ -340,9 +342,9 @@ pub fn record(
             }
         }
         while let Ok(Some(l)) = loads.receive() {
-            load_requests.push((l.id, l.file().to_vec()));
+            load_requests.push_back((l.id, l.file().to_vec()));
             if load_requests.len() > MAX_PENDING_LOADS {
-                load_requests.remove(0);
+                load_requests.pop_front();
             }
         }
         while let Some(a) = take(&tap.ack) {
@@ -352,13 +354,15 @@ pub fn record(
             match a.command {
                 command::SET_GAIN_SCALE => gain_changes.push(a),
                 command::LOAD_CONTROLLER => {
-                    if let Some((_, file)) = load_requests.iter().find(|r| r.0 == a.id) {
-                        swaps.push((Swap::new(swaps.len() + 1, a.tick, file), a.value));
+                    applied.push_back(a);
+                    if applied.len() > MAX_PENDING_LOADS {
+                        applied.pop_front();
                     }
                 }
                 _ => {}
             }
         }
+        pair_swaps(&mut applied, &mut load_requests, &mut swaps);
         if let (None, Some(id), Some(to)) = (&rec, run_id, &out) {
             rec = Some(recording::create(plan, to, id)?);
         }
@@ -451,6 +455,23 @@ pub fn record(
         hil: Some(hil),
         ..RunMeta::of(c, description)
     }))
+}
+
+/// Moves each applied load acknowledgement whose file has arrived (same request id) to
+/// `swaps`, in the order the loop applied them; the others wait for their file.
+fn pair_swaps(
+    applied: &mut VecDeque<Ack>,
+    files: &mut VecDeque<(u64, Vec<u8>)>,
+    swaps: &mut Vec<(Swap, f64)>,
+) {
+    while let Some(a) = applied.front() {
+        let Some(at) = files.iter().position(|f| f.0 == a.id) else {
+            return;
+        };
+        let (_, file) = files.remove(at).expect("found above");
+        swaps.push((Swap::new(swaps.len() + 1, a.tick, &file), a.value));
+        applied.pop_front();
+    }
 }
 
 #[cfg(test)]
