@@ -25,7 +25,7 @@ pub struct Swap {
     pub file: Vec<u8>,
     /// The file's SHA-256, hex.
     pub sha256: String,
-    /// The file's size in bytes.
+    /// The file's size in bytes (as kept: 0 beyond [`MAX_ATTACHED_SWAPS`] when read back).
     pub bytes: usize,
 }
 
@@ -76,9 +76,9 @@ impl Swap {
             ),
         );
         end.insert(Self::tick_key(n), self.tick.to_string());
+        let name = Self::attachment_name(n);
+        end.insert(input_key(&name), sha.clone());
         if let Some(rec) = rec.filter(|_| n <= MAX_ATTACHED_SWAPS) {
-            let name = Self::attachment_name(n);
-            end.insert(input_key(&name), sha.clone());
             let at_ns = (self.tick as f64 * period_s * 1e9).round() as u64;
             rec.attach(
                 Input {
@@ -143,8 +143,8 @@ impl OperatorLog {
 
     /// The log of the finished recording `path`, read through the file's index (the frames
     /// are not read): each swap's file checked against the SHA-256 its `end` record states.
-    /// Empty for an unsteered run or an unfinished file (it has no `end` record); a swap noted
-    /// without its file (beyond [`MAX_ATTACHED_SWAPS`]) ends the list of swaps.
+    /// Empty for an unsteered run or an unfinished file (it has no `end` record); a swap beyond
+    /// [`MAX_ATTACHED_SWAPS`] comes with its tick and an empty file (none was attached).
     pub fn read(path: &Path) -> Result<Self, RunError> {
         #[derive(Default)]
         struct Found {
@@ -170,21 +170,22 @@ impl OperatorLog {
         let mut swaps = Vec::new();
         for n in 1.. {
             let name = Swap::attachment_name(n);
-            let (Some(tick), Some(file)) =
-                (found.end.get(&Swap::tick_key(n)), found.files.remove(&name))
-            else {
+            let Some(tick) = found.end.get(&Swap::tick_key(n)) else {
                 break;
             };
             let mismatch = || RunError::InputMismatch {
                 path: path.to_owned(),
                 input: name.clone(),
             };
-            if found.end.get(&input_key(&name)) != Some(&sha256_hex(&file)) {
+            let sha256 = found.end.get(&input_key(&name)).ok_or_else(mismatch)?;
+            let file = found.files.remove(&name).unwrap_or_default();
+            let attached = n <= MAX_ATTACHED_SWAPS;
+            if attached && *sha256 != sha256_hex(&file) {
                 return Err(mismatch());
             }
             swaps.push(Swap {
                 tick: tick.parse().map_err(|_| mismatch())?,
-                sha256: sha256_hex(&file),
+                sha256: sha256.clone(),
                 bytes: file.len(),
                 file,
             });
@@ -200,5 +201,50 @@ impl OperatorLog {
             swaps,
             gain_changes,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Swaps and gain changes written the way the recorder writes them read back the same; the
+    /// swaps beyond the attachment limit keep their tick and hash, not their file.
+    #[test]
+    fn a_steered_runs_log_reads_back_as_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("steered.mcap");
+        let mut rec = Recorder::create(&path, BTreeMap::new(), Default::default()).unwrap();
+        rec.push(recorder::Frame::default()).unwrap();
+        let file = |n: usize| format!("[controller.pid]\nkp = {n}.0\n").into_bytes();
+        let mut end = BTreeMap::new();
+        let written: Vec<Swap> = (1..=MAX_ATTACHED_SWAPS + 2)
+            .map(|n| Swap::new(n, 1000 * n as u64, &file(n)))
+            .collect();
+        for (i, s) in written.iter().enumerate() {
+            s.record(i + 1, 1e-5, 0.99, &mut end, Some(&mut rec));
+        }
+        let change = GainChange {
+            tick: 1500,
+            scale: 0.8,
+        };
+        change.record(1, &mut end);
+        rec.finish(end).unwrap();
+
+        let log = OperatorLog::read(&path).unwrap();
+        assert_eq!(log.gain_changes, vec![change]);
+        assert_eq!(log.first_tick(), Some(1000));
+        assert_eq!(log.swaps.len(), written.len());
+        for (n, (read, wrote)) in (1..).zip(log.swaps.iter().zip(&written)) {
+            assert_eq!(
+                (read.tick, &read.sha256),
+                (wrote.tick, &sha256_hex(&file(n)))
+            );
+            let attached = n <= MAX_ATTACHED_SWAPS;
+            assert_eq!(read.file.is_empty(), !attached, "swap {n}");
+            if attached {
+                assert_eq!(read.file, file(n));
+            }
+        }
     }
 }
