@@ -40,8 +40,6 @@ pub struct ControlPlane {
     serves_plant: bool,
     start: Instant,
     loads: Subscriber<ControllerLoad>,
-    /// Each request taken up, republished for the recorder (this process outlives requesters).
-    loaded: Sender<ControllerLoad>,
     loader: Loader,
     /// The load request the loader works on.
     loading: Option<u64>,
@@ -74,8 +72,7 @@ impl ControlPlane {
             serves_plant,
             start: Instant::now(),
             loads: ep.subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD)?,
-            loaded: Sender::new(ep.publisher::<ControllerLoad>(leaf::CONTROLLER_LOADED)?),
-            loader: Loader::start(plan),
+            loader: Loader::start(plan, ep.prefix()),
             loading: None,
             handing_over: None,
             parked: None,
@@ -108,9 +105,6 @@ impl ControlPlane {
             let busy = self.loading.is_some() || self.handing_over.is_some();
             if !busy && self.loader.submit(request.id, request.file()) {
                 self.loading = Some(request.id);
-                // For the recording: the file, under the id its acknowledgement will carry.
-                self.loaded.send(*request);
-                self.loaded.prepare();
             } else {
                 let ack = self.load_ack(request.id, tick, ack_status::REFUSED_INVALID, f64::NAN);
                 self.reply(ack);

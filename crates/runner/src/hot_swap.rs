@@ -4,13 +4,16 @@
 //! ready; the ticking thread only copies the request's bytes into a buffer it owns, moves the
 //! prepared controller into the loop ([`crate::servo_loop::ServoLoop::hand_over`]) and sends
 //! the replaced one back to be dropped — no allocation, no lock, no parsing while ticking.
+//! The loader also republishes each request it takes up on `controller_loaded` for the
+//! recorder: this process lives as long as the run, its requester may not.
 
 use crate::config::{ConfigError, ControllerConfig, ControllerKind, RunConfig};
 use crate::controller::Controller;
 use crate::error::RunError;
 use crate::gain_range::{gain_range, GainRange};
 use crate::plan::Plan;
-use daq_io::contract::{ack_status, MAX_LOAD_BYTES};
+use daq_io::contract::{ack_status, ControllerLoad, MAX_LOAD_BYTES};
+use daq_io::ipc::{leaf, Endpoint};
 use std::path::PathBuf;
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TryRecvError, TrySendError};
 
@@ -59,17 +62,34 @@ pub struct Loader {
 }
 
 impl Loader {
-    /// Starts the loader thread for the run of `plan` (its configuration and model are what a
-    /// loaded controller is built for and checked against).
-    pub fn start(plan: &Plan) -> Self {
+    /// Starts the loader thread for the run of `plan` on run `prefix` (the plan's
+    /// configuration and model are what a loaded controller is built for and checked
+    /// against).
+    pub fn start(plan: &Plan, prefix: &str) -> Self {
         let (jobs, inbox) = sync_channel::<Job>(4);
         let (outbox, results) = sync_channel(1);
         let plan = plan.clone();
+        let prefix = prefix.to_owned();
         std::thread::Builder::new()
             .name("controller-loader".into())
             .spawn(move || {
+                // The node and publisher live in this thread (iceoryx2 ports stay on theirs).
+                let republish = Endpoint::open(&prefix, "controller-loader")
+                    .and_then(|ep| {
+                        let p = ep.publisher::<ControllerLoad>(leaf::CONTROLLER_LOADED)?;
+                        Ok((ep, p))
+                    })
+                    .inspect_err(|e| {
+                        eprintln!("servo controller: loads will not be recorded: {e}");
+                    })
+                    .ok();
                 while let Ok(job) = inbox.recv() {
                     if let Job::Load(id, buf) = job {
+                        if let (Some((_, p)), Some(load)) =
+                            (&republish, ControllerLoad::new(id, &buf))
+                        {
+                            daq_io::ipc::send(p, load);
+                        }
                         let prepared = prepare(&plan, id, &buf);
                         if outbox.send((prepared, buf)).is_err() {
                             return;
@@ -203,24 +223,25 @@ pub fn plan_after_load(plan: &Plan, file: &[u8]) -> Result<Plan, RunError> {
     };
     let text = std::str::from_utf8(file).map_err(|e| parse(e.to_string()))?;
     let table: toml::Table = toml::from_str(text).map_err(|e| parse(e.to_string()))?;
-    let (controller, bytes) = if let Some(fragment) = table.get("controller").cloned() {
+    let (controller, bytes) = if let Some(fragment) = table.get("controller") {
+        // Whether the fragment sets the reference path (a tuning fragment holds gains only).
+        let has = |key: &str| fragment.get(key).is_some();
+        let (sets_feedforward, sets_smoothing) = (has("feedforward"), has("smoothing_hz"));
         let config: RunConfig = table.try_into().map_err(|e| parse(e.to_string()))?;
         if config.controller.kind == ControllerKind::Ss {
             return Err(parse(
                 "a [controller] fragment of kind ss names a file: load the file".into(),
             ));
         }
-        // The reference path is the run's unless the fragment says otherwise (a tuning
-        // fragment holds gains only).
+        // The reference path is the run's unless the fragment says otherwise.
         let running = &plan.config.controller;
-        let has = |key: &str| fragment.get(key).is_some();
         let controller = ControllerConfig {
-            feedforward: if has("feedforward") {
+            feedforward: if sets_feedforward {
                 config.controller.feedforward
             } else {
                 running.feedforward
             },
-            smoothing_hz: if has("smoothing_hz") {
+            smoothing_hz: if sets_smoothing {
                 config.controller.smoothing_hz
             } else {
                 running.smoothing_hz
