@@ -311,7 +311,7 @@ pub fn record(
     let mut last_data: Option<Instant> = None;
     let waiting = Instant::now();
     let mut write_failed = false;
-    let mut gain_changes: Vec<Ack> = Vec::new();
+    let mut gain_changes: Vec<GainChange> = Vec::new();
     // Controllers swapped into the loop (`servo ctl load`): each request the controller took
     // up (republished by it), the acknowledgements that it took the loop, paired by id
     // whichever comes first, in order, with the spectral radius it checked.
@@ -352,7 +352,10 @@ pub fn record(
                 continue;
             }
             match a.command {
-                command::SET_GAIN_SCALE => gain_changes.push(a),
+                command::SET_GAIN_SCALE => gain_changes.push(GainChange {
+                    tick: a.tick,
+                    scale: a.value,
+                }),
                 command::LOAD_CONTROLLER => {
                     applied.push_back(a);
                     if applied.len() > MAX_PENDING_LOADS {
@@ -418,12 +421,8 @@ pub fn record(
     }
     .after_trip(summary.trip(c.plant.timing.servo_rate_hz).is_some());
     let mut end = recording::end_record(plan, reason, &summary);
-    for (i, a) in gain_changes.iter().enumerate() {
+    for (i, change) in gain_changes.iter().enumerate() {
         // Every accepted change, with the tick it took effect (`servo ctl gain`).
-        let change = GainChange {
-            tick: a.tick,
-            scale: a.value,
-        };
         change.record(i + 1, &mut end);
     }
     for (i, (swap, radius)) in swaps.iter().enumerate() {

@@ -79,7 +79,8 @@ impl FrameDigest {
 /// [`crate::recording::inspect_with`]): its header, the digest of its frames (up to a limit),
 /// and whether its frames carry a simulator's truth (a hardware run's do not).
 pub struct Recorded {
-    /// Frames digested at most (those before a controller swap a replay does not repeat).
+    /// Frames digested at most (those before an operator's first change — a controller swap,
+    /// a gain change — which a replay does not repeat).
     pub limit: u64,
     /// The run header (configuration, controller, inputs, decimation).
     pub header: Option<RunHeader>,

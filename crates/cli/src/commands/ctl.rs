@@ -58,19 +58,21 @@ enum CtlAction {
 }
 
 impl CtlAction {
-    /// The control-plane message with request id `id` (not for a load).
-    fn message(&self, id: u64) -> Control {
+    /// The control-plane message with request id `id`, or the file of a load (sent on its
+    /// own service).
+    fn message(&self, id: u64) -> Result<Control, &std::path::Path> {
         let (command, value) = match self {
             CtlAction::Start => (command::START, 0.0),
-            CtlAction::Stop | CtlAction::Load { .. } => (command::STOP, 0.0),
+            CtlAction::Stop => (command::STOP, 0.0),
             CtlAction::Gain { scale } => (command::SET_GAIN_SCALE, *scale),
+            CtlAction::Load { file } => return Err(file),
         };
-        Control {
+        Ok(Control {
             command,
             value,
             id,
             ..Default::default()
-        }
+        })
     }
 
     /// The process that acts on it.
@@ -130,8 +132,8 @@ impl CtlCmd {
         let id = daq_io::peers::random_id();
         // The publisher lives until the answer came: iceoryx2 takes a sample back from the
         // subscribers when its publisher goes.
-        let (_load, _control) = match &self.action {
-            CtlAction::Load { file } => {
+        let (_load, _control) = match self.action.message(id) {
+            Err(file) => {
                 let load = read_load(file, id)?;
                 let publisher = ep
                     .publisher::<ControllerLoad>(leaf::CONTROLLER_LOAD)
@@ -143,9 +145,9 @@ impl CtlCmd {
                 }
                 (Some(publisher), None)
             }
-            action => {
+            Ok(message) => {
                 let sender = ControlSender::new(&ep).map_err(RunError::from)?;
-                sender.send(action.message(id)).map_err(RunError::from)?;
+                sender.send(message).map_err(RunError::from)?;
                 (None, Some(sender))
             }
         };
