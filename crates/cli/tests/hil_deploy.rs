@@ -6,10 +6,10 @@
 mod common;
 
 use common::hil::{
-    assert_bumpless, ctl_load, ctl_stop, prefix, recorded_commands, swap_tick, wait_for_ticks,
+    assert_bumpless, assert_swapped_in, ctl_load, ctl_stop, long_hil_run, prefix,
+    recorded_commands, swap_tick, wait_for_ticks,
 };
 use common::{servo, tmp, tuned};
-use std::process::Stdio;
 
 #[test]
 fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
@@ -28,32 +28,16 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
 
     let p = prefix("deploy");
     let rec = tmp("deploy.mcap");
-    let mut run = servo()
-        .args([
-            "run",
-            "--hil",
-            "-q",
-            "--json",
-            "--duration",
-            "300",
-            "--prefix",
-            &p,
-        ])
-        .args(rate)
-        .args([
+    let mut run = long_hil_run(&p, &rec, |cmd| {
+        cmd.args(rate).args([
             "--scenario",
             "sine",
             "--amplitude",
             "1e-6",
             "--frequency",
             "100",
-        ])
-        .arg("--out")
-        .arg(&rec)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    wait_for_ticks(&p, 20_000, &mut run);
+        ]);
+    });
     let refused = |file: &std::path::Path, why: &[&str]| {
         let out = ctl_load(&p, file);
         let e = String::from_utf8_lossy(&out.stderr);
@@ -83,12 +67,7 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
     let (u, end) = recorded_commands(&rec);
     assert_bumpless(&u, swap);
     // Recorded: the tick and the file's SHA-256, and the file itself.
-    let swaps = runner::operator_log::OperatorLog::read(&rec).unwrap().swaps;
-    assert_eq!(swaps.len(), 1);
-    assert_eq!(
-        (swaps[0].tick, &swaps[0].file),
-        (swap as u64, &std::fs::read(&pid).unwrap())
-    );
+    assert_swapped_in(&rec, swap, &pid);
     // A replay runs the recorded controller: bit for bit up to the swap, not compared after.
     let replay = common::json(
         &servo()

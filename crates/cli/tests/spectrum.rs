@@ -4,22 +4,8 @@
 
 mod common;
 
-use common::{assert_bands_agree, json, servo, succeeded, tmp, tuned};
+use common::{assert_bands_agree, json, servo, spectrum, succeeded, tmp, tuned};
 use serde_json::Value;
-use std::path::Path;
-
-fn spectrum(file: &Path, out_dir: &str) -> Value {
-    json(
-        &servo()
-            .arg("spectrum")
-            .arg(file)
-            .arg("--out-dir")
-            .arg(tmp(out_dir))
-            .arg("--json")
-            .output()
-            .unwrap(),
-    )
-}
 
 #[test]
 fn a_pid_run_agrees_with_its_budget_in_every_decade_band() {
@@ -31,7 +17,7 @@ fn a_pid_run_agrees_with_its_budget_in_every_decade_band() {
             .output()
             .unwrap(),
     );
-    let s = spectrum(&file, "spectrum-pid");
+    let s = spectrum(&file, &tmp("spectrum-pid"), &[]);
     std::fs::remove_file(&file).unwrap();
     assert_eq!(s["sample_rate_hz"], 199_600.0);
     assert_eq!(s["resolution_hz"], 10.0);
@@ -112,7 +98,7 @@ fn the_prediction_comes_from_the_recording_not_from_files_on_disk() {
             .unwrap(),
     );
     std::fs::remove_file(&h2).unwrap();
-    let s = spectrum(&file, "spectrum-h2");
+    let s = spectrum(&file, &tmp("spectrum-h2"), &[]);
     assert!(s["prediction_note"].is_null(), "{}", s["prediction_note"]);
     assert!(
         s["controller"].as_str().unwrap().contains("state space"),
@@ -141,7 +127,7 @@ fn a_decimated_recording_is_analysed_without_a_comparison_aliasing_would_falsify
             .output()
             .unwrap(),
     );
-    let s = spectrum(&file, "spectrum-every4");
+    let s = spectrum(&file, &tmp("spectrum-every4"), &[]);
     assert_eq!(s["sample_rate_hz"], 49_900.0);
     assert!(s["predicted_psd"].is_null());
     let note = s["prediction_note"].as_str().unwrap();
@@ -171,20 +157,16 @@ fn a_window_and_another_controller_are_what_the_spectrum_predicts() {
             .output()
             .unwrap(),
     );
-    let window = json(
-        &servo()
-            .arg("spectrum")
-            .arg(&file)
-            .args(["--from-s", "1", "--json", "--out-dir"])
-            .arg(tmp("spectrum-window"))
-            .output()
-            .unwrap(),
-    );
+    let window = spectrum(&file, &tmp("spectrum-window"), &["--from-s", "1"]);
     let samples = window["samples"].as_u64().unwrap();
     assert!(samples.abs_diff(199_600) <= 1, "{samples}");
     assert_eq!(window["from_s"], 1.0);
     let pid = tuned("spectrum-pid-1500.toml", &["--bandwidth-hz", "1500"]);
-    let other = spectrum_with(&file, &["--controller-from", pid.to_str().unwrap()]);
+    let other = spectrum(
+        &file,
+        &tmp("spectrum-other"),
+        &["--controller-from", pid.to_str().unwrap()],
+    );
     assert_ne!(other["predicted_with"], other["controller"]);
     // The recorded loop (Ki 562) rejects 100 Hz – 1 kHz far better than the tuned one's
     // prediction (Ki 381, Kp 0.12): the budget is the other controller's.
@@ -205,17 +187,4 @@ fn a_window_and_another_controller_are_what_the_spectrum_predicts() {
         e.contains("--from-s") && e.contains("end at 2.000 s"),
         "{e}"
     );
-}
-
-fn spectrum_with(file: &Path, extra: &[&str]) -> Value {
-    json(
-        &servo()
-            .arg("spectrum")
-            .arg(file)
-            .args(["--json", "--out-dir"])
-            .arg(tmp("spectrum-other"))
-            .args(extra)
-            .output()
-            .unwrap(),
-    )
 }

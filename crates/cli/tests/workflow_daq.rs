@@ -10,9 +10,10 @@
 mod common;
 
 use common::hil::{
-    assert_bumpless, ctl_load, ctl_stop, prefix, recorded_commands, swap_tick, wait_for_ticks,
+    assert_bumpless, assert_swapped_in, ctl_load, ctl_stop, prefix, recorded_commands, swap_tick,
+    wait_for_ticks,
 };
-use common::{assert_bands_agree, json, servo, succeeded, tmp, tuned};
+use common::{assert_bands_agree, json, servo, spectrum, succeeded, tmp, tuned};
 use daq_io::ipc::Endpoint;
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use plant_sim::practice::PracticeStage;
@@ -142,22 +143,8 @@ fn a_hidden_stage_is_measured_identified_designed_for_deployed_and_compared() {
     assert_bumpless(&u, swap);
     // The recording keeps the loaded file: its spectrum, by default, is of the part after the
     // swap (and its settle time) against the budget of the identified model under it.
-    let swaps = runner::operator_log::OperatorLog::read(&rec).unwrap().swaps;
-    assert_eq!(swaps.len(), 1);
-    assert_eq!(
-        (swaps[0].tick, &swaps[0].file),
-        (swap as u64, &std::fs::read(&pid).unwrap())
-    );
-    let s = json(
-        &servo()
-            .arg("spectrum")
-            .arg(&rec)
-            .arg("--json")
-            .arg("--out-dir")
-            .arg(dir.join("spectrum"))
-            .output()
-            .unwrap(),
-    );
+    assert_swapped_in(&rec, swap, &pid);
+    let s = spectrum(&rec, &dir.join("spectrum"), &[]);
     // The swap's tick time (to rounding: the spectrum counts ticks of 1/rate).
     let swapped_at = swap as f64 / rate;
     let noted = s["swapped_at_s"][0].as_f64().unwrap();

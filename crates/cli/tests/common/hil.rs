@@ -112,3 +112,13 @@ pub fn ctl_stop(prefix: &str) {
             .unwrap(),
     );
 }
+
+/// The recording `rec` holds one controller swap: `file`, at tick `swap`.
+pub fn assert_swapped_in(rec: &Path, swap: usize, file: &Path) {
+    let swaps = runner::operator_log::OperatorLog::read(rec).unwrap().swaps;
+    assert_eq!(swaps.len(), 1);
+    assert_eq!(
+        (swaps[0].tick, &swaps[0].file),
+        (swap as u64, &std::fs::read(file).unwrap())
+    );
+}

@@ -3,7 +3,7 @@
 
 pub mod hil;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// The `servo` binary under test.
@@ -78,6 +78,20 @@ pub fn euid() -> u32 {
 pub fn as_nobody(mut cmd: std::process::Command) -> std::process::Output {
     use std::os::unix::process::CommandExt;
     cmd.uid(65534).gid(65534).output().unwrap()
+}
+
+/// `servo spectrum file --json --out-dir out_dir` with the flags `extra`: its JSON result.
+pub fn spectrum(file: &Path, out_dir: &Path, extra: &[&str]) -> serde_json::Value {
+    json(
+        &servo()
+            .arg("spectrum")
+            .arg(file)
+            .args(["--json", "--out-dir"])
+            .arg(out_dir)
+            .args(extra)
+            .output()
+            .unwrap(),
+    )
 }
 
 /// Every band's recorded RMS of `signal` within `tol` of the budget's.
