@@ -238,6 +238,19 @@ pub fn subscriber_count<T: Debug + ZeroCopySend>(service: &Service<T>) -> usize 
     service.dynamic_config().number_of_subscribers()
 }
 
+/// Waits up to `timeout` for a subscriber of `service` to be there — a message published
+/// before any is lost (no history is kept). Whether one is.
+pub fn await_subscriber<T: Debug + ZeroCopySend>(service: &Service<T>, timeout: Duration) -> bool {
+    let start = Instant::now();
+    while subscriber_count(service) == 0 {
+        if start.elapsed() >= timeout {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    true
+}
+
 /// Waits up to `timeout` for the subscribers of `service` to leave (they take the last
 /// samples first: samples of a publisher that is gone cannot be received).
 pub fn linger<T: Debug + ZeroCopySend>(service: &Service<T>, timeout: Duration) {

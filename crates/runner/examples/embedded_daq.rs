@@ -147,14 +147,10 @@ fn demo_peer(prefix: &str) -> (Vec<u32>, u64) {
     let control = ep
         .service::<Control>(leaf::CONTROL)
         .expect("control service");
-    let start = Instant::now();
-    while daq_io::ipc::subscriber_count(&control) == 0 {
-        assert!(
-            start.elapsed() < DEMO_TIMEOUT,
-            "demo: the loop did not subscribe to the control plane within {DEMO_TIMEOUT:?}"
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    assert!(
+        daq_io::ipc::await_subscriber(&control, DEMO_TIMEOUT),
+        "demo: the loop did not subscribe to the control plane within {DEMO_TIMEOUT:?}"
+    );
     let mut statuses = Vec::new();
     let mut blocks = 0;
     for (id, (cmd, value)) in [

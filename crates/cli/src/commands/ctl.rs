@@ -130,11 +130,25 @@ impl CtlCmd {
         }
         let acks = ep.subscriber::<Ack>(leaf::ACK).map_err(RunError::from)?;
         let id = daq_io::peers::random_id();
-        // The publisher lives until the answer came: iceoryx2 takes a sample back from the
-        // subscribers when its publisher goes.
+        let start = Instant::now();
+        let timeout = Duration::from_secs_f64(self.timeout_s);
+        // Sent once the run listens (a process that has just started may not yet: a message
+        // before any subscriber is lost), by a publisher that lives until the answer came
+        // (iceoryx2 takes a sample back from the subscribers when its publisher goes).
+        let listening = |heard: bool, leaf: &str| {
+            heard.then_some(()).ok_or_else(|| {
+                CliError::Processes(format!(
+                    "the {target} of run {prefix:?} does not listen on {leaf} (still starting?)"
+                ))
+            })
+        };
         let (_load, _control) = match self.action.message(id) {
             Err(file) => {
                 let load = read_load(file, id)?;
+                let service = ep.service::<ControllerLoad>(leaf::CONTROLLER_LOAD);
+                let heard =
+                    daq_io::ipc::await_subscriber(&service.map_err(RunError::from)?, timeout);
+                listening(heard, leaf::CONTROLLER_LOAD)?;
                 let publisher = ep
                     .publisher::<ControllerLoad>(leaf::CONTROLLER_LOAD)
                     .map_err(RunError::from)?;
@@ -146,13 +160,15 @@ impl CtlCmd {
                 (Some(publisher), None)
             }
             Ok(message) => {
+                let service = ep.service::<Control>(leaf::CONTROL);
+                let heard =
+                    daq_io::ipc::await_subscriber(&service.map_err(RunError::from)?, timeout);
+                listening(heard, leaf::CONTROL)?;
                 let sender = ControlSender::new(&ep).map_err(RunError::from)?;
                 sender.send(message).map_err(RunError::from)?;
                 (None, Some(sender))
             }
         };
-        let start = Instant::now();
-        let timeout = Duration::from_secs_f64(self.timeout_s);
         while start.elapsed() < timeout {
             while let Some(a) = take(&acks) {
                 if a.id == id {
