@@ -72,14 +72,14 @@ def recorder():
 
 
 def synthesis():
-    h2 = mean_ns("synthesis", "h2_27_states")
+    h2 = mean_ns("synthesis", "h2_29_states")
     if not h2:
         return
     dare = mean_ns("synthesis", "dare_baseline")
     print()
     print("| synthesis | time | vs one DARE of the same plant (same run) |")
     print("|---|---|---|")
-    print(f"| H2, 27 states at 20 kHz (model, 2 DAREs, closed-loop norm) | {h2 / 1e6:.2f} ms | {h2 / dare:.1f}x ({dare / 1e6:.2f} ms) |")
+    print(f"| H2, 29 states at 20 kHz (model, 2 DAREs, closed-loop norm) | {h2 / 1e6:.2f} ms | {h2 / dare:.1f}x ({dare / 1e6:.2f} ms) |")
 
 
 if __name__ == "__main__":

@@ -168,11 +168,17 @@ fn a_window_and_another_controller_are_what_the_spectrum_predicts() {
         &["--controller-from", pid.to_str().unwrap()],
     );
     assert_ne!(other["predicted_with"], other["controller"]);
-    // The recorded loop (Ki 562) rejects 100 Hz – 1 kHz far better than the tuned one's
-    // prediction (Ki 381, Kp 0.12): the budget is the other controller's.
+    // In 100 Hz – 1 kHz the recorded loop's own budget matches the recording; the tuned
+    // PID's (Ki 381, Kp 0.12, rejecting that band worse) predicts half as much again: the
+    // budget is the other controller's.
+    let own = &window["bands"][1]["rms"]["following_error_m"];
+    assert!(
+        own["difference_percent"].as_f64().unwrap().abs() < 10.0,
+        "{own}"
+    );
     let band = &other["bands"][1]["rms"]["following_error_m"];
     assert!(
-        band["difference_percent"].as_f64().unwrap() < -50.0,
+        band["difference_percent"].as_f64().unwrap() < -30.0,
         "{band}"
     );
     let bad = servo()

@@ -180,6 +180,24 @@ impl Endpoint {
         format!("fts-servo/{}/{leaf}", self.prefix)
     }
 
+    /// Waits up to `timeout` for a subscriber of service `leaf` carrying `T` to be there — a
+    /// message published before any is lost (no history is kept). Whether one is.
+    pub fn await_subscriber<T: Debug + ZeroCopySend>(
+        &self,
+        leaf: &str,
+        timeout: Duration,
+    ) -> Result<bool, IpcError> {
+        let service = self.service::<T>(leaf)?;
+        let start = Instant::now();
+        while subscriber_count(&service) == 0 {
+            if start.elapsed() >= timeout {
+                return Ok(false);
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        Ok(true)
+    }
+
     /// Opens (or creates) publish-subscribe service `leaf` carrying `T`.
     pub fn service<T: Debug + ZeroCopySend>(&self, leaf: &str) -> Result<Service<T>, IpcError> {
         let full = self.service_name(leaf);
@@ -236,19 +254,6 @@ impl Endpoint {
 /// The subscribers `service` has now (a controller, a recorder, taps).
 pub fn subscriber_count<T: Debug + ZeroCopySend>(service: &Service<T>) -> usize {
     service.dynamic_config().number_of_subscribers()
-}
-
-/// Waits up to `timeout` for a subscriber of `service` to be there — a message published
-/// before any is lost (no history is kept). Whether one is.
-pub fn await_subscriber<T: Debug + ZeroCopySend>(service: &Service<T>, timeout: Duration) -> bool {
-    let start = Instant::now();
-    while subscriber_count(service) == 0 {
-        if start.elapsed() >= timeout {
-            return false;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    true
 }
 
 /// Waits up to `timeout` for the subscribers of `service` to leave (they take the last

@@ -14,7 +14,7 @@
 //! The continuous problem (SLICOT SB10HD, [`h2syn_continuous`]) is the same with CAREs and a
 //! strictly proper controller: `A_K = A + B2F + LC2`, `B_K = −L`, `C_K = F`.
 
-use lti::riccati::{care, dare, lyap, Riccati, RiccatiError};
+use lti::riccati::{care, dare, lyap, Mode, Riccati, RiccatiError, Solver};
 use lti::{dlyap, StateSpace};
 use nalgebra::DMatrix;
 
@@ -50,14 +50,58 @@ pub enum H2Error {
     /// D21 must have full row rank (every measurement is noisy).
     #[error("D21D21ᵀ is singular: every measurement needs noise (full row rank)")]
     D21Rank,
-    /// The control Riccati equation failed ((A, B2) not stabilisable, or an uncontrollable
-    /// mode of the penalty on the unit circle).
+    /// A mode that is not stable and that the control input cannot move.
+    #[error("the plant's mode λ = {mode} is not stable and u cannot move it: (A, B2) is not stabilisable")]
+    Unstabilisable {
+        /// The mode (rad/s continuous, per sample discrete).
+        mode: Mode,
+    },
+    /// A mode that is not stable and that no measurement sees.
+    #[error("the plant's mode λ = {mode} is not stable and y does not see it: (C2, A) is not detectable")]
+    Undetectable {
+        /// The mode.
+        mode: Mode,
+    },
+    /// A mode on the stability boundary that the performance output does not see: the optimal
+    /// loop would leave it there.
+    #[error("the plant's mode λ = {mode} lies on the stability boundary and z does not see it: no stabilising H2 controller is optimal")]
+    UnpenalisedBoundaryMode {
+        /// The mode.
+        mode: Mode,
+    },
+    /// A mode on the stability boundary that the disturbance does not drive: the optimal
+    /// estimator would not track it.
+    #[error("the plant's mode λ = {mode} lies on the stability boundary and w does not drive it: no stabilising H2 estimator is optimal")]
+    UndrivenBoundaryMode {
+        /// The mode.
+        mode: Mode,
+    },
+    /// The control Riccati equation failed for another reason.
     #[error("control Riccati equation: {0}")]
     Control(RiccatiError),
-    /// The filter Riccati equation failed ((C2, A) not detectable, or a noise-free mode on the
-    /// unit circle).
+    /// The filter Riccati equation failed for another reason.
     #[error("filter Riccati equation: {0}")]
     Filter(RiccatiError),
+}
+
+impl H2Error {
+    /// The control equation's failure in the plant's terms.
+    fn control(e: RiccatiError) -> Self {
+        match e {
+            RiccatiError::Unstabilisable { mode } => H2Error::Unstabilisable { mode },
+            RiccatiError::UnseenBoundaryMode { mode } => H2Error::UnpenalisedBoundaryMode { mode },
+            e => H2Error::Control(e),
+        }
+    }
+
+    /// The filter (dual) equation's failure in the plant's terms.
+    fn filter(e: RiccatiError) -> Self {
+        match e {
+            RiccatiError::Unstabilisable { mode } => H2Error::Undetectable { mode },
+            RiccatiError::UnseenBoundaryMode { mode } => H2Error::UndrivenBoundaryMode { mode },
+            e => H2Error::Filter(e),
+        }
+    }
 }
 
 /// The synthesized controller and what it achieves.
@@ -149,21 +193,12 @@ impl GeneralizedPlant {
     }
 }
 
-/// A Riccati solver: [`care`] or [`dare`] (same arguments: A, B, Q, R, cross term S).
-type RiccatiSolver = fn(
-    &DMatrix<f64>,
-    &DMatrix<f64>,
-    &DMatrix<f64>,
-    &DMatrix<f64>,
-    Option<&DMatrix<f64>>,
-) -> Result<Riccati, RiccatiError>;
-
 /// The rank checks both syntheses need, then the control equation `X` (C1ᵀC1, R1 = D12ᵀD12,
 /// C1ᵀD12) and the filter equation `Y` (the dual: B1B1ᵀ, R2 = D21D21ᵀ, B1D21ᵀ) by `riccati`.
 /// Returns `(R1, R2, X, Y)`.
 fn riccati_pair(
     p: &GeneralizedPlant,
-    riccati: RiccatiSolver,
+    riccati: Solver,
 ) -> Result<(DMatrix<f64>, DMatrix<f64>, Riccati, Riccati), H2Error> {
     let r1 = p.d12.transpose() * &p.d12;
     let r2 = &p.d21 * p.d21.transpose();
@@ -180,7 +215,7 @@ fn riccati_pair(
         &r1,
         Some(&(p.c1.transpose() * &p.d12)),
     )
-    .map_err(H2Error::Control)?;
+    .map_err(H2Error::control)?;
     let y = riccati(
         &p.a.transpose(),
         &p.c2.transpose(),
@@ -188,7 +223,7 @@ fn riccati_pair(
         &r2,
         Some(&(&p.b1 * p.d21.transpose())),
     )
-    .map_err(H2Error::Filter)?;
+    .map_err(H2Error::filter)?;
     Ok((r1, r2, x, y))
 }
 

@@ -31,7 +31,7 @@ pub enum Window {
 }
 
 impl Window {
-    fn coefficients(self, n: usize) -> Vec<f64> {
+    pub(crate) fn coefficients(self, n: usize) -> Vec<f64> {
         match self {
             Window::Rectangular => vec![1.0; n],
             Window::Hann => (0..n)

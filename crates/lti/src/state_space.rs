@@ -117,46 +117,13 @@ impl StateSpace {
 
     /// [`StateSpace::balanced`] and the scaling `D` (diagonal), so `x_original[i] = D[i]·x̃[i]`.
     pub fn balance(mut self) -> (StateSpace, Vec<f64>) {
-        const RADIX: f64 = 2.0;
-        let n = self.nx();
-        let mut scale = vec![1.0; n];
-        loop {
-            let mut converged = true;
-            for (i, scale_i) in scale.iter_mut().enumerate() {
-                let c: f64 = (0..n)
-                    .filter(|&j| j != i)
-                    .map(|j| self.a[(j, i)].abs())
-                    .sum();
-                let r: f64 = (0..n)
-                    .filter(|&j| j != i)
-                    .map(|j| self.a[(i, j)].abs())
-                    .sum();
-                if c == 0.0 || r == 0.0 {
-                    continue;
-                }
-                let total = c + r;
-                let (mut f, mut cs) = (1.0, c);
-                while cs < r / RADIX {
-                    f *= RADIX;
-                    cs *= RADIX * RADIX;
-                }
-                while cs >= r * RADIX {
-                    f /= RADIX;
-                    cs /= RADIX * RADIX;
-                }
-                if (cs + r) / f < 0.95 * total {
-                    converged = false;
-                    self.a.row_mut(i).scale_mut(1.0 / f);
-                    self.a.column_mut(i).scale_mut(f);
-                    self.b.row_mut(i).scale_mut(1.0 / f);
-                    self.c.column_mut(i).scale_mut(f);
-                    *scale_i *= f;
-                }
-            }
-            if converged {
-                return (self, scale);
-            }
+        let (a, scale) = balance(self.a);
+        self.a = a;
+        for (i, d) in scale.iter().enumerate() {
+            self.b.row_mut(i).scale_mut(1.0 / d);
+            self.c.column_mut(i).scale_mut(*d);
         }
+        (self, scale)
     }
 
     /// `next ∘ self`: the output of `self` drives `next` (`ny(self) = nu(next)`).
@@ -255,19 +222,50 @@ impl StateSpace {
     }
 }
 
+/// The diagonal similarity `D⁻¹AD` (powers of 2, so exact) that makes the rows and columns of
+/// `a` comparable in norm (Parlett–Reinsch, as LAPACK `dgebal` without permutations), and `D`.
+pub fn balance(mut a: DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+    const RADIX: f64 = 2.0;
+    let n = a.nrows();
+    let mut scale = vec![1.0; n];
+    loop {
+        let mut converged = true;
+        for (i, scale_i) in scale.iter_mut().enumerate() {
+            let c: f64 = (0..n).filter(|&j| j != i).map(|j| a[(j, i)].abs()).sum();
+            let r: f64 = (0..n).filter(|&j| j != i).map(|j| a[(i, j)].abs()).sum();
+            if c == 0.0 || r == 0.0 {
+                continue;
+            }
+            let total = c + r;
+            let (mut f, mut cs) = (1.0, c);
+            while cs < r / RADIX {
+                f *= RADIX;
+                cs *= RADIX * RADIX;
+            }
+            while cs >= r * RADIX {
+                f /= RADIX;
+                cs /= RADIX * RADIX;
+            }
+            if (cs + r) / f < 0.95 * total {
+                converged = false;
+                a.row_mut(i).scale_mut(1.0 / f);
+                a.column_mut(i).scale_mut(f);
+                *scale_i *= f;
+            }
+        }
+        if converged {
+            return (a, scale);
+        }
+    }
+}
+
 /// Eigenvalues of a real square matrix: Parlett–Reinsch balancing (an exact similarity), then
 /// faer's Hessenberg–QR eigensolver. Balancing is essential for sampled closed loops whose
 /// entries span 60 decades (volts, metres and controller states side by side): unbalanced, both
 /// faer and nalgebra returned |z| ≈ 2 for a loop that runs stably (regression test below).
 pub fn eigenvalues(a: &DMatrix<f64>) -> Vec<Complex64> {
     let n = a.nrows();
-    let no_io = StateSpace {
-        a: a.clone(),
-        b: DMatrix::zeros(n, 0),
-        c: DMatrix::zeros(0, n),
-        d: DMatrix::zeros(0, 0),
-    };
-    let a = no_io.balanced().a;
+    let (a, _) = balance(a.clone());
     let m = faer::Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
     match m.eigenvalues() {
         Ok(v) => v.into_iter().map(|z| Complex64::new(z.re, z.im)).collect(),

@@ -4,6 +4,22 @@
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// Thrust force (along the tool axis, which the FTS moves) per unit of uncut chip area in N/m²
+/// (★ 5e9: the thesis gives no force; diamond turning of copper at sub-micrometre chip
+/// thickness takes a specific energy of ≈ 5 GPa, and there the thrust force is about the
+/// cutting force — Lucca, Rhorer & Komanduri, CIRP Annals 40 (1991) 69–72).
+pub const SPECIFIC_THRUST_N_PER_M2: f64 = 5e9;
+
+/// The thrust force of a cut taking `feed_m_per_rev` (m) per revolution at depth `depth_m` (m),
+/// in N: the specific thrust times the chip area `feed × depth` (round-nose tool, depth ≫ f²/8R).
+pub const fn thrust_force_n(specific_n_per_m2: f64, feed_m_per_rev: f64, depth_m: f64) -> f64 {
+    specific_n_per_m2 * feed_m_per_rev * depth_m
+}
+
+/// The §7.6 intermittent cut's force while cutting in N: Table 7-3's 8 µm/rev feed and 2 µm
+/// depth of cut in copper at [`SPECIFIC_THRUST_N_PER_M2`] (0.08 N).
+pub const TABLE_7_3_FORCE_N: f64 = thrust_force_n(SPECIFIC_THRUST_N_PER_M2, 8e-6, 2e-6);
+
 /// A cutting-force profile as configured.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
@@ -19,7 +35,7 @@ pub enum CuttingProfile {
     /// §7.6: a face cut over a workpiece with half its surface milled lower, so the tool cuts
     /// for half of each spindle revolution (a force step twice per revolution).
     IntermittentCut {
-        /// Force while cutting in N (★ 1 N: Table 7-3 conditions, 2 µm depth in copper).
+        /// Force while cutting in N (Table 7-3's cut: [`TABLE_7_3_FORCE_N`], 0.08 N).
         force_n: f64,
         /// Spindle speed in rpm (250, Table 7-3).
         spindle_rpm: f64,

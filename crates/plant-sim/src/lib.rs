@@ -13,6 +13,7 @@ pub mod metrology;
 pub mod model;
 pub mod params;
 pub mod practice;
+pub mod sensor_noise;
 pub mod sim;
 mod tick_matrix;
 

@@ -195,6 +195,26 @@ pub fn accel_noise_filter(scale: f64) -> Result<StateSpace, LtiError> {
     Ok(a.series(&b)?.scaled(k))
 }
 
+/// The anti-aliasing stage of both converter channels: two first-order low passes at
+/// `corner_hz` (unit DC gain), or a pass-through for 0.
+pub fn anti_alias(corner_hz: f64) -> Result<StateSpace, LtiError> {
+    if corner_hz == 0.0 {
+        return Ok(StateSpace {
+            a: DMatrix::zeros(0, 0),
+            b: DMatrix::zeros(0, 2),
+            c: DMatrix::zeros(2, 0),
+            d: DMatrix::identity(2, 2),
+        });
+    }
+    let w = rad(corner_hz);
+    Ok(StateSpace {
+        a: DMatrix::identity(2, 2) * -w,
+        b: DMatrix::identity(2, 2) * w,
+        c: DMatrix::identity(2, 2),
+        d: DMatrix::zeros(2, 2),
+    })
+}
+
 /// Appends the first and second derivatives of a SISO output with relative degree ≥ 2:
 /// outputs `[y, ẏ, ÿ]`.
 fn with_derivatives(sys: StateSpace) -> StateSpace {
@@ -350,6 +370,10 @@ impl PlantModel {
             "[1, 1e8] Hz",
         )?;
         check("noise.accel_scale", n.accel_scale, 0.0, 1e6, "[0, 1e6]")?;
+        let aa = p.adc.anti_alias_hz;
+        if aa != 0.0 {
+            check("adc.anti_alias_hz", aa, 1.0, 1e8, "0 (none) or [1, 1e8] Hz")?;
+        }
 
         // The `coil` model integrates the electrical loop outside; here the input is the current.
         let current = match a.model {
@@ -465,7 +489,7 @@ impl PlantModel {
                 &["w_g_in"],
                 &["base_m", "base_v", "base_a"],
             ))
-            .block(NamedBlock::new("capa", capa, &["gap_in"], &["sensor_v"]))
+            .block(NamedBlock::new("capa", capa, &["gap_in"], &["sensor_out"]))
             .block(NamedBlock::new(
                 "wacc",
                 accel_noise_filter(gain(n.accel, n.accel_scale))?,
@@ -476,8 +500,16 @@ impl PlantModel {
                 "accel",
                 accel_chain,
                 &["accel_in"],
-                &["accel_v"],
+                &["accel_out"],
             ))
+            .block(NamedBlock::new(
+                "aa",
+                anti_alias(aa)?,
+                &["aa_gap_in", "aa_acc_in"],
+                &["sensor_v", "accel_v"],
+            ))
+            .wire("aa_gap_in", "sensor_out", 1.0)
+            .wire("aa_acc_in", "accel_out", 1.0)
             .wire("f_motor_in", "motor_force_n", 1.0)
             .wire("f_cut_in", "f_cut", 1.0)
             .wire("xg_in", "base_m", 1.0)

@@ -216,6 +216,10 @@ pub struct AdcParams {
     pub oversampling: u32,
     /// Conversion rate in Hz (1 MHz); the last conversion is at the tick.
     pub conversion_rate_hz: f64,
+    /// Corner of a first-order anti-aliasing stage before the converter on both channels, in
+    /// Hz; 0 = none (default: §4.4.4 and §4.5.2 describe a first-order stage but print no
+    /// corner; the sensor's own 15 kHz filter already band-limits the gap channel).
+    pub anti_alias_hz: f64,
 }
 
 impl Default for AdcParams {
@@ -225,6 +229,7 @@ impl Default for AdcParams {
             range_v: 4.096,
             oversampling: 4,
             conversion_rate_hz: 1e6,
+            anti_alias_hz: 0.0,
         }
     }
 }
@@ -252,12 +257,14 @@ impl Default for DacParams {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct NoiseParams {
-    /// Sensor noise one-sided ASD at the sensor output in V/√Hz, as seen at the servo rate
-    /// (calibrated 2.889e-7; thesis eq 6-6: 1.36e-6).
+    /// Sensor noise one-sided ASD in V/√Hz, flat at the sensor electronics and band-limited by
+    /// its output filter (`capa.bandwidth_hz`, the Butterworth of eq 5-8), so each conversion
+    /// sees `Ws²·π f_c/(2√2)` whatever the servo rate (calibrated 9.841e-7; thesis eq 6-6:
+    /// 1.36e-6).
     pub sensor_v_per_rt_hz: f64,
-    /// Current noise gain of Wi in A/√Hz (calibrated 1.936e-6; thesis eq 6-7: 1.64e-7).
+    /// Current noise gain of Wi in A/√Hz (calibrated 3.078e-7; thesis eq 6-7: 1.64e-7).
     pub current_a_per_rt_hz: f64,
-    /// Base vibration gain of Wg in m/√Hz (calibrated 1.094e-12; thesis eq 6-8: 2.83e-9).
+    /// Base vibration gain of Wg in m/√Hz (calibrated 4.159e-13; thesis eq 6-8: 2.83e-9).
     pub base_m_per_rt_hz: f64,
     /// Corner of the 2nd-order roll-off that makes the base motion differentiable, in Hz
     /// (15 kHz: the thesis fitted its spectra only up to the sensor bandwidth, §6.3.2).
@@ -277,11 +284,12 @@ pub struct NoiseParams {
 impl Default for NoiseParams {
     fn default() -> Self {
         NoiseParams {
-            // Calibrated (plant-sim README, `--example calibrate`): 0.83 nm following error at
-            // 468 Hz on the 0.175 kg stage, sensor and current balanced, base 10 % of true power.
-            sensor_v_per_rt_hz: 2.889e-7,
-            current_a_per_rt_hz: 1.936e-6,
-            base_m_per_rt_hz: 1.094e-12,
+            // Calibrated (plant-sim README; `cargo run --release -p studies --example
+            // calibrate`): 0.83 nm following and 0.23 nm true error at 468 Hz on the 0.175 kg
+            // stage (§5.7.4), base vibration 10 % of the true-error power.
+            sensor_v_per_rt_hz: 9.841e-7,
+            current_a_per_rt_hz: 3.078e-7,
+            base_m_per_rt_hz: 4.159e-13,
             base_rolloff_hz: 15e3,
             accel_scale: 1.0,
             sensor: true,

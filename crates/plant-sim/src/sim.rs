@@ -3,9 +3,10 @@
 //! Within tick k (from `t_k` to `t_k + T`) the DAC command of the previous tick acts for the
 //! transport delay τ and the new one for `T − τ`; the cutting force and the white noises are
 //! held over the tick (band-limited white noise: variance `fs/2` for a unit one-sided PSD, so
-//! the spectrum is exact up to the `sinc²` of the hold). Every map from the state at `t_k` to
-//! the next state, to the ADC conversions inside the tick and to the truth at `t_k + T` is a
-//! matrix computed once from matrix exponentials; [`Simulator::step`] is a few dense
+//! the spectrum is exact up to the `sinc²` of the hold); the sensor noise is a continuous
+//! process sampled by each conversion ([`crate::sensor_noise`]). Every map from the state at
+//! `t_k` to the next state, to the ADC conversions inside the tick and to the truth at
+//! `t_k + T` is a matrix computed once from matrix exponentials; [`Simulator::step`] is a few dense
 //! matrix-vector products and allocates nothing.
 
 use crate::coil_loop::CoilLoop;
@@ -13,6 +14,7 @@ use crate::convert::Quantizer;
 use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
 use crate::model::{input, output, ModelError, PlantModel};
 use crate::params::{CurrentLoopModel, PlantParams};
+use crate::sensor_noise::{SampledSensorNoise, SensorNoise};
 use crate::tick_matrix::TickMatrix;
 use daq_io::flags;
 use lti::zoh;
@@ -103,7 +105,8 @@ impl Truth {
 /// ```
 ///
 /// The held white inputs have variance `white_variance` per tick (a one-sided PSD of 1/Hz);
-/// the averaged sensor noise has variance `sensor_noise_variance` (0 when that noise is off).
+/// the averaged sensor noise on the gap reading is the coloured process `sensor_noise` (None
+/// when that noise is off).
 #[derive(Debug, Clone)]
 pub struct LinearTick {
     /// State transition over one tick (n × n).
@@ -124,8 +127,9 @@ pub struct LinearTick {
     /// Variance per tick of each held white input (`fs/2`), or 0 for a source that is off:
     /// `[current, base, accelerometer]`.
     pub white_variance: [f64; 3],
-    /// Variance per tick of the averaged sensor noise on the gap reading, V².
-    pub sensor_noise_variance: f64,
+    /// The averaged sensor noise on the gap reading, V (a discrete process in innovations
+    /// form with the simulator's spectrum), or None when that noise is off.
+    pub sensor_noise: Option<SampledSensorNoise>,
     /// Variance per tick of the averaged ADC quantisation error on each reading, V²
     /// (`LSB²/12/oversampling`; 0 for an ideal converter).
     pub adc_quantisation_variance: f64,
@@ -281,7 +285,7 @@ pub struct Simulator {
     adc_q: Quantizer,
     dac_q: Quantizer,
     white_sigma: f64,
-    sensor_sigma: f64,
+    sensor_noise: Option<SensorNoise>,
     noise_on: [bool; 3],
     cutting: CuttingForce,
     rng: Xoshiro256PlusPlus,
@@ -373,11 +377,16 @@ impl Simulator {
             adc_q: Quantizer::new(adc.bits, adc.range_v),
             dac_q: Quantizer::new(params.dac.bits, params.dac.range_v),
             white_sigma: (fs / 2.0).sqrt(),
-            sensor_sigma: if noise.sensor {
-                noise.sensor_v_per_rt_hz * (fs / 2.0 * os).sqrt()
-            } else {
-                0.0
-            },
+            sensor_noise: (noise.sensor && noise.sensor_v_per_rt_hz > 0.0).then(|| {
+                SensorNoise::new(
+                    noise.sensor_v_per_rt_hz,
+                    params.capa.bandwidth_hz,
+                    adc.anti_alias_hz,
+                    period,
+                    adc.oversampling,
+                    adc.conversion_rate_hz,
+                )
+            }),
             noise_on: [noise.current, noise.base, noise.accel],
             cutting: CuttingForce::new(cutting)?,
             rng: Xoshiro256PlusPlus::seed_from_u64(seed),
@@ -430,7 +439,7 @@ impl Simulator {
                 var(self.noise_on[1]),
                 var(self.noise_on[2]),
             ],
-            sensor_noise_variance: self.sensor_sigma * self.sensor_sigma / os as f64,
+            sensor_noise: self.sensor_noise.map(|s| s.sampled(os as u32)),
             adc_quantisation_variance: self.adc_q.lsb_v().powi(2) / 12.0 / os as f64,
             dac_quantisation_variance: self.dac_q.lsb_v().powi(2) / 12.0,
         })
@@ -508,10 +517,9 @@ impl Simulator {
         let (mut gap_sum, mut acc_sum, mut noise_sum) = (0i32, 0i32, 0.0);
         let (mut gap_v, mut acc_v) = (0.0, 0.0);
         for j in 0..self.oversampling {
-            let noise = if self.sensor_sigma > 0.0 {
-                self.sensor_sigma * self.gauss()
-            } else {
-                0.0
+            let noise = match &mut self.sensor_noise {
+                Some(s) => s.next(j == 0, || StandardNormal.sample(&mut self.rng)),
+                None => 0.0,
             };
             noise_sum += noise;
             let (gv, g, gc) = self.adc_q.convert(self.out[n + 2 * j] + noise);
@@ -565,6 +573,9 @@ impl Simulator {
         self.z.iter_mut().for_each(|x| *x = 0.0);
         if let Some(c) = &mut self.coil {
             (c.i, c.q) = (0.0, 0.0);
+        }
+        if let Some(s) = &mut self.sensor_noise {
+            s.reset();
         }
         self.u_prev = 0.0;
         self.tick = 0;

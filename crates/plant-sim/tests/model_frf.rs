@@ -186,3 +186,36 @@ fn suspension_and_tool_modes() {
     assert!((tool / two_body - 1.0).abs() < 0.01, "{tool} vs {two_body}");
     assert!((tool / 11.7e3 - 1.0).abs() < 0.03, "tool mode {tool} Hz");
 }
+
+/// The anti-aliasing stage multiplies both converter channels by `1/(1 + s/ω_a)` and leaves
+/// every other output alone.
+#[test]
+fn anti_aliasing_stage_is_a_first_order_low_pass_on_both_channels() {
+    let plain = PlantParams::heavy();
+    let mut filtered = plain;
+    filtered.adc.anti_alias_hz = 30e3;
+    let (a, b) = (
+        PlantModel::new(&plain).unwrap(),
+        PlantModel::new(&filtered).unwrap(),
+    );
+    for f in freqs() {
+        let (ga, gb) = (
+            a.sys.freq_response(2.0 * PI * f).unwrap(),
+            b.sys.freq_response(2.0 * PI * f).unwrap(),
+        );
+        let lp = C::new(1.0, 0.0) / C::new(1.0, f / 30e3);
+        for out in [output::SENSOR_V, output::ACCEL_V] {
+            let (got, want) = (
+                gb[(out, input::COMMAND_V)],
+                ga[(out, input::COMMAND_V)] * lp,
+            );
+            close(got, want, "anti-aliased channel", f);
+        }
+        close(
+            gb[(output::TOOL_M, input::COMMAND_V)],
+            ga[(output::TOOL_M, input::COMMAND_V)],
+            "tool",
+            f,
+        );
+    }
+}

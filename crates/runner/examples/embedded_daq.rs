@@ -144,11 +144,9 @@ fn demo_peer(prefix: &str) -> (Vec<u32>, u64) {
     let ep = Endpoint::open(prefix, &format!("ctl-{}", std::process::id())).expect("join");
     let tap = Tap::new(&ep).expect("tap");
     let sender = ControlSender::new(&ep).expect("control");
-    let control = ep
-        .service::<Control>(leaf::CONTROL)
-        .expect("control service");
     assert!(
-        daq_io::ipc::await_subscriber(&control, DEMO_TIMEOUT),
+        ep.await_subscriber::<Control>(leaf::CONTROL, DEMO_TIMEOUT)
+            .expect("control service"),
         "demo: the loop did not subscribe to the control plane within {DEMO_TIMEOUT:?}"
     );
     let mut statuses = Vec::new();

@@ -5,13 +5,15 @@
 use crate::controller::LinearController;
 use lti::{LtiError, StateSpace};
 use nalgebra::DMatrix;
+use plant_sim::sensor_noise::SampledSensorNoise;
 use plant_sim::LinearTick;
 
 /// Inputs of [`ClosedLoop::sys`].
 pub mod input {
     /// Reference position in m.
     pub const REFERENCE_M: usize = 0;
-    /// Sensor noise on the averaged gap reading, V (per-tick white).
+    /// Innovation of the sensor noise on the averaged gap reading, V (per-tick white; the
+    /// noise itself is coloured, `plant_sim::sensor_noise::SampledSensorNoise`).
     pub const SENSOR_NOISE_V: usize = 1;
     /// Cutting force on the tool in N.
     pub const CUTTING_FORCE_N: usize = 2;
@@ -25,8 +27,10 @@ pub mod input {
     pub const CONTROL_DISTURBANCE_V: usize = 6;
     /// Error on the averaged accelerometer reading, V (its ADC quantisation).
     pub const ACCEL_READING_V: usize = 7;
+    /// Error on the averaged gap reading, V (its ADC quantisation; per-tick white).
+    pub const GAP_READING_V: usize = 8;
     /// Count.
-    pub const COUNT: usize = 8;
+    pub const COUNT: usize = 9;
 }
 
 /// Outputs of [`ClosedLoop::sys`].
@@ -60,8 +64,8 @@ impl ClosedLoop {
     /// Closes the loop around `plant` with `ctrl`; `sensitivity_v_per_m` converts the gap
     /// reading to metres (the reference enters the controller as `S·r`).
     ///
-    /// State `[x, u[k−1], controller state, last sample (gap, accel)]`; at tick k
-    /// `u = C c + D (y − [S r, 0]) + d_u`.
+    /// State `[x, u[k−1], controller state, last sample (gap, accel), sensor-noise state]`;
+    /// at tick k `u = C c + D (y − [S r, 0]) + d_u`.
     pub fn new(
         plant: &LinearTick,
         ctrl: &LinearController,
@@ -71,7 +75,12 @@ impl ClosedLoop {
         let s = sensitivity_v_per_m;
         let (n, nc) = (plant.phi.nrows(), ctrl.a.nrows());
         let (iu, ic, iy) = (n, n + 1, n + 1 + nc);
-        let size = iy + 2;
+        let is = iy + 2;
+        let size = is
+            + plant
+                .sensor_noise
+                .as_ref()
+                .map_or(0, SampledSensorNoise::states);
         let m = input::COUNT;
         // u as rows over the state and over the inputs.
         let mut u_z = DMatrix::zeros(1, size);
@@ -121,7 +130,11 @@ impl ClosedLoop {
             .zip_apply(&(plant.y_in.column(1) * &u_z), |x, y| *x += y);
         b.view_mut((iy, 0), (2, m))
             .copy_from(&(plant.y_in.column(1) * &u_in + held(&plant.y_in)));
-        b[(iy, input::SENSOR_NOISE_V)] = 1.0;
+        // Sensor noise n = c ξ + e, ξ⁺ = a ξ + k e (on the gap reading), then the converters'.
+        if let Some(sn) = &plant.sensor_noise {
+            sn.place(&mut a, &mut b, (iy, is, input::SENSOR_NOISE_V), 1.0);
+        }
+        b[(iy, input::GAP_READING_V)] = 1.0;
         b[(iy + 1, input::ACCEL_READING_V)] = 1.0;
         // Outputs.
         let mut c = DMatrix::zeros(output::COUNT, size);
@@ -150,7 +163,7 @@ impl ClosedLoop {
             sys: StateSpace { a, b, c, d },
             period_s,
             noise_variance: [
-                plant.sensor_noise_variance,
+                plant.sensor_noise.as_ref().map_or(0.0, |s| s.variance),
                 wc,
                 wb,
                 wa,
@@ -240,7 +253,7 @@ pub const SOURCES: [(&str, usize); 7] = [
     ("current", input::W_CURRENT),
     ("base", input::W_BASE),
     ("accelerometer", input::W_ACCEL),
-    ("adc gap", input::SENSOR_NOISE_V),
+    ("adc gap", input::GAP_READING_V),
     ("adc accel", input::ACCEL_READING_V),
     ("dac", input::CONTROL_DISTURBANCE_V),
 ];

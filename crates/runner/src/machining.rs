@@ -45,7 +45,8 @@ pub struct Workpiece {
     cut: SpiralCut,
     rad_per_tick: f64,
     encoder: Encoder,
-    cutting_n_per_m: f64,
+    /// Force per metre of depth of cut, N/m (specific thrust × feed).
+    force_per_depth_n_per_m: f64,
     peak_m: f64,
     finish_depth_m: Option<f64>,
 }
@@ -60,7 +61,11 @@ impl Workpiece {
             encoder: Encoder {
                 pulses_per_rev: m.pulses_per_rev,
             },
-            cutting_n_per_m: m.cutting_n_per_m,
+            force_per_depth_n_per_m: plant_sim::cutting::thrust_force_n(
+                m.specific_thrust_n_per_m2,
+                m.feed_m_per_rev,
+                1.0,
+            ),
             finish_depth_m: m.finish_depth_m,
         }
     }
@@ -77,17 +82,17 @@ impl Workpiece {
         self.encoder.count_at(self.angle_rad(k))
     }
 
-    /// Cutting force on the tool in N during tick `k` (positive away from the part): the
-    /// depth of cut at the tool's design position times the cutting stiffness (the force the
-    /// thesis applied as a known disturbance, §5.7.5; the few-nm deflection's effect on the
-    /// chip is neglected).
+    /// Cutting force on the tool in N during tick `k` (positive away from the part): the chip
+    /// area (feed × the depth of cut at the tool's design position) times the specific thrust
+    /// (a known disturbance, as the thesis applied it in §5.7.5; the few-nm deflection's effect
+    /// on the chip is neglected).
     #[inline]
     pub fn cutting_force_n(&self, k: u64) -> f64 {
         let depth = match self.finish_depth_m {
             Some(d) => d,
             None => (self.peak_m - self.cut.height_m(self.angle_rad(k))).max(0.0),
         };
-        self.cutting_n_per_m * depth
+        self.force_per_depth_n_per_m * depth
     }
 }
 

@@ -57,6 +57,8 @@ impl ImageSurface {
 /// A surface ready for the tick (static dispatch, nothing allocated per call).
 #[derive(Debug, Clone, PartialEq)]
 pub enum LoadedSurface {
+    /// §8.5.1.
+    Flat,
     /// §8.5.4.
     Grid(SinusoidalGrid),
     /// §8.5.3.
@@ -71,6 +73,7 @@ impl Surface for LoadedSurface {
     #[inline]
     fn depth_m(&self, r_m: f64, theta_rad: f64) -> f64 {
         match self {
+            LoadedSurface::Flat => 0.0,
             LoadedSurface::Grid(s) => s.depth_m(r_m, theta_rad),
             LoadedSurface::Beam(s) => s.depth_m(r_m, theta_rad),
             LoadedSurface::Lenslet(s) => s.depth_m(r_m, theta_rad),
@@ -80,6 +83,7 @@ impl Surface for LoadedSurface {
 
     fn peak_m(&self) -> f64 {
         match self {
+            LoadedSurface::Flat => 0.0,
             LoadedSurface::Grid(s) => s.peak_m(),
             LoadedSurface::Beam(s) => s.peak_m(),
             LoadedSurface::Lenslet(s) => s.peak_m(),
@@ -112,6 +116,7 @@ impl LoadedSurface {
             }
         };
         Ok(match config {
+            SurfaceConfig::Flat => LoadedSurface::Flat,
             SurfaceConfig::SinusoidalGrid {
                 ax_m,
                 ay_m,

@@ -57,6 +57,8 @@ const KEYS: &[(&str, &str)] = &[
     ("plant.timing", "servo_rate_hz"),
     ("plant.timing", "delay_s"),
     ("plant.noise", "sensor_v_per_rt_hz"),
+    ("plant.adc", "anti_alias_hz"),
+    ("plant.adc", "oversampling"),
     ("protection", "following_error_m"),
     ("protection", "position_limit_m"),
     ("protection", "saturation_s"),

@@ -46,6 +46,12 @@ pub enum StudyError {
         /// Complementary sensitivity bound.
         mt: f64,
     },
+    /// No scaling of the configured PID reaches a bandwidth the study needs.
+    #[error("no stable scaling of the configured PID reaches a {bandwidth_hz} Hz bandwidth")]
+    BandwidthUnreachable {
+        /// The bandwidth, Hz.
+        bandwidth_hz: f64,
+    },
     /// Grey-box identification failed.
     #[error("identification: {0}")]
     Identification(#[from] design::identify::IdentifyError),

@@ -32,6 +32,7 @@ pub mod spindle;
 pub mod stiffness;
 pub mod sweep;
 pub mod synth;
+pub mod thesis;
 pub mod tune;
 
 pub use error::StudyError;

@@ -9,6 +9,7 @@ use crate::error::StudyError;
 use design::h2::{h2syn_discrete, GeneralizedPlant};
 use lti::StateSpace;
 use nalgebra::DMatrix;
+use plant_sim::sensor_noise::SampledSensorNoise;
 use runner::config::MadeFor;
 use runner::Plan;
 
@@ -86,9 +87,14 @@ pub fn h2_design(plan: &Plan, effort_nm_per_v: f64) -> Result<Design, StudyError
         .linear_tick()
         .ok_or(StudyError::NeedsLinearPlant { what: "H2 design" })?;
     let n = t.phi.nrows();
-    let (iu, iy, size) = (n, n + 1, n + 2);
+    // State [x, u[k−1], gap reading, sensor-noise state].
+    let (iu, iy, is) = (n, n + 1, n + 2);
+    let size = is
+        + t.sensor_noise
+            .as_ref()
+            .map_or(0, SampledSensorNoise::states);
     let sigma_w = t.white_variance.map(f64::sqrt);
-    let sigma_s = t.sensor_noise_variance.sqrt();
+    let sigma_s = t.sensor_noise.as_ref().map_or(0.0, |s| s.variance.sqrt());
     // Measurement noise on the reading: the ADC's quantisation (a floor keeps D21 full rank for
     // an ideal converter).
     let sigma_q = t
@@ -96,7 +102,7 @@ pub fn h2_design(plan: &Plan, effort_nm_per_v: f64) -> Result<Design, StudyError
         .sqrt()
         .max(1e-3 * sigma_s)
         .max(1e-12);
-    // w = [sensor, current, base, accelerometer, quantisation], unit variance per tick.
+    // w = [sensor innovation, current, base, accelerometer, quantisation], unit variance.
     let nw = 5;
     let mut a = DMatrix::zeros(size, size);
     let mut b1 = DMatrix::zeros(size, nw);
@@ -108,7 +114,9 @@ pub fn h2_design(plan: &Plan, effort_nm_per_v: f64) -> Result<Design, StudyError
     a.view_mut((iy, 0), (1, n)).copy_from(&t.y_x.row(0));
     a[(iy, iu)] = t.y_in[(0, 0)];
     b2[(iy, 0)] = t.y_in[(0, 1)];
-    b1[(iy, 0)] = sigma_s;
+    if let Some(sn) = &t.sensor_noise {
+        sn.place(&mut a, &mut b1, (iy, is, 0), sigma_s);
+    }
     for k in 0..3 {
         // plant input columns 3..6 are the current, base and accelerometer white inputs
         b1.view_mut((0, 1 + k), (n, 1))

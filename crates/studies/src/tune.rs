@@ -98,7 +98,7 @@ fn with_gains(plan: &Plan, k: [f64; 3]) -> Result<Plan, StudyError> {
 }
 
 /// The sampled plant: DAC command (V) → gap reading (V), at `freq_hz`.
-fn plant_response(plan: &Plan, freq_hz: &[f64]) -> Result<Vec<Complex64>, StudyError> {
+pub(crate) fn plant_response(plan: &Plan, freq_hz: &[f64]) -> Result<Vec<Complex64>, StudyError> {
     let s = plan.config.plant.capa.sensitivity_v_per_m;
     let open =
         ClosedLoop::open(&plan.sim, s).ok_or(StudyError::NeedsLinearPlant { what: "tuning" })?;
@@ -108,8 +108,13 @@ fn plant_response(plan: &Plan, freq_hz: &[f64]) -> Result<Vec<Complex64>, StudyE
         .collect())
 }
 
-/// The discrete PID's response per unit gain (`kp`, `ki`, `kd`), the run's `tf_s` and period.
-fn pid_basis(plan: &Plan, freq_hz: &[f64]) -> Result<Vec<[Complex64; 3]>, StudyError> {
+/// The discrete PID's response per unit gain (`kp`, `ki`, `kd`) with derivative filter `tf_s`
+/// (s) at the run's period.
+pub(crate) fn pid_basis(
+    plan: &Plan,
+    freq_hz: &[f64],
+    tf_s: f64,
+) -> Result<Vec<[Complex64; 3]>, StudyError> {
     let c = &plan.config;
     let period = c.plant.period_s();
     let unit = |j: usize| -> Result<StateSpace, StudyError> {
@@ -119,7 +124,7 @@ fn pid_basis(plan: &Plan, freq_hz: &[f64]) -> Result<Vec<[Complex64; 3]>, StudyE
             kp: g[0],
             ki: g[1],
             kd: g[2],
-            tf_s: c.controller.pid.tf_s,
+            tf_s,
             limits: servo_core::Limits::UNLIMITED,
         }
         .try_build(period)
@@ -193,7 +198,7 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
         let p = &plan.config.controller.pid;
         Ok(PidTuning {
             plant: plant_response(plan, &freq_hz)?,
-            basis: pid_basis(plan, &freq_hz)?,
+            basis: pid_basis(plan, &freq_hz, p.tf_s)?,
             freq_hz,
             ms,
             mt,

@@ -7,25 +7,33 @@ use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::budget::Budget;
-use studies::sweep::{self, Sweep, THESIS_BANDWIDTHS_HZ};
+use studies::sweep::{self, Sweep, SweepTuning, THESIS_BANDWIDTHS_HZ};
 use studies::StudyError;
 
 /// Error budget of the loop: per-source RMS and PSD, CAS, bandwidth sweep (thesis §5.7.2).
 ///
 /// Eq 5-13..5-17: each noise source's RMS and PSD in the following error (what the sensor
 /// reports) and the true tool error, their CAS; with --sweep the RMS errors against
-/// closed-loop bandwidth for both stage masses (Fig 5-14).
-/// Example: servo budget --mass heavy --sweep --validate 1
+/// closed-loop bandwidth for both stage masses (Fig 5-14), the PID gains scaled together or
+/// (--retune) re-tuned at every bandwidth as §5.6 did.
+/// Example: servo budget --mass heavy --sweep --retune --validate 1
 #[derive(Args, Debug)]
 pub struct BudgetCmd {
     #[command(flatten)]
     plant: PlantArgs,
     #[command(flatten)]
     controller: ControllerArgs,
-    /// Sweep the closed-loop bandwidth (the PID gains scaled) for the 0.075 and 0.175 kg stages.
+    /// Sweep the closed-loop bandwidth for the 0.075 and 0.175 kg stages (the PID gains scaled
+    /// together, or re-tuned with --retune).
     #[arg(long)]
     sweep: bool,
-    /// Bandwidths of the sweep in Hz (default: Fig 5-14's).
+    /// Re-tune the PID at every point instead of scaling the configured gains: the sweep's
+    /// frequencies are then loop-gain crossovers, each PID shaped by the rule §5.6 cites
+    /// (integrator at fc/10, lead from fc/3 to 3·fc, |L(fc)| = 1).
+    #[arg(long, requires = "sweep")]
+    retune: bool,
+    /// Bandwidths of the sweep in Hz: −3 dB bandwidths, or loop-gain crossovers with --retune
+    /// (default: Fig 5-14's).
     #[arg(long, value_delimiter = ',')]
     bandwidths: Option<Vec<f64>>,
     /// Also simulate every sweep point for this many seconds and print both.
@@ -52,6 +60,7 @@ impl BudgetCmd {
         self.controller.apply(&mut l);
         crate::args::set(&mut l.config.run.seed, self.seed);
         let plan = Plan::new(&l)?;
+        plan.check_stable()?;
         let b = Budget::new(&plan.closed_loop, self.points.max(16)).map_err(StudyError::from)?;
         let stage = &plan.config.plant.stage;
         let title = format!(
@@ -87,7 +96,12 @@ impl BudgetCmd {
             .clone()
             .unwrap_or(THESIS_BANDWIDTHS_HZ.to_vec());
         let bar = points_bar(2 * targets.len(), "sweeping", "points");
-        let sweeps = sweep::thesis_sweeps(plan, &targets, self.validate, &mut |done, _| {
+        let tuning = if self.retune {
+            SweepTuning::Retuned
+        } else {
+            SweepTuning::Scaled
+        };
+        let sweeps = sweep::thesis_sweeps(plan, &targets, tuning, self.validate, &mut |done, _| {
             bar.set_position(done as u64)
         });
         bar.finish_and_clear();
@@ -120,23 +134,34 @@ fn print_budget(plan: &Plan, b: &Budget, title: &str) {
 }
 
 fn print_sweeps(results: &[Sweep], validated: bool) {
+    let how = match results.first().map(|s| s.tuning) {
+        Some(SweepTuning::Retuned) => {
+            "PID loop-shaped at each crossover (fc/10, fc/3, 3·fc)".to_owned()
+        }
+        _ => "PID gains scaled".to_owned(),
+    };
     println!(
-        "Bandwidth sweep (thesis Fig 5-14), PID gains scaled; RMS in nm (predicted{})",
+        "Bandwidth sweep (thesis Fig 5-14), {how}; RMS in nm (predicted{})",
         if validated { " / simulated" } else { "" }
     );
     for s in results {
         for p in &s.points {
             let sim = |v: Option<f64>| v.map_or(String::new(), |x| format!(" / {:.3}", x * 1e9));
             println!(
-                "  {} {:>7.1} Hz (×{:.3}): following {:.3}{}   true {:.3}{}",
+                "  {} {:>7.1} Hz (Kp {:.4}, Ki {:.1}, Kd {:.3e}): following {:.3}{}   true {:.3}{}",
                 s.label,
                 p.bandwidth_hz,
-                p.gain_scale,
+                p.pid.kp,
+                p.pid.ki,
+                p.pid.kd,
                 p.predicted_following_m * 1e9,
                 sim(p.simulated_following_m),
                 p.predicted_true_m * 1e9,
                 sim(p.simulated_true_m)
             );
+        }
+        for (target, reason) in &s.unreached {
+            println!("  {} {target:>7.1} Hz: not reached — {reason}", s.label);
         }
         println!("  {}: lowest following error at {:.0} Hz, lowest true error at {:.0} Hz (thesis: 874 Hz for 0.075 kg, 468 Hz for 0.175 kg)", s.label, s.optimum_following_hz, s.optimum_true_hz);
     }

@@ -135,20 +135,22 @@ impl CtlCmd {
         // Sent once the run listens (a process that has just started may not yet: a message
         // before any subscriber is lost), by a publisher that lives until the answer came
         // (iceoryx2 takes a sample back from the subscribers when its publisher goes).
-        let listening = |heard: bool, leaf: &str| {
-            heard.then_some(()).ok_or_else(|| {
-                CliError::Processes(format!(
+        let listening = |heard: Result<bool, _>, leaf: &str| {
+            if heard.map_err(RunError::from)? {
+                Ok(())
+            } else {
+                Err(CliError::Processes(format!(
                     "the {target} of run {prefix:?} does not listen on {leaf} (still starting?)"
-                ))
-            })
+                )))
+            }
         };
         let (_load, _control) = match self.action.message(id) {
             Err(file) => {
                 let load = read_load(file, id)?;
-                let service = ep.service::<ControllerLoad>(leaf::CONTROLLER_LOAD);
-                let heard =
-                    daq_io::ipc::await_subscriber(&service.map_err(RunError::from)?, timeout);
-                listening(heard, leaf::CONTROLLER_LOAD)?;
+                listening(
+                    ep.await_subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD, timeout),
+                    leaf::CONTROLLER_LOAD,
+                )?;
                 let publisher = ep
                     .publisher::<ControllerLoad>(leaf::CONTROLLER_LOAD)
                     .map_err(RunError::from)?;
@@ -160,10 +162,10 @@ impl CtlCmd {
                 (Some(publisher), None)
             }
             Ok(message) => {
-                let service = ep.service::<Control>(leaf::CONTROL);
-                let heard =
-                    daq_io::ipc::await_subscriber(&service.map_err(RunError::from)?, timeout);
-                listening(heard, leaf::CONTROL)?;
+                listening(
+                    ep.await_subscriber::<Control>(leaf::CONTROL, timeout),
+                    leaf::CONTROL,
+                )?;
                 let sender = ControlSender::new(&ep).map_err(RunError::from)?;
                 sender.send(message).map_err(RunError::from)?;
                 (None, Some(sender))

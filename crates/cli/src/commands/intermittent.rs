@@ -3,6 +3,7 @@
 use crate::args::{AccelArgs, PlantArgs, RunLengthArgs};
 use crate::output::{print_json, print_written, CliError};
 use clap::Args;
+use plant_sim::params::StageParams;
 use runner::config::presets::{ScenarioKind, ScenarioValues};
 use runner::config::Scenario;
 use runner::Plan;
@@ -13,8 +14,10 @@ use studies::StudyError;
 
 /// The intermittent cut of §7.6 for a list of acceleration gains: peak following error
 /// and the form-error height at the step edge per Ka (thesis: 75 → 25 nm and 106 → 27 nm
-/// for Ka 0 → 4). The acceleration loop needs a shaping filter Ha that keeps its phase:
-/// Example: servo intermittent-cut --mass heavy --kg-scaling --accel-filter-hz 300 --accel-filter-order 1
+/// for Ka 0 → 4). Without a configuration file it runs §7.6's settings: the PID gains raised
+/// with Ka by Kg (§7.4.1; --fixed-pid keeps them) on the 0.175 kg stage (--mass light: Ka = 4
+/// with Kg-scaled gains is unstable there), Table 7-3's 0.08 N cut, Ha first order at 300 Hz.
+/// Example: servo intermittent-cut --kas 0,1,4
 #[derive(Args, Debug)]
 pub struct IntermittentCmd {
     #[command(flatten)]
@@ -23,12 +26,16 @@ pub struct IntermittentCmd {
     length: RunLengthArgs,
     #[command(flatten)]
     accel: AccelArgs,
-    /// Cutting force in N (★ 1 N).
+    /// Cutting force in N (0.08 N: Table 7-3's 8 µm/rev × 2 µm cut in copper).
     #[arg(long)]
     force: Option<f64>,
     /// Spindle speed in rpm (250, Table 7-3).
     #[arg(long)]
     rpm: Option<f64>,
+    /// Keep the PID gains fixed as Ka rises (default without a configuration file: raised by
+    /// Kg, as §7.6 did; with one, its `controller.kg_scaling` unless this flag is given).
+    #[arg(long)]
+    fixed_pid: bool,
     /// Acceleration gains (V/V; default §7.5's 0, 0.5, 1, 4).
     #[arg(long, value_delimiter = ',')]
     kas: Option<Vec<f64>>,
@@ -44,6 +51,14 @@ impl IntermittentCmd {
     /// Runs every Ka, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let mut l = self.plant.load()?;
+        // §7.6's settings unless a configuration says otherwise; --fixed-pid always holds.
+        let defaults = self.plant.config.is_none();
+        if self.fixed_pid || defaults {
+            l.config.controller.kg_scaling = !self.fixed_pid;
+        }
+        if defaults && self.plant.mass.is_none() && self.plant.plant.is_none() {
+            l.config.plant.stage = StageParams::THESIS_HEAVY;
+        }
         if self.length.duration.is_none() {
             l.config.run.duration_s = DEFAULT_DURATION_S;
         }

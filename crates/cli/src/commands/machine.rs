@@ -6,7 +6,7 @@ use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, print_summary, print_written, CliError};
 use clap::Args;
 use runner::config::presets::{ImageMap, SurfacePreset};
-use runner::config::{FeedforwardKind, Machining, Scenario};
+use runner::config::{FeedforwardKind, Machining, Scenario, SurfaceConfig};
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -46,10 +46,13 @@ pub struct MachineCmd {
     /// Spindle speed in rpm (default: the surface's thesis speed).
     #[arg(long)]
     rpm: Option<f64>,
-    /// The band to cut, `inner:outer` radius in m (the tool moves inward from `outer`).
-    #[arg(long, default_value = "24.95e-3:25e-3")]
-    radius_range: String,
-    /// Radial feed per revolution in m (5e-6, Tables 8-4..8-6).
+    /// The band to cut, `inner:outer` radius in m (the tool moves inward from `outer`; default:
+    /// from the configured start radius, the grid part's 31.8 mm edge, ten revolutions in —
+    /// 150 for the flat face, whose roughness field is 0.27 mm across).
+    #[arg(long)]
+    radius_range: Option<String>,
+    /// Radial feed per revolution in m (default: the surface's thesis feed, 2e-6 for the flat
+    /// face of Table 8-2, 5e-6 for Tables 8-3..8-6).
     #[arg(long)]
     feed: Option<f64>,
     /// Cut from a flat blank in one pass (the depth of cut and the force follow the
@@ -75,16 +78,6 @@ impl MachineCmd {
         self.length.apply(&mut l);
         self.controller.apply(&mut l);
         self.feedforward.apply(&mut l);
-        let Some((inner, outer)) = radius_range(&self.radius_range) else {
-            return Err(l
-                .origin
-                .invalid(
-                    "--radius-range",
-                    &self.radius_range,
-                    "inner:outer in m, 0 ≤ inner < outer ≤ 1",
-                )
-                .into());
-        };
         let mut m = match &l.config.scenario {
             Scenario::Machine(m) => m.clone(),
             _ => Machining::default(),
@@ -96,9 +89,31 @@ impl MachineCmd {
                 depth_range_m: self.depth_range_m,
             });
             m.spindle_rpm = preset.spindle_rpm();
+            m.feed_m_per_rev = preset.feed_m_per_rev();
         }
         crate::args::set(&mut m.spindle_rpm, self.rpm);
         crate::args::set(&mut m.feed_m_per_rev, self.feed);
+        let (inner, outer) = match &self.radius_range {
+            // Ten revolutions; the flat face's roughness field (0.27 mm across) needs 150.
+            None => {
+                let turns = if m.surface == SurfaceConfig::Flat {
+                    150.0
+                } else {
+                    10.0
+                };
+                (
+                    m.start_radius_m - turns * m.feed_m_per_rev,
+                    m.start_radius_m,
+                )
+            }
+            Some(text) => radius_range(text).ok_or_else(|| {
+                l.origin.invalid(
+                    "--radius-range",
+                    text,
+                    "inner:outer in m, 0 ≤ inner < outer ≤ 1",
+                )
+            })?,
+        };
         if self.flat_blank {
             m.finish_depth_m = None;
         }
@@ -179,5 +194,38 @@ pub fn print_form(report: &FormReport) {
     }
     if let Some(f) = report.max_motion_frequency_hz {
         println!("  fastest tool motion {f:.0} Hz at the outer radius");
+    }
+    if let Some(r) = &report.roughness {
+        println!(
+            "  roughness over {:.2} × {:.2} mm at r = {:.2} mm (nose R {:.2} mm, feed {:.1} µm/rev; feed marks f²/8R = {:.2} nm PV):",
+            r.area_m[0] * 1e3,
+            r.area_m[1] * 1e3,
+            r.radius_m * 1e3,
+            r.nose_radius_m * 1e3,
+            r.feed_m_per_rev * 1e6,
+            nm(r.feed_mark_pv_m)
+        );
+        println!(
+            "    {:<22} {:>8} {:>8} {:>8} {:>10} {:>10}",
+            "nm", "Sa", "Sq", "St", "Ra radial", "Ra along"
+        );
+        for (what, t) in [
+            ("machined surface", &r.surface),
+            ("feed marks alone", &r.feed_marks),
+            ("servo motion alone", &r.servo_motion),
+        ] {
+            println!(
+                "    {:<22} {:>8.3} {:>8.3} {:>8.3} {:>10.3} {:>10.3}",
+                what,
+                nm(t.sa_m),
+                nm(t.sq_m),
+                nm(t.st_m),
+                nm(t.ra_radial_m),
+                nm(t.ra_along_m)
+            );
+        }
+        println!(
+            "    thesis §8.5.1: Ra 1.2 nm on flat NiP (material, tool edge and instrument are not modelled)"
+        );
     }
 }

@@ -18,4 +18,5 @@ pub mod spectrum;
 pub mod spindle_errors;
 pub mod stiffness;
 pub mod synth;
+pub mod thesis;
 pub mod tune;

@@ -105,24 +105,24 @@ impl SpectrumCmd {
             println!("  no budget overlay: {n}");
         }
         println!(
-            "  {:<17} {:>28} {:>28} {:>28}",
+            "  {:<17} {:>34} {:>34} {:>34}",
             "band (Hz)",
             "following error (nm RMS)",
             "true error (nm RMS)",
             "control output (mV RMS)"
         );
         println!(
-            "  {:<17} {:>9} {:>9} {:>8}  {:>9} {:>9} {:>8}  {:>9} {:>9} {:>8}",
+            "  {:<17} {:>9} {:>9} {:>14}  {:>9} {:>9} {:>14}  {:>9} {:>9} {:>14}",
             "",
             "recorded",
             "budget",
-            "diff",
+            "diff ± chance",
             "recorded",
             "budget",
-            "diff",
+            "diff ± chance",
             "recorded",
             "budget",
-            "diff"
+            "diff ± chance"
         );
         let rows = s
             .bands
@@ -142,17 +142,20 @@ impl SpectrumCmd {
     }
 }
 
-/// `recorded budget diff` of one signal, scaled by `k`, blank where absent.
+/// `recorded budget diff ± chance` of one signal, scaled by `k`, blank where absent (chance:
+/// the recorded RMS's 1σ scatter, what a difference is measured against).
 fn cells(b: Option<&BandRms>, k: f64) -> String {
     let v = |x: Option<f64>, d: usize| x.map_or("–".into(), |x| format!("{:.*}", d, x * k));
     match b {
         Some(b) => format!(
-            "{:>9} {:>9} {:>8}",
+            "{:>9} {:>9} {:>14}",
             v(Some(b.recorded), 4),
             v(b.predicted, 4),
-            b.difference_percent
-                .map_or("–".into(), |d| format!("{d:+.1} %"))
+            b.difference_percent.map_or("–".into(), |d| format!(
+                "{d:+.1} ± {:.1} %",
+                b.chance_percent
+            ))
         ),
-        None => format!("{:>9} {:>9} {:>8}", "–", "–", "–"),
+        None => format!("{:>9} {:>9} {:>14}", "–", "–", "–"),
     }
 }

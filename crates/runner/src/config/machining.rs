@@ -13,6 +13,8 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum SurfaceConfig {
+    /// A flat face (§8.5.1, Table 8-2: the roughness test, Ra 1.2 nm).
+    Flat,
     /// `z = Ax sin(2πx/λx) + Ay sin(2πy/λy)` (§8.5.4; Table 8-5: ±5 µm, 1 mm).
     SinusoidalGrid {
         /// Amplitude along X in m.
@@ -65,8 +67,12 @@ impl SurfaceConfig {
     };
 }
 
+/// Radius of the grid part's edge in m: where Table 8-5's 1 mm wavelength at 60 rpm moves the
+/// tool at §8.5.4's "about 200 Hz" (200 Hz · 1 mm / 2π).
+pub const GRID_EDGE_RADIUS_M: f64 = 200.0 * 1e-3 / TAU;
+
 /// The machining scenario (`[scenario] kind = "machine"`): a facing spiral over a freeform
-/// surface at constant spindle speed. Defaults: thesis Table 8-5 at the edge of the 50 mm part.
+/// surface at constant spindle speed. Defaults: thesis Table 8-5 at the part's edge.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Machining {
@@ -78,10 +84,15 @@ pub struct Machining {
     pub pulses_per_rev: u64,
     /// Radial feed per revolution in m (5e-6).
     pub feed_m_per_rev: f64,
-    /// Radius where the cut starts, in m (the tool moves inward; 25e-3: the part's edge).
+    /// Radius where the cut starts, in m (the tool moves inward; ★ 31.8e-3, the part's edge:
+    /// its size is not printed, but §8.5.4's "about 200 Hz at the edge" with Table 8-5's 1 mm
+    /// wavelength at 60 rpm puts the edge at 200 Hz · 1 mm / 2π = 31.8 mm).
     pub start_radius_m: f64,
-    /// Cutting force per metre of depth of cut in N/m (★ 4e5: 2 N at 5 µm, §5.7.5/§3.2).
-    pub cutting_n_per_m: f64,
+    /// Tool nose radius in m (Tables 7-3 and 8-2: 0.5 mm): the feed marks' shape.
+    pub tool_nose_radius_m: f64,
+    /// Thrust force per unit uncut chip area (feed × depth of cut) in N/m²
+    /// (`plant_sim::cutting::SPECIFIC_THRUST_N_PER_M2`, ★ 5e9).
+    pub specific_thrust_n_per_m2: f64,
     /// Depth of cut of a finishing pass over a part a roughing pass already shaped, in m
     /// (★ 2e-6: a constant chip, so a constant force). Absent: a single pass from a flat blank
     /// whose face is the surface's highest point, so the depth of cut (and the force) follows
@@ -98,8 +109,9 @@ impl Default for Machining {
             spindle_rpm: 60.0,
             pulses_per_rev: 80_000,
             feed_m_per_rev: 5e-6,
-            start_radius_m: 25e-3,
-            cutting_n_per_m: 4e5,
+            start_radius_m: GRID_EDGE_RADIUS_M,
+            tool_nose_radius_m: 0.5e-3,
+            specific_thrust_n_per_m2: plant_sim::cutting::SPECIFIC_THRUST_N_PER_M2,
             finish_depth_m: Some(2e-6),
             tracker_bandwidth_hz: 10.0,
         }
@@ -148,6 +160,7 @@ impl Machining {
         )?;
         check("feed_m_per_rev", self.feed_m_per_rev, 0.0, 1e-3, "m")?;
         check("start_radius_m", self.start_radius_m, 0.0, 1.0, "m")?;
+        check("tool_nose_radius_m", self.tool_nose_radius_m, 0.0, 0.1, "m")?;
         check(
             "tracker_bandwidth_hz",
             self.tracker_bandwidth_hz,
@@ -160,11 +173,11 @@ impl Machining {
                 return Err(at.invalid("scenario.finish_depth_m", d, "[0, 1e-3] m"));
             }
         }
-        if !(self.cutting_n_per_m >= 0.0 && self.cutting_n_per_m <= 1e9) {
+        if !(self.specific_thrust_n_per_m2 >= 0.0 && self.specific_thrust_n_per_m2 <= 1e12) {
             return Err(at.invalid(
-                "scenario.cutting_n_per_m",
-                self.cutting_n_per_m,
-                "[0, 1e9] N/m",
+                "scenario.specific_thrust_n_per_m2",
+                self.specific_thrust_n_per_m2,
+                "[0, 1e12] N/m²",
             ));
         }
         Ok(())

@@ -10,7 +10,7 @@ pub mod presets;
 mod protection;
 mod realtime;
 
-pub use machining::{Machining, SurfaceConfig};
+pub use machining::{Machining, SurfaceConfig, GRID_EDGE_RADIUS_M};
 pub use made_for::{plant_toml, sha256_hex, MadeFor};
 pub use origin::{line_of, ConfigError, Origin};
 pub use plant_file::read_plant_file;
@@ -105,7 +105,7 @@ pub enum Scenario {
     Machine(Machining),
     /// Hold position during the intermittent cut of §7.6.
     IntermittentCut {
-        /// Cutting force in N (★ 1 N).
+        /// Cutting force in N (0.08 N: Table 7-3's cut, `plant_sim::cutting::TABLE_7_3_FORCE_N`).
         force_n: f64,
         /// Spindle speed in rpm (250, Table 7-3).
         spindle_rpm: f64,
@@ -192,10 +192,14 @@ pub struct ControllerConfig {
     pub ka: f64,
     /// Multiply the PID gains by 1/Kg (§7.4.1) so reference tracking stays unchanged.
     pub kg_scaling: bool,
-    /// Corner of the acceleration shaping filter Ha in Hz; 0 = none.
+    /// Corner of the acceleration shaping filter Ha in Hz; 0 = none. ★ 300 Hz: §7.4.2 leaves
+    /// Ha to the user "to maintain closed-loop stability" and prints no value; without it the
+    /// inner loop crosses over beyond the accelerometer's 10 kHz band with too much lag and
+    /// Ka ≥ 0.5 (light) / ≥ 1 (heavy) is unstable; at 300 Hz Ka 0…4 is stable on both stages
+    /// with the fixed PID and on the heavy stage with Kg scaling (200–500 Hz all work).
     pub accel_filter_hz: f64,
-    /// Order of Ha: 1 (first-order low pass: the inner acceleration loop keeps its phase, so
-    /// large Ka stays stable) or 2 (Butterworth).
+    /// Order of Ha: 1 (★ first-order low pass: the inner acceleration loop keeps 90° of
+    /// phase, so large Ka stays stable) or 2 (Butterworth: Ka = 4 is unstable at 300 Hz).
     pub accel_filter_order: u8,
     /// Controller file for `ss` (TOML: sample_rate_hz, a, b, c, d), relative to the config file.
     pub ss_file: Option<PathBuf>,
@@ -245,8 +249,8 @@ impl Default for ControllerConfig {
             pid: PidGains::default(),
             ka: 0.0,
             kg_scaling: false,
-            accel_filter_hz: 0.0,
-            accel_filter_order: 2,
+            accel_filter_hz: 300.0,
+            accel_filter_order: 1,
             ss_file: None,
             limit_v: 10.0,
             feedforward: FeedforwardKind::None,

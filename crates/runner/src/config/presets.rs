@@ -53,14 +53,15 @@ pub struct ScenarioValues {
     pub frequency_hz: Option<f64>,
     /// Chirp end frequency in Hz (2000).
     pub f_end_hz: Option<f64>,
-    /// Cutting force in N (intermittent cut: ★ 1 N).
+    /// Cutting force in N (intermittent cut: 0.08 N, Table 7-3's cut).
     pub force_n: Option<f64>,
     /// Spindle speed in rpm (intermittent cut: 250, Table 7-3; machining: the surface's).
     pub spindle_rpm: Option<f64>,
 }
 
-/// Default cutting force of the intermittent cut in N (★: not given in the thesis).
-pub const INTERMITTENT_FORCE_N: f64 = 1.0;
+/// Default cutting force of the intermittent cut in N: Table 7-3's cut
+/// ([`plant_sim::cutting::TABLE_7_3_FORCE_N`]).
+pub const INTERMITTENT_FORCE_N: f64 = plant_sim::cutting::TABLE_7_3_FORCE_N;
 /// Spindle speed of the intermittent cut in rpm (Table 7-3).
 pub const INTERMITTENT_RPM: f64 = 250.0;
 
@@ -96,6 +97,8 @@ impl ScenarioKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum SurfacePreset {
+    /// Flat face, 2 µm/rev (Table 8-2; 250 rpm): the roughness test of §8.5.1.
+    Flat,
     /// Sinusoidal grid, ±5 µm, 1 mm wavelengths (Table 8-5; 60 rpm).
     SinusoidalGrid,
     /// Beam integrator: R 100 mm lenslets on a 2 mm pitch (Table 8-4; 120 rpm).
@@ -121,6 +124,7 @@ impl SurfacePreset {
     /// The surface (`image` for [`SurfacePreset::Image`]).
     pub fn surface(self, image: ImageMap) -> SurfaceConfig {
         match self {
+            SurfacePreset::Flat => SurfaceConfig::Flat,
             SurfacePreset::SinusoidalGrid => SurfaceConfig::THESIS_GRID,
             SurfacePreset::BeamIntegrator => SurfaceConfig::THESIS_BEAM,
             SurfacePreset::MicroLenslet => SurfaceConfig::MicroLenslet {
@@ -138,10 +142,20 @@ impl SurfacePreset {
     /// The spindle speed the thesis cut it at, in rpm.
     pub fn spindle_rpm(self) -> f64 {
         match self {
+            SurfacePreset::Flat => 250.0,
             SurfacePreset::SinusoidalGrid => 60.0,
             SurfacePreset::BeamIntegrator => 120.0,
             SurfacePreset::MicroLenslet => 16.0,
             SurfacePreset::Image => 30.0,
+        }
+    }
+
+    /// The radial feed the thesis cut it at, in m per revolution (Table 8-2: 2 µm; Tables
+    /// 8-3..8-6: 5 µm).
+    pub fn feed_m_per_rev(self) -> f64 {
+        match self {
+            SurfacePreset::Flat => 2e-6,
+            _ => 5e-6,
         }
     }
 }

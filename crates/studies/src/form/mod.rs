@@ -1,13 +1,16 @@
 //! What the white-light interferometer would show after a machining run (thesis §8.5): the
 //! form error (true tool position minus design surface, where the tool was) as statistics and
 //! as a map over the machined band, the machined amplitude of a sinusoidal grid (Fig 8-23's
-//! peak-to-valley), and a segment of commanded vs true tool trajectory (Figs 8-15, 8-20).
+//! peak-to-valley), the surface roughness with its feed marks (§8.5.1), and a segment of
+//! commanded vs true tool trajectory (Figs 8-15, 8-20).
 
 pub mod report;
+pub mod roughness;
 
 use crate::error::StudyError;
 use nalgebra::{SMatrix, SVector};
 use recorder::Frame;
+use roughness::{Roughness, RoughnessWindow};
 use runner::config::{Machining, RunConfig, Scenario};
 use runner::machining::SpiralCut;
 use runner::plan::SURFACE_INPUT;
@@ -60,6 +63,8 @@ pub struct FormReport {
     pub following_error_m: Stats,
     /// Machined amplitude, for a sinusoidal grid.
     pub grid: Option<GridAmplitude>,
+    /// Roughness over a measurement area in the middle of the band (None: band too narrow).
+    pub roughness: Option<Roughness>,
     /// Largest cutting force in N.
     pub max_cutting_force_n: f64,
 }
@@ -98,6 +103,7 @@ pub struct FormAnalysis {
     fit_atb: SVector<f64, 5>,
     segment_from: Option<f64>,
     segment: Vec<SegmentRow>,
+    roughness: Option<RoughnessWindow>,
 }
 
 impl FormAnalysis {
@@ -105,7 +111,17 @@ impl FormAnalysis {
     pub fn new(c: &RunConfig, m: &Machining, surface: LoadedSurface) -> Self {
         let revolutions = c.run.duration_s * m.spindle_rpm / 60.0;
         let rows = ((revolutions - 1e-9).ceil() as usize).max(1);
+        let spiral = m.spiral();
+        let theta = |t: f64| m.rad_per_s() * t;
+        let outer = spiral.radius_m(theta(c.run.settle()));
+        let roughness = RoughnessWindow::new(
+            spiral,
+            (spiral.radius_m(theta(c.run.duration_s)), outer),
+            m.tool_nose_radius_m,
+            outer * m.rad_per_s() / c.plant.timing.servo_rate_hz,
+        );
         FormAnalysis {
+            roughness,
             grid: match surface {
                 LoadedSurface::Grid(g) => Some(g),
                 _ => None,
@@ -140,6 +156,9 @@ impl FormAnalysis {
         let tool = f.truth.tool_m as f64;
         let e = tool - design;
         self.form.add(e);
+        if let Some(w) = &mut self.roughness {
+            w.add(theta, e);
+        }
         self.range = (self.range.0.min(e), self.range.1.max(e));
         self.following.add(f.telemetry.following_error_m as f64);
         self.max_force = self.max_force.max(f.truth.cutting_force_n.abs() as f64);
@@ -205,6 +224,7 @@ impl FormAnalysis {
                 .max(0.0),
             following_error_m: self.following.stats(),
             grid,
+            roughness: self.roughness.as_ref().and_then(RoughnessWindow::roughness),
             max_cutting_force_n: self.max_force,
         }
     }
@@ -219,6 +239,12 @@ impl FormAnalysis {
             .map(|(&s, &n)| if n > 0 { s / n as f64 } else { f64::NAN })
             .collect();
         (self.rows, values)
+    }
+
+    /// A radial profile of the machined face across ten feed marks (see
+    /// [`RoughnessWindow::radial_profile`]); None when the band is too narrow.
+    pub fn roughness_profile(&self) -> Option<Vec<[f64; 4]>> {
+        self.roughness.as_ref()?.radial_profile(10)
     }
 
     /// The recorded trajectory segment.

@@ -1,4 +1,5 @@
-//! `machine.json`, `form_map.csv`, `trajectory.csv`, the form-error map and the trajectory plots of a machining run.
+//! `machine.json`, `form_map.csv`, `trajectory.csv`, `roughness_profile.csv`, the form-error map,
+//! the trajectory plots and the machined face's radial profile of a machining run.
 
 use super::MAP_COLUMNS;
 use crate::plot::{self, Figure, Series};
@@ -104,11 +105,36 @@ pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written
             ),
         ],
     };
-    out.note = plots(
-        &[(trajectory, "trajectory"), (errors, "trajectory_error")],
-        dir,
-        &mut out.files,
-    );
+    let mut figures = vec![(trajectory, "trajectory"), (errors, "trajectory_error")];
+    if let Some(profile) = a.roughness_profile() {
+        let mut csv = String::from("radius_m,machined_m,feed_marks_m,servo_motion_m\n");
+        for r in &profile {
+            writeln!(csv, "{:.9e},{:.6e},{:.6e},{:.6e}", r[0], r[1], r[2], r[3]).unwrap();
+        }
+        out.files.push(crate::report::write_file(
+            dir.join("roughness_profile.csv"),
+            &csv,
+        )?);
+        let mid = profile[profile.len() / 2][0];
+        let um: Vec<f64> = profile.iter().map(|r| (r[0] - mid) * 1e6).collect();
+        let nm = |k: usize| profile.iter().map(|r| r[k] * 1e9).collect();
+        figures.push((
+            Figure {
+                title: "Machined face across ten feed marks (§8.5.1)".into(),
+                x_label: format!("radius − {:.3} mm (µm)", mid * 1e3),
+                y_label: "height (nm)".into(),
+                log_x: false,
+                log_y: false,
+                series: vec![
+                    Series::line("machined surface", um.clone(), nm(1)),
+                    Series::line("feed marks alone (still tool)", um.clone(), nm(2)),
+                    Series::line("servo motion alone (nearest pass)", um, nm(3)),
+                ],
+            },
+            "roughness_profile",
+        ));
+    }
+    out.note = plots(&figures, dir, &mut out.files);
     if out.note.is_none() {
         match plot::write_map(&map, &dir.join("form_error_map")) {
             Ok(paths) => out.files.extend(paths),

@@ -10,11 +10,11 @@
 
 pub mod report;
 
-use crate::budget::{source_psds, total_psd};
 use crate::StudyError;
 use lti::spectral::{Psd, Welch, WelchConfig};
+use lti::welch_statistics::{expected_welch, BandScatter};
 use recorder::Frame;
-use runner::closed_loop::output;
+use runner::closed_loop::{output, SOURCES};
 use runner::config::MadeFor;
 use runner::operator_log::Swap;
 use runner::recording::{FrameSink, RunHeader};
@@ -24,8 +24,9 @@ use serde::Serialize;
 /// Lowest and highest frequency resolution accepted, Hz.
 pub const RESOLUTION_RANGE_HZ: (f64, f64) = (0.1, 1000.0);
 
-/// The first Welch bin the band comparison uses (bins below it lie within the Hann window's
-/// main lobe around DC and are biased by the steep low-frequency rise).
+/// The first Welch bin the band comparison uses (the segment's mean removal changes bins 0 and
+/// 1, which the expectation does not model, and a recording's slow drift lies within the Hann
+/// window's main lobe around DC).
 pub const COMPARED_FROM_BIN: usize = 4;
 
 /// The three signals analysed, in their recorded units.
@@ -48,6 +49,11 @@ pub struct BandRms {
     pub predicted: Option<f64>,
     /// `recorded / predicted − 1`, %.
     pub difference_percent: Option<f64>,
+    /// How far the recorded RMS strays from the truth by chance alone, 1σ, % (the Welch
+    /// average's scatter for Gaussian noise of the predicted spectrum's shape, or the
+    /// recorded one's without a prediction): a difference of a few of these is noise, not a
+    /// model error.
+    pub chance_percent: f64,
 }
 
 /// One decade band (the first cut at bin [`COMPARED_FROM_BIN`], the last at Nyquist).
@@ -92,8 +98,9 @@ pub struct Spectrum {
     pub freq_hz: Vec<f64>,
     /// Recorded one-sided PSDs (signal unit²/Hz).
     pub recorded_psd: Signals<Vec<f64>>,
-    /// The budget's PSDs for the recorded configuration on the same bins (noise sources only:
-    /// a scenario's reference adds tracking error that is not in it).
+    /// What the Welch estimate of the budget's noise should read on the same bins (the budget's
+    /// PSD for the recorded configuration averaged over the window's kernel; noise sources
+    /// only: a scenario's reference adds tracking error that is not in it).
     pub predicted_psd: Option<Signals<Vec<f64>>>,
     /// Why there is no prediction, when there is none.
     pub prediction_note: Option<String>,
@@ -124,8 +131,8 @@ pub struct SpectrumOptions {
 struct Estimates {
     from_ns: u64,
     to_ns: u64,
-    /// Samples per Welch segment.
-    segment_len: usize,
+    /// The Welch settings (Hann, 50 % overlap, segments of `fs / resolution`).
+    welch: WelchConfig,
     /// Time of the last frame read, ns of run time.
     last_ns: u64,
     fs_hz: f64,
@@ -168,9 +175,9 @@ impl FrameSink for SpectrumSink {
         let every = h.every.get();
         let fs_hz = config.plant.timing.servo_rate_hz / f64::from(every);
         let o = &self.options;
-        let segment_len = (fs_hz / o.resolution_hz).round().max(2.0) as usize;
+        let settings = WelchConfig::hann((fs_hz / o.resolution_hz).round().max(2.0) as usize);
         let welch = || {
-            Welch::new(fs_hz, &WelchConfig::hann(segment_len)).map_err(|e| {
+            Welch::new(fs_hz, &settings).map_err(|e| {
                 h.loaded
                     .origin
                     .invalid("--resolution-hz", o.resolution_hz, &e.to_string())
@@ -196,7 +203,7 @@ impl FrameSink for SpectrumSink {
         self.estimates = Some(Estimates {
             from_ns: (from_s * 1e9).round() as u64,
             to_ns: o.to_s.map_or(u64::MAX, |t| (t * 1e9).round() as u64),
-            segment_len,
+            welch: settings,
             last_ns: 0,
             fs_hz,
             following: welch()?,
@@ -271,8 +278,8 @@ impl SpectrumSink {
         let (Some(e), Some((made_for, controller, from_s))) = (self.estimates, self.header) else {
             return Err(lti::spectral::SpectralError::Argument("no run header was read").into());
         };
-        if e.samples < e.segment_len as u64 {
-            let segment_s = e.segment_len as f64 / e.fs_hz;
+        if e.samples < e.welch.segment_len as u64 {
+            let segment_s = e.welch.segment_len as f64 / e.fs_hz;
             let end_s = e.last_ns as f64 * 1e-9;
             return Err(runner::config::Origin::default()
                 .invalid(
@@ -307,20 +314,30 @@ impl SpectrumSink {
             .map(|p| p.controller.description.clone());
         let (predicted_psd, prediction_note) = match self.prediction {
             Ok(plan) => {
-                let [f, t, c] = source_psds(
-                    &plan.closed_loop,
-                    &freq_hz,
+                // What the Welch estimate of the budget's noise should read (the PSD averaged
+                // over the window's kernel), not the PSD at the bin centres.
+                let cl = &plan.closed_loop;
+                let sources: Vec<(usize, f64)> = SOURCES
+                    .iter()
+                    .zip(cl.noise_variance)
+                    .map(|((_, input), variance)| (*input, variance))
+                    .collect();
+                let [f, t, c] = expected_welch(
+                    &cl.sys,
+                    cl.period_s,
                     [
                         output::FOLLOWING_ERROR_M,
                         output::TRUE_ERROR_M,
                         output::CONTROL_V,
                     ],
+                    &sources,
+                    &e.welch,
                 )?;
                 (
                     Some(Signals {
-                        following_error_m: total_psd(&f),
-                        true_error_m: e.truth_seen.then(|| total_psd(&t)),
-                        control_v: total_psd(&c),
+                        following_error_m: f[1..].to_vec(),
+                        true_error_m: e.truth_seen.then(|| t[1..].to_vec()),
+                        control_v: c[1..].to_vec(),
                     }),
                     None,
                 )
@@ -328,6 +345,7 @@ impl SpectrumSink {
             Err(why) => (None, Some(why)),
         };
         let nyquist = e.fs_hz / 2.0;
+        let scatter = BandScatter::new(&e.welch, e.following.segments());
         // The band [lo, hi) (hi included at Nyquist): its bins and each signal's RMS.
         let band = |lo: f64, hi: f64| {
             let inside = |f: f64| f >= lo && (f < hi || (hi >= nyquist && f <= hi));
@@ -344,10 +362,19 @@ impl SpectrumSink {
             let compare = |rec: &[f64], pred: Option<&[f64]>| {
                 let recorded = rms(rec);
                 let predicted = pred.map(rms);
+                let shape: Vec<f64> = freq_hz
+                    .iter()
+                    .zip(pred.unwrap_or(rec))
+                    .filter(|(f, _)| inside(**f))
+                    .map(|(_, d)| *d)
+                    .collect();
+                // The RMS scatters half as much as the power (to first order).
+                let chance = scatter.relative_std(&shape);
                 BandRms {
                     recorded,
                     predicted,
                     difference_percent: predicted.map(|p| 100.0 * (recorded / p - 1.0)),
+                    chance_percent: 50.0 * chance,
                 }
             };
             let p = predicted_psd.as_ref();

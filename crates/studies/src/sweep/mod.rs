@@ -1,12 +1,18 @@
-//! The bandwidth sweep of thesis Fig 5-14: the PID scaled to each closed-loop bandwidth, the
-//! predicted RMS following and true errors from the budget, optionally checked against
-//! time-domain runs, and the optimum marked.
+//! The bandwidth sweep of thesis Fig 5-14: the PID brought to each bandwidth — its gains
+//! scaled together, or re-tuned at each point as §5.7.3 did ("the controller gains were
+//! adjusted from low to high, resulting in various cross over frequencies") by the
+//! loop-shaping rule §5.6 cites ([`loop_shaped`]) — the predicted RMS following and true errors
+//! from the budget, optionally checked against time-domain runs, and the optimum marked.
+//! Bandwidths no stable PID reaches are kept with the reason.
+
+mod loop_shape;
 
 pub mod report;
 
 use crate::budget::Budget;
 use crate::error::StudyError;
 use plant_sim::params::StageParams;
+use runner::config::PidGains;
 use runner::run::run_to_end;
 use runner::Plan;
 use serde::Serialize;
@@ -14,11 +20,15 @@ use serde::Serialize;
 /// One bandwidth of the sweep.
 #[derive(Debug, Clone, Serialize)]
 pub struct SweepPoint {
-    /// Requested bandwidth in Hz.
+    /// Requested bandwidth in Hz: the −3 dB bandwidth when scaled, the loop-gain crossover
+    /// when re-tuned.
     pub target_hz: f64,
     /// Achieved −3 dB bandwidth in Hz.
     pub bandwidth_hz: f64,
-    /// Factor on the configured PID gains.
+    /// The PID at this point.
+    pub pid: PidGains,
+    /// Its gains over the configured PID's (the `kp` ratio when re-tuned; NaN for a
+    /// configured `kp` of 0).
     pub gain_scale: f64,
     /// Predicted RMS following error in m.
     pub predicted_following_m: f64,
@@ -35,12 +45,29 @@ pub struct SweepPoint {
 pub struct Sweep {
     /// Label (e.g. the mass).
     pub label: String,
+    /// How the PID was brought to each bandwidth.
+    pub tuning: SweepTuning,
     /// Points in bandwidth order.
     pub points: Vec<SweepPoint>,
+    /// Requested bandwidths no PID reached, Hz, with the reason.
+    pub unreached: Vec<(f64, String)>,
     /// Bandwidth of the smallest predicted following error, Hz.
     pub optimum_following_hz: f64,
     /// Bandwidth of the smallest predicted true error, Hz.
     pub optimum_true_hz: f64,
+}
+
+pub use loop_shape::loop_shaped;
+
+/// How the sweep brings the PID to each bandwidth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SweepTuning {
+    /// All gains of the configured PID scaled by one factor (its shape kept) to reach each
+    /// −3 dB bandwidth.
+    Scaled,
+    /// Re-tuned at each loop-gain crossover frequency by the rule [`loop_shaped`].
+    Retuned,
 }
 
 /// The bandwidths of Fig 5-14's sweep, Hz (with the thesis's optima 468 and 874 Hz).
@@ -54,12 +81,55 @@ pub const THESIS_STAGES: [(&str, StageParams); 2] = [
     ("0.175 kg", StageParams::THESIS_HEAVY),
 ];
 
-/// `plan` with its PID gains scaled by `k`.
-fn scaled(plan: &Plan, k: f64) -> Result<Plan, StudyError> {
+/// `plan` with the PID `pid`.
+fn with_pid(plan: &Plan, pid: PidGains) -> Result<Plan, StudyError> {
     let mut c = plan.config.controller.clone();
-    let p = &mut c.pid;
-    (p.kp, p.ki, p.kd) = (p.kp * k, p.ki * k, p.kd * k);
+    c.pid = pid;
     Ok(plan.with_controller(c)?)
+}
+
+/// The configured PID with its gains scaled by `k`.
+fn scaled_pid(plan: &Plan, k: f64) -> PidGains {
+    let p = plan.config.controller.pid;
+    PidGains {
+        kp: p.kp * k,
+        ki: p.ki * k,
+        kd: p.kd * k,
+        ..p
+    }
+}
+
+/// `plan` with its PID gains scaled by `k`.
+pub fn scaled(plan: &Plan, k: f64) -> Result<Plan, StudyError> {
+    with_pid(plan, scaled_pid(plan, k))
+}
+
+/// The PID reaching `target_hz` the way `tuning` says, with its bandwidth (Hz) and its scale
+/// over the configured PID; Err(reason) when none does.
+fn pid_for(
+    plan: &Plan,
+    target_hz: f64,
+    tuning: SweepTuning,
+) -> Result<Result<(PidGains, f64, f64), String>, StudyError> {
+    match tuning {
+        SweepTuning::Scaled => Ok(scale_for_bandwidth(plan, target_hz)?
+            .map(|(k, bw)| (scaled_pid(plan, k), bw, k))
+            .ok_or_else(|| "no stable scaling of the PID reaches it".to_owned())),
+        SweepTuning::Retuned => {
+            let pid = loop_shaped(plan, target_hz)?;
+            let cl = with_pid(plan, pid)?.closed_loop;
+            let radius = cl.spectral_radius();
+            let kp = plan.config.controller.pid.kp;
+            let scale = if kp != 0.0 { pid.kp / kp } else { f64::NAN };
+            Ok(if radius < 1.0 {
+                Ok((pid, cl.bandwidth_hz()?, scale))
+            } else {
+                Err(format!(
+                    "the loop-shaped PID is unstable on the sampled loop (spectral radius {radius:.4})"
+                ))
+            })
+        }
+    }
 }
 
 /// The gain scale giving bandwidth `target_hz`: a log scan from 1/100 to 100 finds the first
@@ -97,22 +167,29 @@ pub fn scale_for_bandwidth(plan: &Plan, target_hz: f64) -> Result<Option<(f64, f
     Ok(None)
 }
 
-/// Runs the sweep over `targets_hz`; with `simulate_s`, each point is also simulated for that
-/// long (seeded as in `plan`). `progress` gets (done, total) points.
+/// Runs the sweep over `targets_hz`, the PID brought to each by `tuning`; with `simulate_s`,
+/// each point is also simulated for that long (seeded as in `plan`). `progress` gets (done,
+/// total) points.
 pub fn sweep(
     plan: &Plan,
     label: &str,
     targets_hz: &[f64],
+    tuning: SweepTuning,
     simulate_s: Option<f64>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Sweep, StudyError> {
     let mut points = Vec::new();
+    let mut unreached = Vec::new();
     for (i, &target) in targets_hz.iter().enumerate() {
         progress(i, targets_hz.len());
-        let Some((k, bw)) = scale_for_bandwidth(plan, target)? else {
-            continue; // no stable gain reaches this bandwidth
+        let (pid, bw, gain_scale) = match pid_for(plan, target, tuning)? {
+            Ok(found) => found,
+            Err(reason) => {
+                unreached.push((target, reason));
+                continue;
+            }
         };
-        let at = scaled(plan, k)?;
+        let at = with_pid(plan, pid)?;
         let budget = Budget::new(&at.closed_loop, 64)?;
         let (mut sf, mut st) = (None, None);
         if let Some(d) = simulate_s {
@@ -122,7 +199,8 @@ pub fn sweep(
         points.push(SweepPoint {
             target_hz: target,
             bandwidth_hz: bw,
-            gain_scale: k,
+            pid,
+            gain_scale,
             predicted_following_m: budget.following_rms_m,
             predicted_true_m: budget.true_rms_m,
             simulated_following_m: sf,
@@ -130,6 +208,8 @@ pub fn sweep(
         });
     }
     progress(targets_hz.len(), targets_hz.len());
+    // Re-tuned loops need not reach bandwidths in the order of their crossovers.
+    points.sort_by(|a, b| a.bandwidth_hz.total_cmp(&b.bandwidth_hz));
     let best = |f: fn(&SweepPoint) -> f64| {
         points
             .iter()
@@ -138,6 +218,8 @@ pub fn sweep(
     };
     Ok(Sweep {
         label: label.to_owned(),
+        tuning,
+        unreached,
         optimum_following_hz: best(|p| p.predicted_following_m),
         optimum_true_hz: best(|p| p.predicted_true_m),
         points,
@@ -149,6 +231,7 @@ pub fn sweep(
 pub fn thesis_sweeps(
     plan: &Plan,
     targets_hz: &[f64],
+    tuning: SweepTuning,
     simulate_s: Option<f64>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<Sweep>, StudyError> {
@@ -167,6 +250,7 @@ pub fn thesis_sweeps(
                 &Plan::new(&loaded)?,
                 label,
                 targets_hz,
+                tuning,
                 simulate_s,
                 &mut |done, _| progress(offset + done, total),
             )

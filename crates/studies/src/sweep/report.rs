@@ -8,16 +8,19 @@ use std::path::Path;
 
 /// `sweep.csv`, `sweep.json`, `sweep.{png,svg}` (thesis Fig 5-14).
 pub fn write(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
-    let mut csv = String::from("label,target_hz,bandwidth_hz,gain_scale,predicted_following_m,predicted_true_m,simulated_following_m,simulated_true_m\n");
+    let mut csv = String::from("label,target_hz,bandwidth_hz,kp,ki_per_s,kd_s,gain_scale,predicted_following_m,predicted_true_m,simulated_following_m,simulated_true_m\n");
     for s in sweeps {
         for p in &s.points {
             let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.6e}"));
             writeln!(
                 csv,
-                "{},{:.1},{:.3},{:.6},{:.6e},{:.6e},{},{}",
+                "{},{:.1},{:.3},{:.6e},{:.6e},{:.6e},{:.6},{:.6e},{:.6e},{},{}",
                 s.label,
                 p.target_hz,
                 p.bandwidth_hz,
+                p.pid.kp,
+                p.pid.ki,
+                p.pid.kd,
                 p.gain_scale,
                 p.predicted_following_m,
                 p.predicted_true_m,

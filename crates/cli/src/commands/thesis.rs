@@ -1,0 +1,42 @@
+//! `servo thesis`: the thesis's headline numbers beside this model's.
+
+use crate::output::{points_bar, print_json, print_written, CliError};
+use clap::Args;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use studies::thesis;
+use studies::StudyError;
+
+/// Every headline number of thesis Chapters 5–8 beside the value this model computes for the
+/// same experiment (budgets, re-tuned sweeps, an H2 synthesis, intermittent and machining
+/// simulations; ≈ 5 s), with the section and the reason for any difference. Writes
+/// `thesis.md` (the README's table) and `thesis.json`.
+/// Example: servo thesis
+#[derive(Args, Debug)]
+pub struct ThesisCmd {
+    /// Output directory.
+    #[arg(long, default_value = "thesis")]
+    out_dir: PathBuf,
+    /// Print the rows as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl ThesisCmd {
+    /// Computes, writes and prints.
+    pub fn exec(&self) -> Result<ExitCode, CliError> {
+        let bar = points_bar(6, "comparing", "experiments");
+        let rows = thesis::comparison(&mut |done, _| bar.set_position(done as u64));
+        bar.finish_and_clear();
+        let rows = rows?;
+        let written = thesis::write(&rows, &self.out_dir).map_err(StudyError::from)?;
+        if self.json {
+            print_json(&rows);
+            return Ok(ExitCode::SUCCESS);
+        }
+        println!("Thesis vs this model (`servo thesis`):");
+        print!("{}", thesis::markdown(&rows));
+        print_written(&written);
+        Ok(ExitCode::SUCCESS)
+    }
+}
