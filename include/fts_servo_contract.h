@@ -11,7 +11,10 @@
  *   - use the iceoryx2 type names "fts_servo::v5::<Type>" (FTS_SERVO_TYPE_NAME below) for
  *     the services of its leaf (sensor: fts_Sensor, command: fts_Command, telemetry:
  *     fts_TelemetryBlock, truth: fts_TruthBlock, control: fts_Control, ack: fts_Ack,
- *     health: fts_Health, controller_load: fts_ControllerLoad);
+ *     health: fts_Health, controller_load: fts_ControllerLoad, recorded: fts_Health);
+ *   - in lockstep, a plant that waits for a recorder holds its ticks while the recorder's
+ *     `recorded` report (role FTS_ROLE_RECORDER, ticks taken) lags by half the truth queue,
+ *     so that a lockstep recording loses nothing (see crates/daq-io/src/recorder_pace.rs);
  *   - name its iceoryx2 node "fts-servo/v5/<prefix>/<role>" (role: plant, controller,
  *     recorder, …): peers refuse a run whose nodes speak another contract version, naming both.
  * Units are SI; times in s; flags are the FTS_FLAG_* bits.
@@ -43,6 +46,7 @@
 #define FTS_FLAG_OVERRUN (1u << 18)
 #define FTS_FLAG_FAULT_CONTROLLER (1u << 19)
 #define FTS_FLAG_FAULT_OVERRUN_BUDGET (1u << 20) /* the controller kept answering late */
+#define FTS_FLAG_NO_TELEMETRY (1u << 21) /* recordings: truth only, the telemetry was lost */
 
 /* Control-plane commands (fts_Control.command). */
 #define FTS_COMMAND_STOP 1u
@@ -59,6 +63,7 @@
 /* Roles (fts_Health.role, fts_Ack.role) and states (fts_Health.state). */
 #define FTS_ROLE_PLANT 1u
 #define FTS_ROLE_CONTROLLER 2u
+#define FTS_ROLE_RECORDER 3u
 #define FTS_STATE_WAITING 1u
 #define FTS_STATE_RUNNING 2u
 #define FTS_STATE_DONE 3u

@@ -71,6 +71,10 @@ pub mod flags {
     /// The controller answered late more often than the overrun budget allows (it is alive
     /// but cannot keep the rate): the plant drove zero current and ended the run.
     pub const FAULT_OVERRUN_BUDGET: u32 = 1 << 20;
+    /// Recorded frames only: the recorder has the plant's truth of this tick but not the
+    /// controller's telemetry (lost in transport, or the controller was gone); the telemetry
+    /// fields are zero, not the loop's.
+    pub const NO_TELEMETRY: u32 = 1 << 21;
     /// Every fault that ends a run at the plant.
     pub const PLANT_FAULTS: u32 = FAULT_PEER_LOST | FAULT_OVERRUN_BUDGET;
 }
@@ -444,6 +448,9 @@ pub mod role {
     pub const PLANT: u32 = 1;
     /// The controller.
     pub const CONTROLLER: u32 = 2;
+    /// The recorder (its [`super::Health::ticks`] are the ticks it has taken from the
+    /// transport, on the `recorded` leaf).
+    pub const RECORDER: u32 = 3;
 }
 
 /// Process states in a [`Health`] report.

@@ -62,6 +62,10 @@ pub mod leaf {
     /// reads its sample, and iceoryx2 takes a departed publisher's samples back); the `Ack`
     /// with the same id says whether and at which tick it took the loop.
     pub const CONTROLLER_LOADED: &str = "controller_loaded";
+    /// Recorder → plant: the ticks the recorder has taken ([`crate::Health`] with role
+    /// [`crate::contract::role::RECORDER`]); a lockstep plant paces itself on it
+    /// ([`crate::recorder_pace`]).
+    pub const RECORDED: &str = "recorded";
 }
 
 /// Queue sizes and port limits of one service (identical in every process that opens it).

@@ -33,6 +33,8 @@ pub mod qualify;
 #[cfg(feature = "ipc")]
 pub mod realtime;
 #[cfg(feature = "ipc")]
+pub mod recorder_pace;
+#[cfg(feature = "ipc")]
 pub mod serve;
 pub mod watchdog;
 

@@ -3,7 +3,9 @@
 //!
 //! Guarantees:
 //! - Lockstep: tick k's command is awaited (busy poll) up to `peer_timeout`; nothing is ever
-//!   held or skipped, so a run is bit-identical to the in-process one.
+//!   held or skipped, so a run is bit-identical to the in-process one. With
+//!   [`ServeOptions::wait_for_recorder`] the plant also holds while the recorder lags by half
+//!   its queue ([`crate::recorder_pace`]), so the recording loses nothing either.
 //! - Real time: tick k starts at its deadline — `t0 + k·T` on the wall clock (waiting by
 //!   [`ServeOptions::wait`]), or the backend's own clock edge ([`Backend::wait_for_tick`]), or
 //!   at once when the plant is behind; a command not in by the next deadline, or one period
@@ -21,8 +23,10 @@
 use crate::clock::{monotonic_ns, Wait};
 use crate::contract::{
     ack_status, command, flags, role, state, Ack, Command, Control, Health, Sensor, TruthBlock,
+    BLOCK_TICKS,
 };
 use crate::ipc::{leaf, poll_held, take, BlockWriter, Endpoint, IpcError, Sender};
+use crate::recorder_pace::{RecorderPace, PATIENCE};
 use crate::watchdog::{FaultPolicy, Verdict, Watchdog};
 use crate::{Backend, TickStats};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -147,6 +151,10 @@ pub struct ServeReport {
     pub peer_timeout: Duration,
     /// The run's identity, on every sample and truth block ([`Sensor::run_id`]).
     pub run_id: u64,
+    /// Lockstep: wall time the plant held for a lagging recorder, s.
+    pub recorder_held_s: f64,
+    /// Lockstep: the recorder stopped reporting its progress and was no longer waited for.
+    pub recorder_silent: bool,
 }
 
 /// Plant-side errors.
@@ -251,6 +259,10 @@ pub fn serve<B: Backend>(
         };
         ack_pub.send(Ack::to(c, tick, status, role::PLANT));
         ack_pub.prepare();
+    };
+    let mut pace = match opts.pacing {
+        Pacing::Lockstep if opts.wait_for_recorder => Some(RecorderPace::new(ep, PATIENCE)?),
+        _ => None,
     };
     wait_for_peers(ep, opts, stop, &control_sub, &mut health_pub, &mut ack)?;
 
@@ -386,6 +398,9 @@ pub fn serve<B: Backend>(
             let own = (published_ns - start_ns) + (monotonic_ns() - answered_ns);
             stats.execution.record(own);
         }
+        if let Some(p) = pace.as_mut().filter(|_| k.is_multiple_of(BLOCK_TICKS as u64)) {
+            p.hold(k);
+        }
         sensor_pub.prepare();
         k += 1;
         if k.is_multiple_of(2048) {
@@ -417,6 +432,10 @@ pub fn serve<B: Backend>(
     report.wall_s = seconds_since(base_ns + period_ns);
     report.truth_refused = truth.refused();
     report.peer_timeout = opts.peer_timeout;
+    if let Some(p) = &pace {
+        report.recorder_held_s = p.held_s();
+        report.recorder_silent = p.silent();
+    }
     health.state = state::ended(report.faults);
     progress(&mut health, k, &report, &stats, base_ns + period_ns);
     health.stop_cause = report.stop_cause;

@@ -2,7 +2,7 @@
 //! law give bit-identical sequences; a silent controller puts the plant in the safe state.
 
 use daq_io::ipc::{ControllerLink, Endpoint, Tap};
-use daq_io::serve::{serve, Pacing, ServeOptions};
+use daq_io::serve::{serve, Pacing, ServeOptions, ServeReport};
 use daq_io::{flags, Command, Daq, InProcess};
 
 mod common;
@@ -271,4 +271,75 @@ fn the_server_measures_lateness_against_the_backends_own_clock() {
         );
     }
     assert!(l.min_ns >= 1_000 && l.max_ns >= 100_000, "{l:?}");
+}
+
+/// A recorder that takes one truth block per millisecond (far slower than a lockstep loop)
+/// and, if `reports`, says how many ticks it has taken; what it received.
+fn slow_recorder(ep: &Endpoint, reports: bool) -> Vec<daq_io::Truth> {
+    let tap = Tap::new(ep).unwrap();
+    let progress = ep
+        .publisher::<daq_io::Health>(daq_io::ipc::leaf::RECORDED)
+        .unwrap();
+    let mut truth: Vec<daq_io::Truth> = Vec::new();
+    loop {
+        std::thread::sleep(Duration::from_millis(1));
+        let Some(b) = daq_io::ipc::take(&tap.truth) else {
+            continue;
+        };
+        truth.extend_from_slice(&b.ticks[..b.count as usize]);
+        if reports {
+            let h = daq_io::Health {
+                role: daq_io::contract::role::RECORDER,
+                ticks: truth.last().map_or(0, |t| t.seq + 1),
+                ..Default::default()
+            };
+            daq_io::ipc::send(&progress, h);
+        }
+        if b.flags & flags::END != 0 {
+            return truth;
+        }
+    }
+}
+
+/// A lockstep plant, its PI controller and a slow recorder (reporting or not): the plant's
+/// report and what the recorder received.
+fn lockstep_with_slow_recorder(tag: &str, reports: bool) -> (ServeReport, Vec<daq_io::Truth>) {
+    // Four queues' worth: unpaced, the recorder would lose most of it.
+    let ticks = 4 * 1024 * daq_io::BLOCK_TICKS as u64;
+    let p = prefix(tag);
+    let p2 = p.clone();
+    let rep = Endpoint::open(&p, "recorder").unwrap();
+    let recorder = std::thread::spawn(move || slow_recorder(&rep, reports));
+    let plant = std::thread::spawn(move || {
+        let ep = Endpoint::open(&p2, "plant").unwrap();
+        let opts = ServeOptions::new(ticks, 1e-5, Pacing::Lockstep);
+        serve(&ep, &mut Lag::default(), &opts, &AtomicUsize::new(0)).unwrap()
+    });
+    let ep = Endpoint::open(&p, "controller").unwrap();
+    let mut link =
+        ControllerLink::new(&ep, Duration::from_secs(10), Duration::from_secs(5)).unwrap();
+    control(&mut link);
+    (plant.join().unwrap(), recorder.join().unwrap())
+}
+
+#[test]
+fn a_lockstep_plant_holds_for_a_slow_recorder_and_nothing_is_lost() {
+    let (report, truth) = lockstep_with_slow_recorder("paced", true);
+    assert_eq!(report.faults, 0);
+    assert!(!report.recorder_silent);
+    assert!(report.recorder_held_s > 0.0, "{report:?}");
+    assert_eq!(truth.len() as u64, report.ticks);
+    assert!(truth.iter().enumerate().all(|(i, t)| t.seq == i as u64));
+}
+
+#[test]
+fn a_recorder_that_does_not_report_is_waited_for_only_once() {
+    let (report, truth) = lockstep_with_slow_recorder("unpaced", false);
+    assert_eq!(report.faults, 0);
+    assert!(report.recorder_silent, "{report:?}");
+    // One hold of the patience, then the plant ran free (what the queue then overwrote
+    // depends on the two threads' speeds; the recorder's own count says it).
+    let patience = daq_io::recorder_pace::PATIENCE.as_secs_f64();
+    assert!(report.recorder_held_s >= patience, "{report:?}");
+    assert!(!truth.is_empty() && truth.len() as u64 <= report.ticks);
 }

@@ -266,6 +266,7 @@ impl Joiner {
                     let t = Telemetry {
                         seq: b.seq,
                         time_s: b.time_s,
+                        flags: daq_io::flags::NO_TELEMETRY,
                         ..Default::default()
                     };
                     out(Frame::join(&t, b));
@@ -295,6 +296,8 @@ pub fn record(
     let tap = Tap::new(&ep)?;
     // Made now: a publisher the plant has not yet seen would lose its first message.
     let stopper = ControlSender::new(&ep)?;
+    // What this recorder has taken: a lockstep plant holds while it lags (daq_io::recorder_pace).
+    let progress_pub = ep.publisher::<Health>(leaf::RECORDED)?;
     if let Some(to) = &out {
         // Checked now; the file is made when the run's first block names the run.
         to.check()?;
@@ -390,6 +393,13 @@ pub fn record(
             // Before the end check: a short run can arrive whole in one poll.
             last_data = Some(Instant::now());
             progress(join.next_truth, total);
+            let taken = Health {
+                role: role::RECORDER,
+                state: daq_io::contract::state::RUNNING,
+                ticks: join.next_truth.min(join.next_telemetry),
+                ..Default::default()
+            };
+            daq_io::ipc::send(&progress_pub, taken);
         }
         if finished {
             break;

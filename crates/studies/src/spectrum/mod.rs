@@ -142,6 +142,11 @@ struct Estimates {
     truth_seen: bool,
     samples: u64,
     tripped: bool,
+    /// Time of the last frame in the window, ns of run time.
+    previous_ns: Option<u64>,
+    /// Ticks the window lacks (time gaps, frames without telemetry) and the first such time
+    /// in s.
+    lost: Option<(u64, f64)>,
 }
 
 /// Reads the frames of a recording into spectra ([`FrameSink`] for
@@ -212,6 +217,8 @@ impl FrameSink for SpectrumSink {
             truth_seen: false,
             samples: 0,
             tripped: false,
+            previous_ns: None,
+            lost: None,
         });
         self.header = Some((MadeFor::of(&config.plant), h.controller.clone(), from_s));
         // The controller in the loop at the window's start, and any swap inside the window.
@@ -264,6 +271,23 @@ impl FrameSink for SpectrumSink {
         if e.tripped || f.time_ns < e.from_ns || f.time_ns > e.to_ns {
             return;
         }
+        // A missing tick is a step in every signal: a spectrum across it is not the loop's.
+        let period_s = 1.0 / e.fs_hz;
+        let skipped = e.previous_ns.map_or(0, |p| {
+            ((f.time_ns.saturating_sub(p) as f64 * 1e-9 / period_s).round() as u64)
+                .saturating_sub(1)
+        });
+        let without_telemetry = f.telemetry.flags as u32 & daq_io::flags::NO_TELEMETRY != 0;
+        if skipped > 0 || without_telemetry {
+            // The first missing tick: the one after the previous frame, or this one.
+            let at_s = match (skipped, e.previous_ns) {
+                (1.., Some(p)) => p as f64 * 1e-9 + period_s,
+                _ => f.time_ns as f64 * 1e-9,
+            };
+            let (n, _) = e.lost.get_or_insert((0, at_s));
+            *n += skipped + u64::from(without_telemetry);
+        }
+        e.previous_ns = Some(f.time_ns);
         e.following.push(f64::from(f.telemetry.following_error_m));
         e.control.push(f64::from(f.telemetry.control_v));
         e.true_error.push(f64::from(f.truth.true_error_m));
@@ -290,6 +314,20 @@ impl SpectrumSink {
                          end at {end_s:.3} s{}: {} samples from there",
                         if e.tripped { " (or its trip)" } else { "" },
                         e.samples
+                    ),
+                )
+                .into());
+        }
+        if let Some((ticks, at_s)) = e.lost {
+            return Err(runner::config::Origin::default()
+                .invalid(
+                    "--from-s",
+                    from_s,
+                    &format!(
+                        "a window without lost ticks: the recording lacks {ticks} tick(s) in it, \
+                         the first at {at_s:.6} s (the recorder fell behind or the controller was \
+                         gone; see its dropped frames), and a spectrum across them is not the \
+                         loop's"
                     ),
                 )
                 .into());
