@@ -398,7 +398,10 @@ pub fn serve<B: Backend>(
             let own = (published_ns - start_ns) + (monotonic_ns() - answered_ns);
             stats.execution.record(own);
         }
-        if let Some(p) = pace.as_mut().filter(|_| k.is_multiple_of(BLOCK_TICKS as u64)) {
+        if let Some(p) = pace
+            .as_mut()
+            .filter(|_| k.is_multiple_of(BLOCK_TICKS as u64))
+        {
             p.hold(k);
         }
         sensor_pub.prepare();

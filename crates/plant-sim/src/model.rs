@@ -24,6 +24,14 @@ pub mod input {
     pub const ACCEL_WHITE: usize = 4;
     /// Number of inputs.
     pub const COUNT: usize = 5;
+    /// Signal names, in order.
+    pub const NAMES: [&str; COUNT] = [
+        "command_v",
+        "cutting_force_n",
+        "current_white",
+        "base_white",
+        "accel_white",
+    ];
 }
 
 /// Outputs of [`PlantModel::sys`], in order.
@@ -95,6 +103,25 @@ pub struct PlantModel {
     /// State range of the mechanics: `x1..x4` then `v1..v4` (m, m/s).
     pub mechanics: Range<usize>,
 }
+
+/// Input names of [`mechanics`], with units.
+pub const MECHANICS_INPUTS: [&str; 4] = [
+    "motor_force_n",
+    "cutting_force_n",
+    "base_m",
+    "base_velocity_m_s",
+];
+/// Output names of [`mechanics`], with units.
+pub const MECHANICS_OUTPUTS: [&str; 8] = [
+    "tool_m",
+    "gap_m",
+    "accel_m2_m_s2",
+    "x1_m",
+    "x2_m",
+    "x3_m",
+    "x4_m",
+    "coil_velocity_m_s",
+];
 
 /// The mechanics alone: inputs `[F_motor, F_cut, xg, ẋg]` (N, N, m, m/s), outputs
 /// `[x1 − xg, x2 − xg, ẍ2, x1, x2, x3, x4, v2 − v3]` (m, m, m/s², m…, m/s); states

@@ -31,6 +31,18 @@ pub mod input {
     pub const GAP_READING_V: usize = 8;
     /// Count.
     pub const COUNT: usize = 9;
+    /// Names, in order, with units.
+    pub const NAMES: [&str; COUNT] = [
+        "reference_m",
+        "sensor_noise_innovation_v",
+        "cutting_force_n",
+        "current_white",
+        "base_white",
+        "accel_white",
+        "control_disturbance_v",
+        "accel_reading_error_v",
+        "gap_reading_error_v",
+    ];
 }
 
 /// Outputs of [`ClosedLoop::sys`].
@@ -47,6 +59,14 @@ pub mod output {
     pub const TOOL_M: usize = 4;
     /// Count.
     pub const COUNT: usize = 5;
+    /// Names, in order, with units.
+    pub const NAMES: [&str; COUNT] = [
+        "following_error_m",
+        "true_error_m",
+        "control_v",
+        "measured_m",
+        "tool_m",
+    ];
 }
 
 /// The sampled closed loop.

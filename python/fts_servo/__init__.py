@@ -1,0 +1,179 @@
+"""fts-servo from Python: the simulated fast tool servo, its models and its recordings.
+
+Every function takes a configuration the way ``servo`` does: ``None`` (the thesis prototype's
+defaults), a path to a TOML file, or a dict of the same tables; keyword tables merge on top,
+key by key (``run("my.toml", run={"duration_s": 0.2})``). Units are SI and every key and
+column name says which (``duration_s``, ``following_error_m``, ``control_v``).
+
+Errors raise :class:`ServoError` with the message the ``servo`` CLI prints: the file, the key
+and the allowed range.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _native
+from ._native import ServoError
+
+__all__ = [
+    "ServoError",
+    "Run",
+    "Recording",
+    "Model",
+    "run",
+    "read_recording",
+    "models",
+    "budget",
+    "loop_response",
+    "resolved_config",
+]
+
+Config = Union[None, str, "os.PathLike[str]", Mapping[str, Any]]
+
+
+def _args(config: Config, tables: Mapping[str, Any]) -> Tuple[Any, Optional[Dict[str, Any]]]:
+    if config is not None and not isinstance(config, Mapping):
+        config = os.fspath(config)
+    elif isinstance(config, Mapping):
+        config = dict(config)
+    return config, (dict(tables) if tables else None)
+
+
+@dataclass(frozen=True)
+class Run:
+    """A closed-loop run: the summary ``servo run --json`` prints and every tick's signals.
+
+    ``telemetry`` holds what the controller saw and did (``reference_m``, ``measured_m``,
+    ``following_error_m``, ``control_v``, ``accel_m_s2``, ``flags``), ``truth`` what the
+    simulator knows (``tool_m``, ``true_error_m``, ``gap_m``, ``motor_force_n``, …): float32
+    arrays, as recorded; ``time_s`` is float64, one entry per servo tick.
+    """
+
+    summary: Dict[str, Any]
+    time_s: np.ndarray
+    telemetry: Dict[str, np.ndarray]
+    truth: Dict[str, np.ndarray]
+    config_toml: str
+    controller: str
+
+
+@dataclass(frozen=True)
+class Recording(Run):
+    """A recording read back (:func:`read_recording`): a :class:`Run` plus how it ended."""
+
+    end: Dict[str, str]
+    finished: bool
+    read: str
+
+
+class Model(tuple):
+    """``(A, B, C, D, dt)`` — ``control.ss(*model)`` takes it — with the signal names.
+
+    ``dt`` is the sampling period in s, or 0 for continuous time. ``inputs`` and ``outputs``
+    name the columns of ``B``/``D`` and the rows of ``C``/``D`` with their units.
+    """
+
+    inputs: Tuple[str, ...]
+    outputs: Tuple[str, ...]
+    what: str
+
+    def __new__(cls, abcd_dt: Sequence[Any], inputs: Sequence[str], outputs: Sequence[str], what: str) -> "Model":
+        m = super().__new__(cls, tuple(abcd_dt))
+        m.inputs, m.outputs, m.what = tuple(inputs), tuple(outputs), what
+        return m
+
+    @property
+    def A(self) -> np.ndarray:  # noqa: N802 (the control-engineering name)
+        """State matrix."""
+        return self[0]
+
+    @property
+    def B(self) -> np.ndarray:  # noqa: N802
+        """Input matrix."""
+        return self[1]
+
+    @property
+    def C(self) -> np.ndarray:  # noqa: N802
+        """Output matrix."""
+        return self[2]
+
+    @property
+    def D(self) -> np.ndarray:  # noqa: N802
+        """Feed-through matrix."""
+        return self[3]
+
+    @property
+    def dt(self) -> float:
+        """Sampling period in s (0: continuous time)."""
+        return self[4]
+
+    def __repr__(self) -> str:
+        kind = f"dt = {self.dt:.6g} s" if self.dt else "continuous"
+        return (
+            f"Model({self.what}; {self.A.shape[0]} states, {kind}; "
+            f"inputs {list(self.inputs)}; outputs {list(self.outputs)})"
+        )
+
+
+def _run_of(d: Dict[str, Any]) -> Dict[str, Any]:
+    return dict(
+        summary=json.loads(d["summary_json"]),
+        time_s=d["time_s"],
+        telemetry=d["telemetry"],
+        truth=d["truth"],
+        config_toml=d.get("config_toml", ""),
+        controller=d.get("controller", ""),
+    )
+
+
+def run(config: Config = None, **tables: Any) -> Run:
+    """Runs the closed loop of ``config`` (with ``tables`` merged on top) to its end.
+
+    The same loop, seed and numbers as ``servo run`` with that configuration; nothing is
+    recorded (``servo run --out`` records). Example: ``run(run={"duration_s": 0.2})``.
+    """
+    return Run(**_run_of(_native.run(*_args(config, tables))))
+
+
+def read_recording(path: Union[str, "os.PathLike[str]"]) -> Recording:
+    """Reads an MCAP recording of ``servo run`` / ``servo record`` into NumPy arrays.
+
+    The summary is recomputed from the frames (as ``servo inspect`` does); an unfinished file
+    (a killed run) is read up to its last complete record and says so in ``finished``.
+    """
+    d = _native.read_recording(os.fspath(path))
+    return Recording(**_run_of(d), end=dict(d["end"]), finished=d["finished"], read=d["read"])
+
+
+def models(config: Config = None, **tables: Any) -> Dict[str, Model]:
+    """The models of ``config``: ``mechanics`` and ``plant`` (continuous time), and at the servo
+    period ``plant_sampled`` (exact: hold, delay, averaging; no controller), ``controller`` and
+    ``closed_loop``. Each is a :class:`Model`: ``control.ss(*m)``."""
+    return {k: Model(**v) for k, v in _native.models(*_args(config, tables)).items()}
+
+
+def budget(config: Config = None, points: int = 400, **tables: Any) -> Dict[str, Any]:
+    """The error budget of ``config`` (``servo budget --json``'s ``budget``: RMS following and
+    true error per noise source, in m, with their PSDs), the loop's stability ``margins``
+    (degrees, dB, Hz) and its −3 dB ``bandwidth_hz``."""
+    config, overrides = _args(config, tables)
+    return json.loads(_native.budget(config, overrides, points))
+
+
+def loop_response(freq_hz: Sequence[float], config: Config = None, **tables: Any) -> Dict[str, np.ndarray]:
+    """Complex frequency responses of the sampled loop at ``freq_hz`` (Hz): ``plant_m_per_v``
+    (measured position per DAC volt, no controller), ``closed_loop`` (measured / reference) and
+    ``sensitivity`` (following error / reference)."""
+    config, overrides = _args(config, tables)
+    return _native.loop_response([float(f) for f in freq_hz], config, overrides)
+
+
+def resolved_config(config: Config = None, **tables: Any) -> str:
+    """The configuration with every default filled in, as TOML (what a recording embeds)."""
+    return _native.resolved_config(*_args(config, tables))

@@ -1,0 +1,38 @@
+//! `fts_servo._native`: the Rust side of the `fts_servo` Python package. The Python layer
+//! (`python/fts_servo/__init__.py`) gives these functions their documented signatures; every
+//! error is a `fts_servo.ServoError` carrying the same located message the `servo` CLI prints.
+
+use pyo3::prelude::*;
+
+mod arrays;
+mod config;
+mod models;
+mod recording;
+mod simulate;
+mod studies_api;
+
+pyo3::create_exception!(
+    _native,
+    ServoError,
+    pyo3::exceptions::PyException,
+    "An fts-servo error: bad input (with the file, key and allowed range), an unstable loop, \
+     an unreadable recording."
+);
+
+/// Any displayable error as a [`ServoError`] with its message.
+pub(crate) fn servo_err(e: impl std::fmt::Display) -> PyErr {
+    ServoError::new_err(e.to_string())
+}
+
+/// The module.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("ServoError", m.py().get_type::<ServoError>())?;
+    m.add_function(wrap_pyfunction!(simulate::run, m)?)?;
+    m.add_function(wrap_pyfunction!(config::resolved_config, m)?)?;
+    m.add_function(wrap_pyfunction!(models::models, m)?)?;
+    m.add_function(wrap_pyfunction!(studies_api::budget, m)?)?;
+    m.add_function(wrap_pyfunction!(studies_api::loop_response, m)?)?;
+    m.add_function(wrap_pyfunction!(recording::read_recording, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,173 @@
+"""The fts_servo package against independent truth: the servo CLI's own numbers, python-control,
+the four-mass stage's impedance transfer functions, the PyPI mcap reader, located errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import tomllib
+from pathlib import Path
+
+import control
+import numpy as np
+import pytest
+
+import fts_servo as fs
+
+ROOT = Path(__file__).resolve().parents[2]
+SERVO = os.environ.get("FTS_SERVO_BIN", str(ROOT / "target" / "release" / "servo"))
+
+CONFIG = """
+# A short sine run on the heavy stage, seeded.
+[run]
+duration_s = 0.05
+seed = 7
+
+[scenario]
+kind = "sine"
+amplitude_m = 1e-6
+frequency_hz = 300.0
+"""
+
+
+def servo(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([SERVO, *args], capture_output=True, text=True, check=True)
+
+
+@pytest.fixture()
+def config_file(tmp_path: Path) -> Path:
+    p = tmp_path / "sine.toml"
+    p.write_text(CONFIG)
+    return p
+
+
+def test_a_run_equals_the_cli_for_the_same_config_and_seed(config_file: Path) -> None:
+    cli = json.loads(servo("run", "-q", "--json", "--no-record", "-c", str(config_file)).stdout)
+    ours = fs.run(config_file)
+    for key in ("ticks", "following_error_m", "true_error_m", "control_v", "saturated_ticks"):
+        assert ours.summary[key] == cli[key], key
+    # The arrays are the run the summary describes: ticks, and its RMS after settling.
+    assert len(ours.time_s) == cli["ticks"]
+    settle = ours.time_s >= ours.time_s[0] + cli["simulated_s"] - cli["stats_ticks"] / 199_600.0
+    e = ours.telemetry["following_error_m"][settle].astype(np.float64)
+    assert np.sqrt(np.mean(e**2)) == pytest.approx(cli["following_error_m"]["rms"], rel=1e-5)
+
+
+def test_keyword_tables_merge_over_a_dict_or_a_file(config_file: Path) -> None:
+    from_file = fs.run(config_file, run={"duration_s": 0.02})
+    as_dict = fs.run(tomllib.loads(CONFIG), run={"duration_s": 0.02})
+    assert from_file.summary["ticks"] == round(0.02 * 199_600)
+    assert from_file.summary["following_error_m"] == as_dict.summary["following_error_m"]
+    assert tomllib.loads(from_file.config_toml)["run"]["seed"] == 7
+
+
+def test_every_model_is_a_python_control_system() -> None:
+    models = fs.models()
+    for name, m in models.items():
+        sys = control.ss(*m)
+        assert sys.ninputs == len(m.inputs) and sys.noutputs == len(m.outputs), name
+        assert (sys.dt or 0.0) == m.dt, name
+    # The sampled closed loop is stable and agrees with the loop's own frequency response.
+    cl = control.ss(*models["closed_loop"])
+    assert np.max(np.abs(cl.poles())) < 1.0
+    f = np.array([10.0, 300.0, 2000.0, 20000.0])
+    ours = fs.loop_response(f)["closed_loop"]
+    i = models["closed_loop"].inputs.index("reference_m")
+    o = models["closed_loop"].outputs.index("measured_m")
+    z = np.exp(2j * np.pi * f * cl.dt)
+    theirs = np.array([cl(zk)[o, i] for zk in z])
+    np.testing.assert_allclose(ours, theirs, rtol=1e-9)
+
+
+def impedance_responses(p: dict, f_hz: np.ndarray) -> dict:
+    """The stage's transfer functions from mechanical impedances (node equations in the
+    frequency domain, thesis eq 5-4..5-7): m1 and m4 hang on m2, m3 sits between k2 and k3."""
+    s = 2j * np.pi * f_hz
+    k = {i: p[f"k{i}_n_per_m"] + p[f"c{i}_n_s_per_m"] * s for i in (1, 2, 3, 4, 5)}
+    m1, m2, m3, m4 = (p[f"m{i}_kg"] for i in (1, 2, 3, 4))
+
+    def hanging(m, kc):
+        return kc * m * s**2 / (m * s**2 + kc)
+
+    z1, z4 = hanging(m1, k[1]), hanging(m4, k[4])
+    m3s = m3 * s**2 + k[3]
+    z3 = k[2] * m3s / (m3s + k[2])
+    rest = m2 * s**2 + z3 + z4 + k[5]
+    tool_over_m2 = k[1] / (m1 * s**2 + k[1])
+    x2_per_f = 1.0 / (rest + z1)
+    zm2 = m2 * s**2 + z1 + z4 + k[5] + k[2]
+    x3 = k[3] / (m3 * s**2 + k[3] + k[2] - k[2] ** 2 / zm2)
+    x2_from_k5 = k[5] / (zm2 - k[2] ** 2 / (m3 * s**2 + k[3] + k[2]))
+    return {
+        "motor_force_to_gap": x2_per_f,
+        "motor_force_to_x1": x2_per_f * tool_over_m2,
+        "cut_force_to_tool": 1.0 / (m1 * s**2 + k[1] * rest / (rest + k[1])),
+        "base_to_tool": (k[2] * x3 / zm2 + x2_from_k5) * tool_over_m2 - 1.0,
+    }
+
+
+@pytest.mark.parametrize("tables", [{}, {"plant": {"stage": {"m2_kg": 0.17, "k5_n_per_m": 300.0, "c5_n_s_per_m": 0.3}}}])
+def test_the_exported_mechanics_equal_the_impedance_transfer_functions(tables: dict) -> None:
+    m = fs.models(**tables)["mechanics"]
+    stage = tomllib.loads(fs.resolved_config(**tables))["plant"]["stage"]
+    f = np.logspace(0.5, 5.2, 60)
+    want = impedance_responses(stage, f)
+    sys = control.ss(*m)
+    g = np.array([sys(2j * np.pi * fk) for fk in f])  # (freq, outputs, inputs)
+    col = {n: i for i, n in enumerate(m.inputs)}
+    row = {n: i for i, n in enumerate(m.outputs)}
+    got = {
+        "motor_force_to_gap": g[:, row["gap_m"], col["motor_force_n"]],
+        "motor_force_to_x1": g[:, row["x1_m"], col["motor_force_n"]],
+        "cut_force_to_tool": g[:, row["tool_m"], col["cutting_force_n"]],
+        # Base displacement with its velocity (ẋg = s·xg).
+        "base_to_tool": g[:, row["tool_m"], col["base_m"]]
+        + 2j * np.pi * f * g[:, row["tool_m"], col["base_velocity_m_s"]],
+    }
+    for name in want:
+        np.testing.assert_allclose(got[name], want[name], rtol=1e-9, err_msg=name)
+
+
+def test_a_recording_read_through_the_package_equals_the_mcap_reader(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    rec = tmp_path / "run.mcap"
+    servo("run", "-q", "--duration", "0.02", "--scenario", "sine", "--out", str(rec))
+    ours = fs.read_recording(rec)
+    assert ours.finished
+    theirs: dict = {"telemetry": {}, "truth": {}, "time_ns": []}
+    with open(rec, "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        for _, channel, message, msg in reader.iter_decoded_messages(topics=["/telemetry", "/truth"]):
+            group = channel.topic.strip("/")
+            for field in ours.telemetry if group == "telemetry" else ours.truth:
+                theirs[group].setdefault(field, []).append(getattr(msg, field))
+            if group == "telemetry":
+                theirs["time_ns"].append(message.log_time)
+    for group in ("telemetry", "truth"):
+        mine = getattr(ours, group)
+        assert set(mine) == set(theirs[group])
+        for field, values in theirs[group].items():
+            np.testing.assert_array_equal(mine[field], np.asarray(values, dtype=np.float32), err_msg=field)
+    t0 = theirs["time_ns"][0] - round(ours.time_s[0] * 1e9)
+    np.testing.assert_array_equal(np.round(ours.time_s * 1e9).astype(np.int64), np.asarray(theirs["time_ns"]) - t0)
+    cli = json.loads(servo("inspect", "--json", str(rec)).stdout)
+    assert ours.summary["following_error_m"] == cli["summary"]["following_error_m"]
+
+
+def test_errors_raise_with_the_located_message(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[run]\nduration_s = -1.0\n")
+    with pytest.raises(fs.ServoError) as e:
+        fs.run(bad)
+    message = str(e.value)
+    assert str(bad) in message and ":2" in message, message
+    assert "run.duration_s" in message and "(0, 3600] s" in message, message
+    with pytest.raises(fs.ServoError, match="unknown field"):
+        fs.run({"run": {"duraton_s": 1.0}})
+    with pytest.raises(fs.ServoError, match=r"run\.duration_s: a set is not a TOML value"):
+        fs.run(run={"duration_s": {1.0}})
+    with pytest.raises(fs.ServoError, match="No such file|not found|cannot read"):
+        fs.read_recording(tmp_path / "missing.mcap")
