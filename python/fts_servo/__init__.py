@@ -32,6 +32,9 @@ __all__ = [
     "budget",
     "loop_response",
     "resolved_config",
+    "tune",
+    "synth_h2",
+    "identify",
 ]
 
 Config = Union[None, str, "os.PathLike[str]", Mapping[str, Any]]
@@ -177,3 +180,60 @@ def loop_response(freq_hz: Sequence[float], config: Config = None, **tables: Any
 def resolved_config(config: Config = None, **tables: Any) -> str:
     """The configuration with every default filled in, as TOML (what a recording embeds)."""
     return _native.resolved_config(*_args(config, tables))
+
+
+def tune(
+    config: Config = None, bandwidth_hz: float = 1000.0, ms: float = 1.5, mt: float = 1.3, **tables: Any
+) -> Dict[str, Any]:
+    """``servo tune``: the PID with the largest integral gain under ``|S| <= ms``, ``|T| <= mt``
+    and a -3 dB bandwidth of at least ``bandwidth_hz`` (Hz), on the exact sampled plant.
+
+    Returns the report (``reference`` and ``tuned`` gains with their margins, bandwidths and
+    predicted RMS errors in m) and ``controller_toml``: the fragment ``servo run -c`` takes,
+    stamped with the plant it was made for.
+    """
+    config, overrides = _args(config, tables)
+    report, toml_text = _native.tune(bandwidth_hz, ms, mt, config, overrides)
+    return {**json.loads(report), "controller_toml": toml_text}
+
+
+def synth_h2(config: Config = None, effort_weight: Optional[float] = None, thesis_weights: bool = False, **tables: Any) -> Dict[str, Any]:
+    """``servo synth h2``: the discrete H2-optimal controller of the exact sampled plant.
+
+    ``effort_weight`` weighs the command against the error (default 1 nm/V, or 1000 with the
+    §6.3 ``thesis_weights``). Returns ``controller`` (a :class:`Model`: position error in V to
+    command in V), ``controller_toml`` (the file ``servo run --controller ss`` loads, stamped
+    with its plant and rate), ``h2_norm`` and ``spectral_radius``.
+    """
+    config, overrides = _args(config, tables)
+    weight = effort_weight if effort_weight is not None else (1000.0 if thesis_weights else 1.0)
+    d = _native.synth_h2(weight, thesis_weights, config, overrides)
+    return {
+        "controller": Model(d["abcd_dt"], d["inputs"], d["outputs"], d["what"]),
+        "controller_toml": d["controller_toml"],
+        "h2_norm": d["h2_norm"],
+        "spectral_radius": d["spectral_radius"],
+    }
+
+
+def identify(
+    frf: Union[str, "os.PathLike[str]", Sequence[float]],
+    measured_m_per_v: Optional[np.ndarray] = None,
+    config: Config = None,
+    **tables: Any,
+) -> Dict[str, Any]:
+    """``servo identify``: Table 5-2's parameters fitted to a measured FRF.
+
+    ``frf`` is the ``frf.csv`` ``servo frf`` writes, or the frequencies in Hz with
+    ``measured_m_per_v`` the complex response (measured position per DAC volt). Returns the
+    report (``names``, ``fitted``, ``rel_std``, ``misfits``, …) and ``model_toml``: the plant
+    file ``servo … --plant`` takes.
+    """
+    config, overrides = _args(config, tables)
+    if measured_m_per_v is None:
+        frf = os.fspath(frf)  # type: ignore[arg-type]
+    else:
+        frf = [float(f) for f in frf]  # type: ignore[union-attr]
+        measured_m_per_v = np.ascontiguousarray(measured_m_per_v, dtype=np.complex128)
+    report, model = _native.identify(frf, measured_m_per_v, config, overrides)
+    return {**json.loads(report), "model_toml": model}

@@ -6,6 +6,7 @@ use pyo3::prelude::*;
 
 mod arrays;
 mod config;
+mod design_api;
 mod models;
 mod recording;
 mod simulate;
@@ -34,5 +35,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(studies_api::budget, m)?)?;
     m.add_function(wrap_pyfunction!(studies_api::loop_response, m)?)?;
     m.add_function(wrap_pyfunction!(recording::read_recording, m)?)?;
+    m.add_function(wrap_pyfunction!(design_api::tune, m)?)?;
+    m.add_function(wrap_pyfunction!(design_api::synth_h2, m)?)?;
+    m.add_function(wrap_pyfunction!(design_api::identify, m)?)?;
     Ok(())
 }

@@ -10,7 +10,7 @@ use pyo3::types::{PyDict, PyTuple};
 use runner::closed_loop::{self, ClosedLoop};
 
 /// One model as a dict: `abcd_dt` (the 5-tuple), `inputs`, `outputs`, `what`.
-fn model<'py>(
+pub fn model<'py>(
     py: Python<'py>,
     sys: &StateSpace,
     dt_s: f64,

@@ -171,3 +171,50 @@ def test_errors_raise_with_the_located_message(tmp_path: Path) -> None:
         fs.run(run={"duration_s": {1.0}})
     with pytest.raises(fs.ServoError, match="No such file|not found|cannot read"):
         fs.read_recording(tmp_path / "missing.mcap")
+
+
+def test_tuning_equals_the_cli_and_its_fragment_runs(tmp_path: Path) -> None:
+    out = tmp_path / "pid.toml"
+    cli = json.loads(servo("tune", "--json", "--bandwidth-hz", "1200", "-o", str(out)).stdout)
+    ours = fs.tune(bandwidth_hz=1200.0)
+    assert ours["tuned"] == cli["tuned"] and ours["reference"] == cli["reference"]
+    assert ours["controller_toml"] == out.read_text()
+    # What the tuning promised is what the loop of its fragment has.
+    fragment = tmp_path / "ours.toml"
+    fragment.write_text(ours["controller_toml"])
+    b = fs.budget(fragment)
+    assert b["bandwidth_hz"] == pytest.approx(ours["tuned"]["bandwidth_hz"], rel=1e-6)
+    assert b["budget"]["following_rms_m"] == pytest.approx(ours["tuned"]["following_rms_m"], rel=1e-6)
+
+
+def test_the_h2_controller_closes_a_stable_loop_and_runs_as_the_cli_runs_it(tmp_path: Path) -> None:
+    rate = {"plant": {"timing": {"servo_rate_hz": 20000.0}}}
+    d = fs.synth_h2(**rate)
+    k = control.ss(*d["controller"])
+    assert k.dt == pytest.approx(5e-5) and np.max(np.abs(k.poles())) < 1.0 + 1e-12
+    ss_file = tmp_path / "h2.toml"
+    ss_file.write_text(d["controller_toml"])
+    tables = {**rate, "run": {"duration_s": 0.2}, "controller": {"kind": "ss", "ss_file": str(ss_file)}}
+    ours = fs.run(**tables)
+    cli = json.loads(
+        servo(
+            "run", "-q", "--json", "--no-record", "--rate", "20000", "--duration", "0.2",
+            "--controller", "ss", "--ss-file", str(ss_file),
+        ).stdout
+    )
+    assert ours.summary["following_error_m"] == cli["following_error_m"]
+    # The closed loop of the design is stable (the run's own check) and sub-nanometre.
+    assert ours.summary["meta"]["spectral_radius"] < 1.0
+    assert ours.summary["following_error_m"]["rms"] < 2e-9
+
+
+def test_identification_recovers_a_known_stage_from_its_frequency_response() -> None:
+    drawn = {"k2_n_per_m": 21965.0 * 1.1, "m4_kg": 0.0088, "c4_n_s_per_m": 7.0}
+    f = np.logspace(np.log10(20.0), 4.0, 80)
+    g = fs.loop_response(f, plant={"stage": drawn})["plant_m_per_v"]
+    r = fs.identify(f, g)
+    fitted = dict(zip(r["names"], r["fitted"]))
+    assert fitted["k2 N/m"] == pytest.approx(drawn["k2_n_per_m"], rel=1e-6)
+    assert fitted["m4 kg"] == pytest.approx(drawn["m4_kg"], rel=1e-6)
+    assert fitted["c4 N·s/m"] == pytest.approx(drawn["c4_n_s_per_m"], rel=1e-5)
+    assert "k2_n_per_m" in r["model_toml"]

@@ -1,0 +1,113 @@
+//! The design tools: PID tuning, H2 synthesis, grey-box identification — what `servo tune`,
+//! `servo synth h2` and `servo identify` compute, with the files they write as text.
+
+use crate::config::{built, load};
+use crate::servo_err;
+use numpy::PyReadonlyArray1;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+
+/// `servo tune`: the PID with the largest integral gain under `|S| ≤ ms`, `|T| ≤ mt` and a
+/// −3 dB bandwidth of at least `bandwidth_hz`, on the exact sampled plant. The report's JSON
+/// and the controller fragment (TOML, with the plant it was made for) `servo run -c` takes.
+#[pyfunction]
+#[pyo3(signature = (bandwidth_hz, ms, mt, config=None, overrides=None))]
+pub fn tune(
+    py: Python<'_>,
+    bandwidth_hz: f64,
+    ms: f64,
+    mt: f64,
+    config: Option<&Bound<'_, PyAny>>,
+    overrides: Option<&Bound<'_, PyDict>>,
+) -> PyResult<(String, String)> {
+    let loaded = load(config, overrides)?;
+    py.detach(|| {
+        let plan = built(&loaded)?;
+        let r = studies::tune::tune(&plan, bandwidth_hz, ms, mt).map_err(servo_err)?;
+        Ok((serde_json::to_string(&r).map_err(servo_err)?, r.to_toml()))
+    })
+}
+
+/// `servo synth h2`: the discrete H2-optimal controller of the exact sampled plant with its
+/// noise models (`thesis_weights`: the §6.3 weighting filters instead), as the controller
+/// file (TOML) `servo run --controller ss --ss-file` loads, plus `(A, B, C, D)`, its H2 norm
+/// and spectral radius.
+#[pyfunction]
+#[pyo3(signature = (effort_weight, thesis_weights, config=None, overrides=None))]
+pub fn synth_h2<'py>(
+    py: Python<'py>,
+    effort_weight: f64,
+    thesis_weights: bool,
+    config: Option<&Bound<'py, PyAny>>,
+    overrides: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let loaded = load(config, overrides)?;
+    let d = py.detach(|| {
+        let plan = built(&loaded)?;
+        if thesis_weights {
+            let w = studies::synth::ThesisWeights::default();
+            studies::synth::thesis_design(&plan, &w, effort_weight)
+        } else {
+            studies::synth::h2_design(&plan, effort_weight)
+        }
+        .map_err(servo_err)
+    })?;
+    let out = crate::models::model(
+        py,
+        &d.controller,
+        1.0 / d.sample_rate_hz,
+        &["position_error_v"],
+        &["command_v"],
+        &format!("H2 controller at {:.0} Hz", d.sample_rate_hz),
+    )?;
+    out.set_item("controller_toml", d.to_toml())?;
+    out.set_item("h2_norm", d.h2_norm)?;
+    out.set_item("spectral_radius", d.spectral_radius)?;
+    Ok(out)
+}
+
+/// `servo identify`: the grey-box fit of Table 5-2's parameters to a measured FRF
+/// (`freq_hz`, complex `measured_m_per_v` — as `servo frf` writes it — or a `frf.csv` path),
+/// the report's JSON and the plant file (TOML) it writes.
+#[pyfunction]
+#[pyo3(signature = (frf, measured_m_per_v=None, config=None, overrides=None))]
+pub fn identify(
+    py: Python<'_>,
+    frf: &Bound<'_, PyAny>,
+    measured_m_per_v: Option<PyReadonlyArray1<'_, num_complex::Complex64>>,
+    config: Option<&Bound<'_, PyAny>>,
+    overrides: Option<&Bound<'_, PyDict>>,
+) -> PyResult<(String, String)> {
+    let loaded = load(config, overrides)?;
+    let nyquist_hz = loaded.config.plant.timing.servo_rate_hz / 2.0;
+    let (f, g, source) = match measured_m_per_v {
+        Some(g) => {
+            let f: Vec<f64> = frf.extract()?;
+            (
+                f,
+                g.as_slice()?.to_vec(),
+                "arrays given to fts_servo.identify".to_owned(),
+            )
+        }
+        None => {
+            let path: PathBuf = frf.extract()?;
+            let (f, g) = studies::identify::read_frf_csv(&path, nyquist_hz).map_err(servo_err)?;
+            let bytes = std::fs::read(&path).unwrap_or_default();
+            let source = format!(
+                "{} (SHA-256 {})",
+                path.display(),
+                runner::config::sha256_hex(&bytes)
+            );
+            (f, g, source)
+        }
+    };
+    py.detach(|| {
+        let plan = built(&loaded)?;
+        let id = studies::identify::identify(&plan, &f, &g).map_err(servo_err)?;
+        Ok((
+            serde_json::to_string(&id).map_err(servo_err)?,
+            id.model_toml(&plan, &source),
+        ))
+    })
+}
