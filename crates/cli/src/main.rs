@@ -45,6 +45,7 @@ enum Command {
     Controller(hil::ControllerCmd),
     Record(hil::RecordCmd),
     Ctl(ctl::CtlCmd),
+    View(view::ViewCmd),
     Latency(latency::LatencyCmd),
 }
 
@@ -71,6 +72,7 @@ impl Command {
             Command::Controller(c) => c.exec(),
             Command::Record(c) => c.exec(),
             Command::Ctl(c) => c.exec(),
+            Command::View(c) => c.exec(),
             Command::Latency(c) => c.exec(),
         }
     }

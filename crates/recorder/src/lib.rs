@@ -20,7 +20,7 @@ pub mod writer;
 
 pub use frame::{Frame, Message, Telemetry, Truth};
 pub use index::visit_indexed;
-pub use overview::{Overview, Signals, OVERVIEW_PERIOD_NS};
+pub use overview::{Overview, OverviewBin, Signals, OVERVIEW_PERIOD_NS};
 pub use reader::{
     fingerprint, read, stream, BadRecord, FileState, ReadError, ReadReport, Recording, Visit,
     ENVIRONMENT_RECORDS,

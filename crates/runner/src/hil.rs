@@ -11,6 +11,7 @@
 use crate::config::Role;
 use crate::control_plane::{ControlPlane, SERVICE_TICKS};
 use crate::error::RunError;
+use crate::join::Joiner;
 use crate::operator_log::{GainChange, Swap};
 use crate::plan::Plan;
 use crate::protection::TripCause;
@@ -23,9 +24,7 @@ use daq_io::clock::monotonic_ns;
 use daq_io::contract::{command, role};
 use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
-use daq_io::{
-    ack_status, flags, Ack, Control, ControllerLoad, Daq, Health, Telemetry, TelemetryBlock, Truth,
-};
+use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Daq, Health, TelemetryBlock};
 use recorder::{Frame, Recorder};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -221,64 +220,6 @@ fn stop_for(cause: u32) -> Control {
     }
 }
 
-/// Joins the two record streams tick by tick.
-#[derive(Default)]
-struct Joiner {
-    telemetry: VecDeque<Telemetry>,
-    truth: VecDeque<Truth>,
-    next_telemetry: u64,
-    next_truth: u64,
-    dropped: u64,
-    truth_only: u64,
-}
-
-impl Joiner {
-    fn telemetry(&mut self, t: &[Telemetry]) {
-        for r in t {
-            self.dropped += r.seq.saturating_sub(self.next_telemetry);
-            self.next_telemetry = r.seq + 1;
-            self.telemetry.push_back(*r);
-        }
-    }
-
-    fn truth(&mut self, t: &[Truth]) {
-        for r in t {
-            self.dropped += r.seq.saturating_sub(self.next_truth);
-            self.next_truth = r.seq + 1;
-            self.truth.push_back(*r);
-        }
-    }
-
-    /// Frames complete so far; with `finished`, also the plant's ticks that have no
-    /// telemetry (the controller was lost): recorded from the truth alone.
-    fn drain(&mut self, finished: bool, mut out: impl FnMut(Frame)) {
-        loop {
-            match (self.telemetry.front(), self.truth.front()) {
-                (Some(a), Some(b)) if a.seq == b.seq => {
-                    out(Frame::join(a, b));
-                    self.telemetry.pop_front();
-                    self.truth.pop_front();
-                }
-                (Some(a), Some(b)) if a.seq < b.seq => {
-                    self.telemetry.pop_front();
-                }
-                (_, Some(b)) if finished || self.telemetry.front().is_some() => {
-                    let t = Telemetry {
-                        seq: b.seq,
-                        time_s: b.time_s,
-                        flags: daq_io::flags::NO_TELEMETRY,
-                        ..Default::default()
-                    };
-                    out(Frame::join(&t, b));
-                    self.truth_only += 1;
-                    self.truth.pop_front();
-                }
-                _ => return,
-            }
-        }
-    }
-}
-
 /// `servo record`: records run `prefix` (telemetry joined with truth, tick by tick) to `out`
 /// and returns the run's summary, with the plant's overruns, latency and faults.
 pub fn record(
@@ -392,11 +333,11 @@ pub fn record(
         if got {
             // Before the end check: a short run can arrive whole in one poll.
             last_data = Some(Instant::now());
-            progress(join.next_truth, total);
+            progress(join.next_truth(), total);
             let taken = Health {
                 role: role::RECORDER,
                 state: daq_io::contract::state::RUNNING,
-                ticks: join.next_truth.min(join.next_telemetry),
+                ticks: join.taken(),
                 ..Default::default()
             };
             daq_io::ipc::send(&progress_pub, taken);
@@ -444,7 +385,7 @@ pub fn record(
         overruns: plant_health.overruns,
         latency: plant_health.latency,
         faults: plant_health.faults,
-        truth_only_ticks: join.truth_only,
+        truth_only_ticks: join.truth_only(),
         plant_lateness: plant_health.lateness,
         plant_execution: plant_health.execution,
         controller_lateness: controller_health.lateness,
@@ -460,7 +401,7 @@ pub fn record(
         interrupted: ticks < total,
         end_reason: Some(reason.name().into()),
         recorded_messages: stats.map(|s| s.messages),
-        dropped_frames: Some(join.dropped + stats.map_or(0, |s| s.dropped_frames)),
+        dropped_frames: Some(join.dropped() + stats.map_or(0, |s| s.dropped_frames)),
         hil: Some(hil),
         ..RunMeta::of(c, description)
     }))

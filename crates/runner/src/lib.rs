@@ -29,6 +29,7 @@ pub mod feedforward;
 pub mod gain_range;
 pub mod hil;
 pub mod hot_swap;
+pub mod join;
 pub mod machining;
 pub mod operator_log;
 pub mod plan;

@@ -20,3 +20,4 @@ pub mod stiffness;
 pub mod synth;
 pub mod thesis;
 pub mod tune;
+pub mod view;

@@ -1,0 +1,269 @@
+//! # live-view
+//!
+//! A live view of a running HIL run in Foxglove: `servo view --prefix P` taps the run's
+//! telemetry and truth over shared memory the way the recorder does (its own process: the
+//! servo path never waits for it; a slow view loses its own samples, counted), joins them tick
+//! by tick, and serves on a Foxglove WebSocket (localhost by default; any other address is
+//! the user's explicit choice):
+//! - `/overview`: per millisecond of run, the minimum, maximum and mean of the main signals —
+//!   the recording's own `/overview` bins, so what a browser shows is what the file holds;
+//!   `every` publishes only each n-th bin;
+//! - `/health`: the plant's and controller's reports (ticks, overruns, latency);
+//! - parameters: `gain_scale` (settable: sent as `servo ctl gain`, applied only if the loop
+//!   keeps its margin, the value the run acknowledged) and read-only `run.*` metadata;
+//! - service `stop`: ends the run as `servo ctl stop` does.
+
+mod messages;
+mod operator;
+
+pub use operator::{GAIN_SCALE, STOP_SERVICE};
+
+use daq_io::ipc::{take, Endpoint, IpcError, Tap};
+use foxglove::remote_common::service::{Service, ServiceSchema};
+use foxglove::remote_common::{Parameter, Status};
+use foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, WebSocketServer};
+use operator::{Operator, Parameters, StopCalls};
+use recorder::OverviewBin;
+use runner::join::Joiner;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// What [`serve`] serves and where.
+#[derive(Debug, Clone)]
+pub struct ViewOptions {
+    /// Run prefix.
+    pub prefix: String,
+    /// Address to bind (default 127.0.0.1).
+    pub host: String,
+    /// TCP port (0: any free one; the listener hears which).
+    pub port: u16,
+    /// Publish every n-th overview bin (1: every millisecond of run).
+    pub every: u32,
+    /// How long to wait for the run to start, s.
+    pub startup_timeout: Duration,
+    /// How long to keep serving after the run ended (clients take the last messages).
+    pub linger: Duration,
+}
+
+impl ViewOptions {
+    /// Localhost on `port`, every bin, 30 s for the run to start, 1 s of linger.
+    pub fn new(prefix: &str, port: u16) -> Self {
+        ViewOptions {
+            prefix: prefix.to_owned(),
+            host: "127.0.0.1".into(),
+            port,
+            every: 1,
+            startup_timeout: Duration::from_secs(30),
+            linger: Duration::from_secs(1),
+        }
+    }
+}
+
+/// How a view ended.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ViewReport {
+    /// Overview samples published.
+    pub overview_samples: u64,
+    /// Ticks seen.
+    pub ticks: u64,
+    /// Records the view lost (it fell behind; the run did not).
+    pub dropped: u64,
+    /// Gain scales the run applied at this view's request.
+    pub applied_gains: Vec<f64>,
+    /// Whether the run ended (rather than the view being stopped or timing out).
+    pub run_ended: bool,
+}
+
+/// Live-view errors.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ViewError {
+    /// Transport.
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    /// The WebSocket server.
+    #[error("Foxglove WebSocket server on {addr}: {detail}")]
+    Server {
+        /// host:port asked for.
+        addr: String,
+        /// What went wrong.
+        detail: String,
+    },
+    /// No run appeared.
+    #[error("no run on prefix {0:?} within {1:?}: start it (servo run --hil --prefix …) first")]
+    NoRun(String, Duration),
+}
+
+fn json_channel(ctx: &Arc<Context>, topic: &str, name: &str, schema: Vec<u8>) -> Arc<RawChannel> {
+    ChannelBuilder::new(topic)
+        .message_encoding("json")
+        .schema(Schema::new(name, "jsonschema", schema))
+        .context(ctx)
+        .build_raw()
+        .expect("a fresh context has no channel of that topic")
+}
+
+/// Serves run `o.prefix` until it ends (then `o.linger` more) or `stop` is set; `listening`
+/// hears the bound port first.
+pub fn serve(
+    o: &ViewOptions,
+    stop: &AtomicBool,
+    listening: impl FnOnce(u16),
+) -> Result<ViewReport, ViewError> {
+    let ep = Endpoint::open(&o.prefix, &format!("view-{}", std::process::id()))?;
+    let tap = Tap::new(&ep)?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    let mut operator = Operator::new(&ep, rx)?;
+    let ctx = Context::new();
+    let overview = json_channel(
+        &ctx,
+        messages::OVERVIEW_TOPIC,
+        "fts_servo.Overview",
+        messages::overview_schema(),
+    );
+    let health = json_channel(
+        &ctx,
+        messages::HEALTH_TOPIC,
+        "fts_servo.Health",
+        messages::health_schema(),
+    );
+    let object = |name: &str, what: &str| {
+        let schema = format!(r#"{{"type": "object", "description": "{what}"}}"#);
+        Schema::new(name, "jsonschema", schema.into_bytes())
+    };
+    let stop_schema = ServiceSchema::new("fts_servo.Stop")
+        .with_request("json", object("fts_servo.StopRequest", "empty"))
+        .with_response(
+            "json",
+            object(
+                "fts_servo.StopResponse",
+                "stopped_at_tick: the tick the run ends at",
+            ),
+        );
+    let stop_service = Service::builder(STOP_SERVICE, stop_schema)
+        .handler(StopCalls(std::sync::Mutex::new(tx.clone())));
+    let addr = format!("{}:{}", o.host, o.port);
+    let server = WebSocketServer::new()
+        .name(format!("fts-servo run {}", o.prefix))
+        .bind(&o.host, o.port)
+        .context(&ctx)
+        .parameter_handler(Arc::new(Parameters(tx)))
+        .services([stop_service])
+        .supported_encodings(["json"])
+        .server_info(
+            [
+                ("fts_servo.prefix".to_owned(), o.prefix.clone()),
+                (
+                    "fts_servo.contract_version".to_owned(),
+                    daq_io::CONTRACT_VERSION.to_string(),
+                ),
+            ]
+            .into(),
+        )
+        .start_blocking()
+        .map_err(|e| ViewError::Server {
+            addr: addr.clone(),
+            detail: e.to_string(),
+        })?;
+    listening(server.port());
+
+    let mut join = Joiner::default();
+    let mut bin = OverviewBin::default();
+    let mut report = ViewReport::default();
+    let mut run_id = None;
+    let mut bins = 0u64;
+    let waiting = Instant::now();
+    let mut ended_at: Option<Instant> = None;
+    // The recorder's rule: the run is over when the plant's last truth block and the
+    // controller's last telemetry block are in (or the plant faulted, or the controller is
+    // silent for the recorder's timeout): frames are never made from truth that is merely
+    // ahead of its telemetry.
+    let (mut truth_end, mut telemetry_end, mut faults) = (false, false, 0);
+    let mut last_data = Instant::now();
+    let mut publish = |t_ns: u64, ov: &recorder::Overview, report: &mut ViewReport| {
+        bins += 1;
+        if bins.is_multiple_of(u64::from(o.every.max(1))) {
+            overview.log_with_meta(
+                &messages::overview(t_ns, ov),
+                PartialMetadata::with_log_time(t_ns),
+            );
+            report.overview_samples += 1;
+        }
+    };
+    while !stop.load(Ordering::Relaxed) {
+        let mut got = false;
+        while let Some(b) = take(&tap.telemetry) {
+            got = true;
+            join.telemetry(&b.ticks[..b.count as usize]);
+            telemetry_end |= b.flags & daq_io::flags::END != 0;
+        }
+        while let Some(b) = take(&tap.truth) {
+            got = true;
+            if run_id.is_none() {
+                run_id = Some(b.run_id);
+                operator.set_metadata(metadata(&ep, b.run_id));
+            }
+            join.truth(&b.ticks[..b.count as usize]);
+            truth_end |= b.flags & daq_io::flags::END != 0;
+            faults |= b.flags & daq_io::flags::PLANT_FAULTS;
+        }
+        if got {
+            last_data = Instant::now();
+        }
+        let silent = last_data.elapsed() > runner::hil::RECORDER_TIMEOUT;
+        let end = truth_end && (telemetry_end || faults != 0 || silent);
+        while let Some(h) = take(&tap.health) {
+            health.log(&messages::health(&h));
+        }
+        join.drain(end, |f| {
+            report.ticks += 1;
+            if let Some((t, ov)) = bin.add(&f) {
+                publish(t, &ov, &mut report);
+            }
+        });
+        if end && ended_at.is_none() {
+            if let Some((t, ov)) = bin.take() {
+                publish(t, &ov, &mut report);
+            }
+            report.run_ended = true;
+            ended_at.get_or_insert_with(Instant::now);
+        }
+        let (values, problems) = operator.poll();
+        if !values.is_empty() {
+            server.publish_parameter_values(values);
+        }
+        for p in problems {
+            server.publish_status(Status::warning(p));
+        }
+        if ended_at.is_some_and(|t| t.elapsed() >= o.linger) {
+            break;
+        }
+        if run_id.is_none() && waiting.elapsed() > o.startup_timeout {
+            server.stop().wait_blocking();
+            return Err(ViewError::NoRun(o.prefix.clone(), o.startup_timeout));
+        }
+        if !got {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    report.dropped = join.dropped();
+    report.applied_gains = operator.applied_gains.clone();
+    server.stop().wait_blocking();
+    Ok(report)
+}
+
+/// The run's metadata as read-only parameters.
+fn metadata(ep: &Endpoint, run_id: u64) -> Vec<Parameter> {
+    let peers: Vec<String> = ep
+        .peers()
+        .iter()
+        .map(|p| format!("{} (pid {})", p.role, p.pid))
+        .collect();
+    vec![
+        Parameter::string("run.prefix", ep.prefix()),
+        Parameter::string("run.id", format!("{run_id:016x}")),
+        Parameter::string("run.processes", peers.join(", ")),
+        Parameter::integer("run.contract_version", i64::from(daq_io::CONTRACT_VERSION)),
+    ]
+}

@@ -1,0 +1,200 @@
+//! The operator's controls in Foxglove, bound to the run's control plane: the `gain_scale`
+//! parameter (a set is `servo ctl gain`: the controller applies it only when the loop keeps
+//! its 6 dB gain margin, and the parameter takes the value the run acknowledged) and the
+//! `stop` service (`servo ctl stop`). Read-only parameters carry the run's metadata. Requests
+//! are queued by the server's threads and answered from the view's own loop, which owns the
+//! control plane; nothing here touches the servo path.
+
+use daq_io::contract::{ack_status, command};
+use daq_io::ipc::{take, ControlSender, IpcError, Subscriber};
+use daq_io::{Ack, Control};
+use foxglove::remote_common::service::{Handler, Request, Responder};
+use foxglove::remote_common::{
+    AnyClient, GetParametersResponder, Parameter, ParameterHandler, ParameterValue,
+    SetParametersResponder,
+};
+use std::sync::mpsc::{Receiver, Sender};
+use std::time::{Duration, Instant};
+
+/// Name of the gain parameter (dimensionless scale of the controller output).
+pub const GAIN_SCALE: &str = "gain_scale";
+/// Name of the stop service.
+pub const STOP_SERVICE: &str = "stop";
+/// How long a request waits for the run's acknowledgement.
+pub const ACK_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// A request from a Foxglove client.
+pub enum Ask {
+    /// Parameter values.
+    Get(Vec<String>, GetParametersResponder),
+    /// New parameter values.
+    Set(Vec<Parameter>, SetParametersResponder),
+    /// The stop service was called.
+    Stop(Responder),
+}
+
+/// Queues parameter requests for the view's loop.
+pub struct Parameters(pub Sender<Ask>);
+
+impl ParameterHandler for Parameters {
+    fn get(&self, _: AnyClient, names: Vec<String>, _: Option<String>, r: GetParametersResponder) {
+        let _ = self.0.send(Ask::Get(names, r));
+    }
+
+    fn set(&self, _: AnyClient, p: Vec<Parameter>, _: Option<String>, r: SetParametersResponder) {
+        let _ = self.0.send(Ask::Set(p, r));
+    }
+}
+
+/// Queues stop calls for the view's loop.
+pub struct StopCalls(pub std::sync::Mutex<Sender<Ask>>);
+
+impl Handler for StopCalls {
+    fn call(&self, _: Request, responder: Responder) {
+        if let Ok(tx) = self.0.lock() {
+            let _ = tx.send(Ask::Stop(responder));
+        }
+    }
+}
+
+/// What waits for an acknowledgement.
+enum Waiting {
+    Gain(f64, SetParametersResponder),
+    Stop(Responder),
+}
+
+/// The control-plane side: sends requests, pairs acknowledgements by id, answers.
+pub struct Operator {
+    asks: Receiver<Ask>,
+    sender: ControlSender,
+    acks: Subscriber<Ack>,
+    pending: Vec<(u64, Instant, Waiting)>,
+    /// The gain scale the run last acknowledged (1 until one was applied).
+    gain_scale: f64,
+    /// Read-only metadata parameters (`run.*`).
+    metadata: Vec<Parameter>,
+    /// Gain changes the run applied through this view.
+    pub applied_gains: Vec<f64>,
+    /// Messages for the clients' problems panel (refusals, timeouts).
+    problems: Vec<String>,
+}
+
+impl Operator {
+    /// Answers the requests of `asks` over run `ep`'s control plane.
+    pub fn new(ep: &daq_io::ipc::Endpoint, asks: Receiver<Ask>) -> Result<Self, IpcError> {
+        Ok(Operator {
+            asks,
+            sender: ControlSender::new(ep)?,
+            acks: ep.subscriber::<Ack>(daq_io::ipc::leaf::ACK)?,
+            pending: Vec::new(),
+            gain_scale: 1.0,
+            metadata: Vec::new(),
+            applied_gains: Vec::new(),
+            problems: Vec::new(),
+        })
+    }
+
+    /// Sets the `run.*` metadata parameters.
+    pub fn set_metadata(&mut self, metadata: Vec<Parameter>) {
+        self.metadata = metadata;
+    }
+
+    fn gain(&self) -> Parameter {
+        Parameter::float64(GAIN_SCALE, self.gain_scale)
+    }
+
+    fn send(&mut self, command: u32, value: f64, waiting: Waiting) {
+        let id = daq_io::peers::random_id();
+        let c = Control {
+            command,
+            value,
+            id,
+            ..Default::default()
+        };
+        match self.sender.send(c) {
+            Ok(()) => self.pending.push((id, Instant::now(), waiting)),
+            Err(e) => self.answer_failure(waiting, format!("the control plane refused it: {e}")),
+        }
+    }
+
+    fn answer_failure(&mut self, waiting: Waiting, why: String) {
+        match waiting {
+            Waiting::Gain(v, r) => {
+                r.respond(vec![self.gain()]);
+                self.problems
+                    .push(format!("gain_scale ×{v} not applied: {why}"));
+            }
+            Waiting::Stop(r) => r.respond_err(why),
+        }
+    }
+
+    /// Handles queued requests and arrived acknowledgements; returns the parameter values
+    /// to publish to every client (a gain the run applied) and the problems to show.
+    pub fn poll(&mut self) -> (Vec<Parameter>, Vec<String>) {
+        while let Ok(ask) = self.asks.try_recv() {
+            match ask {
+                Ask::Get(names, r) => {
+                    let all: Vec<Parameter> = std::iter::once(self.gain())
+                        .chain(self.metadata.iter().cloned())
+                        .collect();
+                    r.respond(
+                        all.into_iter()
+                            .filter(|p| names.is_empty() || names.contains(&p.name))
+                            .collect(),
+                    );
+                }
+                Ask::Set(params, r) => {
+                    let value = params
+                        .iter()
+                        .find(|p| p.name == GAIN_SCALE)
+                        .and_then(|p| match p.value {
+                            Some(ParameterValue::Float64(v)) => Some(v),
+                            Some(ParameterValue::Integer(v)) => Some(v as f64),
+                            _ => None,
+                        });
+                    match value {
+                        Some(v) => self.send(command::SET_GAIN_SCALE, v, Waiting::Gain(v, r)),
+                        // Only gain_scale can be set; the metadata is read-only.
+                        None => r.respond(vec![self.gain()]),
+                    }
+                }
+                Ask::Stop(r) => self.send(command::STOP, 0.0, Waiting::Stop(r)),
+            }
+        }
+        let mut publish = Vec::new();
+        while let Some(a) = take(&self.acks) {
+            let Some(i) = self.pending.iter().position(|(id, ..)| *id == a.id) else {
+                continue;
+            };
+            let (_, _, waiting) = self.pending.swap_remove(i);
+            match (waiting, a.status) {
+                (Waiting::Gain(v, r), ack_status::APPLIED) => {
+                    self.gain_scale = v;
+                    self.applied_gains.push(v);
+                    r.respond(vec![self.gain()]);
+                    publish.push(self.gain());
+                }
+                (Waiting::Gain(v, r), _) => {
+                    r.respond(vec![self.gain()]);
+                    self.problems.push(format!(
+                        "gain_scale ×{v} refused by the controller: the loop keeps a 6 dB margin \
+                         only within ×{:.3}–×{:.3} (unstable above ×{:.3})",
+                        a.low, a.high, a.unstable_at
+                    ));
+                }
+                (Waiting::Stop(r), _) => {
+                    r.respond_ok(format!("{{\"stopped_at_tick\": {}}}", a.tick).into_bytes())
+                }
+            }
+        }
+        let now = Instant::now();
+        let (late, waiting): (Vec<_>, Vec<_>) = std::mem::take(&mut self.pending)
+            .into_iter()
+            .partition(|(_, at, _)| now.duration_since(*at) > ACK_TIMEOUT);
+        self.pending = waiting;
+        for (_, _, w) in late {
+            self.answer_failure(w, format!("no acknowledgement within {ACK_TIMEOUT:?}"));
+        }
+        (publish, std::mem::take(&mut self.problems))
+    }
+}
