@@ -1,8 +1,10 @@
 //! Pictures beside the data: line plots (log axes optional) written as PNG and SVG.
 //!
 //! Values are plotted as given: pass engineering units (nm, nm²/Hz) — plotters drops the tick
-//! labels of log axes whose values are below ~1e-15. Text is drawn with DejaVu Sans (or another sans TTF) found on the system; without one the
-//! plot is skipped with [`PlotError::NoFont`] — the CSV/JSON data are what count.
+//! labels of log axes whose values are below ~1e-15. Legends and colour bars sit beside the
+//! data, never on it; log axes are labelled at decades (when they span two or more), every
+//! tick label is a plain number ("350", "0.25", "1e-9"). Text uses the typeface bundled with
+//! the binary.
 
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
@@ -13,8 +15,8 @@ use std::sync::OnceLock;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PlotError {
-    /// No usable font on this machine (install `fonts-dejavu-core`).
-    #[error("no TTF font found for plot text (install fonts-dejavu-core); plots skipped")]
+    /// The bundled font could not be registered (a bug if it happens).
+    #[error("the bundled plot font could not be registered; plots skipped")]
     NoFont,
     /// Drawing or writing failed.
     #[error("plot {path}: {message}")]
@@ -68,22 +70,17 @@ pub struct Figure {
     pub series: Vec<Series>,
 }
 
-const FONT_CANDIDATES: [&str; 3] = [
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-];
-
+/// The plots' typeface, shipped inside the binary (Ubuntu Light, Ubuntu Font Licence 1.0, via
+/// the `epaint_default_fonts` crate): no plot depends on a font package of the machine.
 fn font_ready() -> bool {
     static READY: OnceLock<bool> = OnceLock::new();
     *READY.get_or_init(|| {
-        FONT_CANDIDATES
-            .iter()
-            .find_map(|p| std::fs::read(p).ok())
-            .is_some_and(|bytes| {
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                register_font("sans-serif", FontStyle::Normal, bytes).is_ok()
-            })
+        register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            epaint_default_fonts::UBUNTU_LIGHT,
+        )
+        .is_ok()
     })
 }
 
@@ -120,25 +117,76 @@ fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     }
 }
 
-fn draw<DB: DrawingBackend>(
+/// A tick label as a plain number: up to four significant digits without trailing zeros
+/// ("350", "0.25", "−12.5"), scientific only far from 1 ("1e-9", "2.5e6").
+pub fn plain(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return if v == 0.0 { "0".into() } else { format!("{v}") };
+    }
+    let a = v.abs();
+    let text = if (1e-3..1e5).contains(&a) {
+        let digits = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        let t = format!("{a:.digits$}");
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_owned()
+        } else {
+            t
+        }
+    } else {
+        let t = format!("{a:.3e}");
+        let (m, e) = t.split_once('e').unwrap_or((&t, "0"));
+        let m = if m.contains('.') {
+            m.trim_end_matches('0').trim_end_matches('.')
+        } else {
+            m
+        };
+        format!("{m}e{e}")
+    };
+    if v < 0.0 {
+        format!("−{text}")
+    } else {
+        text
+    }
+}
+
+/// Whether `v` is a power of ten (to rounding).
+fn is_decade(v: f64) -> bool {
+    v > 0.0 && (v.log10() - v.log10().round()).abs() < 1e-9
+}
+
+/// The label of tick `v` on an axis over `(lo, hi)`: log axes spanning two decades or more
+/// are labelled at decades only.
+fn tick_label(v: f64, log: bool, (lo, hi): (f64, f64)) -> String {
+    if log && hi / lo >= 100.0 && !is_decade(v) {
+        String::new()
+    } else {
+        plain(v)
+    }
+}
+
+/// Width of the legend (or colour bar) panel right of the data, px.
+const SIDE_PX: u32 = 270;
+
+/// Draws one chart of `fig` in `area` (no caption when `title` is false).
+fn draw_chart<DB: DrawingBackend>(
     fig: &Figure,
-    root: DrawingArea<DB, plotters::coord::Shift>,
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    x_range: (f64, f64),
+    caption: Option<&str>,
 ) -> Result<(), String>
 where
     DB::ErrorType: 'static,
 {
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let xs = range(
-        fig.series.iter().flat_map(|s| s.x.iter().copied()),
-        fig.log_x,
-    );
+    let xs = x_range;
     let ys = range(
         fig.series.iter().flat_map(|s| s.y.iter().copied()),
         fig.log_y,
     );
-    let mut builder = ChartBuilder::on(&root);
+    let mut builder = ChartBuilder::on(area);
+    if let Some(c) = caption {
+        builder.caption(c, ("sans-serif", 22));
+    }
     builder
-        .caption(&fig.title, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(80);
@@ -150,45 +198,36 @@ where
                 .x_desc(&fig.x_label)
                 .y_desc(&fig.y_label)
                 .label_style(("sans-serif", 14))
-                .y_label_formatter(&|v| {
-                    if fig.log_y {
-                        format!("{v:.0e}")
-                    } else {
-                        format!("{v:.3}")
-                    }
-                })
+                .x_labels(12)
+                .y_labels(10)
+                .x_label_formatter(&|v| tick_label(*v, fig.log_x, xs))
+                .y_label_formatter(&|v| tick_label(*v, fig.log_y, ys))
                 .draw()
                 .map_err(|e| e.to_string())?;
-            for (i, s) in fig.series.iter().enumerate() {
+            // Measured points first, as rings: the model lines stay visible through them.
+            let finite = |s: &Series| {
+                s.x.iter()
+                    .zip(&s.y)
+                    .map(|(&x, &y)| (x, y))
+                    .filter(|(x, y)| x.is_finite() && y.is_finite())
+                    .collect::<Vec<_>>()
+            };
+            for (i, s) in fig.series.iter().enumerate().filter(|(_, s)| s.points) {
                 let color = COLORS[i % COLORS.len()];
-                let pts =
-                    s.x.iter()
-                        .zip(&s.y)
-                        .map(|(&x, &y)| (x, y))
-                        .filter(|(x, y)| x.is_finite() && y.is_finite());
-                if s.points {
-                    chart
-                        .draw_series(pts.map(|p| Circle::new(p, 3, color.filled())))
-                        .map_err(|e| e.to_string())?
-                        .label(&s.label)
-                        .legend(move |(x, y)| Circle::new((x, y), 3, color.filled()));
-                } else {
-                    chart
-                        .draw_series(LineSeries::new(pts, color.stroke_width(2)))
-                        .map_err(|e| e.to_string())?
-                        .label(&s.label)
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-                        });
-                }
+                chart
+                    .draw_series(
+                        finite(s)
+                            .into_iter()
+                            .map(|p| Circle::new(p, 4, color.stroke_width(2))),
+                    )
+                    .map_err(|e| e.to_string())?;
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .draw()
-                .map_err(|e| e.to_string())?;
+            for (i, s) in fig.series.iter().enumerate().filter(|(_, s)| !s.points) {
+                let color = COLORS[i % COLORS.len()];
+                chart
+                    .draw_series(LineSeries::new(finite(s), color.stroke_width(2)))
+                    .map_err(|e| e.to_string())?;
+            }
         }};
     }
     match (fig.log_x, fig.log_y) {
@@ -205,7 +244,124 @@ where
             .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
             .map_err(|e| e.to_string())?),
     }
+    Ok(())
+}
+
+/// Splits `text` into lines of at most `width` characters at spaces.
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = vec![String::new()];
+    for word in text.split_whitespace() {
+        let last = lines.last_mut().expect("one line");
+        if !last.is_empty() && last.chars().count() + 1 + word.chars().count() > width {
+            lines.push(word.to_owned());
+        } else {
+            if !last.is_empty() {
+                last.push(' ');
+            }
+            last.push_str(word);
+        }
+    }
+    lines
+}
+
+/// The legend of `series` in the side panel `area`, from `top` px down.
+fn draw_legend<DB: DrawingBackend>(
+    series: &[Series],
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    top: i32,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let font = ("sans-serif", 14).into_font().color(&BLACK);
+    let mut y = top;
+    for (i, s) in series.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        let mark = (12, y + 8);
+        let drawn = if s.points {
+            area.draw(&Circle::new(mark, 4, color.stroke_width(2)))
+        } else {
+            area.draw(&PathElement::new(
+                vec![(4, mark.1), (26, mark.1)],
+                color.stroke_width(3),
+            ))
+        };
+        drawn.map_err(|e| e.to_string())?;
+        for line in wrap(&s.label, 30) {
+            area.draw(&Text::new(line, (34, y), font.clone()))
+                .map_err(|e| e.to_string())?;
+            y += 18;
+        }
+        y += 8;
+    }
+    Ok(())
+}
+
+/// The x range of the curves of `figs` together.
+fn x_range(figs: &[&Figure]) -> (f64, f64) {
+    let log = figs.first().is_some_and(|f| f.log_x);
+    range(
+        figs.iter()
+            .flat_map(|f| f.series.iter())
+            .flat_map(|s| s.x.iter().copied()),
+        log,
+    )
+}
+
+fn draw<DB: DrawingBackend>(
+    fig: &Figure,
+    root: DrawingArea<DB, plotters::coord::Shift>,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let width = root.dim_in_pixel().0;
+    let (plot, side) = root.split_horizontally(width - SIDE_PX);
+    draw_chart(fig, &plot, x_range(&[fig]), Some(&fig.title))?;
+    draw_legend(&fig.series, &side, 60)?;
     root.present().map_err(|e| e.to_string())
+}
+
+/// Two charts over one frequency axis in one picture (a Bode plot: magnitude above phase),
+/// one legend beside them; the legend is the top chart's.
+#[derive(Debug, Clone)]
+pub struct Stacked {
+    /// Title of the picture.
+    pub title: String,
+    /// The upper chart (its own title is not drawn).
+    pub top: Figure,
+    /// The lower chart (same x axis; its own title is not drawn).
+    pub bottom: Figure,
+}
+
+impl Drawing for Stacked {
+    const SIZE: (u32, u32) = (1270, 900);
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root
+            .titled(&self.title, ("sans-serif", 22))
+            .map_err(|e| e.to_string())?;
+        let (w, h) = root.dim_in_pixel();
+        let (plots, side) = root.split_horizontally(w - SIDE_PX);
+        let (upper, lower) = plots.split_vertically(h / 2);
+        let xs = x_range(&[&self.top, &self.bottom]);
+        draw_chart(&self.top, &upper, xs, None)?;
+        draw_chart(&self.bottom, &lower, xs, None)?;
+        draw_legend(&self.top.series, &side, 30)?;
+        root.present().map_err(|e| e.to_string())
+    }
+}
+
+/// Writes `stem.png` and `stem.svg` of two stacked charts; returns their paths.
+pub fn write_stacked(fig: &Stacked, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
+    write_png_svg(fig, stem)
 }
 
 /// Something drawn on any plotters backend, at a fixed picture size.
@@ -221,7 +377,7 @@ trait Drawing {
 }
 
 impl Drawing for Figure {
-    const SIZE: (u32, u32) = (1000, 620);
+    const SIZE: (u32, u32) = (1270, 620);
     fn draw_on<DB: DrawingBackend>(
         &self,
         root: DrawingArea<DB, plotters::coord::Shift>,
@@ -257,7 +413,9 @@ pub fn write(fig: &Figure, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
 }
 
 /// A map of values on a regular grid (a form-error map), drawn with a diverging colour scale
-/// symmetric about zero (blue below, red above, white at 0; cells without data grey).
+/// symmetric about zero (blue below, red above, white at 0; cells without data grey) and a
+/// colour bar with its unit beside it. Remove an offset before (and say so in the title):
+/// the scale spans the largest |value|.
 #[derive(Debug, Clone)]
 pub struct Map {
     /// Title.
@@ -274,6 +432,8 @@ pub struct Map {
     pub cols: usize,
     /// Row-major values, `rows × cols` (NaN: no data), row 0 at the bottom.
     pub values: Vec<f64>,
+    /// The values' quantity and unit, for the colour bar (e.g. "form error (nm)").
+    pub value_label: String,
 }
 
 /// Blue–white–red for `v / scale` in [−1, 1].
@@ -305,11 +465,10 @@ where
         .filter(|v| v.is_finite())
         .fold(0.0f64, |m, v| m.max(v.abs()))
         .max(1e-300);
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("{} (colour scale ±{scale:.4})", map.title),
-            ("sans-serif", 20),
-        )
+    let width = root.dim_in_pixel().0;
+    let (plot, side) = root.split_horizontally(width - SIDE_PX);
+    let mut chart = ChartBuilder::on(&plot)
+        .caption(&map.title, ("sans-serif", 20))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(80)
@@ -321,6 +480,8 @@ where
         .x_desc(&map.x_label)
         .y_desc(&map.y_label)
         .label_style(("sans-serif", 14))
+        .x_label_formatter(&|v| plain(*v))
+        .y_label_formatter(&|v| plain(*v))
         .draw()
         .map_err(|e| e.to_string())?;
     let (dx, dy) = (
@@ -335,11 +496,49 @@ where
             Rectangle::new([(x0, y0), (x0 + dx, y0 + dy)], diverging(v, scale).filled())
         }))
         .map_err(|e| e.to_string())?;
+    draw_colour_bar(&side, scale, &map.value_label)?;
     root.present().map_err(|e| e.to_string())
 }
 
+/// The colour bar of [`diverging`] from −`scale` to `scale` in `area`, labelled.
+fn draw_colour_bar<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    scale: f64,
+    label: &str,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let h = area.dim_in_pixel().1 as i32;
+    let (top, bottom, x0, x1) = (60, h - 60, 20, 50);
+    let steps = 200;
+    for k in 0..steps {
+        let y0 = bottom - (bottom - top) * k / steps;
+        let y1 = bottom - (bottom - top) * (k + 1) / steps;
+        let v = scale * (2.0 * (k as f64 + 0.5) / steps as f64 - 1.0);
+        area.draw(&Rectangle::new([(x0, y1), (x1, y0)], diverging(v, scale).filled()))
+            .map_err(|e| e.to_string())?;
+    }
+    area.draw(&Rectangle::new([(x0, top), (x1, bottom)], BLACK.stroke_width(1)))
+        .map_err(|e| e.to_string())?;
+    let font = ("sans-serif", 14).into_font().color(&BLACK);
+    for k in 0..=4 {
+        let v = scale * (k as f64 / 2.0 - 1.0);
+        let y = bottom - (bottom - top) * k / 4;
+        area.draw(&PathElement::new(vec![(x1, y), (x1 + 6, y)], BLACK.stroke_width(1)))
+            .map_err(|e| e.to_string())?;
+        area.draw(&Text::new(plain(v), (x1 + 10, y - 7), font.clone()))
+            .map_err(|e| e.to_string())?;
+    }
+    for (i, line) in wrap(label, 30).into_iter().enumerate() {
+        area.draw(&Text::new(line, (x0, 20 + 18 * i as i32), font.clone()))
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
 impl Drawing for Map {
-    const SIZE: (u32, u32) = (1200, 500);
+    const SIZE: (u32, u32) = (1470, 500);
     fn draw_on<DB: DrawingBackend>(
         &self,
         root: DrawingArea<DB, plotters::coord::Shift>,

@@ -63,14 +63,19 @@ pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written
                 .collect::<Vec<f64>>()
         })
         .collect();
+    // Mean-removed, as the summary's RMS: the piston (the shank's static compression under the
+    // cutting force) would otherwise fill the map with one colour and hide the form.
+    let mean_nm = report.form_error_m.mean * 1e9;
+    let picture: Vec<f64> = picture.into_iter().map(|v| v - mean_nm).collect();
     let map = plot::Map {
-        title: format!("Form error, tool − design (nm) — {title}"),
+        title: format!("Form error, tool − design, mean {mean_nm:.1} nm removed — {title}"),
         x_label: "spindle angle (°)".into(),
         y_label: "radius (mm)".into(),
         x: (0.0, 360.0),
         y: ((outer - ring * rows as f64) * 1e3, outer * 1e3),
         cols: MAP_PICTURE_COLUMNS,
         values: picture,
+        value_label: "form error − mean (nm)".into(),
     };
     let ms: Vec<f64> = a.segment().iter().map(|s| s.time_s * 1e3).collect();
     let um = |f: fn(&super::SegmentRow) -> f64| -> Vec<f64> {
@@ -100,8 +105,8 @@ pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written
         series: vec![
             series("true tool − command", nm(|s| s.tool_m - s.reference_m)),
             series(
-                "following error (command − measured)",
-                nm(|s| s.reference_m - s.measured_m),
+                "measured − command (the sensor's view)",
+                nm(|s| s.measured_m - s.reference_m),
             ),
         ],
     };

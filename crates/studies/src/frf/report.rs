@@ -1,7 +1,7 @@
 //! `frf.csv`, `frf.json` and the Bode plot of a measured FRF beside its model.
 
-use crate::plot::{Figure, Series};
-use crate::report::{data, plots, ReportError, Written};
+use crate::plot::{self, Figure, Series};
+use crate::report::{data, ReportError, Written};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -43,7 +43,7 @@ struct FrfFile<'a> {
 }
 
 /// `frf.csv` (opened by a comment line naming the quantity, its unit and plant), `frf.json`
-/// (the same as fields), `bode_magnitude.{png,svg}`, `bode_phase.{png,svg}`.
+/// (the same as fields), `bode.{png,svg}` (magnitude above phase).
 pub fn write(
     points: &[super::FrfPoint],
     model: &[(f64, num_complex::Complex64)],
@@ -92,7 +92,7 @@ pub fn write(
         points: pts,
     };
     let mag = Figure {
-        title: format!("{title}: magnitude"),
+        title: String::new(),
         x_label: "frequency (Hz)".into(),
         y_label: "|H| (µm/V)".into(),
         log_x: true,
@@ -129,17 +129,21 @@ pub fn write(
         points: true,
     };
     let phase = Figure {
-        title: format!("{title}: phase"),
+        title: String::new(),
         x_label: "frequency (Hz)".into(),
         y_label: "phase (°)".into(),
         log_x: true,
         log_y: false,
         series: vec![model_series(unwrapped.clone()), measured_phase],
     };
-    out.note = plots(
-        &[(mag, "bode_magnitude"), (phase, "bode_phase")],
-        dir,
-        &mut out.files,
-    );
+    let bode = plot::Stacked {
+        title: format!("{title}: Bode plot"),
+        top: mag,
+        bottom: phase,
+    };
+    match plot::write_stacked(&bode, &dir.join("bode")) {
+        Ok(paths) => out.files.extend(paths),
+        Err(e) => out.note = Some(e.to_string()),
+    }
     Ok(out)
 }
