@@ -10,7 +10,7 @@ fn nm(v: &serde_json::Value, group: &str) -> f64 {
     v[group]["rms"].as_f64().unwrap() * 1e9
 }
 
-/// The plant-sim calibration: 468 Hz PID on the 0.175 kg stage, no accelerometer. Documented
+/// The plant-sim calibration: 468 Hz PID on the 0.174 kg stage, no accelerometer. Documented
 /// 0.83 nm following / 0.23 nm true (thesis §5.7.4, crates/plant-sim/README.md); tolerances
 /// ±10 % / ±15 % for a 2 s run with a different seed.
 #[test]

@@ -57,7 +57,7 @@ impl StageParams {
         c5_n_s_per_m: 0.0,
     };
 
-    /// The heavy variant of §5.7.3: 0.100 kg added to m2 (0.175 kg moving in total).
+    /// The heavy variant of §5.7.3: 0.100 kg added to m2 (0.174 kg moving in total).
     pub const THESIS_HEAVY: StageParams = StageParams {
         m2_kg: 0.170,
         ..StageParams::THESIS
@@ -285,7 +285,7 @@ impl Default for NoiseParams {
     fn default() -> Self {
         NoiseParams {
             // Calibrated (plant-sim README; `cargo run --release -p studies --example
-            // calibrate`): 0.83 nm following and 0.23 nm true error at 468 Hz on the 0.175 kg
+            // calibrate`): 0.83 nm following and 0.23 nm true error at 468 Hz on the 0.174 kg
             // stage (§5.7.4), base vibration 10 % of the true-error power.
             sensor_v_per_rt_hz: 9.841e-7,
             current_a_per_rt_hz: 3.078e-7,
@@ -351,7 +351,7 @@ impl PlantParams {
         self.actuator.current_gain_a_per_v * self.actuator.kt_n_per_a / k
     }
 
-    /// The thesis prototype with the 0.175 kg heavy stage (§5.7.3).
+    /// The thesis prototype with the 0.174 kg heavy stage (§5.7.3).
     pub fn heavy() -> Self {
         PlantParams {
             stage: StageParams::THESIS_HEAVY,

@@ -1,4 +1,4 @@
-//! The documented calibration (README "Calibration"): the 468 Hz-bandwidth PID on the 0.175 kg
+//! The documented calibration (README "Calibration"): the 468 Hz-bandwidth PID on the 0.174 kg
 //! stage with all default disturbances gives a following error near the thesis's 0.83 nm RMS
 //! (§5.7.4, Fig 5-16) and a true tool error near its 0.23 nm RMS.
 

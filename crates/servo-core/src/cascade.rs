@@ -26,7 +26,7 @@ pub const THESIS_ACCEL_SENSITIVITY_V_PER_M_S2: f64 = 1.0 / STANDARD_GRAVITY_M_S2
 ///
 /// ```
 /// use servo_core::{kg, THESIS_ACCEL_SENSITIVITY_V_PER_M_S2 as S};
-/// // 0.175 kg stage, Ka = 1, 1 A/V, K_T = 3.6658 N/A: the added mass is 0.374 kg.
+/// // 0.174 kg stage, Ka = 1, 1 A/V, K_T = 3.6658 N/A: the added mass is 0.374 kg.
 /// let k = kg(0.175, 1.0, S, 1.0, 3.6658);
 /// assert!((k - 0.175 / (0.175 + 3.6658 * S)).abs() < 1e-15);
 /// ```

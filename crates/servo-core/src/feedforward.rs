@@ -34,7 +34,7 @@ pub struct FeedforwardConfig {
 }
 
 impl FeedforwardConfig {
-    /// The heavy thesis stage (§5.7.3): 0.175 kg, flexure 21965 N/m and 2.28 N·s/m
+    /// The heavy thesis stage (§5.7.3): 0.174 kg, flexure 21965 N/m and 2.28 N·s/m
     /// (Table 5-2), 1 A/V × 3.6658 N/A.
     pub const THESIS_HEAVY: FeedforwardConfig = FeedforwardConfig {
         mass_kg: 0.175,

@@ -1,6 +1,6 @@
 //! Calibration of the noise gains (plant-sim README "Calibration"), from exact budgets.
 //!
-//! On the 0.175 kg stage with the Chapter 7 PID scaled to the 468 Hz closed-loop bandwidth of
+//! On the 0.174 kg stage with the Chapter 7 PID scaled to the 468 Hz closed-loop bandwidth of
 //! thesis §5.7.3, each source's RMS contribution is linear in its gain, so three budgets at the
 //! thesis's printed gains (eq 6-6..6-8) give the gains that meet the thesis's measured numbers
 //! of §5.7.4 exactly: following error 0.83 nm RMS and true tool error 0.23 nm RMS, with base
@@ -19,7 +19,7 @@ use studies::sweep::{scale_for_bandwidth, scaled};
 
 /// The thesis's printed gains: sensor V/√Hz (eq 6-6), current A/√Hz (eq 6-7), base m/√Hz (eq 6-8).
 const THESIS: [f64; 3] = [1.36e-6, 1.64e-7, 2.83e-9];
-/// §5.7.4: following error at 468 Hz on the 0.175 kg stage, m RMS.
+/// §5.7.4: following error at 468 Hz on the 0.174 kg stage, m RMS.
 const TARGET_FOLLOWING_M: f64 = 0.83e-9;
 /// §5.7.4: true tool error of the same loop, m RMS.
 const TARGET_TRUE_M: f64 = 0.23e-9;
@@ -58,7 +58,7 @@ fn main() {
     let plan = scaled(&plan, k).unwrap();
     let pid = plan.config.controller.pid;
     println!(
-        "468 Hz PID on 0.175 kg: Ch7 gains ×{k:.4} (Kp {:.4}, Ki {:.2}, Kd {:.4e}), bandwidth {bw:.1} Hz",
+        "468 Hz PID on 0.174 kg: Ch7 gains ×{k:.4} (Kp {:.4}, Ki {:.2}, Kd {:.4e}), bandwidth {bw:.1} Hz",
         pid.kp, pid.ki, pid.kd
     );
     let unit = Budget::new(&plan_with(&plan, THESIS).closed_loop, 64).unwrap();

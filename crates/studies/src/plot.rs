@@ -124,7 +124,7 @@ pub fn plain(v: f64) -> String {
         return if v == 0.0 { "0".into() } else { format!("{v}") };
     }
     let a = v.abs();
-    let text = if (1e-3..1e5).contains(&a) {
+    let text = if (1e-3..1e6).contains(&a) {
         let digits = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
         let t = format!("{a:.digits$}");
         if t.contains('.') {
@@ -155,14 +155,36 @@ fn is_decade(v: f64) -> bool {
 }
 
 /// The label of tick `v` on an axis over `(lo, hi)`: log axes spanning two decades or more
-/// are labelled at decades only.
+/// are labelled at decades only; linear axes with as many decimals as their span needs
+/// (a 0.05 mm band reads 31.795, not 31.8 three times).
 fn tick_label(v: f64, log: bool, (lo, hi): (f64, f64)) -> String {
-    if log && hi / lo >= 100.0 && !is_decade(v) {
-        String::new()
+    if log {
+        return if hi / lo >= 100.0 && !is_decade(v) {
+            String::new()
+        } else {
+            plain(v)
+        };
+    }
+    let a = v.abs();
+    if v == 0.0 || !(1e-3..1e6).contains(&a) {
+        return plain(v);
+    }
+    let decimals = (2 - (hi - lo).abs().max(1e-12).log10().floor() as i32).clamp(0, 12) as usize;
+    let t = format!("{a:.decimals$}");
+    let t = if t.contains('.') {
+        t.trim_end_matches('0').trim_end_matches('.').to_owned()
     } else {
-        plain(v)
+        t
+    };
+    if v < 0.0 && t != "0" {
+        format!("−{t}")
+    } else {
+        t
     }
 }
+
+/// Most rings drawn for one curve of points.
+const MAX_RINGS: usize = 60;
 
 /// Width of the legend (or colour bar) panel right of the data, px.
 const SIDE_PX: u32 = 270;
@@ -204,7 +226,8 @@ where
                 .y_label_formatter(&|v| tick_label(*v, fig.log_y, ys))
                 .draw()
                 .map_err(|e| e.to_string())?;
-            // Measured points first, as rings: the model lines stay visible through them.
+            // Measured points first, as rings (at most MAX_RINGS per curve: the CSV has them
+            // all), so the model lines stay visible through them.
             let finite = |s: &Series| {
                 s.x.iter()
                     .zip(&s.y)
@@ -214,10 +237,12 @@ where
             };
             for (i, s) in fig.series.iter().enumerate().filter(|(_, s)| s.points) {
                 let color = COLORS[i % COLORS.len()];
+                let pts = finite(s);
+                let step = pts.len().div_ceil(MAX_RINGS).max(1);
                 chart
                     .draw_series(
-                        finite(s)
-                            .into_iter()
+                        pts.into_iter()
+                            .step_by(step)
                             .map(|p| Circle::new(p, 4, color.stroke_width(2))),
                     )
                     .map_err(|e| e.to_string())?;
@@ -480,8 +505,8 @@ where
         .x_desc(&map.x_label)
         .y_desc(&map.y_label)
         .label_style(("sans-serif", 14))
-        .x_label_formatter(&|v| plain(*v))
-        .y_label_formatter(&|v| plain(*v))
+        .x_label_formatter(&|v| tick_label(*v, false, map.x))
+        .y_label_formatter(&|v| tick_label(*v, false, map.y))
         .draw()
         .map_err(|e| e.to_string())?;
     let (dx, dy) = (
@@ -516,17 +541,26 @@ where
         let y0 = bottom - (bottom - top) * k / steps;
         let y1 = bottom - (bottom - top) * (k + 1) / steps;
         let v = scale * (2.0 * (k as f64 + 0.5) / steps as f64 - 1.0);
-        area.draw(&Rectangle::new([(x0, y1), (x1, y0)], diverging(v, scale).filled()))
-            .map_err(|e| e.to_string())?;
-    }
-    area.draw(&Rectangle::new([(x0, top), (x1, bottom)], BLACK.stroke_width(1)))
+        area.draw(&Rectangle::new(
+            [(x0, y1), (x1, y0)],
+            diverging(v, scale).filled(),
+        ))
         .map_err(|e| e.to_string())?;
+    }
+    area.draw(&Rectangle::new(
+        [(x0, top), (x1, bottom)],
+        BLACK.stroke_width(1),
+    ))
+    .map_err(|e| e.to_string())?;
     let font = ("sans-serif", 14).into_font().color(&BLACK);
     for k in 0..=4 {
         let v = scale * (k as f64 / 2.0 - 1.0);
         let y = bottom - (bottom - top) * k / 4;
-        area.draw(&PathElement::new(vec![(x1, y), (x1 + 6, y)], BLACK.stroke_width(1)))
-            .map_err(|e| e.to_string())?;
+        area.draw(&PathElement::new(
+            vec![(x1, y), (x1 + 6, y)],
+            BLACK.stroke_width(1),
+        ))
+        .map_err(|e| e.to_string())?;
         area.draw(&Text::new(plain(v), (x1 + 10, y - 7), font.clone()))
             .map_err(|e| e.to_string())?;
     }

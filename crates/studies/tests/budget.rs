@@ -234,7 +234,7 @@ fn chirp_frf_matches_the_model() {
 
 /// Fig 5-14 the thesis's way (§5.7.3: gains re-tuned for each crossover): the predicted
 /// following error has an interior optimum for both masses, and the heavier stage's lies at
-/// the lower bandwidth (thesis: 874 Hz for 0.075 kg, 468 Hz for 0.175 kg).
+/// the lower bandwidth (thesis: 874 Hz for 0.074 kg, 468 Hz for 0.174 kg).
 #[test]
 fn retuned_sweep_has_an_optimum_that_falls_with_mass() {
     let crossovers = [

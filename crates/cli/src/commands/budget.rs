@@ -23,7 +23,7 @@ pub struct BudgetCmd {
     plant: PlantArgs,
     #[command(flatten)]
     controller: ControllerArgs,
-    /// Sweep the closed-loop bandwidth for the 0.075 and 0.175 kg stages (the PID gains scaled
+    /// Sweep the closed-loop bandwidth for the 0.074 and 0.174 kg stages (the PID gains scaled
     /// together, or re-tuned with --retune).
     #[arg(long)]
     sweep: bool,
@@ -163,6 +163,6 @@ fn print_sweeps(results: &[Sweep], validated: bool) {
         for (target, reason) in &s.unreached {
             println!("  {} {target:>7.1} Hz: not reached — {reason}", s.label);
         }
-        println!("  {}: lowest following error at {:.0} Hz, lowest true error at {:.0} Hz (thesis: 874 Hz for 0.075 kg, 468 Hz for 0.175 kg)", s.label, s.optimum_following_hz, s.optimum_true_hz);
+        println!("  {}: lowest following error at {:.0} Hz, lowest true error at {:.0} Hz (thesis: 874 Hz for 0.074 kg, 468 Hz for 0.174 kg)", s.label, s.optimum_following_hz, s.optimum_true_hz);
     }
 }

@@ -15,7 +15,7 @@ use studies::StudyError;
 /// The intermittent cut of §7.6 for a list of acceleration gains: peak following error
 /// and the form-error height at the step edge per Ka (thesis: 75 → 25 nm and 106 → 27 nm
 /// for Ka 0 → 4). Without a configuration file it runs §7.6's settings: the PID gains raised
-/// with Ka by Kg (§7.4.1; --fixed-pid keeps them) on the 0.175 kg stage (--mass light: Ka = 4
+/// with Ka by Kg (§7.4.1; --fixed-pid keeps them) on the 0.174 kg stage (--mass light: Ka = 4
 /// with Kg-scaled gains is unstable there), Table 7-3's 0.08 N cut, Ha first order at 300 Hz.
 /// Example: servo intermittent-cut --kas 0,1,4
 #[derive(Args, Debug)]

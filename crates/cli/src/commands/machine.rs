@@ -179,7 +179,7 @@ pub fn print_form(report: &FormReport) {
         report.revolutions
     );
     println!(
-        "  form error (tool − design): mean {:.1} nm (the shank's static compression; removed below), RMS {:.1} nm, PV {:.1} nm, max |e − mean| {:.1} nm",
+        "  form error (tool − design): mean {:.1} nm (piston; removed from RMS, PV and the map), RMS {:.1} nm, PV {:.1} nm, max |e − mean| {:.1} nm",
         nm(report.form_error_m.mean),
         nm(report.form_error_m.rms),
         nm(report.form_error_m.pv),

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 pub enum StagePreset {
     /// 0.074 kg moving mass (Table 5-2).
     Light,
-    /// 0.175 kg: +0.100 kg on the coil carrier (§5.7.3).
+    /// 0.174 kg: +0.100 kg on the coil carrier (§5.7.3).
     Heavy,
 }
 

@@ -77,8 +77,8 @@ pub const THESIS_BANDWIDTHS_HZ: [f64; 10] = [
 
 /// The two stages of Fig 5-14 and their labels.
 pub const THESIS_STAGES: [(&str, StageParams); 2] = [
-    ("0.075 kg", StageParams::THESIS),
-    ("0.175 kg", StageParams::THESIS_HEAVY),
+    ("0.074 kg", StageParams::THESIS),
+    ("0.174 kg", StageParams::THESIS_HEAVY),
 ];
 
 /// `plan` with the PID `pid`.

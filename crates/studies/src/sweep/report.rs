@@ -69,7 +69,8 @@ pub fn write(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
         title: "RMS error against closed-loop bandwidth (thesis Fig 5-14)".into(),
         x_label: "closed-loop −3 dB bandwidth (Hz)".into(),
         y_label: "RMS error (nm)".into(),
-        log_x: true,
+        // Linear, as Fig 5-14: the sweep spans about a decade, where a log axis has two labels.
+        log_x: false,
         log_y: false,
         series,
     };
