@@ -47,6 +47,7 @@ enum Command {
     Ctl(ctl::CtlCmd),
     View(view::ViewCmd),
     Latency(latency::LatencyCmd),
+    Completions(completions::CompletionsCmd),
 }
 
 impl Command {
@@ -74,6 +75,7 @@ impl Command {
             Command::Ctl(c) => c.exec(),
             Command::View(c) => c.exec(),
             Command::Latency(c) => c.exec(),
+            Command::Completions(c) => c.exec::<Cli>(),
         }
     }
 }
@@ -98,5 +100,26 @@ mod tests {
     #[test]
     fn command_line_is_consistent() {
         Cli::command().debug_assert();
+    }
+
+    /// The completion scripts name every command and each command's flags.
+    #[test]
+    fn completions_cover_every_command_and_flag() {
+        let cli = Cli::command();
+        for shell in [clap_complete::Shell::Bash, clap_complete::Shell::Zsh] {
+            let mut script = Vec::new();
+            clap_complete::generate(shell, &mut Cli::command(), "servo", &mut script);
+            let script = String::from_utf8(script).unwrap();
+            for sub in cli.get_subcommands() {
+                assert!(
+                    script.contains(sub.get_name()),
+                    "{shell}: {}",
+                    sub.get_name()
+                );
+                for flag in sub.get_arguments().filter_map(|a| a.get_long()) {
+                    assert!(script.contains(&format!("--{flag}")), "{shell}: --{flag}");
+                }
+            }
+        }
     }
 }
