@@ -29,13 +29,7 @@ pub fn budget(
         let bandwidth = plan.closed_loop.bandwidth_hz().map_err(servo_err)?;
         let json = serde_json::json!({
             "budget": b,
-            "margins": {
-                "gain_crossover_hz": m.gain_crossover_hz,
-                "phase_margin_deg": m.phase_margin_deg,
-                "phase_crossover_hz": m.phase_crossover_hz,
-                "gain_margin_db": m.gain_margin_db,
-                "lower_gain_margin_db": m.lower_gain_margin_db,
-            },
+            "margins": m,
             "bandwidth_hz": bandwidth,
             "controller": plan.controller.description,
         });

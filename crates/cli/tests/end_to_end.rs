@@ -268,9 +268,20 @@ fn budget_writes_data_and_plots() {
     let csv = std::fs::read_to_string(dir.join("budget.csv")).unwrap();
     assert!(csv.starts_with("freq_hz,following_psd_sensor_m2_per_hz"));
     assert_eq!(csv.lines().count(), 201);
-    if !text.contains("note: no TTF font") {
-        assert!(dir.join("budget_psd.png").exists() && dir.join("budget_cas.svg").exists());
-    }
+    assert!(dir.join("budget_psd.png").exists() && dir.join("budget_cas.svg").exists());
+    // The sources by name, the margins of the loop.
+    assert_eq!(
+        b["following_psd_m2_per_hz"]["sensor"]
+            .as_array()
+            .unwrap()
+            .len(),
+        200
+    );
+    assert!(
+        b["margins"]["phase_margin_deg"].as_f64().unwrap() > 20.0,
+        "{}",
+        b["margins"]
+    );
 }
 
 #[test]
@@ -369,8 +380,8 @@ fn frf_amplitude_sets_the_excitation() {
     assert!((excitation(&given, 1) / (0.004 * (600.0f64 / 150.0).powi(2)) - 1.0).abs() < 1e-12);
     for i in 0..2 {
         let (a, b) = (
-            given[i]["magnitude"].as_f64().unwrap(),
-            default[i]["magnitude"].as_f64().unwrap(),
+            given[i]["magnitude_m_per_v"].as_f64().unwrap(),
+            default[i]["magnitude_m_per_v"].as_f64().unwrap(),
         );
         assert!((a / b - 1.0).abs() < 0.01, "|H| {a} vs {b} at point {i}");
     }

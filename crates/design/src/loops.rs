@@ -30,7 +30,7 @@ impl ClosedLoopFunctions {
 }
 
 /// Stability margins of a loop gain `L` (negative feedback, `1 + L`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Margins {
     /// Frequency of the gain crossover with the smallest phase margin, Hz.
     pub gain_crossover_hz: Option<f64>,

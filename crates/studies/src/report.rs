@@ -42,15 +42,45 @@ pub(crate) fn write_files(dir: &Path, files: &[(&str, &str)]) -> Result<Written,
     })
 }
 
-/// Pretty JSON of an analysis result.
-pub(crate) fn to_json<T: serde::Serialize + ?Sized>(value: &T) -> String {
-    serde_json::to_string_pretty(value).expect("analysis results serialise")
+/// What, when and by which tool and command a JSON file was written: the `metadata` object
+/// that opens every JSON file of a study (what the result was made for — plant, rate,
+/// controller — is in the result itself where it applies).
+#[derive(serde::Serialize)]
+struct Metadata<'a> {
+    what: &'a str,
+    written_utc: String,
+    tool: String,
+    command: String,
 }
 
-/// Creates `dir` and writes the data files `<stem>.csv` and `<stem>.json`.
+/// Pretty JSON of an analysis result `value` (what it is: `what`), opened by its
+/// [`Metadata`]; a result that is a list goes under `key`.
+pub(crate) fn to_json<T: serde::Serialize + ?Sized>(what: &str, key: &str, value: &T) -> String {
+    let metadata = Metadata {
+        what,
+        written_utc: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+        tool: concat!("fts-servo ", env!("CARGO_PKG_VERSION")).to_owned(),
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+    };
+    let mut out = serde_json::Map::new();
+    out.insert(
+        "metadata".into(),
+        serde_json::to_value(&metadata).expect("metadata serialises"),
+    );
+    match serde_json::to_value(value).expect("analysis results serialise") {
+        serde_json::Value::Object(fields) => out.extend(fields),
+        other => {
+            out.insert(key.into(), other);
+        }
+    }
+    serde_json::to_string_pretty(&out).expect("JSON values serialise")
+}
+
+/// Creates `dir` and writes the data files `<stem>.csv` and `<stem>.json` (of `what`).
 pub(crate) fn data<T: serde::Serialize + ?Sized>(
     dir: &Path,
     stem: &str,
+    what: &str,
     csv: &str,
     json: &T,
 ) -> Result<Written, ReportError> {
@@ -58,7 +88,7 @@ pub(crate) fn data<T: serde::Serialize + ?Sized>(
         dir,
         &[
             (&format!("{stem}.csv"), csv),
-            (&format!("{stem}.json"), &to_json(json)),
+            (&format!("{stem}.json"), &to_json(what, stem, json)),
         ],
     )
 }

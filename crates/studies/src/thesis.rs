@@ -311,7 +311,14 @@ pub fn write(
         dir,
         &[
             ("thesis.md", &markdown(rows)),
-            ("thesis.json", &crate::report::to_json(rows)),
+            (
+                "thesis.json",
+                &crate::report::to_json(
+                    "the headline numbers of the thesis beside this model (servo thesis)",
+                    "rows",
+                    rows,
+                ),
+            ),
         ],
     )
 }

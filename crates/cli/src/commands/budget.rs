@@ -70,8 +70,11 @@ impl BudgetCmd {
         );
         let made_for = runner::config::MadeFor::of(&plan.config.plant);
         let made = (&made_for, plan.controller.description.as_str());
-        let written = studies::budget::report::write(&b, &title, made, &self.out_dir)
-            .map_err(StudyError::from)?;
+        // The plant without a linear tick (the coil model) has no margins to report.
+        let margins = studies::margins::loop_margins(&plan).ok();
+        let written =
+            studies::budget::report::write(&b, &title, made, margins.as_ref(), &self.out_dir)
+                .map_err(StudyError::from)?;
         let sweeps = if self.sweep {
             Some(self.sweeps(&plan)?)
         } else {

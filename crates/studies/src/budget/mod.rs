@@ -34,14 +34,29 @@ pub struct Budget {
     pub true_rms_m: f64,
     /// Frequency grid in Hz for the spectra.
     pub freq_hz: Vec<f64>,
-    /// Following-error PSD per source, m²/Hz (one-sided), `[source][frequency]`.
+    /// Following-error PSD per source, m²/Hz (one-sided), `[source][frequency]` (JSON: an
+    /// object by source name).
+    #[serde(rename = "following_psd_m2_per_hz", serialize_with = "by_source")]
     pub following_psd: Vec<Vec<f64>>,
     /// True-error PSD per source, m²/Hz.
+    #[serde(rename = "true_psd_m2_per_hz", serialize_with = "by_source")]
     pub true_psd: Vec<Vec<f64>>,
     /// CAS of the total following error, m (eq 5-16).
+    #[serde(rename = "following_cas_m")]
     pub following_cas: Vec<f64>,
     /// CAS of the total true error, m.
+    #[serde(rename = "true_cas_m")]
     pub true_cas: Vec<f64>,
+}
+
+/// Per-source rows as an object keyed by the source's name ([`SOURCES`] order).
+fn by_source<S: serde::Serializer>(rows: &[Vec<f64>], s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut map = s.serialize_map(Some(rows.len()))?;
+    for ((name, _), row) in SOURCES.iter().zip(rows) {
+        map.serialize_entry(name, row)?;
+    }
+    map.end()
 }
 
 /// Output variance caused by one white input of per-tick variance `var`.

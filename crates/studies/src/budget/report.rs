@@ -7,22 +7,25 @@ use runner::closed_loop::SOURCES;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// What `budget.json` holds: the budget, and what it was made for (the plant and rate, and the
-/// controller).
+/// What `budget.json` holds: the budget, what it was made for (the plant and rate, and the
+/// controller) and the loop's stability margins.
 #[derive(serde::Serialize)]
 struct BudgetFile<'a> {
     made_for: &'a runner::config::MadeFor,
     controller: &'a str,
+    margins: Option<&'a design::loops::Margins>,
     #[serde(flatten)]
     budget: &'a Budget,
 }
 
 /// `budget.csv`, `budget.json` (with what it was made for: `made_for`, the plant and rate;
-/// `controller`, its description), `budget_psd.{png,svg}`, `budget_cas.{png,svg}`.
+/// `controller`, its description; the loop's `margins` where they exist),
+/// `budget_psd.{png,svg}`, `budget_cas.{png,svg}`.
 pub fn write(
     b: &Budget,
     title: &str,
     (made_for, controller): (&runner::config::MadeFor, &str),
+    margins: Option<&design::loops::Margins>,
     dir: &Path,
 ) -> Result<Written, ReportError> {
     let mut csv = String::from("freq_hz");
@@ -46,9 +49,16 @@ pub fn write(
     let file = BudgetFile {
         made_for,
         controller,
+        margins,
         budget: b,
     };
-    let mut out = data(dir, "budget", &csv, &file)?;
+    let mut out = data(
+        dir,
+        "budget",
+        "error budget of the loop, thesis §5.7.2 (servo budget)",
+        &csv,
+        &file,
+    )?;
     let nm2 = |v: &Vec<f64>| v.iter().map(|x| x * 1e18).collect::<Vec<f64>>();
     let mut psd_series = vec![
         Series::line(

@@ -38,7 +38,7 @@ pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written
         dir,
         &[
             ("form_map.csv", &map_csv),
-            ("machine.json", &to_json(&report)),
+            ("machine.json", &to_json("form error, grid amplitude and roughness of a machined surface (servo machine)", "report", &report)),
             ("trajectory.csv", &seg_csv),
         ],
     )?;

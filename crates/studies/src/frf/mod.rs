@@ -56,12 +56,14 @@ pub struct FrfPoint {
     /// Excitation frequency in Hz (nudged onto an exact bin).
     pub freq_hz: f64,
     /// Measured response, m/V: magnitude.
+    #[serde(rename = "magnitude_m_per_v")]
     pub magnitude: f64,
     /// Measured phase in degrees.
     pub phase_deg: f64,
     /// Magnitude-squared coherence across the measurement blocks.
     pub coherence: f64,
     /// Model magnitude, m/V.
+    #[serde(rename = "model_magnitude_m_per_v")]
     pub model_magnitude: f64,
     /// Model phase in degrees.
     pub model_phase_deg: f64,

@@ -81,7 +81,13 @@ pub fn write(
         measured_on,
         points,
     };
-    let mut out = data(dir, "frf", &csv, &file)?;
+    let mut out = data(
+        dir,
+        "frf",
+        "frequency response, measured beside the model (servo frf)",
+        &csv,
+        &file,
+    )?;
     let f: Vec<f64> = points.iter().map(|p| p.freq_hz).collect();
     let mf: Vec<f64> = model.iter().map(|m| m.0).collect();
     let model_series = |y: Vec<f64>| Series::line("model (sampled loop)", mf.clone(), y);

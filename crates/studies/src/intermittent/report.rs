@@ -17,5 +17,11 @@ pub fn write(rows: &[super::KaRow], dir: &Path) -> Result<Written, ReportError> 
         )
         .unwrap();
     }
-    data(dir, "intermittent", &csv, rows)
+    data(
+        dir,
+        "intermittent",
+        "the §7.6 intermittent cut per acceleration gain (servo intermittent-cut)",
+        &csv,
+        rows,
+    )
 }

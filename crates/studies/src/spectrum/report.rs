@@ -10,7 +10,13 @@ use std::path::Path;
 
 /// Writes the data and the plots into `dir`; `title` names the recording.
 pub fn write(s: &Spectrum, title: &str, dir: &Path) -> Result<Written, ReportError> {
-    let mut out = data(dir, "spectrum", &csv(s), s)?;
+    let mut out = data(
+        dir,
+        "spectrum",
+        "spectra of a recording beside its budget, thesis §5.7.4 (servo spectrum)",
+        &csv(s),
+        s,
+    )?;
     let f = &s.freq_hz;
     let scaled = |v: &[f64], k: f64| v.iter().map(|x| x * k).collect::<Vec<f64>>();
     let mut psd = Vec::new();

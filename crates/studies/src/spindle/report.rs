@@ -68,7 +68,14 @@ pub fn write(
         dir,
         &[
             ("spindle.csv", &csv),
-            ("spindle.json", &to_json(r)),
+            (
+                "spindle.json",
+                &to_json(
+                    "spindle error separation, thesis Appendix D (servo spindle-errors)",
+                    "report",
+                    r,
+                ),
+            ),
             ("harmonic_weighting.csv", &hcsv),
         ],
     )?;

@@ -24,6 +24,7 @@ use std::f64::consts::{PI, SQRT_2};
 #[derive(Debug, Clone, Serialize)]
 pub struct ComplianceCurve {
     /// Acceleration gain (V/V).
+    #[serde(rename = "ka_v_per_v")]
     pub ka: f64,
     /// Factor on the PID gains (1/Kg when scaled, §7.4.1).
     pub pid_scale: f64,

@@ -26,7 +26,13 @@ pub fn write(curves: &[super::ComplianceCurve], dir: &Path) -> Result<Written, R
             .unwrap();
         }
     }
-    let mut out = data(dir, "stiffness", &csv, curves)?;
+    let mut out = data(
+        dir,
+        "stiffness",
+        "dynamic compliance at the tool, thesis eq 7-9 (servo stiffness)",
+        &csv,
+        curves,
+    )?;
     let mut series = Vec::new();
     for c in curves.iter().filter(|c| c.stable()) {
         let um = |v: &Vec<f64>| v.iter().map(|x| x * 1e6).collect::<Vec<f64>>();

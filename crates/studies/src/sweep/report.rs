@@ -30,7 +30,13 @@ pub fn write(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
             .unwrap();
         }
     }
-    let mut out = data(dir, "sweep", &csv, sweeps)?;
+    let mut out = data(
+        dir,
+        "sweep",
+        "RMS errors against closed-loop bandwidth, thesis Fig 5-14 (servo budget --sweep)",
+        &csv,
+        sweeps,
+    )?;
     let mut series = Vec::new();
     for s in sweeps {
         let bw: Vec<f64> = s.points.iter().map(|p| p.bandwidth_hz).collect();
