@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Regenerates the README gallery (docs/gallery/*.png) with the release binary: the plots as
+# the commands write them, downscaled to 760 px and a 256-colour palette. Needs Pillow (pip install pillow).
+set -euo pipefail
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+S=$ROOT/target/release/servo
+W=$(mktemp -d)
+cd $W
+$S frf --loop open --out-dir frf > /dev/null
+$S budget --sweep --out-dir budget > /dev/null
+$S stiffness --kas 0,0.5,1,4 --out-dir stiffness > /dev/null
+$S machine --no-record --out-dir machine -q > /dev/null
+mkdir -p $ROOT/docs/gallery
+python3 - "$W" "$ROOT/docs/gallery" <<'PY'
+import sys
+from PIL import Image
+src, dst = sys.argv[1], sys.argv[2]
+for f, name in [("frf/bode.png","bode.png"),("budget/budget_psd.png","budget_psd.png"),("budget/budget_cas.png","budget_cas.png"),("budget/sweep.png","sweep.png"),("stiffness/compliance.png","compliance.png"),("machine/form_error_map.png","form_error_map.png"),("machine/trajectory.png","trajectory.png")]:
+    im = Image.open(f"{src}/{f}").convert("RGB")
+    w = 760
+    im = im.resize((w, round(im.height * w / im.width)), Image.LANCZOS)
+    im = im.quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+    im.save(f"{dst}/{name}", optimize=True)
+PY
+rm -rf $W
+ls -la $ROOT/docs/gallery
