@@ -141,7 +141,7 @@ pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written
     }
     out.note = plots(&figures, dir, &mut out.files);
     if out.note.is_none() {
-        match plot::write_map(&map, &dir.join("form_error_map")) {
+        match plot::write(&map, &dir.join("form_error_map")) {
             Ok(paths) => out.files.extend(paths),
             Err(e) => out.note = Some(e.to_string()),
         }

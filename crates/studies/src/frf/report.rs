@@ -147,7 +147,7 @@ pub fn write(
         top: mag,
         bottom: phase,
     };
-    match plot::write_stacked(&bode, &dir.join("bode")) {
+    match plot::write(&bode, &dir.join("bode")) {
         Ok(paths) => out.files.extend(paths),
         Err(e) => out.note = Some(e.to_string()),
     }

@@ -11,6 +11,13 @@ use plotters::style::{register_font, FontStyle};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+mod map;
+mod ticks;
+
+pub use map::Map;
+pub use ticks::plain;
+use ticks::tick_label;
+
 /// Plotting errors.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -114,72 +121,6 @@ fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
             0.05 * hi.abs().max(1e-30)
         };
         (lo - pad, hi + pad)
-    }
-}
-
-/// A tick label as a plain number: up to four significant digits without trailing zeros
-/// ("350", "0.25", "−12.5"), scientific only far from 1 ("1e-9", "2.5e6").
-pub fn plain(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() {
-        return if v == 0.0 { "0".into() } else { format!("{v}") };
-    }
-    let a = v.abs();
-    let text = if (1e-3..1e6).contains(&a) {
-        let digits = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
-        let t = format!("{a:.digits$}");
-        if t.contains('.') {
-            t.trim_end_matches('0').trim_end_matches('.').to_owned()
-        } else {
-            t
-        }
-    } else {
-        let t = format!("{a:.3e}");
-        let (m, e) = t.split_once('e').unwrap_or((&t, "0"));
-        let m = if m.contains('.') {
-            m.trim_end_matches('0').trim_end_matches('.')
-        } else {
-            m
-        };
-        format!("{m}e{e}")
-    };
-    if v < 0.0 {
-        format!("−{text}")
-    } else {
-        text
-    }
-}
-
-/// Whether `v` is a power of ten (to rounding).
-fn is_decade(v: f64) -> bool {
-    v > 0.0 && (v.log10() - v.log10().round()).abs() < 1e-9
-}
-
-/// The label of tick `v` on an axis over `(lo, hi)`: log axes spanning two decades or more
-/// are labelled at decades only; linear axes with as many decimals as their span needs
-/// (a 0.05 mm band reads 31.795, not 31.8 three times).
-fn tick_label(v: f64, log: bool, (lo, hi): (f64, f64)) -> String {
-    if log {
-        return if hi / lo >= 100.0 && !is_decade(v) {
-            String::new()
-        } else {
-            plain(v)
-        };
-    }
-    let a = v.abs();
-    if v == 0.0 || !(1e-3..1e6).contains(&a) {
-        return plain(v);
-    }
-    let decimals = (2 - (hi - lo).abs().max(1e-12).log10().floor() as i32).clamp(0, 12) as usize;
-    let t = format!("{a:.decimals$}");
-    let t = if t.contains('.') {
-        t.trim_end_matches('0').trim_end_matches('.').to_owned()
-    } else {
-        t
-    };
-    if v < 0.0 && t != "0" {
-        format!("−{t}")
-    } else {
-        t
     }
 }
 
@@ -384,15 +325,12 @@ impl Drawing for Stacked {
     }
 }
 
-/// Writes `stem.png` and `stem.svg` of two stacked charts; returns their paths.
-pub fn write_stacked(fig: &Stacked, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
-    write_png_svg(fig, stem)
-}
-
-/// Something drawn on any plotters backend, at a fixed picture size.
-trait Drawing {
+/// Something drawn on any plotters backend, at a fixed picture size: a [`Figure`], a
+/// [`Stacked`] pair, a [`Map`].
+pub trait Drawing {
     /// Picture size in pixels.
     const SIZE: (u32, u32);
+    /// Draws it on `root`.
     fn draw_on<DB: DrawingBackend>(
         &self,
         root: DrawingArea<DB, plotters::coord::Shift>,
@@ -415,7 +353,7 @@ impl Drawing for Figure {
 }
 
 /// Writes `stem.png` and `stem.svg` of `item`; returns their paths.
-fn write_png_svg<D: Drawing>(item: &D, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
+pub fn write<D: Drawing>(item: &D, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
     if !font_ready() {
         return Err(PlotError::NoFont);
     }
@@ -430,163 +368,6 @@ fn write_png_svg<D: Drawing>(item: &D, stem: &Path) -> Result<Vec<PathBuf>, Plot
     item.draw_on(SVGBackend::new(&svg, size).into_drawing_area())
         .map_err(err(&svg))?;
     Ok(vec![png, svg])
-}
-
-/// Writes `stem.png` and `stem.svg`; returns their paths.
-pub fn write(fig: &Figure, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
-    write_png_svg(fig, stem)
-}
-
-/// A map of values on a regular grid (a form-error map), drawn with a diverging colour scale
-/// symmetric about zero (blue below, red above, white at 0; cells without data grey) and a
-/// colour bar with its unit beside it. Remove an offset before (and say so in the title):
-/// the scale spans the largest |value|.
-#[derive(Debug, Clone)]
-pub struct Map {
-    /// Title.
-    pub title: String,
-    /// X label with unit.
-    pub x_label: String,
-    /// Y label with unit.
-    pub y_label: String,
-    /// X extent (first column's left edge, last column's right edge).
-    pub x: (f64, f64),
-    /// Y extent (first row's lower edge, last row's upper edge).
-    pub y: (f64, f64),
-    /// Columns.
-    pub cols: usize,
-    /// Row-major values, `rows × cols` (NaN: no data), row 0 at the bottom.
-    pub values: Vec<f64>,
-    /// The values' quantity and unit, for the colour bar (e.g. "form error (nm)").
-    pub value_label: String,
-}
-
-/// Blue–white–red for `v / scale` in [−1, 1].
-fn diverging(v: f64, scale: f64) -> RGBColor {
-    if !v.is_finite() {
-        return RGBColor(200, 200, 200);
-    }
-    let t = (v / scale).clamp(-1.0, 1.0);
-    let fade = |c: u8, t: f64| (255.0 - (255.0 - c as f64) * t).round() as u8;
-    if t >= 0.0 {
-        RGBColor(fade(180, t), fade(20, t), fade(30, t))
-    } else {
-        RGBColor(fade(30, -t), fade(60, -t), fade(180, -t))
-    }
-}
-
-fn draw_map<DB: DrawingBackend>(
-    map: &Map,
-    root: DrawingArea<DB, plotters::coord::Shift>,
-) -> Result<(), String>
-where
-    DB::ErrorType: 'static,
-{
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let rows = map.values.len() / map.cols.max(1);
-    let scale = map
-        .values
-        .iter()
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, |m, v| m.max(v.abs()))
-        .max(1e-300);
-    let width = root.dim_in_pixel().0;
-    let (plot, side) = root.split_horizontally(width - SIDE_PX);
-    let mut chart = ChartBuilder::on(&plot)
-        .caption(&map.title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(80)
-        .build_cartesian_2d(map.x.0..map.x.1, map.y.0..map.y.1)
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc(&map.x_label)
-        .y_desc(&map.y_label)
-        .label_style(("sans-serif", 14))
-        .x_label_formatter(&|v| tick_label(*v, false, map.x))
-        .y_label_formatter(&|v| tick_label(*v, false, map.y))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    let (dx, dy) = (
-        (map.x.1 - map.x.0) / map.cols as f64,
-        (map.y.1 - map.y.0) / rows.max(1) as f64,
-    );
-    chart
-        .draw_series(map.values.iter().enumerate().map(|(i, &v)| {
-            let (r, c) = (i / map.cols, i % map.cols);
-            let x0 = map.x.0 + c as f64 * dx;
-            let y0 = map.y.0 + r as f64 * dy;
-            Rectangle::new([(x0, y0), (x0 + dx, y0 + dy)], diverging(v, scale).filled())
-        }))
-        .map_err(|e| e.to_string())?;
-    draw_colour_bar(&side, scale, &map.value_label)?;
-    root.present().map_err(|e| e.to_string())
-}
-
-/// The colour bar of [`diverging`] from −`scale` to `scale` in `area`, labelled.
-fn draw_colour_bar<DB: DrawingBackend>(
-    area: &DrawingArea<DB, plotters::coord::Shift>,
-    scale: f64,
-    label: &str,
-) -> Result<(), String>
-where
-    DB::ErrorType: 'static,
-{
-    let h = area.dim_in_pixel().1 as i32;
-    let (top, bottom, x0, x1) = (60, h - 60, 20, 50);
-    let steps = 200;
-    for k in 0..steps {
-        let y0 = bottom - (bottom - top) * k / steps;
-        let y1 = bottom - (bottom - top) * (k + 1) / steps;
-        let v = scale * (2.0 * (k as f64 + 0.5) / steps as f64 - 1.0);
-        area.draw(&Rectangle::new(
-            [(x0, y1), (x1, y0)],
-            diverging(v, scale).filled(),
-        ))
-        .map_err(|e| e.to_string())?;
-    }
-    area.draw(&Rectangle::new(
-        [(x0, top), (x1, bottom)],
-        BLACK.stroke_width(1),
-    ))
-    .map_err(|e| e.to_string())?;
-    let font = ("sans-serif", 14).into_font().color(&BLACK);
-    for k in 0..=4 {
-        let v = scale * (k as f64 / 2.0 - 1.0);
-        let y = bottom - (bottom - top) * k / 4;
-        area.draw(&PathElement::new(
-            vec![(x1, y), (x1 + 6, y)],
-            BLACK.stroke_width(1),
-        ))
-        .map_err(|e| e.to_string())?;
-        area.draw(&Text::new(plain(v), (x1 + 10, y - 7), font.clone()))
-            .map_err(|e| e.to_string())?;
-    }
-    for (i, line) in wrap(label, 30).into_iter().enumerate() {
-        area.draw(&Text::new(line, (x0, 20 + 18 * i as i32), font.clone()))
-            .map_err(|e| e.to_string())?;
-    }
-    Ok(())
-}
-
-impl Drawing for Map {
-    const SIZE: (u32, u32) = (1470, 500);
-    fn draw_on<DB: DrawingBackend>(
-        &self,
-        root: DrawingArea<DB, plotters::coord::Shift>,
-    ) -> Result<(), String>
-    where
-        DB::ErrorType: 'static,
-    {
-        draw_map(self, root)
-    }
-}
-
-/// Writes `stem.png` and `stem.svg` of a map; returns their paths.
-pub fn write_map(map: &Map, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
-    write_png_svg(map, stem)
 }
 
 #[cfg(test)]
@@ -614,22 +395,5 @@ mod tests {
         for p in write(&fig, &dir.join("p")).unwrap() {
             assert!(std::fs::metadata(&p).unwrap().len() > 1000, "{p:?}");
         }
-    }
-
-    #[test]
-    fn tick_labels_are_plain_numbers_with_the_decimals_their_axis_needs() {
-        assert_eq!(plain(-350.0), "−350");
-        assert_eq!(plain(0.25), "0.25");
-        assert_eq!(plain(1e-9), "1e-9");
-        assert_eq!(plain(2.5e6), "2.5e6");
-        assert_eq!(plain(1000.0), "1000");
-        // Log axes over two decades or more: decades only.
-        assert_eq!(tick_label(100.0, true, (10.0, 1e4)), "100");
-        assert_eq!(tick_label(200.0, true, (10.0, 1e4)), "");
-        assert_eq!(tick_label(200.0, true, (150.0, 900.0)), "200");
-        // A narrow linear axis keeps its distinguishing digits.
-        assert_eq!(tick_label(31.795, false, (31.78, 31.83)), "31.795");
-        assert_eq!(tick_label(31.8, false, (31.78, 31.83)), "31.8");
-        assert_eq!(tick_label(-350.0, false, (-400.0, 400.0)), "−350");
     }
 }
