@@ -68,6 +68,7 @@
 #define FTS_STATE_RUNNING 2u
 #define FTS_STATE_DONE 3u
 #define FTS_STATE_FAULTED 4u
+#define FTS_STATE_HELD_FOR_RECORDER 5u /* lockstep: waiting for the recorder to catch up */
 
 /* Why a run was stopped early (fts_Health.stop_cause; 1-127: a signal number). */
 #define FTS_STOP_CAUSE_NONE 0u

@@ -463,6 +463,9 @@ pub mod state {
     pub const DONE: u32 = 3;
     /// Stopped by a fault (see the flags).
     pub const FAULTED: u32 = 4;
+    /// Lockstep plant: holding its next tick until the recorder catches up (published when a
+    /// hold begins, with the tick; see `crate::recorder_pace`).
+    pub const HELD_FOR_RECORDER: u32 = 5;
 
     /// The final state of a run that ended with fault bits `faults`: [`FAULTED`] if any.
     pub const fn ended(faults: u32) -> u32 {

@@ -52,12 +52,14 @@ impl RecorderPace {
 
     /// Before tick `k`: holds while the recorder lags by more than half the queue, until it
     /// is within a quarter (or a hold has lasted `patience`; or the recorder has been silent
-    /// that long, and is then no longer waited for).
-    pub fn hold(&mut self, k: u64) {
+    /// that long, and is then no longer waited for). `holding` is called once when a hold
+    /// begins (the plant announces it).
+    pub fn hold(&mut self, k: u64, holding: impl FnOnce()) {
         self.update();
         if self.silent || k.saturating_sub(self.recorded) <= self.max_lag {
             return;
         }
+        holding();
         let start = Instant::now();
         let mut moved = start;
         loop {

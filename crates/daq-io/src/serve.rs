@@ -402,7 +402,15 @@ pub fn serve<B: Backend>(
             .as_mut()
             .filter(|_| k.is_multiple_of(BLOCK_TICKS as u64))
         {
-            p.hold(k);
+            p.hold(k, || {
+                let held = Health {
+                    state: state::HELD_FOR_RECORDER,
+                    ticks: k,
+                    ..health
+                };
+                health_pub.send(held);
+                health_pub.prepare();
+            });
         }
         sensor_pub.prepare();
         k += 1;

@@ -47,6 +47,7 @@ fn constants() -> Vec<(&'static str, u64)> {
         f("FTS_STATE_RUNNING", state::RUNNING),
         f("FTS_STATE_DONE", state::DONE),
         f("FTS_STATE_FAULTED", state::FAULTED),
+        f("FTS_STATE_HELD_FOR_RECORDER", state::HELD_FOR_RECORDER),
         f("FTS_STOP_CAUSE_NONE", stop_cause::NONE),
         f("FTS_STOP_CAUSE_CONTROL", stop_cause::CONTROL),
         f("FTS_STOP_CAUSE_WRITE_FAILED", stop_cause::WRITE_FAILED),

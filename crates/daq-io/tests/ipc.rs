@@ -273,23 +273,29 @@ fn the_server_measures_lateness_against_the_backends_own_clock() {
     assert!(l.min_ns >= 1_000 && l.max_ns >= 100_000, "{l:?}");
 }
 
-/// A recorder that takes one truth block per millisecond (far slower than a lockstep loop)
-/// and, if `reports`, says how many ticks it has taken; what it received.
-fn slow_recorder(ep: &Endpoint, reports: bool) -> Vec<daq_io::Truth> {
+/// A recorder that takes every truth block as it comes but (if `reports`) says how many ticks
+/// it has taken only once the plant announced a hold for it — a recorder behind by more than
+/// the plant allows, whatever the two threads' speeds; what it received.
+fn late_reporting_recorder(ep: &Endpoint, reports: bool) -> Vec<daq_io::Truth> {
+    use daq_io::contract::{role, state};
     let tap = Tap::new(ep).unwrap();
     let progress = ep
         .publisher::<daq_io::Health>(daq_io::ipc::leaf::RECORDED)
         .unwrap();
     let mut truth: Vec<daq_io::Truth> = Vec::new();
+    let mut held = false;
     loop {
-        std::thread::sleep(Duration::from_millis(1));
+        while let Some(h) = daq_io::ipc::take(&tap.health) {
+            held |= h.role == role::PLANT && h.state == state::HELD_FOR_RECORDER;
+        }
         let Some(b) = daq_io::ipc::take(&tap.truth) else {
+            std::thread::sleep(Duration::from_micros(200));
             continue;
         };
         truth.extend_from_slice(&b.ticks[..b.count as usize]);
-        if reports {
+        if reports && held {
             let h = daq_io::Health {
-                role: daq_io::contract::role::RECORDER,
+                role: role::RECORDER,
                 ticks: truth.last().map_or(0, |t| t.seq + 1),
                 ..Default::default()
             };
@@ -301,15 +307,15 @@ fn slow_recorder(ep: &Endpoint, reports: bool) -> Vec<daq_io::Truth> {
     }
 }
 
-/// A lockstep plant, its PI controller and a slow recorder (reporting or not): the plant's
-/// report and what the recorder received.
+/// A lockstep plant, its PI controller and a late-reporting recorder (reporting or not): the
+/// plant's report and what the recorder received.
 fn lockstep_with_slow_recorder(tag: &str, reports: bool) -> (ServeReport, Vec<daq_io::Truth>) {
-    // Four queues' worth: unpaced, the recorder would lose most of it.
-    let ticks = 4 * 1024 * daq_io::BLOCK_TICKS as u64;
+    // Two queues' worth: the plant reaches the recorder's allowance (half a queue) early.
+    let ticks = 2 * 1024 * daq_io::BLOCK_TICKS as u64;
     let p = prefix(tag);
     let p2 = p.clone();
     let rep = Endpoint::open(&p, "recorder").unwrap();
-    let recorder = std::thread::spawn(move || slow_recorder(&rep, reports));
+    let recorder = std::thread::spawn(move || late_reporting_recorder(&rep, reports));
     let plant = std::thread::spawn(move || {
         let ep = Endpoint::open(&p2, "plant").unwrap();
         let opts = ServeOptions::new(ticks, 1e-5, Pacing::Lockstep);
@@ -337,8 +343,8 @@ fn a_recorder_that_does_not_report_is_waited_for_only_once() {
     let (report, truth) = lockstep_with_slow_recorder("unpaced", false);
     assert_eq!(report.faults, 0);
     assert!(report.recorder_silent, "{report:?}");
-    // One hold of the patience, then the plant ran free (what the queue then overwrote
-    // depends on the two threads' speeds; the recorder's own count says it).
+    // One hold of the patience, then the plant ran free (unpaced, what this recorder still
+    // got depends on the threads' speeds).
     let patience = daq_io::recorder_pace::PATIENCE.as_secs_f64();
     assert!(report.recorder_held_s >= patience, "{report:?}");
     assert!(!truth.is_empty() && truth.len() as u64 <= report.ticks);
