@@ -93,13 +93,7 @@ pub fn identify(
         None => {
             let path: PathBuf = frf.extract()?;
             let (f, g) = studies::identify::read_frf_csv(&path, nyquist_hz).map_err(servo_err)?;
-            let bytes = std::fs::read(&path).unwrap_or_default();
-            let source = format!(
-                "{} (SHA-256 {})",
-                path.display(),
-                runner::config::sha256_hex(&bytes)
-            );
-            (f, g, source)
+            (f, g, studies::identify::frf_source(&path))
         }
     };
     py.detach(|| {

@@ -26,11 +26,10 @@ pub fn budget(
         let b =
             studies::budget::Budget::new(&plan.closed_loop, points.max(16)).map_err(servo_err)?;
         let m = studies::margins::loop_margins(&plan).map_err(servo_err)?;
-        let bandwidth = plan.closed_loop.bandwidth_hz().map_err(servo_err)?;
         let json = serde_json::json!({
             "budget": b,
             "margins": m,
-            "bandwidth_hz": bandwidth,
+            "bandwidth_hz": b.bandwidth_hz,
             "controller": plan.controller.description,
         });
         Ok(json.to_string())

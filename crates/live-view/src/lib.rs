@@ -22,7 +22,7 @@ use daq_io::ipc::{take, Endpoint, IpcError, Tap};
 use foxglove::remote_common::service::{Service, ServiceSchema};
 use foxglove::remote_common::{Parameter, Status};
 use foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, WebSocketServer};
-use operator::{Operator, Parameters, StopCalls};
+use operator::{Asks, Operator};
 use recorder::OverviewBin;
 use runner::join::Joiner;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -141,14 +141,13 @@ pub fn serve(
                 "stopped_at_tick: the tick the run ends at",
             ),
         );
-    let stop_service = Service::builder(STOP_SERVICE, stop_schema)
-        .handler(StopCalls(std::sync::Mutex::new(tx.clone())));
+    let stop_service = Service::builder(STOP_SERVICE, stop_schema).handler(Asks(tx.clone()));
     let addr = format!("{}:{}", o.host, o.port);
     let server = WebSocketServer::new()
         .name(format!("fts-servo run {}", o.prefix))
         .bind(&o.host, o.port)
         .context(&ctx)
-        .parameter_handler(Arc::new(Parameters(tx)))
+        .parameter_handler(Arc::new(Asks(tx)))
         .services([stop_service])
         .supported_encodings(["json"])
         .server_info(
@@ -175,11 +174,6 @@ pub fn serve(
     let mut bins = 0u64;
     let waiting = Instant::now();
     let mut ended_at: Option<Instant> = None;
-    // The recorder's rule: the run is over when the plant's last truth block and the
-    // controller's last telemetry block are in (or the plant faulted, or the controller is
-    // silent for the recorder's timeout): frames are never made from truth that is merely
-    // ahead of its telemetry.
-    let (mut truth_end, mut telemetry_end, mut faults) = (false, false, 0);
     let mut last_data = Instant::now();
     let mut publish = |t_ns: u64, ov: &recorder::Overview, report: &mut ViewReport| {
         bins += 1;
@@ -195,8 +189,7 @@ pub fn serve(
         let mut got = false;
         while let Some(b) = take(&tap.telemetry) {
             got = true;
-            join.telemetry(&b.ticks[..b.count as usize]);
-            telemetry_end |= b.flags & daq_io::flags::END != 0;
+            join.telemetry(&b);
         }
         while let Some(b) = take(&tap.truth) {
             got = true;
@@ -204,15 +197,15 @@ pub fn serve(
                 run_id = Some(b.run_id);
                 operator.set_metadata(metadata(&ep, b.run_id));
             }
-            join.truth(&b.ticks[..b.count as usize]);
-            truth_end |= b.flags & daq_io::flags::END != 0;
-            faults |= b.flags & daq_io::flags::PLANT_FAULTS;
+            join.truth(&b);
         }
         if got {
             last_data = Instant::now();
         }
+        // The recorder's rule (frames are never made from truth merely ahead of its
+        // telemetry); a run gone silent for the recorder's timeout is over too.
         let silent = last_data.elapsed() > runner::hil::RECORDER_TIMEOUT;
-        let end = truth_end && (telemetry_end || faults != 0 || silent);
+        let end = join.run_over() || (run_id.is_some() && silent);
         while let Some(h) = take(&tap.health) {
             health.log(&messages::health(&h));
         }
@@ -227,7 +220,7 @@ pub fn serve(
                 publish(t, &ov, &mut report);
             }
             report.run_ended = true;
-            ended_at.get_or_insert_with(Instant::now);
+            ended_at = Some(Instant::now());
         }
         let (values, problems) = operator.poll();
         if !values.is_empty() {

@@ -33,10 +33,11 @@ pub enum Ask {
     Stop(Responder),
 }
 
-/// Queues parameter requests for the view's loop.
-pub struct Parameters(pub Sender<Ask>);
+/// Queues the clients' parameter requests and stop calls for the view's loop.
+#[derive(Clone)]
+pub struct Asks(pub Sender<Ask>);
 
-impl ParameterHandler for Parameters {
+impl ParameterHandler for Asks {
     fn get(&self, _: AnyClient, names: Vec<String>, _: Option<String>, r: GetParametersResponder) {
         let _ = self.0.send(Ask::Get(names, r));
     }
@@ -46,14 +47,10 @@ impl ParameterHandler for Parameters {
     }
 }
 
-/// Queues stop calls for the view's loop.
-pub struct StopCalls(pub std::sync::Mutex<Sender<Ask>>);
-
-impl Handler for StopCalls {
+/// The view's one service, `stop`.
+impl Handler for Asks {
     fn call(&self, _: Request, responder: Responder) {
-        if let Ok(tx) = self.0.lock() {
-            let _ = tx.send(Ask::Stop(responder));
-        }
+        let _ = self.0.send(Ask::Stop(responder));
     }
 }
 

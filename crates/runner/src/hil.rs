@@ -250,8 +250,6 @@ pub fn record(
     let mut join = Joiner::default();
     let mut plant_health = Health::default();
     let mut controller_health = Health::default();
-    let (mut telemetry_end, mut truth_end) = (false, false);
-    let mut plant_faults = 0;
     let mut last_data: Option<Instant> = None;
     let waiting = Instant::now();
     let mut write_failed = false;
@@ -268,15 +266,12 @@ pub fn record(
         while let Some(b) = take(&tap.telemetry) {
             got = true;
             same_run(&mut run_id, b.run_id, "telemetry")?;
-            join.telemetry(&b.ticks[..b.count as usize]);
-            telemetry_end |= b.flags & flags::END != 0;
+            join.telemetry(&b);
         }
         while let Some(b) = take(&tap.truth) {
             got = true;
             same_run(&mut run_id, b.run_id, "truth")?;
-            join.truth(&b.ticks[..b.count as usize]);
-            truth_end |= b.flags & flags::END != 0;
-            plant_faults |= b.flags & flags::PLANT_FAULTS;
+            join.truth(&b);
         }
         while let Some(h) = take(&tap.health) {
             match h.role {
@@ -317,8 +312,8 @@ pub fn record(
             Some(t) => !got && t.elapsed() > RECORDER_TIMEOUT,
             None => waiting.elapsed() > STARTUP_TIMEOUT,
         };
-        // A plant that lost its controller ends the run alone; a lost plant ends it by silence.
-        let finished = (truth_end && (telemetry_end || plant_faults != 0)) || silent;
+        // A lost plant ends the run by silence.
+        let finished = join.run_over() || silent;
         join.drain(finished, |f: Frame| {
             summary.add(&f);
             if let Some(r) = &mut rec {
@@ -357,6 +352,7 @@ pub fn record(
         });
     }
     let ticks = summary.ticks();
+    let plant_faults = join.plant_faults();
     let reason = if plant_faults & flags::FAULT_OVERRUN_BUDGET != 0 {
         EndReason::OverrunBudget
     } else if plant_faults != 0 {

@@ -38,12 +38,7 @@ impl IdentifyCmd {
         let nyquist_hz = plan.config.plant.timing.servo_rate_hz / 2.0;
         let (f, g) = studies::identify::read_frf_csv(&self.file, nyquist_hz)?;
         let id = studies::identify::identify(&plan, &f, &g)?;
-        let frf_bytes = std::fs::read(&self.file).unwrap_or_default();
-        let source = format!(
-            "{} (SHA-256 {})",
-            self.file.display(),
-            runner::config::sha256_hex(&frf_bytes)
-        );
+        let source = studies::identify::frf_source(&self.file);
         crate::output::write_result(&self.out, &id.model_toml(&plan, &source), self.overwrite)?;
         if self.json {
             print_json(&id);

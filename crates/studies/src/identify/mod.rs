@@ -133,6 +133,17 @@ pub const MIN_POINTS: usize = 7;
 /// does not explain the data (the thesis's own fit: 97.7 %).
 pub const MIN_CREDIBLE_FIT_PERCENT: f64 = 70.0;
 
+/// How an identified model names the FRF file it was fitted to: its path and the SHA-256 of
+/// its bytes (the model file quotes it).
+pub fn frf_source(path: &Path) -> String {
+    let bytes = std::fs::read(path).unwrap_or_default();
+    format!(
+        "{} (SHA-256 {})",
+        path.display(),
+        runner::config::sha256_hex(&bytes)
+    )
+}
+
 /// Reads an FRF CSV with columns `freq_hz`, `magnitude_m_per_v`, `phase_deg` (others ignored;
 /// rows with `clipped = true` skipped; at most [`runner::config::input_file::MAX_TEXT_BYTES`]).
 /// Every row must have every column; values must be finite, frequencies strictly increasing
