@@ -11,6 +11,7 @@ mod models;
 mod recording;
 mod simulate;
 mod studies_api;
+mod study_api;
 
 pyo3::create_exception!(
     _native,
@@ -38,5 +39,9 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(design_api::tune, m)?)?;
     m.add_function(wrap_pyfunction!(design_api::synth_h2, m)?)?;
     m.add_function(wrap_pyfunction!(design_api::identify, m)?)?;
+    m.add_function(wrap_pyfunction!(study_api::study_info, m)?)?;
+    m.add_function(wrap_pyfunction!(study_api::study_rows, m)?)?;
+    m.add_function(wrap_pyfunction!(study_api::study_open, m)?)?;
+    m.add_function(wrap_pyfunction!(study_api::study_finish, m)?)?;
     Ok(())
 }

@@ -23,10 +23,16 @@ pub enum Side {
 }
 
 impl SchurForm {
-    /// The Schur form of `a`, or `None` when the QR iteration does not converge.
+    /// QR sweeps allowed per row of the matrix (LAPACK allows 30 per eigenvalue).
+    pub const ITERATIONS_PER_ROW: usize = 100;
+
+    /// The Schur form of `a`, or `None` when the QR iteration does not converge within
+    /// [`SchurForm::ITERATIONS_PER_ROW`] sweeps per row (nalgebra's unbounded iteration at
+    /// machine precision can cycle for ever on some matrices: a design study met one).
     pub fn new(a: &DMatrix<f64>) -> Option<Self> {
         let complex = a.map(|v| Complex64::new(v, 0.0));
-        let (u, t) = nalgebra::Schur::try_new(complex, f64::EPSILON, 0)?.unpack();
+        let limit = Self::ITERATIONS_PER_ROW * a.nrows().max(1);
+        let (u, t) = nalgebra::Schur::try_new(complex, f64::EPSILON, limit)?.unpack();
         Some(SchurForm { u, t })
     }
 

@@ -52,6 +52,14 @@ pub enum StudyError {
         /// The bandwidth, Hz.
         bandwidth_hz: f64,
     },
+    /// No H2 design of a study reaches its required bandwidth.
+    #[error("no H2 design reaches a {bandwidth_hz} Hz bandwidth: {reason}")]
+    BandwidthSearch {
+        /// The required −3 dB bandwidth, Hz.
+        bandwidth_hz: f64,
+        /// How close it came, or why the search stopped.
+        reason: String,
+    },
     /// Grey-box identification failed.
     #[error("identification: {0}")]
     Identification(#[from] design::identify::IdentifyError),
@@ -66,9 +74,10 @@ pub enum StudyError {
         /// The fit reached, % (NaN when the fit broke down).
         fit_percent: f64,
     },
-    /// A measured FRF file that cannot be used.
+    /// A data file that cannot be used (a measured FRF, a study's journal or folder), at its
+    /// line.
     #[error("{}:{line}: {what}", path.display())]
-    FrfFile {
+    DataFile {
         /// File.
         path: PathBuf,
         /// 1-based line.

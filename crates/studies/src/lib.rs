@@ -17,8 +17,10 @@
 //! | [`form`] | Ch. 8 | machined form error, grid amplitude, trajectory |
 //! | [`spectrum`] | §5.7.4, Fig 5-15/5-16 | PSD and CAS of a recording beside the budget's prediction |
 //! | [`spindle`] | Appendix D | three-probe spindle error separation |
+//! | [`design_space`] | §6.5, Fig 6-13…6-18 | structural design studies: grids and samples over plant parameters |
 
 pub mod budget;
+pub mod design_space;
 mod error;
 pub mod form;
 pub mod frf;

@@ -81,6 +81,17 @@ impl Design {
 /// Designs the H2 controller for the plant of `plan` at its servo rate; `effort_nm_per_v` is ρ,
 /// the weight of one volt of command against one nanometre of tool error.
 pub fn h2_design(plan: &Plan, effort_nm_per_v: f64) -> Result<Design, StudyError> {
+    h2_design_with(plan, effort_nm_per_v, 1.0)
+}
+
+/// [`h2_design`] assuming `sensor_noise_scale` times the plant's sensor noise (RMS): below 1
+/// the design trusts the sensor more and closes a faster loop, above 1 a slower one — the knob
+/// that brings an H2 design to a required bandwidth (1: the H2-optimal design).
+pub fn h2_design_with(
+    plan: &Plan,
+    effort_nm_per_v: f64,
+    sensor_noise_scale: f64,
+) -> Result<Design, StudyError> {
     let c = &plan.config;
     let t = plan
         .sim
@@ -94,7 +105,10 @@ pub fn h2_design(plan: &Plan, effort_nm_per_v: f64) -> Result<Design, StudyError
             .as_ref()
             .map_or(0, SampledSensorNoise::states);
     let sigma_w = t.white_variance.map(f64::sqrt);
-    let sigma_s = t.sensor_noise.as_ref().map_or(0.0, |s| s.variance.sqrt());
+    let sigma_s = t
+        .sensor_noise
+        .as_ref()
+        .map_or(0.0, |s| s.variance.sqrt() * sensor_noise_scale);
     // Measurement noise on the reading: the ADC's quantisation (a floor keeps D21 full rank for
     // an ideal converter).
     let sigma_q = t

@@ -18,6 +18,7 @@ pub mod run_hil;
 pub mod spectrum;
 pub mod spindle_errors;
 pub mod stiffness;
+pub mod study;
 pub mod synth;
 pub mod thesis;
 pub mod tune;

@@ -154,7 +154,7 @@ pub fn read_frf_csv(
     nyquist_hz: f64,
 ) -> Result<(Vec<f64>, Vec<Complex64>), StudyError> {
     let text = runner::config::input_file::read_text(path)?;
-    let bad = |line: usize, what: &str| StudyError::FrfFile {
+    let bad = |line: usize, what: &str| StudyError::DataFile {
         path: path.to_owned(),
         line,
         what: what.to_owned(),

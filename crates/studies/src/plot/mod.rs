@@ -11,9 +11,13 @@ use plotters::style::{register_font, FontStyle};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+mod bars;
+mod contour;
 mod map;
 mod ticks;
 
+pub use bars::Bars;
+pub use contour::Contour;
 pub use map::Map;
 pub use ticks::plain;
 use ticks::tick_label;

@@ -1,0 +1,196 @@
+//! Where a study's points go as they finish, so that an interrupted study resumes where it
+//! stopped: the study folder holds the description (`study.toml`, the study's identity) and one
+//! journal per shard (`points-<i>-of-<N>.csv`), each row appended and flushed as its point
+//! finishes. A folder that holds another study is refused, never overwritten.
+
+use super::evaluate::Point;
+use super::spec::Study;
+use super::table::{header, parse_row, row};
+use crate::error::StudyError;
+use runner::config::sha256_hex;
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Name of the study's description in its folder.
+pub const DESCRIPTION: &str = "study.toml";
+
+/// One deterministic slice of a study: points `i` with `i mod count = index − 1`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    /// 1-based shard number.
+    pub index: u64,
+    /// Number of shards.
+    pub count: u64,
+}
+
+impl Shard {
+    /// The whole study.
+    pub const ALL: Shard = Shard { index: 1, count: 1 };
+
+    /// Parses `i/N` (1 ≤ i ≤ N ≤ 100 000).
+    pub fn parse(text: &str) -> Result<Shard, String> {
+        let bad = || format!("--shard {text}: allowed i/N with 1 ≤ i ≤ N ≤ 100000 (e.g. 3/8)");
+        let (i, n) = text.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (
+            i.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
+        if !(1..=count).contains(&index) || count > 100_000 {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// Whether point `i` belongs to this shard.
+    pub fn contains(&self, i: u64) -> bool {
+        i % self.count == self.index - 1
+    }
+
+    /// The points of this shard in a study of `points` points.
+    pub fn points(&self, points: u64) -> impl Iterator<Item = u64> + '_ {
+        (self.index - 1..points).step_by(self.count as usize)
+    }
+
+    /// The journal's file name.
+    pub fn file_name(&self) -> String {
+        format!("points-{}-of-{}.csv", self.index, self.count)
+    }
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> StudyError + '_ {
+    move |source| {
+        crate::report::ReportError::Io {
+            path: path.to_owned(),
+            source,
+        }
+        .into()
+    }
+}
+
+fn foreign(path: &Path, what: String) -> StudyError {
+    StudyError::DataFile {
+        path: path.to_owned(),
+        line: 1,
+        what,
+    }
+}
+
+/// Makes `dir` the folder of `study`: creates it with the description, or checks that the
+/// description already there is this study's.
+pub fn claim(study: &Study, dir: &Path) -> Result<(), StudyError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let path = dir.join(DESCRIPTION);
+    match std::fs::read(&path) {
+        Ok(held) if sha256_hex(&held) == study.sha256 => Ok(()),
+        Ok(held) => Err(foreign(
+            &path,
+            format!(
+                "this folder holds another study (SHA-256 {}, this one {}): choose another --out-dir, or remove the folder to start over",
+                &sha256_hex(&held)[..12],
+                &study.sha256[..12]
+            ),
+        )),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let mut f = OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+                .map_err(io(&path))?;
+            f.write_all(study.text.as_bytes()).map_err(io(&path))
+        }
+        Err(e) => Err(io(&path)(e)),
+    }
+}
+
+/// A shard's journal, open for appending.
+pub struct Journal {
+    file: File,
+    path: PathBuf,
+}
+
+impl Journal {
+    /// Opens (or starts) `shard`'s journal in the study folder `dir` (claimed with [`claim`]);
+    /// returns it with the points it already holds. A last line cut short by an interruption is
+    /// dropped (its point runs again).
+    pub fn open(
+        study: &Study,
+        dir: &Path,
+        shard: Shard,
+    ) -> Result<(Journal, Vec<Point>), StudyError> {
+        let path = dir.join(shard.file_name());
+        let head = header(study);
+        let (done, keep) = match std::fs::read_to_string(&path) {
+            Ok(text) => read_journal(study, &path, &text, shard)?,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => (Vec::new(), 0),
+            Err(e) => return Err(io(&path)(e)),
+        };
+        let mut file = OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .read(true)
+            .write(true)
+            .open(&path)
+            .map_err(io(&path))?;
+        file.set_len(keep).map_err(io(&path))?;
+        if keep == 0 {
+            file.write_all(format!("{head}\n").as_bytes())
+                .map_err(io(&path))?;
+        }
+        use std::io::Seek;
+        file.seek(std::io::SeekFrom::End(0)).map_err(io(&path))?;
+        Ok((Journal { file, path }, done))
+    }
+
+    /// Appends a finished point (one write of one whole line).
+    pub fn append(&mut self, p: &Point) -> Result<(), StudyError> {
+        self.file
+            .write_all(row(p).as_bytes())
+            .map_err(io(&self.path))
+    }
+
+    /// Flushes the journal to the disk.
+    pub fn sync(&mut self) -> Result<(), StudyError> {
+        self.file.sync_data().map_err(io(&self.path))
+    }
+}
+
+/// The points of a journal's `text` and the length of its complete lines in bytes.
+pub fn read_journal(
+    study: &Study,
+    path: &Path,
+    text: &str,
+    shard: Shard,
+) -> Result<(Vec<Point>, u64), StudyError> {
+    let head = header(study);
+    let mut done = Vec::new();
+    let mut keep = 0u64;
+    let complete = match text.rfind('\n') {
+        Some(end) => &text[..=end],
+        None => "",
+    };
+    for (n, line) in complete.lines().enumerate() {
+        if n == 0 {
+            if line != head {
+                return Err(foreign(
+                    path,
+                    "the journal's header is not this study's".into(),
+                ));
+            }
+        } else {
+            let p = parse_row(study, line)
+                .filter(|p| shard.contains(p.index) && p.index < study.points())
+                .ok_or_else(|| StudyError::DataFile {
+                    path: path.to_owned(),
+                    line: n + 1,
+                    what: format!(
+                        "not a point of shard {}/{} of this study",
+                        shard.index, shard.count
+                    ),
+                })?;
+            done.push(p);
+        }
+        keep += line.len() as u64 + 1;
+    }
+    Ok((done, keep))
+}

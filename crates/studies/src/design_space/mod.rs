@@ -1,0 +1,196 @@
+//! Design-space studies (thesis §6.5): how the loop's achievable error changes with the
+//! structure — moving mass, flexure stiffness and damping, motor constant, any numeric key of
+//! the configuration — under a controller family (the H2-optimal controller, H2 tuned to a
+//! required bandwidth, or a tuned PID). Each point is a synthesis plus an exact budget.
+//!
+//! - [`spec`]: the description (a run configuration plus `[study]`);
+//! - [`sampling`]: each point's values from its index alone (grid, random, Latin hypercube);
+//! - [`evaluate`]: one point — what `servo synth h2` / `servo tune` and `servo budget` give;
+//! - [`execute`]: a shard on every local core, journaled as points finish (resumable);
+//! - [`journal`]: the study folder, shards and their journals;
+//! - [`merge`](gather): shards joined into the table a single run gives;
+//! - [`sensitivity`]: elasticities at the operating point;
+//! - [`report`]: CSV, Parquet, JSON and the plots of Fig 6-14 and 6-17.
+
+pub mod columnar;
+pub mod evaluate;
+pub mod execute;
+pub mod journal;
+pub mod report;
+pub mod sampling;
+pub mod sensitivity;
+pub mod spec;
+pub mod table;
+
+use crate::error::StudyError;
+use evaluate::Point;
+use journal::{read_journal, Shard, DESCRIPTION};
+use serde::Serialize;
+use spec::{Family, Objective, Study};
+use std::path::{Path, PathBuf};
+
+/// The best point of one family.
+#[derive(Debug, Clone, Serialize)]
+pub struct Optimum {
+    /// Controller family.
+    pub controller: Family,
+    /// The point's index.
+    pub index: u64,
+    /// Its parameter values, by key.
+    pub values: Vec<(String, f64)>,
+    /// Its RMS following error, m.
+    pub following_rms_m: f64,
+    /// Its RMS true error, m.
+    pub true_rms_m: f64,
+    /// Its −3 dB bandwidth, Hz.
+    pub bandwidth_hz: f64,
+}
+
+/// The objective's value of a successful point (NaN for a failed one).
+pub fn objective(study: &Study, p: &Point) -> f64 {
+    p.outcome
+        .as_ref()
+        .map_or(f64::NAN, |m| match study.table.objective {
+            Objective::Following => m.following_rms_m,
+            Objective::True => m.true_rms_m,
+        })
+}
+
+/// The point of least objective for each family of `study` (families without a successful
+/// point have none).
+pub fn optima(study: &Study, points: &[Point]) -> Vec<Optimum> {
+    study
+        .table
+        .controllers
+        .iter()
+        .filter_map(|&family| {
+            let best = points
+                .iter()
+                .filter(|p| p.family == family && p.outcome.is_ok())
+                .min_by(|a, b| objective(study, a).total_cmp(&objective(study, b)))?;
+            let m = best.outcome.as_ref().ok()?;
+            Some(Optimum {
+                controller: family,
+                index: best.index,
+                values: study
+                    .table
+                    .parameters
+                    .iter()
+                    .map(|p| p.key.clone())
+                    .zip(best.values.iter().copied())
+                    .collect(),
+                following_rms_m: m.following_rms_m,
+                true_rms_m: m.true_rms_m,
+                bandwidth_hz: m.bandwidth_hz,
+            })
+        })
+        .collect()
+}
+
+/// Every point of the study held in the folders `dirs` (each a study folder with its
+/// description and shard journals): the study and its points in index order. Refuses folders
+/// of different studies, a point held twice with different results, and a study with points
+/// missing (naming the first and its shard).
+pub fn gather(dirs: &[PathBuf]) -> Result<(Study, Vec<Point>), StudyError> {
+    let mut study: Option<Study> = None;
+    let mut points: Vec<Option<Point>> = Vec::new();
+    let mut shard_count = 1;
+    for dir in dirs {
+        let s = Study::from_file(&dir.join(DESCRIPTION))?;
+        if let Some(first) = &study {
+            if first.sha256 != s.sha256 {
+                return Err(StudyError::DataFile {
+                    path: dir.join(DESCRIPTION),
+                    line: 1,
+                    what: format!(
+                        "another study than {} (SHA-256 {} against {})",
+                        dirs[0].display(),
+                        &s.sha256[..12],
+                        &first.sha256[..12]
+                    ),
+                });
+            }
+        } else {
+            points = vec![None; s.points() as usize];
+            study = Some(s);
+        }
+        let s = study.as_ref().expect("set above");
+        for (path, shard) in journals(dir)? {
+            shard_count = shard.count;
+            let text = std::fs::read_to_string(&path).map_err(|source| {
+                crate::report::ReportError::Io {
+                    path: path.clone(),
+                    source,
+                }
+            })?;
+            for p in read_journal(s, &path, &text, shard)?.0 {
+                let slot = &mut points[p.index as usize];
+                match slot {
+                    Some(held) if *held != p => {
+                        return Err(StudyError::DataFile {
+                            path,
+                            line: 1,
+                            what: format!("point {} is held twice with different results", p.index),
+                        })
+                    }
+                    _ => *slot = Some(p),
+                }
+            }
+        }
+    }
+    let study = study.ok_or_else(|| StudyError::DataFile {
+        path: PathBuf::from("."),
+        line: 1,
+        what: "no study folders given".into(),
+    })?;
+    let missing = points.iter().filter(|p| p.is_none()).count();
+    if let Some(first) = points.iter().position(Option::is_none) {
+        return Err(StudyError::DataFile {
+            path: dirs[0].clone(),
+            line: 1,
+            what: format!(
+                "{missing} of {} points are missing (the first is point {first}, in shard {}/{shard_count}): run the missing shards (or resume them) first",
+                points.len(),
+                first as u64 % shard_count + 1
+            ),
+        });
+    }
+    Ok((study, points.into_iter().flatten().collect()))
+}
+
+/// The shard journals in a study folder, with their shards.
+fn journals(dir: &Path) -> Result<Vec<(PathBuf, Shard)>, StudyError> {
+    let io = |source| crate::report::ReportError::Io {
+        path: dir.to_owned(),
+        source,
+    };
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        let shard = name
+            .strip_prefix("points-")
+            .and_then(|n| n.strip_suffix(".csv"))
+            .and_then(|n| n.split_once("-of-"))
+            .and_then(|(i, n)| Shard::parse(&format!("{i}/{n}")).ok());
+        if let Some(shard) = shard {
+            out.push((path, shard));
+        }
+    }
+    out.sort_by_key(|(_, s)| (s.count, s.index));
+    Ok(out)
+}
+
+/// Finishes a study whose points are all in `points` (index order): computes the sensitivities
+/// at the operating point (`progress` gets their (done, total) loops) and writes the table,
+/// summary and plots into `dir`.
+pub fn finish(
+    study: &Study,
+    points: &[Point],
+    dir: &Path,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<(Vec<sensitivity::Sensitivity>, crate::report::Written), StudyError> {
+    let s = sensitivity::sensitivities(study, progress);
+    let written = report::write(study, points, &s, dir)?;
+    Ok((s, written))
+}

@@ -1,0 +1,344 @@
+//! What a finished study writes: the table (`study.csv`, `study.parquet`), `study.json` (the
+//! description, counts, failure reasons, optima, sensitivities), `sensitivity.csv`, and the
+//! plots — the errors and bandwidth along a one-parameter study (thesis Fig 6-14), a map of the
+//! objective over a two-parameter grid with its optimum marked (Fig 6-17), the sensitivities
+//! at the operating point.
+
+use super::evaluate::Point;
+use super::sensitivity::Sensitivity;
+use super::spec::{Family, Objective, Sampling, Spacing, Study};
+use super::{columnar, objective, optima, table, Optimum};
+use crate::plot::{Bars, Contour, Figure, Series, Stacked};
+use crate::report::{to_json, write_files, ReportError, Written};
+use runner::closed_loop::SOURCES;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Points that failed for one reason.
+#[derive(Debug, Serialize)]
+pub struct Failures {
+    /// The reason.
+    pub reason: String,
+    /// How many points.
+    pub points: u64,
+    /// The first point's index.
+    pub first_index: u64,
+}
+
+/// `study.json` (after its metadata).
+#[derive(Debug, Serialize)]
+pub struct Summary<'a> {
+    /// Study label.
+    pub name: &'a str,
+    /// SHA-256 of the description.
+    pub study_sha256: &'a str,
+    /// The description.
+    pub description: &'a str,
+    /// Points in all.
+    pub points: u64,
+    /// Points whose loop was built and evaluated.
+    pub ok: u64,
+    /// Failed points, by reason (most frequent first).
+    pub failures: Vec<Failures>,
+    /// The error the optima are about.
+    pub objective: Objective,
+    /// The best point of each family.
+    pub optima: Vec<Optimum>,
+    /// Elasticities at the operating point.
+    pub sensitivities: &'a [Sensitivity],
+}
+
+/// The failed points grouped by reason.
+pub fn failures(points: &[Point]) -> Vec<Failures> {
+    let mut out: Vec<Failures> = Vec::new();
+    for p in points {
+        if let Err(reason) = &p.outcome {
+            match out.iter_mut().find(|f| &f.reason == reason) {
+                Some(f) => f.points += 1,
+                None => out.push(Failures {
+                    reason: reason.clone(),
+                    points: 1,
+                    first_index: p.index,
+                }),
+            }
+        }
+    }
+    out.sort_by_key(|f| std::cmp::Reverse(f.points));
+    out
+}
+
+/// Writes everything a finished study has into `dir`.
+pub fn write(
+    study: &Study,
+    points: &[Point],
+    sensitivities: &[Sensitivity],
+    dir: &Path,
+) -> Result<Written, ReportError> {
+    let t = &study.table;
+    let summary = Summary {
+        name: &t.name,
+        study_sha256: &study.sha256,
+        description: &study.text,
+        points: points.len() as u64,
+        ok: points.iter().filter(|p| p.outcome.is_ok()).count() as u64,
+        failures: failures(points),
+        objective: t.objective,
+        optima: optima(study, points),
+        sensitivities,
+    };
+    let what = format!(
+        "design-space study \"{}\" (thesis §6.5; servo study)",
+        t.name
+    );
+    let mut out = write_files(
+        dir,
+        &[
+            ("study.csv", &table::csv(study, points)),
+            ("study.json", &to_json(&what, "study", &summary)),
+            ("sensitivity.csv", &sensitivity_csv(sensitivities)),
+        ],
+    )?;
+    let parquet = dir.join("study.parquet");
+    columnar::write(study, points, &parquet)?;
+    out.files.push(parquet);
+    let mut note = None;
+    let mut plot = |r: Result<Vec<std::path::PathBuf>, crate::plot::PlotError>| match r {
+        Ok(paths) => out.files.extend(paths),
+        Err(e) => note = Some(e.to_string()),
+    };
+    if t.parameters.len() == 1 {
+        plot(crate::plot::write(
+            &curves(study, points),
+            &dir.join("study"),
+        ));
+    }
+    if t.parameters.len() == 2 && t.sampling == Sampling::Grid {
+        for &family in &t.controllers {
+            let stem = dir.join(format!("map-{}", family.name()));
+            plot(crate::plot::write(&map(study, points, family), &stem));
+        }
+    }
+    if !sensitivities.is_empty() {
+        plot(crate::plot::write(
+            &bars(sensitivities),
+            &dir.join("sensitivity"),
+        ));
+    }
+    out.note = note;
+    Ok(out)
+}
+
+fn sensitivity_csv(s: &[Sensitivity]) -> String {
+    let mut csv = String::from("controller,key,operating_value,following,true");
+    for out in ["following", "true"] {
+        for (name, _) in SOURCES {
+            write!(csv, ",{out}_{}", name.replace(' ', "_")).expect("writing to a String");
+        }
+    }
+    csv.push_str(",failed\n");
+    let n = |v: f64| {
+        if v.is_nan() {
+            String::new()
+        } else {
+            format!("{v:.6}")
+        }
+    };
+    for e in s {
+        write!(
+            csv,
+            "{},{},{:e},{},{}",
+            e.controller.name(),
+            e.key,
+            e.operating_value,
+            n(e.following),
+            n(e.true_error)
+        )
+        .expect("writing to a String");
+        for v in e.following_by_source.iter().chain(&e.true_by_source) {
+            write!(csv, ",{}", n(*v)).expect("writing to a String");
+        }
+        writeln!(
+            csv,
+            ",{}",
+            e.failed.as_deref().unwrap_or("").replace(',', ";")
+        )
+        .expect("writing to a String");
+    }
+    csv
+}
+
+/// A parameter key with its unit spelled out for an axis (`plant.stage.k2_n_per_m` →
+/// `k2 (N/m)`).
+pub fn axis_label(key: &str) -> String {
+    let name = key.rsplit('.').next().unwrap_or(key);
+    const UNITS: [(&str, &str); 9] = [
+        ("_v_per_rt_hz", "V/√Hz"),
+        ("_a_per_rt_hz", "A/√Hz"),
+        ("_m_per_rt_hz", "m/√Hz"),
+        ("_n_s_per_m", "N·s/m"),
+        ("_n_per_m", "N/m"),
+        ("_n_per_a", "N/A"),
+        ("_kg", "kg"),
+        ("_hz", "Hz"),
+        ("_s", "s"),
+    ];
+    for (suffix, unit) in UNITS {
+        if let Some(stem) = name.strip_suffix(suffix) {
+            return format!("{stem} ({unit})");
+        }
+    }
+    name.to_owned()
+}
+
+/// Fig 6-14: RMS errors (top) and bandwidth (bottom) along the study's one parameter, one
+/// curve per family; failed points leave gaps.
+fn curves(study: &Study, points: &[Point]) -> Stacked {
+    let p = &study.table.parameters[0];
+    let log_x = p.spacing == Spacing::Log;
+    // Each family's following error and bandwidth share a colour (same index in both charts);
+    // the true errors follow.
+    let (mut following, mut truth, mut bandwidths) = (Vec::new(), Vec::new(), Vec::new());
+    for &family in &study.table.controllers {
+        let mut rows: Vec<&Point> = points.iter().filter(|q| q.family == family).collect();
+        rows.sort_by(|a, b| a.values[0].total_cmp(&b.values[0]));
+        let x: Vec<f64> = rows.iter().map(|q| q.values[0]).collect();
+        let get = |f: fn(&super::evaluate::Metrics) -> f64| -> Vec<f64> {
+            rows.iter()
+                .map(|q| q.outcome.as_ref().map_or(f64::NAN, f))
+                .collect()
+        };
+        let name = family_label(study, family);
+        following.push(Series::line(
+            format!("{name}: following error (its bandwidth below)"),
+            x.clone(),
+            get(|m| m.following_rms_m * 1e9),
+        ));
+        truth.push(Series::line(
+            format!("{name}: true error"),
+            x.clone(),
+            get(|m| m.true_rms_m * 1e9),
+        ));
+        bandwidths.push(Series::line(
+            format!("{name}: bandwidth"),
+            x,
+            get(|m| m.bandwidth_hz),
+        ));
+    }
+    let mut errors = following;
+    errors.extend(truth);
+    let x_label = axis_label(&p.key);
+    Stacked {
+        title: format!(
+            "{}: achievable RMS error and −3 dB bandwidth against {} (thesis Fig 6-14)",
+            study.table.name, x_label
+        ),
+        top: Figure {
+            title: String::new(),
+            x_label: x_label.clone(),
+            y_label: "RMS error (nm)".into(),
+            log_x,
+            log_y: false,
+            series: errors,
+        },
+        bottom: Figure {
+            title: String::new(),
+            x_label,
+            y_label: "−3 dB bandwidth (Hz)".into(),
+            log_x,
+            log_y: false,
+            series: bandwidths,
+        },
+    }
+}
+
+fn family_label(study: &Study, family: Family) -> String {
+    match family {
+        Family::H2 => "H2-optimal".into(),
+        Family::H2Bandwidth => format!("H2 at {} Hz", study.table.bandwidth_hz),
+        Family::Pid => format!("PID at {} Hz", study.table.bandwidth_hz),
+    }
+}
+
+/// Fig 6-17: the objective over the two parameters of a grid, the optimum marked.
+fn map(study: &Study, points: &[Point], family: Family) -> Contour {
+    let t = &study.table;
+    let grid = |j: usize| -> Vec<f64> {
+        let mut v: Vec<f64> = points
+            .iter()
+            .filter(|p| p.family == family)
+            .map(|p| p.values[j])
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v.dedup();
+        v
+    };
+    let (x, y) = (grid(0), grid(1));
+    let mut values = vec![f64::NAN; x.len() * y.len()];
+    for p in points.iter().filter(|p| p.family == family) {
+        let c = x.partition_point(|&v| v < p.values[0]);
+        let r = y.partition_point(|&v| v < p.values[1]);
+        values[r * x.len() + c] = objective(study, p) * 1e9;
+    }
+    let what = match t.objective {
+        Objective::Following => "RMS following error",
+        Objective::True => "RMS true error",
+    };
+    let mark = optima(study, points)
+        .into_iter()
+        .find(|o| o.controller == family)
+        .map(|o| {
+            let value = objective(
+                study,
+                &points[points.partition_point(|p| p.index < o.index)],
+            );
+            (
+                o.values[0].1,
+                o.values[1].1,
+                format!(
+                    "optimum {:.3} nm at {} = {:.4e}, {} = {:.4e} ({:.0} Hz)",
+                    value * 1e9,
+                    axis_label(&o.values[0].0),
+                    o.values[0].1,
+                    axis_label(&o.values[1].0),
+                    o.values[1].1,
+                    o.bandwidth_hz
+                ),
+            )
+        });
+    Contour {
+        title: format!(
+            "{}: {what}, {} (thesis Fig 6-17)",
+            t.name,
+            family_label(study, family)
+        ),
+        x_label: axis_label(&t.parameters[0].key),
+        y_label: axis_label(&t.parameters[1].key),
+        value_label: format!("{what} (nm)"),
+        log_x: t.parameters[0].spacing == Spacing::Log,
+        log_y: t.parameters[1].spacing == Spacing::Log,
+        x,
+        y,
+        values,
+        mark,
+    }
+}
+
+/// The sensitivities as bars, one row per family and parameter.
+fn bars(s: &[Sensitivity]) -> Bars {
+    Bars {
+        title:
+            "Sensitivity at the operating point: % change of RMS error per % change of parameter"
+                .into(),
+        value_label: "d ln(RMS error) / d ln(parameter)".into(),
+        rows: s
+            .iter()
+            .map(|e| format!("{} ({})", axis_label(&e.key), e.controller.name()))
+            .collect(),
+        groups: vec!["following error".into(), "true error".into()],
+        values: vec![
+            s.iter().map(|e| e.following).collect(),
+            s.iter().map(|e| e.true_error).collect(),
+        ],
+    }
+}

@@ -1,0 +1,109 @@
+//! Sensitivities at the operating point (thesis §6.5: "the current system design is used as
+//! the operating point … the resulting following RMS errors are used to compare the
+//! sensitivities"): for each parameter and family, the elasticity `d ln e / d ln p` of the total
+//! and per-source RMS errors — the % change of the error per % change of the parameter — by a
+//! central difference of ±5 % around the operating value, every other parameter held there.
+
+use super::evaluate::{metrics, point_config, Metrics};
+use super::spec::{Family, Study};
+use serde::Serialize;
+
+/// Relative step of the central difference.
+pub const STEP: f64 = 0.05;
+
+/// The elasticities of one parameter under one family.
+#[derive(Debug, Clone, Serialize)]
+pub struct Sensitivity {
+    /// Controller family.
+    pub controller: Family,
+    /// Parameter key.
+    pub key: String,
+    /// Its operating value (the study file's), in the key's unit.
+    pub operating_value: f64,
+    /// d ln(RMS following error) / d ln(parameter).
+    pub following: f64,
+    /// d ln(RMS true error) / d ln(parameter).
+    pub true_error: f64,
+    /// The same per source (following error), [`runner::closed_loop::SOURCES`] order; NaN for
+    /// a source that contributes nothing.
+    pub following_by_source: Vec<f64>,
+    /// The same per source (true error).
+    pub true_by_source: Vec<f64>,
+    /// Why it could not be computed, if it could not.
+    pub failed: Option<String>,
+}
+
+fn elasticity(up: f64, down: f64) -> f64 {
+    (up.ln() - down.ln()) / ((1.0 + STEP).ln() - (1.0 - STEP).ln())
+}
+
+/// The sensitivities of every parameter under every family of `study` (2 loops each).
+/// `progress` gets (done, total) evaluations.
+pub fn sensitivities(study: &Study, progress: &mut dyn FnMut(u64, u64)) -> Vec<Sensitivity> {
+    let params = &study.table.parameters;
+    let operating: Vec<f64> = params.iter().map(|p| study.operating_value(p)).collect();
+    let total = 2 * (params.len() * study.table.controllers.len()) as u64;
+    let mut done = 0;
+    let mut out = Vec::new();
+    for &family in &study.table.controllers {
+        for (j, p) in params.iter().enumerate() {
+            let at = |factor: f64| -> Result<Metrics, String> {
+                let mut v = operating.clone();
+                v[j] *= factor;
+                let config = point_config(study, &v)?;
+                metrics(study, family, config).map_err(|e| e.to_string())
+            };
+            let whole = matches!(study.base_value(&p.key), Some(toml::Value::Integer(_)));
+            let result = if whole || operating[j] == 0.0 || !operating[j].is_finite() {
+                Err(format!(
+                    "no relative step from {} (a zero or whole-number operating value)",
+                    operating[j]
+                ))
+            } else {
+                at(1.0 + STEP).and_then(|up| Ok((up, at(1.0 - STEP)?)))
+            };
+            done += 2;
+            progress(done, total);
+            let nan = vec![f64::NAN; super::evaluate::SOURCE_COUNT];
+            out.push(match result {
+                Ok((up, down)) => Sensitivity {
+                    controller: family,
+                    key: p.key.clone(),
+                    operating_value: operating[j],
+                    following: elasticity(up.following_rms_m, down.following_rms_m),
+                    true_error: elasticity(up.true_rms_m, down.true_rms_m),
+                    following_by_source: zip(
+                        &up.following_by_source_m,
+                        &down.following_by_source_m,
+                    ),
+                    true_by_source: zip(&up.true_by_source_m, &down.true_by_source_m),
+                    failed: None,
+                },
+                Err(reason) => Sensitivity {
+                    controller: family,
+                    key: p.key.clone(),
+                    operating_value: operating[j],
+                    following: f64::NAN,
+                    true_error: f64::NAN,
+                    following_by_source: nan.clone(),
+                    true_by_source: nan,
+                    failed: Some(reason),
+                },
+            });
+        }
+    }
+    out
+}
+
+fn zip(up: &[f64], down: &[f64]) -> Vec<f64> {
+    up.iter()
+        .zip(down)
+        .map(|(&u, &d)| {
+            if u > 0.0 && d > 0.0 {
+                elasticity(u, d)
+            } else {
+                f64::NAN
+            }
+        })
+        .collect()
+}
