@@ -73,7 +73,8 @@ impl StudyCmd {
         let file = self.file.as_deref().unwrap_or(Path::new("study.toml"));
         let study = Study::from_file(file)?;
         let shard = match &self.shard {
-            Some(s) => Shard::parse(s).map_err(CliError::Processes)?,
+            Some(s) => Shard::parse(s)
+                .map_err(|range| runner::config::Origin::default().invalid("--shard", s, &range))?,
             None => Shard::ALL,
         };
         let jobs = match self.jobs {

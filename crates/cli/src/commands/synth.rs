@@ -31,6 +31,11 @@ pub struct SynthCmd {
     /// default 1000 (loop-gain crossover ≈ 1 kHz on the heavy stage; thesis: 870 Hz).
     #[arg(long)]
     effort_weight: Option<f64>,
+    /// Scale of the sensor noise the exact design assumes (RMS; 1 = the plant's, H2-optimal):
+    /// below 1 the design trusts the sensor more and closes a faster loop. `servo study`'s
+    /// `h2-bandwidth` family records the scale that met its bandwidth (column design_value).
+    #[arg(long, default_value_t = 1.0)]
+    sensor_noise_scale: f64,
     /// Reduce the controller to this many states by balanced truncation (thesis Table 6-1:
     /// 8, 13; default: full order).
     #[arg(long)]
@@ -82,9 +87,23 @@ impl SynthCmd {
     /// Designs, writes the file and predicts the loop it closes.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let SynthMethod::H2 = self.method;
+        let scale = self.sensor_noise_scale;
+        if !(scale > 0.0 && scale.is_finite()) {
+            return Err(Origin::default()
+                .invalid(
+                    "--sensor-noise-scale",
+                    scale,
+                    "> 0 (1: the plant's sensor noise)",
+                )
+                .into());
+        }
         let plan = Plan::new(&self.plant.load()?)?;
         let mut design = match self.weights {
-            Weights::Exact => synth::h2_design(&plan, self.effort_weight.unwrap_or(1.0))?,
+            Weights::Exact => synth::h2_design_with(
+                &plan,
+                self.effort_weight.unwrap_or(1.0),
+                self.sensor_noise_scale,
+            )?,
             Weights::Thesis => synth::thesis_design(
                 &plan,
                 &ThesisWeights::default(),

@@ -28,9 +28,9 @@ impl Shard {
     /// The whole study.
     pub const ALL: Shard = Shard { index: 1, count: 1 };
 
-    /// Parses `i/N` (1 ≤ i ≤ N ≤ 100 000).
+    /// Parses `i/N` (1 ≤ i ≤ N ≤ 100 000); the error is the allowed form.
     pub fn parse(text: &str) -> Result<Shard, String> {
-        let bad = || format!("--shard {text}: allowed i/N with 1 ≤ i ≤ N ≤ 100000 (e.g. 3/8)");
+        let bad = || "i/N with 1 ≤ i ≤ N ≤ 100000 (e.g. 3/8)".to_owned();
         let (i, n) = text.split_once('/').ok_or_else(bad)?;
         let (index, count) = (
             i.trim().parse().map_err(|_| bad())?,
