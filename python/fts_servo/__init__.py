@@ -20,6 +20,7 @@ import numpy as np
 
 from . import _native
 from ._native import ServoError
+from .study import run_study_ray, study_info, study_rows
 
 __all__ = [
     "ServoError",
@@ -35,6 +36,9 @@ __all__ = [
     "tune",
     "synth_h2",
     "identify",
+    "study_info",
+    "study_rows",
+    "run_study_ray",
 ]
 
 Config = Union[None, str, "os.PathLike[str]", Mapping[str, Any]]
