@@ -37,6 +37,10 @@ from = 1.0
 to = 40.0
 """
 
+# Ray reads its authentication mode at import: the head the script starts uses tokens
+# (~/.ray/auth_token, as `ray start` made it).
+os.environ.setdefault("RAY_AUTH_MODE", "token")
+
 if os.environ.get("CI"):
     import ray  # CI installs Ray: a missing Ray fails here rather than skipping
 else:
@@ -46,7 +50,6 @@ else:
 @pytest.fixture(scope="module")
 def cluster():
     """A Ray head on this machine, as a multi-node cluster's head is started; its address."""
-    os.environ["RAY_AUTH_MODE"] = "token"  # the head enables token authentication
     out = subprocess.run([str(CLUSTER), "start", "2"], capture_output=True, text=True, check=True)
     address, temp_dir = out.stdout.split()
     ray.init(address=address, log_to_driver=False)

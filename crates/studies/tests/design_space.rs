@@ -268,3 +268,23 @@ fn the_parquet_table_holds_the_csv_values() {
         "a failed point's metrics are null"
     );
 }
+
+#[test]
+fn every_example_study_parses_and_the_tolerance_study_spans_ten_percent() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/studies");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let s = Study::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert!(s.points() > 0, "{}", path.display());
+        if path.ends_with("tolerances.toml") {
+            for p in &s.table.parameters {
+                let op = s.operating_value(p);
+                let (a, b) = (p.from.unwrap(), p.to.unwrap());
+                assert!((a / op - 0.9).abs() < 1e-9 && (b / op - 1.1).abs() < 1e-9, "{}", p.key);
+            }
+        }
+        seen += 1;
+    }
+    assert_eq!(seen, 4);
+}

@@ -324,21 +324,29 @@ fn map(study: &Study, points: &[Point], family: Family) -> Contour {
     }
 }
 
-/// The sensitivities as bars, one row per family and parameter.
+/// The sensitivities as bars: one row per family and parameter, one bar for each total and for
+/// each source's share of the true error (sources that contribute nothing have no bar).
 fn bars(s: &[Sensitivity]) -> Bars {
+    let mut groups = vec!["following error, total".to_owned(), "true error, total".to_owned()];
+    let mut values = vec![
+        s.iter().map(|e| e.following).collect::<Vec<_>>(),
+        s.iter().map(|e| e.true_error).collect(),
+    ];
+    for (k, (name, _)) in SOURCES.iter().enumerate() {
+        let v: Vec<f64> = s.iter().map(|e| e.true_by_source[k]).collect();
+        if v.iter().any(|x| x.is_finite()) {
+            groups.push(format!("true error from {name}"));
+            values.push(v);
+        }
+    }
     Bars {
-        title:
-            "Sensitivity at the operating point: % change of RMS error per % change of parameter"
-                .into(),
+        title: "Sensitivity at the operating point: % change of RMS error per % change of parameter".into(),
         value_label: "d ln(RMS error) / d ln(parameter)".into(),
         rows: s
             .iter()
             .map(|e| format!("{} ({})", axis_label(&e.key), e.controller.name()))
             .collect(),
-        groups: vec!["following error".into(), "true error".into()],
-        values: vec![
-            s.iter().map(|e| e.following).collect(),
-            s.iter().map(|e| e.true_error).collect(),
-        ],
+        groups,
+        values,
     }
 }
