@@ -3,7 +3,7 @@
 fails, naming it and the README line it came from.
 
 What runs, in order, in one fresh folder (the first block makes the default run's `run.mcap`):
-- every ```sh block, as a bash script (`servo` and `cargo run … --example X` are the release
+- every ```sh block, as a bash script, beside a link to `examples/` (`servo` and `cargo run … --example X` are the release
   binaries this checkout built: `cargo build --release -p servo-cli` and the examples); real-time runs (`--realtime`) run in lockstep, as CI machines are not tuned;
   `cargo test` and `pip install` lines are what .ci/run itself runs and are skipped here;
 - every inline `servo …` example outside tables' syntax summaries: spans with no placeholder
@@ -128,6 +128,8 @@ def main() -> None:
         (work / "bin").mkdir()
         os.symlink(SERVO, work / "bin" / "servo")
         os.environ["PATH"] = f"{work / 'bin'}:{os.environ['PATH']}"
+        # The reader runs the README from the checkout's root, where examples/ is.
+        os.symlink(ROOT / "examples", work / "examples")
         count = 0
         for line, block in blocks(text):
             script = script_of(block)

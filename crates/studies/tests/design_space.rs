@@ -281,7 +281,11 @@ fn every_example_study_parses_and_the_tolerance_study_spans_ten_percent() {
             for p in &s.table.parameters {
                 let op = s.operating_value(p);
                 let (a, b) = (p.from.unwrap(), p.to.unwrap());
-                assert!((a / op - 0.9).abs() < 1e-9 && (b / op - 1.1).abs() < 1e-9, "{}", p.key);
+                assert!(
+                    (a / op - 0.9).abs() < 1e-9 && (b / op - 1.1).abs() < 1e-9,
+                    "{}",
+                    p.key
+                );
             }
         }
         seen += 1;

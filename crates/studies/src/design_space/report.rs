@@ -327,7 +327,10 @@ fn map(study: &Study, points: &[Point], family: Family) -> Contour {
 /// The sensitivities as bars: one row per family and parameter, one bar for each total and for
 /// each source's share of the true error (sources that contribute nothing have no bar).
 fn bars(s: &[Sensitivity]) -> Bars {
-    let mut groups = vec!["following error, total".to_owned(), "true error, total".to_owned()];
+    let mut groups = vec![
+        "following error, total".to_owned(),
+        "true error, total".to_owned(),
+    ];
     let mut values = vec![
         s.iter().map(|e| e.following).collect::<Vec<_>>(),
         s.iter().map(|e| e.true_error).collect(),
@@ -340,7 +343,9 @@ fn bars(s: &[Sensitivity]) -> Bars {
         }
     }
     Bars {
-        title: "Sensitivity at the operating point: % change of RMS error per % change of parameter".into(),
+        title:
+            "Sensitivity at the operating point: % change of RMS error per % change of parameter"
+                .into(),
         value_label: "d ln(RMS error) / d ln(parameter)".into(),
         rows: s
             .iter()

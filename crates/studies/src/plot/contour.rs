@@ -195,20 +195,7 @@ where
             }
         }};
     }
-    match (c.log_x, c.log_y) {
-        (true, true) => body!(builder
-            .build_cartesian_2d((xs.0..xs.1).log_scale(), (ys.0..ys.1).log_scale())
-            .map_err(|e| e.to_string())?),
-        (true, false) => body!(builder
-            .build_cartesian_2d((xs.0..xs.1).log_scale(), ys.0..ys.1)
-            .map_err(|e| e.to_string())?),
-        (false, true) => body!(builder
-            .build_cartesian_2d(xs.0..xs.1, (ys.0..ys.1).log_scale())
-            .map_err(|e| e.to_string())?),
-        (false, false) => body!(builder
-            .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
-            .map_err(|e| e.to_string())?),
-    }
+    on_axes!(builder, (c.log_x, c.log_y), xs, ys, body);
     draw_bar(c, &side, range)?;
     root.present().map_err(e)
 }

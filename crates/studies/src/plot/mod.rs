@@ -11,6 +11,28 @@ use plotters::style::{register_font, FontStyle};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+/// Builds `$builder`'s chart over `$xs × $ys` (tuples of f64), each axis logarithmic or linear
+/// as `$log` (a pair of bools) says, and expands the macro `$body!` on it (plotters gives the
+/// four combinations four types).
+macro_rules! on_axes {
+    ($builder:expr, $log:expr, $xs:expr, $ys:expr, $body:ident) => {
+        match $log {
+            (true, true) => $body!($builder
+                .build_cartesian_2d(($xs.0..$xs.1).log_scale(), ($ys.0..$ys.1).log_scale())
+                .map_err(|e| e.to_string())?),
+            (true, false) => $body!($builder
+                .build_cartesian_2d(($xs.0..$xs.1).log_scale(), $ys.0..$ys.1)
+                .map_err(|e| e.to_string())?),
+            (false, true) => $body!($builder
+                .build_cartesian_2d($xs.0..$xs.1, ($ys.0..$ys.1).log_scale())
+                .map_err(|e| e.to_string())?),
+            (false, false) => $body!($builder
+                .build_cartesian_2d($xs.0..$xs.1, $ys.0..$ys.1)
+                .map_err(|e| e.to_string())?),
+        }
+    };
+}
+
 mod bars;
 mod contour;
 mod map;
@@ -200,20 +222,7 @@ where
             }
         }};
     }
-    match (fig.log_x, fig.log_y) {
-        (true, true) => body!(builder
-            .build_cartesian_2d((xs.0..xs.1).log_scale(), (ys.0..ys.1).log_scale())
-            .map_err(|e| e.to_string())?),
-        (true, false) => body!(builder
-            .build_cartesian_2d((xs.0..xs.1).log_scale(), ys.0..ys.1)
-            .map_err(|e| e.to_string())?),
-        (false, true) => body!(builder
-            .build_cartesian_2d(xs.0..xs.1, (ys.0..ys.1).log_scale())
-            .map_err(|e| e.to_string())?),
-        (false, false) => body!(builder
-            .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
-            .map_err(|e| e.to_string())?),
-    }
+    on_axes!(builder, (fig.log_x, fig.log_y), xs, ys, body);
     Ok(())
 }
 
