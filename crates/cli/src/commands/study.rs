@@ -17,8 +17,9 @@ use studies::design_space::{execute, finish, gather, optima, report};
 /// entries (any numeric key of `servo config --dump`, or plant.stage.moving_mass_kg). Each point
 /// is a synthesis plus an exact budget; points are journaled as they finish (run the same
 /// command again to resume), failed points are kept with their reason. Writes study.csv,
-/// study.parquet, study.json, sensitivity.csv and the plots of Fig 6-14 / 6-17.
-/// Example: servo study examples/study-flexure.toml --out-dir flexure
+/// study.parquet, study.json, sensitivity.csv and the plots of Fig 6-14 / 6-17. Ctrl-C (or
+/// SIGTERM) stops after the points being evaluated, keeping them; a second Ctrl-C stops at once.
+/// Example: servo study examples/studies/flexure.toml --out-dir flexure
 #[derive(Args, Debug)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct StudyCmd {
