@@ -123,15 +123,25 @@ impl CtlCmd {
         let ep = Endpoint::open(prefix, &format!("ctl-{}", std::process::id()))
             .map_err(RunError::from)?;
         let target = self.action.target();
-        if !ep.peers().iter().any(|p| p.role == target) {
-            return Err(CliError::Processes(format!(
-                "no run on prefix {prefix:?}: no live {target} (start one with `servo run --hil --prefix {prefix}`)"
-            )));
+        let start = Instant::now();
+        let timeout = Duration::from_secs_f64(self.timeout_s);
+        // No process on the prefix: no run, say so at once. Others of the run there but not
+        // yet the target (a run whose processes are still starting): wait for it as long as
+        // for the answer.
+        loop {
+            let peers = ep.peers();
+            if peers.iter().any(|p| p.role == target) {
+                break;
+            }
+            if peers.is_empty() || start.elapsed() >= timeout {
+                return Err(CliError::Processes(format!(
+                    "no run on prefix {prefix:?}: no live {target} (start one with `servo run --hil --prefix {prefix}`)"
+                )));
+            }
+            std::thread::sleep(Duration::from_millis(10));
         }
         let acks = ep.subscriber::<Ack>(leaf::ACK).map_err(RunError::from)?;
         let id = daq_io::peers::random_id();
-        let start = Instant::now();
-        let timeout = Duration::from_secs_f64(self.timeout_s);
         // Sent once the run listens (a process that has just started may not yet: a message
         // before any subscriber is lost), by a publisher that lives until the answer came
         // (iceoryx2 takes a sample back from the subscribers when its publisher goes).
