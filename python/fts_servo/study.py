@@ -41,13 +41,6 @@ def study_rows(study: PathLike, indices: Sequence[int]) -> List[str]:
     return _native.study_rows(_text(study), [int(i) for i in indices])
 
 
-def _rows_task(text: str, indices: List[int]) -> List[str]:
-    # What each Ray task runs: the worker builds every model from the description.
-    from fts_servo import _native as native
-
-    return native.study_rows(text, indices)
-
-
 def run_study_ray(
     study: PathLike,
     out_dir: PathLike,
@@ -78,7 +71,8 @@ def run_study_ray(
         ray.init(address=address, log_to_driver=False)
         started = True
     try:
-        task = ray.remote(_rows_task)
+        # Each task: study_rows on a worker, which builds every model from the description.
+        task = ray.remote(study_rows)
         shared = ray.put(text)
         groups = [pending[i : i + points_per_task] for i in range(0, len(pending), points_per_task)]
         waiting = [task.remote(shared, g) for g in groups]

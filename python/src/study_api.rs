@@ -7,7 +7,7 @@ use crate::servo_err;
 use pyo3::prelude::*;
 use std::path::PathBuf;
 use studies::design_space::evaluate::evaluate;
-use studies::design_space::journal::{claim, Journal, Shard};
+use studies::design_space::journal::{claim, pending, Journal, Shard};
 use studies::design_space::spec::Study;
 use studies::design_space::table::{header, row};
 use studies::design_space::{finish, gather};
@@ -45,12 +45,10 @@ pub fn study_open(text: &str, out_dir: PathBuf) -> PyResult<(PathBuf, Vec<u64>)>
     let s = parse(text)?;
     claim(&s, &out_dir).map_err(servo_err)?;
     let (_, done) = Journal::open(&s, &out_dir, Shard::ALL).map_err(servo_err)?;
-    let mut have = vec![false; s.points() as usize];
-    for p in &done {
-        have[p.index as usize] = true;
-    }
-    let pending = (0..s.points()).filter(|&i| !have[i as usize]).collect();
-    Ok((out_dir.join(Shard::ALL.file_name()), pending))
+    Ok((
+        out_dir.join(Shard::ALL.file_name()),
+        pending(&s, Shard::ALL, &done),
+    ))
 }
 
 /// Joins the journals in `dirs` and writes the finished study into `out_dir`; returns the

@@ -99,13 +99,24 @@ pub(crate) fn plots(
     dir: &Path,
     written: &mut Vec<PathBuf>,
 ) -> Option<String> {
-    for (fig, stem) in figs {
-        match plot::write(fig, &dir.join(stem)) {
-            Ok(paths) => written.extend(paths),
-            Err(e) => return Some(e.to_string()),
+    figs.iter()
+        .find_map(|(fig, stem)| plot(fig, &dir.join(stem), written))
+}
+
+/// Writes one drawing as `stem.png` and `stem.svg` (their paths go to `written`), or returns
+/// the reason it was skipped as a note.
+pub(crate) fn plot<D: plot::Drawing>(
+    item: &D,
+    stem: &Path,
+    written: &mut Vec<PathBuf>,
+) -> Option<String> {
+    match plot::write(item, stem) {
+        Ok(paths) => {
+            written.extend(paths);
+            None
         }
+        Err(e) => Some(e.to_string()),
     }
-    None
 }
 
 /// Files written, and a note if plots were skipped.

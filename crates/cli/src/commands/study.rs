@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use studies::design_space::evaluate::Point;
 use studies::design_space::journal::{claim, Shard};
 use studies::design_space::spec::Study;
-use studies::design_space::{execute, finish, gather, optima, report};
+use studies::design_space::{execute, finish, gather, report};
 
 /// Design-space study over plant parameters and controller families (thesis §6.5).
 ///
@@ -149,33 +149,32 @@ fn report_finished(
     dir: &Path,
     json: bool,
 ) -> Result<ExitCode, CliError> {
-    let n = 2 * study.table.parameters.len() * study.table.controllers.len();
-    let bar = points_bar(n, "sensitivities", "loops");
+    let n = studies::design_space::sensitivity::loops(study);
+    let bar = points_bar(n as usize, "sensitivities", "loops");
     let done = finish(study, points, dir, &mut |d, _| bar.set_position(d));
     bar.finish_and_clear();
-    let (sens, written) = done?;
-    let best = optima(study, points);
-    let failures = report::failures(points);
+    let (found, written) = done?;
     if json {
         print_json(&serde_json::json!({
-            "points": points.len(), "failures": failures, "optima": best, "sensitivities": sens
+            "points": found.points, "failures": found.failures, "optima": found.optima,
+            "sensitivities": found.sensitivities
         }));
         return Ok(ExitCode::SUCCESS);
     }
-    let ok = points.iter().filter(|p| p.outcome.is_ok()).count();
     println!(
-        "Study \"{}\" (thesis §6.5): {} points, {ok} evaluated, {} failed",
+        "Study \"{}\" (thesis §6.5): {} points, {} evaluated, {} failed",
         study.table.name,
-        points.len(),
-        points.len() - ok
+        found.points,
+        found.ok,
+        found.points - found.ok
     );
-    for f in &failures {
+    for f in &found.failures {
         println!(
             "  failed: {} point(s), first #{}: {}",
             f.points, f.first_index, f.reason
         );
     }
-    for o in &best {
+    for o in &found.optima {
         let at: Vec<String> = o
             .values
             .iter()
@@ -190,7 +189,7 @@ fn report_finished(
             at.join(", ")
         );
     }
-    for s in &sens {
+    for s in &found.sensitivities {
         match &s.failed {
             None => println!(
                 "  sensitivity ({}) d ln e / d ln {}: following {:+.3}, true {:+.3}",

@@ -105,17 +105,23 @@ pub fn evaluate(study: &Study, index: u64) -> Point {
     let per_family = study.points_per_family();
     let family = study.table.controllers[(index / per_family) as usize];
     let values = sampling::values(study, index % per_family);
-    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        point_config(study, &values)
-            .and_then(|c| metrics(study, family, c).map_err(|e| e.to_string()))
-    }))
-    .unwrap_or_else(|_| Err("internal error (a panic) while evaluating the point".into()));
+    let outcome = outcome(study, family, &values);
     Point {
         index,
         family,
         values,
         outcome,
     }
+}
+
+/// The loop of `family` at parameter `values` (the study's order), or why it failed — a panic
+/// included, so that one point never stops a study.
+pub fn outcome(study: &Study, family: Family, values: &[f64]) -> Result<Metrics, String> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        point_config(study, values)
+            .and_then(|c| metrics(study, family, c).map_err(|e| e.to_string()))
+    }))
+    .unwrap_or_else(|_| Err("internal error (a panic) while evaluating the point".into()))
 }
 
 /// The loop of `config` under `family`'s controller, and its metrics.

@@ -3,7 +3,7 @@
 //! loses at most the points being evaluated) and to the progress report.
 
 use super::evaluate::{evaluate, Point};
-use super::journal::{claim, Journal, Shard};
+use super::journal::{claim, pending, Journal, Shard};
 use super::spec::Study;
 use crate::error::StudyError;
 use std::path::Path;
@@ -42,14 +42,7 @@ pub fn run_shard(
     claim(study, dir)?;
     let (mut journal, mut points) = Journal::open(study, dir, shard)?;
     let total = shard.points(study.points()).count() as u64;
-    let mut have = std::collections::HashSet::with_capacity(points.len());
-    for p in &points {
-        have.insert(p.index);
-    }
-    let todo: Vec<u64> = shard
-        .points(study.points())
-        .filter(|i| !have.contains(i))
-        .collect();
+    let todo = pending(study, shard, &points);
     progress(points.len() as u64, total);
     let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);

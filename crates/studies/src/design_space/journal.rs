@@ -56,9 +56,33 @@ impl Shard {
     pub fn file_name(&self) -> String {
         format!("points-{}-of-{}.csv", self.index, self.count)
     }
+
+    /// The shard whose journal is named `name` ([`Shard::file_name`]), if it is one.
+    pub fn of_file_name(name: &str) -> Option<Shard> {
+        let (i, n) = name
+            .strip_prefix("points-")?
+            .strip_suffix(".csv")?
+            .split_once("-of-")?;
+        Shard::parse(&format!("{i}/{n}")).ok()
+    }
 }
 
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> StudyError + '_ {
+/// The shard journals in the study folder `dir`, with their shards.
+pub fn journals(dir: &Path) -> Result<Vec<(PathBuf, Shard)>, StudyError> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io(dir))? {
+        let path = entry.map_err(io(dir))?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if let Some(shard) = Shard::of_file_name(name) {
+            out.push((path, shard));
+        }
+    }
+    out.sort_by_key(|(_, s)| (s.count, s.index));
+    Ok(out)
+}
+
+/// An I/O error on `path` as a study error.
+pub(super) fn io(path: &Path) -> impl FnOnce(std::io::Error) -> StudyError + '_ {
     move |source| {
         crate::report::ReportError::Io {
             path: path.to_owned(),
@@ -68,7 +92,8 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> StudyError + '_ {
     }
 }
 
-fn foreign(path: &Path, what: String) -> StudyError {
+/// A study file or folder that cannot be used (`what` says why).
+pub(super) fn foreign(path: &Path, what: String) -> StudyError {
     StudyError::DataFile {
         path: path.to_owned(),
         line: 1,
@@ -101,6 +126,15 @@ pub fn claim(study: &Study, dir: &Path) -> Result<(), StudyError> {
         }
         Err(e) => Err(io(&path)(e)),
     }
+}
+
+/// The points of `shard` that `done` (a journal's points) does not hold, in index order.
+pub fn pending(study: &Study, shard: Shard, done: &[Point]) -> Vec<u64> {
+    let held: std::collections::HashSet<u64> = done.iter().map(|p| p.index).collect();
+    shard
+        .points(study.points())
+        .filter(|i| !held.contains(i))
+        .collect()
 }
 
 /// A shard's journal, open for appending.

@@ -24,7 +24,7 @@ pub mod table;
 
 use crate::error::StudyError;
 use evaluate::Point;
-use journal::{read_journal, Shard, DESCRIPTION};
+use journal::{foreign, io, journals, read_journal, DESCRIPTION};
 use serde::Serialize;
 use spec::{Family, Objective, Study};
 use std::path::{Path, PathBuf};
@@ -99,16 +99,15 @@ pub fn gather(dirs: &[PathBuf]) -> Result<(Study, Vec<Point>), StudyError> {
         let s = Study::from_file(&dir.join(DESCRIPTION))?;
         if let Some(first) = &study {
             if first.sha256 != s.sha256 {
-                return Err(StudyError::DataFile {
-                    path: dir.join(DESCRIPTION),
-                    line: 1,
-                    what: format!(
+                return Err(foreign(
+                    &dir.join(DESCRIPTION),
+                    format!(
                         "another study than {} (SHA-256 {} against {})",
                         dirs[0].display(),
                         &s.sha256[..12],
                         &first.sha256[..12]
                     ),
-                });
+                ));
             }
         } else {
             points = vec![None; s.points() as usize];
@@ -117,80 +116,47 @@ pub fn gather(dirs: &[PathBuf]) -> Result<(Study, Vec<Point>), StudyError> {
         let s = study.as_ref().expect("set above");
         for (path, shard) in journals(dir)? {
             shard_count = shard.count;
-            let text = std::fs::read_to_string(&path).map_err(|source| {
-                crate::report::ReportError::Io {
-                    path: path.clone(),
-                    source,
-                }
-            })?;
+            let text = std::fs::read_to_string(&path).map_err(io(&path))?;
             for p in read_journal(s, &path, &text, shard)?.0 {
                 let slot = &mut points[p.index as usize];
                 match slot {
                     Some(held) if *held != p => {
-                        return Err(StudyError::DataFile {
-                            path,
-                            line: 1,
-                            what: format!("point {} is held twice with different results", p.index),
-                        })
+                        return Err(foreign(
+                            &path,
+                            format!("point {} is held twice with different results", p.index),
+                        ))
                     }
                     _ => *slot = Some(p),
                 }
             }
         }
     }
-    let study = study.ok_or_else(|| StudyError::DataFile {
-        path: PathBuf::from("."),
-        line: 1,
-        what: "no study folders given".into(),
-    })?;
+    let study = study.ok_or_else(|| foreign(Path::new("."), "no study folders given".into()))?;
     let missing = points.iter().filter(|p| p.is_none()).count();
     if let Some(first) = points.iter().position(Option::is_none) {
-        return Err(StudyError::DataFile {
-            path: dirs[0].clone(),
-            line: 1,
-            what: format!(
+        return Err(foreign(
+            &dirs[0],
+            format!(
                 "{missing} of {} points are missing (the first is point {first}, in shard {}/{shard_count}): run the missing shards (or resume them) first",
                 points.len(),
                 first as u64 % shard_count + 1
             ),
-        });
+        ));
     }
     Ok((study, points.into_iter().flatten().collect()))
 }
 
-/// The shard journals in a study folder, with their shards.
-fn journals(dir: &Path) -> Result<Vec<(PathBuf, Shard)>, StudyError> {
-    let io = |source| crate::report::ReportError::Io {
-        path: dir.to_owned(),
-        source,
-    };
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir).map_err(io)? {
-        let path = entry.map_err(io)?.path();
-        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        let shard = name
-            .strip_prefix("points-")
-            .and_then(|n| n.strip_suffix(".csv"))
-            .and_then(|n| n.split_once("-of-"))
-            .and_then(|(i, n)| Shard::parse(&format!("{i}/{n}")).ok());
-        if let Some(shard) = shard {
-            out.push((path, shard));
-        }
-    }
-    out.sort_by_key(|(_, s)| (s.count, s.index));
-    Ok(out)
-}
-
 /// Finishes a study whose points are all in `points` (index order): computes the sensitivities
-/// at the operating point (`progress` gets their (done, total) loops) and writes the table,
-/// summary and plots into `dir`.
+/// at the operating point (`progress` gets their (done, total) loops) and the findings, and
+/// writes the table, summary and plots into `dir`.
 pub fn finish(
     study: &Study,
     points: &[Point],
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<(Vec<sensitivity::Sensitivity>, crate::report::Written), StudyError> {
-    let s = sensitivity::sensitivities(study, progress);
-    let written = report::write(study, points, &s, dir)?;
-    Ok((s, written))
+) -> Result<(report::Findings, crate::report::Written), StudyError> {
+    let findings =
+        report::Findings::new(study, points, sensitivity::sensitivities(study, progress));
+    let written = report::write(study, points, &findings, dir)?;
+    Ok((findings, written))
 }

@@ -9,7 +9,7 @@ use super::sensitivity::Sensitivity;
 use super::spec::{Family, Objective, Sampling, Spacing, Study};
 use super::{columnar, objective, optima, table, Optimum};
 use crate::plot::{Bars, Contour, Figure, Series, Stacked};
-use crate::report::{to_json, write_files, ReportError, Written};
+use crate::report::{plot, to_json, write_files, ReportError, Written};
 use runner::closed_loop::SOURCES;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -26,15 +26,10 @@ pub struct Failures {
     pub first_index: u64,
 }
 
-/// `study.json` (after its metadata).
+/// What a finished study found: counts, failures, optima, sensitivities (computed once, for
+/// `study.json` and for the caller to print).
 #[derive(Debug, Serialize)]
-pub struct Summary<'a> {
-    /// Study label.
-    pub name: &'a str,
-    /// SHA-256 of the description.
-    pub study_sha256: &'a str,
-    /// The description.
-    pub description: &'a str,
+pub struct Findings {
     /// Points in all.
     pub points: u64,
     /// Points whose loop was built and evaluated.
@@ -46,7 +41,31 @@ pub struct Summary<'a> {
     /// The best point of each family.
     pub optima: Vec<Optimum>,
     /// Elasticities at the operating point.
-    pub sensitivities: &'a [Sensitivity],
+    pub sensitivities: Vec<Sensitivity>,
+}
+
+impl Findings {
+    /// The findings of `points` (index order) of `study`, with its `sensitivities`.
+    pub fn new(study: &Study, points: &[Point], sensitivities: Vec<Sensitivity>) -> Self {
+        Findings {
+            points: points.len() as u64,
+            ok: points.iter().filter(|p| p.outcome.is_ok()).count() as u64,
+            failures: failures(points),
+            objective: study.table.objective,
+            optima: optima(study, points),
+            sensitivities,
+        }
+    }
+}
+
+/// `study.json` (after its metadata).
+#[derive(Debug, Serialize)]
+struct Summary<'a> {
+    name: &'a str,
+    study_sha256: &'a str,
+    description: &'a str,
+    #[serde(flatten)]
+    findings: &'a Findings,
 }
 
 /// The failed points grouped by reason.
@@ -72,20 +91,16 @@ pub fn failures(points: &[Point]) -> Vec<Failures> {
 pub fn write(
     study: &Study,
     points: &[Point],
-    sensitivities: &[Sensitivity],
+    findings: &Findings,
     dir: &Path,
 ) -> Result<Written, ReportError> {
     let t = &study.table;
+    let sensitivities = &findings.sensitivities;
     let summary = Summary {
         name: &t.name,
         study_sha256: &study.sha256,
         description: &study.text,
-        points: points.len() as u64,
-        ok: points.iter().filter(|p| p.outcome.is_ok()).count() as u64,
-        failures: failures(points),
-        objective: t.objective,
-        optima: optima(study, points),
-        sensitivities,
+        findings,
     };
     let what = format!(
         "design-space study \"{}\" (thesis §6.5; servo study)",
@@ -102,30 +117,21 @@ pub fn write(
     let parquet = dir.join("study.parquet");
     columnar::write(study, points, &parquet)?;
     out.files.push(parquet);
-    let mut note = None;
-    let mut plot = |r: Result<Vec<std::path::PathBuf>, crate::plot::PlotError>| match r {
-        Ok(paths) => out.files.extend(paths),
-        Err(e) => note = Some(e.to_string()),
-    };
+    let files = &mut out.files;
+    let mut notes = Vec::new();
     if t.parameters.len() == 1 {
-        plot(crate::plot::write(
-            &curves(study, points),
-            &dir.join("study"),
-        ));
+        notes.push(plot(&curves(study, points), &dir.join("study"), files));
     }
     if t.parameters.len() == 2 && t.sampling == Sampling::Grid {
         for &family in &t.controllers {
             let stem = dir.join(format!("map-{}", family.name()));
-            plot(crate::plot::write(&map(study, points, family), &stem));
+            notes.push(plot(&map(study, points, family), &stem, files));
         }
     }
     if !sensitivities.is_empty() {
-        plot(crate::plot::write(
-            &bars(sensitivities),
-            &dir.join("sensitivity"),
-        ));
+        notes.push(plot(&bars(sensitivities), &dir.join("sensitivity"), files));
     }
-    out.note = note;
+    out.note = notes.into_iter().flatten().next();
     Ok(out)
 }
 

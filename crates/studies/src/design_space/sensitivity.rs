@@ -4,7 +4,7 @@
 //! and per-source RMS errors — the % change of the error per % change of the parameter — by a
 //! central difference of ±5 % around the operating value, every other parameter held there.
 
-use super::evaluate::{metrics, point_config, Metrics};
+use super::evaluate::{outcome, Metrics};
 use super::spec::{Family, Study};
 use serde::Serialize;
 
@@ -37,12 +37,17 @@ fn elasticity(up: f64, down: f64) -> f64 {
     (up.ln() - down.ln()) / ((1.0 + STEP).ln() - (1.0 - STEP).ln())
 }
 
+/// The loops [`sensitivities`] evaluates: two per parameter and family.
+pub fn loops(study: &Study) -> u64 {
+    2 * (study.table.parameters.len() * study.table.controllers.len()) as u64
+}
+
 /// The sensitivities of every parameter under every family of `study` (2 loops each).
 /// `progress` gets (done, total) evaluations.
 pub fn sensitivities(study: &Study, progress: &mut dyn FnMut(u64, u64)) -> Vec<Sensitivity> {
     let params = &study.table.parameters;
     let operating: Vec<f64> = params.iter().map(|p| study.operating_value(p)).collect();
-    let total = 2 * (params.len() * study.table.controllers.len()) as u64;
+    let total = loops(study);
     let mut done = 0;
     let mut out = Vec::new();
     for &family in &study.table.controllers {
@@ -50,8 +55,7 @@ pub fn sensitivities(study: &Study, progress: &mut dyn FnMut(u64, u64)) -> Vec<S
             let at = |factor: f64| -> Result<Metrics, String> {
                 let mut v = operating.clone();
                 v[j] *= factor;
-                let config = point_config(study, &v)?;
-                metrics(study, family, config).map_err(|e| e.to_string())
+                outcome(study, family, &v)
             };
             let whole = matches!(study.base_value(&p.key), Some(toml::Value::Integer(_)));
             let result = if whole || operating[j] == 0.0 || !operating[j].is_finite() {

@@ -9,23 +9,27 @@ use super::spec::Study;
 use runner::closed_loop::SOURCES;
 use std::fmt::Write as _;
 
+/// The metrics of a point before the per-source columns, with their units in the names.
+const SCALAR_COLUMNS: [&str; 11] = [
+    "bandwidth_hz",
+    "following_rms_m",
+    "true_rms_m",
+    "spectral_radius",
+    "phase_margin_deg",
+    "gain_margin_db",
+    "controller_states",
+    "design_value",
+    "kp_v_per_v",
+    "ki_v_per_v_s",
+    "kd_v_s_per_v",
+];
+
+/// Number of metric columns: the scalars, then following and true RMS per source.
+pub const METRIC_COUNT: usize = SCALAR_COLUMNS.len() + 2 * SOURCE_COUNT;
+
 /// The metric columns after the parameters, status and reason, with their units in the names.
 pub fn metric_columns() -> Vec<String> {
-    let mut c: Vec<String> = [
-        "bandwidth_hz",
-        "following_rms_m",
-        "true_rms_m",
-        "spectral_radius",
-        "phase_margin_deg",
-        "gain_margin_db",
-        "controller_states",
-        "design_value",
-        "kp_v_per_v",
-        "ki_v_per_v_s",
-        "kd_v_s_per_v",
-    ]
-    .map(String::from)
-    .to_vec();
+    let mut c: Vec<String> = SCALAR_COLUMNS.map(String::from).to_vec();
     for out in ["following", "true"] {
         for (name, _) in SOURCES {
             c.push(format!("{out}_{}_m", name.replace(' ', "_")));
@@ -74,8 +78,8 @@ impl Metrics {
     }
 
     fn from_columns(v: &[f64]) -> Option<Metrics> {
-        let s = 11;
-        if v.len() != s + 2 * SOURCE_COUNT {
+        let s = SCALAR_COLUMNS.len();
+        if v.len() != METRIC_COUNT {
             return None;
         }
         Some(Metrics {
@@ -110,7 +114,7 @@ pub fn row(p: &Point) -> String {
         Err(reason) => {
             let quoted = reason.replace(['\n', '\r'], " ").replace('"', "\"\"");
             write!(line, ",failed,\"{quoted}\"").expect("writing to a String");
-            line.push_str(&",".repeat(metric_columns().len()));
+            line.push_str(&",".repeat(METRIC_COUNT));
         }
     }
     line.push('\n');
@@ -140,7 +144,7 @@ fn fields(line: &str) -> Vec<String> {
 pub fn parse_row(study: &Study, line: &str) -> Option<Point> {
     let f = fields(line);
     let np = study.table.parameters.len();
-    if f.len() != 4 + np + metric_columns().len() {
+    if f.len() != 4 + np + METRIC_COUNT {
         return None;
     }
     let num = |s: &str| -> Option<f64> {
