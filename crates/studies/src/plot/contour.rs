@@ -3,7 +3,7 @@
 //! written beside the chart, and a colour bar with the quantity's unit.
 
 use super::ticks::{plain, tick_label};
-use super::{wrap, Drawing, SIDE_PX};
+use super::{draw_colour_bar, draw_wrapped, with_side_panel, Drawing};
 use plotters::prelude::*;
 
 /// A positive quantity on a grid of two parameters.
@@ -65,10 +65,17 @@ impl Contour {
         }
     }
 
-    /// The value at (u, w) in axis coordinates, bilinear in ln(value) between grid nodes.
-    fn at(&self, u: f64, w: f64) -> f64 {
-        let xs: Vec<f64> = self.x.iter().map(|&v| self.axis(self.log_x, v)).collect();
-        let ys: Vec<f64> = self.y.iter().map(|&v| self.axis(self.log_y, v)).collect();
+    /// The grid's nodes in axis coordinates (x, y).
+    fn nodes(&self) -> (Vec<f64>, Vec<f64>) {
+        (
+            self.x.iter().map(|&v| self.axis(self.log_x, v)).collect(),
+            self.y.iter().map(|&v| self.axis(self.log_y, v)).collect(),
+        )
+    }
+
+    /// The value at (u, w) in axis coordinates, bilinear in ln(value) between the grid's
+    /// `nodes` ([`Contour::nodes`]).
+    fn at(&self, (xs, ys): &(Vec<f64>, Vec<f64>), u: f64, w: f64) -> f64 {
         let locate = |g: &[f64], v: f64| -> (usize, f64) {
             if g.len() < 2 {
                 return (0, 0.0);
@@ -76,7 +83,7 @@ impl Contour {
             let i = g.partition_point(|&a| a <= v).clamp(1, g.len() - 1) - 1;
             (i, ((v - g[i]) / (g[i + 1] - g[i])).clamp(0.0, 1.0))
         };
-        let ((i, fx), (j, fy)) = (locate(&xs, u), locate(&ys, w));
+        let ((i, fx), (j, fy)) = (locate(xs, u), locate(ys, w));
         let cols = self.x.len();
         let v = |r: usize, c: usize| {
             let r = r.min(self.y.len() - 1);
@@ -110,94 +117,96 @@ fn band(v: f64, (lo, hi): (f64, f64)) -> RGBColor {
     viridis((k + 0.5) / BANDS as f64)
 }
 
-fn draw_contour<DB: DrawingBackend>(
-    c: &Contour,
-    root: DrawingArea<DB, plotters::coord::Shift>,
-) -> Result<(), String>
-where
-    DB::ErrorType: 'static,
-{
-    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-    root.fill(&WHITE).map_err(e)?;
-    let width = root.dim_in_pixel().0;
-    let (plot, side) = root.split_horizontally(width - SIDE_PX);
-    let span = |g: &[f64]| (g[0], g[g.len() - 1].max(g[0] * 1.0001 + 1e-300));
-    let (xs, ys) = (span(&c.x), span(&c.y));
-    let range = c.value_range();
-    let mut builder = ChartBuilder::on(&plot);
-    builder
-        .caption(&c.title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(80);
-    macro_rules! body {
-        ($chart:expr) => {{
-            let mut chart = $chart;
-            chart
-                .configure_mesh()
-                .disable_mesh()
-                .x_desc(&c.x_label)
-                .y_desc(&c.y_label)
-                .label_style(("sans-serif", 14))
-                .x_label_formatter(&|v| tick_label(*v, c.log_x, xs))
-                .y_label_formatter(&|v| tick_label(*v, c.log_y, ys))
-                .draw()
-                .map_err(|e| e.to_string())?;
-            // Raster in axis coordinates; runs of one band along a row are one rectangle.
-            let back = |log: bool, v: f64| if log { v.exp() } else { v };
-            let (u0, u1) = (c.axis(c.log_x, xs.0), c.axis(c.log_x, xs.1));
-            let (w0, w1) = (c.axis(c.log_y, ys.0), c.axis(c.log_y, ys.1));
-            let (du, dw) = ((u1 - u0) / RASTER as f64, (w1 - w0) / RASTER as f64);
-            let mut cells = Vec::new();
-            for r in 0..RASTER {
-                let w = w0 + (r as f64 + 0.5) * dw;
-                let mut start = 0;
-                let mut colour = band(c.at(u0 + 0.5 * du, w), range);
-                for k in 1..=RASTER {
-                    let next =
-                        (k < RASTER).then(|| band(c.at(u0 + (k as f64 + 0.5) * du, w), range));
-                    if next != Some(colour) {
-                        cells.push(Rectangle::new(
-                            [
-                                (
-                                    back(c.log_x, u0 + start as f64 * du),
-                                    back(c.log_y, w0 + r as f64 * dw),
-                                ),
-                                (
-                                    back(c.log_x, u0 + k as f64 * du),
-                                    back(c.log_y, w0 + (r + 1) as f64 * dw),
-                                ),
-                            ],
-                            colour.filled(),
-                        ));
-                        start = k;
-                        if let Some(n) = next {
-                            colour = n;
+impl Drawing for Contour {
+    const SIZE: (u32, u32) = (1100, 800);
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        let c = self;
+        let (plot, side) = with_side_panel(&root)?;
+        let span = |g: &[f64]| (g[0], g[g.len() - 1].max(g[0] * 1.0001 + 1e-300));
+        let (xs, ys) = (span(&c.x), span(&c.y));
+        let range = c.value_range();
+        let mut builder = ChartBuilder::on(&plot);
+        builder
+            .caption(&c.title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(80);
+        macro_rules! body {
+            ($chart:expr) => {{
+                let mut chart = $chart;
+                chart
+                    .configure_mesh()
+                    .disable_mesh()
+                    .x_desc(&c.x_label)
+                    .y_desc(&c.y_label)
+                    .label_style(("sans-serif", 14))
+                    .x_label_formatter(&|v| tick_label(*v, c.log_x, xs))
+                    .y_label_formatter(&|v| tick_label(*v, c.log_y, ys))
+                    .draw()
+                    .map_err(|e| e.to_string())?;
+                // Raster in axis coordinates; runs of one band along a row are one rectangle.
+                let back = |log: bool, v: f64| if log { v.exp() } else { v };
+                let (u0, u1) = (c.axis(c.log_x, xs.0), c.axis(c.log_x, xs.1));
+                let (w0, w1) = (c.axis(c.log_y, ys.0), c.axis(c.log_y, ys.1));
+                let (du, dw) = ((u1 - u0) / RASTER as f64, (w1 - w0) / RASTER as f64);
+                let nodes = c.nodes();
+                let mut cells = Vec::new();
+                for r in 0..RASTER {
+                    let w = w0 + (r as f64 + 0.5) * dw;
+                    let mut start = 0;
+                    let mut colour = band(c.at(&nodes, u0 + 0.5 * du, w), range);
+                    for k in 1..=RASTER {
+                        let next = (k < RASTER)
+                            .then(|| band(c.at(&nodes, u0 + (k as f64 + 0.5) * du, w), range));
+                        if next != Some(colour) {
+                            cells.push(Rectangle::new(
+                                [
+                                    (
+                                        back(c.log_x, u0 + start as f64 * du),
+                                        back(c.log_y, w0 + r as f64 * dw),
+                                    ),
+                                    (
+                                        back(c.log_x, u0 + k as f64 * du),
+                                        back(c.log_y, w0 + (r + 1) as f64 * dw),
+                                    ),
+                                ],
+                                colour.filled(),
+                            ));
+                            start = k;
+                            if let Some(n) = next {
+                                colour = n;
+                            }
                         }
                     }
                 }
-            }
-            chart.draw_series(cells).map_err(|e| e.to_string())?;
-            // The grid's nodes, small, so the reader sees where the values were computed.
-            chart
-                .draw_series(c.y.iter().flat_map(|&y| {
-                    c.x.iter()
-                        .map(move |&x| Circle::new((x, y), 1, BLACK.mix(0.35).filled()))
-                }))
-                .map_err(|e| e.to_string())?;
-            if let Some((x, y, _)) = &c.mark {
+                chart.draw_series(cells).map_err(|e| e.to_string())?;
+                // The grid's nodes, small, so the reader sees where the values were computed.
                 chart
-                    .draw_series([
-                        Cross::new((*x, *y), 9, WHITE.stroke_width(5)),
-                        Cross::new((*x, *y), 9, RED.stroke_width(2)),
-                    ])
+                    .draw_series(c.y.iter().flat_map(|&y| {
+                        c.x.iter()
+                            .map(move |&x| Circle::new((x, y), 1, BLACK.mix(0.35).filled()))
+                    }))
                     .map_err(|e| e.to_string())?;
-            }
-        }};
+                if let Some((x, y, _)) = &c.mark {
+                    chart
+                        .draw_series([
+                            Cross::new((*x, *y), 9, WHITE.stroke_width(5)),
+                            Cross::new((*x, *y), 9, RED.stroke_width(2)),
+                        ])
+                        .map_err(|e| e.to_string())?;
+                }
+            }};
+        }
+        on_axes!(builder, (c.log_x, c.log_y), xs, ys, body);
+        draw_bar(c, &side, range)?;
+        root.present().map_err(|e| e.to_string())
     }
-    on_axes!(builder, (c.log_x, c.log_y), xs, ys, body);
-    draw_bar(c, &side, range)?;
-    root.present().map_err(e)
 }
 
 /// The colour bar (log scale, band edges labelled) and the mark's note, in the side panel.
@@ -210,66 +219,32 @@ where
     DB::ErrorType: 'static,
 {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    let top = draw_wrapped(area, &c.value_label, 30, (20, 20))? + 20;
+    let bottom = area.dim_in_pixel().1 as i32 - 170;
+    let edge = |t: f64| lo * (hi / lo).powf(t);
+    let ticks: Vec<(f64, String)> = (0..=BANDS)
+        .step_by(3)
+        .map(|k| {
+            let t = k as f64 / BANDS as f64;
+            (t, plain(edge(t)))
+        })
+        .collect();
+    draw_colour_bar(
+        area,
+        (top, bottom),
+        BANDS as i32,
+        &|t| band(edge(t), (lo, hi)),
+        &ticks,
+    )?;
     let font = ("sans-serif", 14).into_font().color(&BLACK);
-    let mut y = 20;
-    for line in wrap(&c.value_label, 30) {
-        area.draw(&Text::new(line, (20, y), font.clone()))
-            .map_err(e)?;
-        y += 18;
-    }
-    let h = area.dim_in_pixel().1 as i32;
-    let (top, bottom, x0, x1) = (y + 20, h - 170, 20, 50);
-    let edge = |k: usize| lo * (hi / lo).powf(k as f64 / BANDS as f64);
-    for k in 0..BANDS {
-        let y0 = bottom - (bottom - top) * k as i32 / BANDS as i32;
-        let y1 = bottom - (bottom - top) * (k as i32 + 1) / BANDS as i32;
-        let mid = (edge(k) * edge(k + 1)).sqrt();
-        area.draw(&Rectangle::new(
-            [(x0, y1), (x1, y0)],
-            band(mid, (lo, hi)).filled(),
-        ))
+    let x0 = 20;
+    let y = bottom + 20;
+    area.draw(&Text::new("grey: failed points", (x0, y), font))
         .map_err(e)?;
-    }
-    area.draw(&Rectangle::new(
-        [(x0, top), (x1, bottom)],
-        BLACK.stroke_width(1),
-    ))
-    .map_err(e)?;
-    for k in (0..=BANDS).step_by(3) {
-        let yk = bottom - (bottom - top) * k as i32 / BANDS as i32;
-        area.draw(&PathElement::new(
-            vec![(x1, yk), (x1 + 6, yk)],
-            BLACK.stroke_width(1),
-        ))
-        .map_err(e)?;
-        area.draw(&Text::new(plain(edge(k)), (x1 + 10, yk - 7), font.clone()))
-            .map_err(e)?;
-    }
-    let mut y = bottom + 20;
-    area.draw(&Text::new("grey: failed points", (x0, y), font.clone()))
-        .map_err(e)?;
-    y += 22;
     if let Some((_, _, note)) = &c.mark {
-        area.draw(&Cross::new((x0 + 6, y + 8), 7, RED.stroke_width(2)))
+        area.draw(&Cross::new((x0 + 6, y + 30), 7, RED.stroke_width(2)))
             .map_err(e)?;
-        for line in wrap(note, 26) {
-            area.draw(&Text::new(line, (x0 + 20, y), font.clone()))
-                .map_err(e)?;
-            y += 18;
-        }
+        draw_wrapped(area, note, 26, (x0 + 20, y + 22))?;
     }
     Ok(())
-}
-
-impl Drawing for Contour {
-    const SIZE: (u32, u32) = (1100, 800);
-    fn draw_on<DB: DrawingBackend>(
-        &self,
-        root: DrawingArea<DB, plotters::coord::Shift>,
-    ) -> Result<(), String>
-    where
-        DB::ErrorType: 'static,
-    {
-        draw_contour(self, root)
-    }
 }

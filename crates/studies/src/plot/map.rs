@@ -1,7 +1,7 @@
 //! Maps of values on a grid (the form-error map) with their colour bar.
 
 use super::ticks::{plain, tick_label};
-use super::{wrap, Drawing, SIDE_PX};
+use super::{draw_colour_bar, draw_wrapped, with_side_panel, Drawing};
 use plotters::prelude::*;
 
 /// A map of values on a regular grid (a form-error map), drawn with a diverging colour scale
@@ -42,102 +42,6 @@ fn diverging(v: f64, scale: f64) -> RGBColor {
     }
 }
 
-fn draw_map<DB: DrawingBackend>(
-    map: &Map,
-    root: DrawingArea<DB, plotters::coord::Shift>,
-) -> Result<(), String>
-where
-    DB::ErrorType: 'static,
-{
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let rows = map.values.len() / map.cols.max(1);
-    let scale = map
-        .values
-        .iter()
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, |m, v| m.max(v.abs()))
-        .max(1e-300);
-    let width = root.dim_in_pixel().0;
-    let (plot, side) = root.split_horizontally(width - SIDE_PX);
-    let mut chart = ChartBuilder::on(&plot)
-        .caption(&map.title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(80)
-        .build_cartesian_2d(map.x.0..map.x.1, map.y.0..map.y.1)
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc(&map.x_label)
-        .y_desc(&map.y_label)
-        .label_style(("sans-serif", 14))
-        .x_label_formatter(&|v| tick_label(*v, false, map.x))
-        .y_label_formatter(&|v| tick_label(*v, false, map.y))
-        .draw()
-        .map_err(|e| e.to_string())?;
-    let (dx, dy) = (
-        (map.x.1 - map.x.0) / map.cols as f64,
-        (map.y.1 - map.y.0) / rows.max(1) as f64,
-    );
-    chart
-        .draw_series(map.values.iter().enumerate().map(|(i, &v)| {
-            let (r, c) = (i / map.cols, i % map.cols);
-            let x0 = map.x.0 + c as f64 * dx;
-            let y0 = map.y.0 + r as f64 * dy;
-            Rectangle::new([(x0, y0), (x0 + dx, y0 + dy)], diverging(v, scale).filled())
-        }))
-        .map_err(|e| e.to_string())?;
-    draw_colour_bar(&side, scale, &map.value_label)?;
-    root.present().map_err(|e| e.to_string())
-}
-
-/// The colour bar of [`diverging`] from −`scale` to `scale` in `area`, labelled.
-fn draw_colour_bar<DB: DrawingBackend>(
-    area: &DrawingArea<DB, plotters::coord::Shift>,
-    scale: f64,
-    label: &str,
-) -> Result<(), String>
-where
-    DB::ErrorType: 'static,
-{
-    let h = area.dim_in_pixel().1 as i32;
-    let (top, bottom, x0, x1) = (60, h - 60, 20, 50);
-    let steps = 200;
-    for k in 0..steps {
-        let y0 = bottom - (bottom - top) * k / steps;
-        let y1 = bottom - (bottom - top) * (k + 1) / steps;
-        let v = scale * (2.0 * (k as f64 + 0.5) / steps as f64 - 1.0);
-        area.draw(&Rectangle::new(
-            [(x0, y1), (x1, y0)],
-            diverging(v, scale).filled(),
-        ))
-        .map_err(|e| e.to_string())?;
-    }
-    area.draw(&Rectangle::new(
-        [(x0, top), (x1, bottom)],
-        BLACK.stroke_width(1),
-    ))
-    .map_err(|e| e.to_string())?;
-    let font = ("sans-serif", 14).into_font().color(&BLACK);
-    for k in 0..=4 {
-        let v = scale * (k as f64 / 2.0 - 1.0);
-        let y = bottom - (bottom - top) * k / 4;
-        area.draw(&PathElement::new(
-            vec![(x1, y), (x1 + 6, y)],
-            BLACK.stroke_width(1),
-        ))
-        .map_err(|e| e.to_string())?;
-        area.draw(&Text::new(plain(v), (x1 + 10, y - 7), font.clone()))
-            .map_err(|e| e.to_string())?;
-    }
-    for (i, line) in wrap(label, 30).into_iter().enumerate() {
-        area.draw(&Text::new(line, (x0, 20 + 18 * i as i32), font.clone()))
-            .map_err(|e| e.to_string())?;
-    }
-    Ok(())
-}
-
 impl Drawing for Map {
     const SIZE: (u32, u32) = (1470, 500);
     fn draw_on<DB: DrawingBackend>(
@@ -147,6 +51,56 @@ impl Drawing for Map {
     where
         DB::ErrorType: 'static,
     {
-        draw_map(self, root)
+        let map = self;
+        let (plot, side) = with_side_panel(&root)?;
+        let rows = map.values.len() / map.cols.max(1);
+        let scale = map
+            .values
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+            .max(1e-300);
+        let mut chart = ChartBuilder::on(&plot)
+            .caption(&map.title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(80)
+            .build_cartesian_2d(map.x.0..map.x.1, map.y.0..map.y.1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc(&map.x_label)
+            .y_desc(&map.y_label)
+            .label_style(("sans-serif", 14))
+            .x_label_formatter(&|v| tick_label(*v, false, map.x))
+            .y_label_formatter(&|v| tick_label(*v, false, map.y))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let (dx, dy) = (
+            (map.x.1 - map.x.0) / map.cols as f64,
+            (map.y.1 - map.y.0) / rows.max(1) as f64,
+        );
+        chart
+            .draw_series(map.values.iter().enumerate().map(|(i, &v)| {
+                let (r, c) = (i / map.cols, i % map.cols);
+                let x0 = map.x.0 + c as f64 * dx;
+                let y0 = map.y.0 + r as f64 * dy;
+                Rectangle::new([(x0, y0), (x0 + dx, y0 + dy)], diverging(v, scale).filled())
+            }))
+            .map_err(|e| e.to_string())?;
+        draw_wrapped(&side, &map.value_label, 30, (20, 20))?;
+        let bottom = side.dim_in_pixel().1 as i32 - 60;
+        let ticks: Vec<(f64, String)> = (0..=4)
+            .map(|k| (k as f64 / 4.0, plain(scale * (k as f64 / 2.0 - 1.0))))
+            .collect();
+        draw_colour_bar(
+            &side,
+            (60, bottom),
+            200,
+            &|t| diverging(scale * (2.0 * t - 1.0), scale),
+            &ticks,
+        )?;
+        root.present().map_err(|e| e.to_string())
     }
 }

@@ -243,6 +243,86 @@ fn wrap(text: &str, width: usize) -> Vec<String> {
     lines
 }
 
+/// An area and its side panel, each a plotters drawing area.
+type Split<DB> = (
+    DrawingArea<DB, plotters::coord::Shift>,
+    DrawingArea<DB, plotters::coord::Shift>,
+);
+
+/// Fills `root` white and splits it into the data's area and the side panel right of it
+/// (legend or colour bar, [`SIDE_PX`] wide).
+fn with_side_panel<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+) -> Result<Split<DB>, String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let width = root.dim_in_pixel().0;
+    Ok(root.split_horizontally(width - SIDE_PX))
+}
+
+/// A vertical colour bar in the side panel `area` between `top` and `bottom` px: `steps` cells,
+/// each coloured `colour(t)` at its middle `t` in [0, 1] (bottom to top), outlined, and the
+/// `ticks` (t, label) right of it.
+fn draw_colour_bar<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    (top, bottom): (i32, i32),
+    steps: i32,
+    colour: &dyn Fn(f64) -> RGBColor,
+    ticks: &[(f64, String)],
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    let (x0, x1) = (20, 50);
+    let at = |t: f64| bottom - ((bottom - top) as f64 * t).round() as i32;
+    for k in 0..steps {
+        let (t0, t1) = (k as f64 / steps as f64, (k + 1) as f64 / steps as f64);
+        let fill = colour((k as f64 + 0.5) / steps as f64).filled();
+        area.draw(&Rectangle::new([(x0, at(t1)), (x1, at(t0))], fill))
+            .map_err(e)?;
+    }
+    area.draw(&Rectangle::new(
+        [(x0, top), (x1, bottom)],
+        BLACK.stroke_width(1),
+    ))
+    .map_err(e)?;
+    let font = ("sans-serif", 14).into_font().color(&BLACK);
+    for (t, label) in ticks {
+        let y = at(*t);
+        area.draw(&PathElement::new(
+            vec![(x1, y), (x1 + 6, y)],
+            BLACK.stroke_width(1),
+        ))
+        .map_err(e)?;
+        area.draw(&Text::new(label.as_str(), (x1 + 10, y - 7), font.clone()))
+            .map_err(e)?;
+    }
+    Ok(())
+}
+
+/// Draws `text` wrapped at `width` characters in `area` from (`x`, `y`) down; returns the y
+/// below it.
+fn draw_wrapped<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    text: &str,
+    width: usize,
+    (x, mut y): (i32, i32),
+) -> Result<i32, String>
+where
+    DB::ErrorType: 'static,
+{
+    let font = ("sans-serif", 14).into_font().color(&BLACK);
+    for line in wrap(text, width) {
+        area.draw(&Text::new(line, (x, y), font.clone()))
+            .map_err(|e| e.to_string())?;
+        y += 18;
+    }
+    Ok(y)
+}
+
 /// The legend of `series` in the side panel `area`, from `top` px down.
 fn draw_legend<DB: DrawingBackend>(
     series: &[Series],
@@ -294,9 +374,7 @@ fn draw<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let width = root.dim_in_pixel().0;
-    let (plot, side) = root.split_horizontally(width - SIDE_PX);
+    let (plot, side) = with_side_panel(&root)?;
     draw_chart(fig, &plot, x_range(&[fig]), Some(&fig.title))?;
     draw_legend(&fig.series, &side, 60)?;
     root.present().map_err(|e| e.to_string())
