@@ -160,6 +160,8 @@ fn zpetc(c: &mut Criterion) {
     let plan = runner::Plan::new(&cfg).unwrap();
     let mut z =
         runner::feedforward::zpetc(&plan.closed_loop, runner::config::FeedforwardKind::Zpetc)
+            .unwrap()
+            .build()
             .unwrap();
     let mut y = 0.0;
     c.bench_function("zpetc/12_sections", |b| {

@@ -25,6 +25,7 @@ pub enum DaqError {
         timeout_ms: u64,
     },
     /// The transport failed.
+    #[cfg(feature = "std")]
     #[error("transport: {0}")]
     Transport(String),
 }
@@ -69,7 +70,7 @@ pub trait Backend {
     /// The plant as the clock: a backend with a sample clock of its own (the ADC's conversion
     /// clock, an interrupt, a blocking read that returns when the conversion is done) blocks
     /// here until tick `k`'s edge and returns when that edge was, in ns of `CLOCK_MONOTONIC`
-    /// ([`crate::clock::monotonic_ns`] with the `ipc` feature). The real-time server then
+    /// ([`crate::clock::monotonic_ns`] with the `std` feature). The real-time server then
     /// paces on it, and measures its lateness against it. Default `None`: no clock of its own;
     /// the server paces on the wall clock.
     fn wait_for_tick(&mut self, k: u64) -> Option<u64> {

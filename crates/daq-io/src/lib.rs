@@ -13,15 +13,20 @@
 //!   qualification), [`TickStats`] (lateness and execution-time histograms).
 //!
 //! Without the default `ipc` feature the crate is the contract alone (no iceoryx2): what
-//! the simulated stage uses to report its samples.
+//! the simulated stage uses to report its samples. Without `std` as well it is `#![no_std]`
+//! with no allocator — the contract, its layout table and the [`Daq`]/[`Backend`] seams —
+//! which the runtime's per-tick core and the firmware share with the host.
 //!
 //! Embedding in a DAQ daemon: implement [`Backend`] for the ADC/DAC hardware and call
 //! [`serve::serve`]; see `examples/daq_daemon.rs`.
 
-#[cfg(feature = "ipc")]
+#![cfg_attr(not(feature = "std"), no_std)]
+
+#[cfg(feature = "std")]
 pub mod clock;
 pub mod contract;
 mod daq;
+#[cfg(feature = "std")]
 mod histogram;
 #[cfg(feature = "ipc")]
 pub mod ipc;
@@ -36,6 +41,7 @@ pub mod realtime;
 pub mod recorder_pace;
 #[cfg(feature = "ipc")]
 pub mod serve;
+#[cfg(feature = "std")]
 pub mod watchdog;
 
 pub use contract::{
@@ -43,4 +49,5 @@ pub use contract::{
     Telemetry, TelemetryBlock, Truth, TruthBlock, BLOCK_TICKS, CONTRACT_VERSION, MAX_LOAD_BYTES,
 };
 pub use daq::{Backend, Daq, DaqError, InProcess};
+#[cfg(feature = "std")]
 pub use histogram::{LatencyHistogram, TickStats};

@@ -1,81 +1,17 @@
-//! The controllers `servo run` can drive, built from the configuration, and their linear
-//! realisations for the pre-run stability check.
+//! The controller of a run as the design side sees it: its linear realisation for the
+//! pre-run stability check, its description, and the runtime's [`ControllerSpec`] it runs as
+//! (built and ticked by `servo_runtime`).
 
-use crate::config::{ConfigError, ControllerConfig, ControllerKind, Origin, RunConfig};
-use crate::controller_file::ControllerFile;
+use crate::config::{ConfigError, ControllerKind, Origin, RunConfig};
 use nalgebra::{DMatrix, SMatrix};
-use servo_core::{
-    kg, AccelCascade, AccelCascadeConfig, BiquadDesign, Block, CascadeInput, Iir, IirCoeffs,
-    Limits, Pid, PidConfig, StateSpace, StateSpaceConfig,
-};
+use servo_core::IirCoeffs;
+use servo_runtime::{accel_shaping, kg_of, position_pid, ControllerSpec, SsMatrices, Stage};
 
-/// One tick of a state-space controller of run-time order (dispatched to the const-generic
-/// servo-core block of that order).
-trait SsTick: Send {
-    fn tick(&mut self, e: f64) -> f64;
-    fn faulted(&self) -> bool;
-    fn boxed_clone(&self) -> Box<dyn SsTick>;
-}
-
-impl<const N: usize> SsTick for StateSpace<N, 1, 1> {
-    fn tick(&mut self, e: f64) -> f64 {
-        self.update([e])[0]
-    }
-    fn faulted(&self) -> bool {
-        Block::faulted(self)
-    }
-    fn boxed_clone(&self) -> Box<dyn SsTick> {
-        Box::new(self.clone())
-    }
-}
-
-/// Builds `StateSpace<N,1,1>` for the run-time `n`.
-fn boxed_ss(m: &DMatrix<f64>, n: usize, period_s: f64, limits: Limits) -> Option<Box<dyn SsTick>> {
-    fn build<const N: usize>(
-        m: &DMatrix<f64>,
-        period_s: f64,
-        limits: Limits,
-    ) -> Option<Box<dyn SsTick>> {
-        let cfg = StateSpaceConfig::<N, 1, 1> {
-            a: SMatrix::from_fn(|i, j| m[(i, j)]),
-            b: SMatrix::from_fn(|i, _| m[(i, N)]),
-            c: SMatrix::from_fn(|_, j| m[(N, j)]),
-            d: SMatrix::from_element(m[(N, N)]),
-            limits,
-        };
-        Some(Box::new(cfg.try_build(period_s).ok()?))
-    }
-    macro_rules! dispatch {
-        ($($n:literal)+) => {
-            match n {
-                $($n => build::<$n>(m, period_s, limits),)+
-                _ => None,
-            }
-        };
-    }
-    dispatch!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32 33 34 35 36 37 38 39 40)
-}
-
-enum Kind {
-    Pid(Pid),
-    Accel(AccelCascade<Iir<2>>),
-    Ss(Box<dyn SsTick>),
-}
-
-impl Clone for Kind {
-    fn clone(&self) -> Self {
-        match self {
-            Kind::Pid(p) => Kind::Pid(p.clone()),
-            Kind::Accel(a) => Kind::Accel(a.clone()),
-            Kind::Ss(s) => Kind::Ss(s.boxed_clone()),
-        }
-    }
-}
-
-/// A built controller: the tick plus its linear model. Cloning copies its state.
-#[derive(Clone)]
+/// A run's controller: what the runtime runs, and its linear model.
+#[derive(Debug, Clone)]
 pub struct Controller {
-    kind: Kind,
+    /// What the runtime runs (a state-space controller's matrices included).
+    pub spec: ControllerSpec,
     /// Linear realisation on inputs `[gap_v, accel_v]` with zero reference (for stability).
     pub linear: LinearController,
     /// Output limit in V.
@@ -83,7 +19,7 @@ pub struct Controller {
     /// Human-readable description for the summary.
     pub description: String,
     /// The position PID actually used (after Kg scaling), for analysis.
-    pub pid: PidConfig,
+    pub pid: servo_core::PidConfig,
 }
 
 /// `x⁺ = A x + B y`, `u = C x + D y` with `y = [gap_v, accel_v]` and zero reference.
@@ -153,57 +89,39 @@ fn parallel(p: LinearController, q: LinearController) -> LinearController {
     }
 }
 
-/// The acceleration shaping filter Ha of `c` (None: no filter): a first-order low pass or a
-/// Butterworth at `accel_filter_hz`, by `accel_filter_order`.
-pub fn accel_shaping(c: &ControllerConfig) -> Option<BiquadDesign> {
-    let f0_hz = c.accel_filter_hz;
-    (f0_hz > 0.0).then_some(match c.accel_filter_order {
-        1 => BiquadDesign::FirstOrderLowPass { f0_hz },
-        _ => BiquadDesign::LowPass {
-            f0_hz,
-            q: std::f64::consts::FRAC_1_SQRT_2,
-        },
-    })
-}
-
 fn invalid(at: &Origin, key: &str, e: impl std::fmt::Display) -> ConfigError {
     at.invalid(key, e, "a valid value (see the message)")
 }
 
+/// The stage numbers of `config`'s plant, as the runtime uses them.
+pub fn stage_of(config: &RunConfig) -> Stage {
+    let p = &config.plant;
+    Stage {
+        gap_sensitivity_v_per_m: p.capa.sensitivity_v_per_m,
+        accel_sensitivity_v_per_m_s2: p.accel.sensitivity_v_per_m_s2,
+        suspended_mass_kg: p.stage.suspended_mass_kg(),
+        damping_n_s_per_m: p.stage.c2_n_s_per_m,
+        stiffness_n_per_m: p.stage.k2_n_per_m,
+        current_gain_a_per_v: p.actuator.current_gain_a_per_v,
+        kt_n_per_a: p.actuator.kt_n_per_a,
+        dc_gain_m_per_v: p.dc_gain_m_per_v(),
+    }
+}
+
 impl Controller {
-    /// Builds the controller of `config` (the plant section gives the rate, and the mass for
-    /// Kg scaling; a state-space controller's matrices come from `file`, the loaded
+    /// The controller of `config` (the plant section gives the rate, and the mass for Kg
+    /// scaling; a state-space controller's matrices are `ss`, read from
     /// `controller.ss_file`). Errors are located in `at`.
     pub fn build(
         config: &RunConfig,
         at: &Origin,
-        file: Option<&ControllerFile>,
+        ss: Option<SsMatrices>,
     ) -> Result<Self, ConfigError> {
         let c = &config.controller;
         let period = 1.0 / config.plant.timing.servo_rate_hz;
-        let limits = Limits::try_new(-c.limit_v, c.limit_v)
-            .map_err(|e| invalid(at, "controller.limit_v", e))?;
-        let mut pid_cfg = PidConfig {
-            kp: c.pid.kp,
-            ki: c.pid.ki,
-            kd: c.pid.kd,
-            tf_s: c.pid.tf_s,
-            limits,
-        };
-        let mut description = String::new();
-        if c.kind == ControllerKind::Accel && c.kg_scaling {
-            let p = &config.plant;
-            let (a, mass) = (&p.actuator, p.stage.suspended_mass_kg());
-            let k = kg(
-                mass,
-                c.ka,
-                p.accel.sensitivity_v_per_m_s2,
-                a.current_gain_a_per_v,
-                a.kt_n_per_a,
-            );
-            pid_cfg = pid_cfg.with_gain_scale(1.0 / k);
-            description = format!(", PID gains ×{:.3} (1/Kg)", 1.0 / k);
-        }
+        let spec = c.spec(ss);
+        let stage = stage_of(config);
+        let pid_cfg = position_pid(&spec, &stage).map_err(|e| at.located(&e))?;
         let pid = pid_cfg.try_build(period).map_err(|e| match e {
             servo_core::Error::OutOfRange {
                 param,
@@ -227,102 +145,61 @@ impl Controller {
             short(pid_cfg.kd),
             short(pid_cfg.tf_s)
         );
-        Ok(match c.kind {
-            ControllerKind::Pid => Controller {
-                kind: Kind::Pid(pid),
-                linear: pid_linear,
-                limit_v: c.limit_v,
-                description: format!("PID ({gains})"),
-                pid: pid_cfg,
-            },
+        let (linear, description) = match c.kind {
+            ControllerKind::Pid => (pid_linear, format!("PID ({gains})")),
             ControllerKind::Accel => {
-                let ha = match accel_shaping(c) {
+                let ha = match accel_shaping(&spec) {
                     Some(d) => d
                         .try_coeffs(period)
                         .map_err(|e| invalid(at, "controller.accel_filter_hz", e))?,
                     None => IirCoeffs::<2>::IDENTITY,
                 };
-                let cascade = AccelCascadeConfig {
-                    pid: pid_cfg,
-                    ka: c.ka,
-                    limits,
-                }
-                .try_build(period, Iir::new(ha))
-                .map_err(|e| invalid(at, "controller.ka", e))?;
                 let (ha_a, ha_b, ha_c, ha_d) = ha.realization();
                 // u = PID(−gap) − Ha(Ka·accel)
                 let accel_linear = on_channel(dm(&ha_a), dm(&ha_b), -dm(&ha_c), -ha_d, 1, c.ka);
-                Controller {
-                    kind: Kind::Accel(cascade),
-                    linear: parallel(pid_linear, accel_linear),
-                    limit_v: c.limit_v,
-                    pid: pid_cfg,
-                    description: format!(
-                        "PID ({gains}) + acceleration feedback Ka {}{description}",
-                        c.ka
-                    ),
-                }
+                let scaling = if c.kg_scaling {
+                    format!(", PID gains ×{:.3} (1/Kg)", 1.0 / kg_of(&spec, &stage))
+                } else {
+                    String::new()
+                };
+                (
+                    parallel(pid_linear, accel_linear),
+                    format!("PID ({gains}) + acceleration feedback Ka {}{scaling}", c.ka),
+                )
             }
             ControllerKind::Ss => {
                 let path = c.ss_file.clone().unwrap_or_default();
-                let ControllerFile { m, n } = file.ok_or_else(|| {
+                let m = spec.ss.as_ref().ok_or_else(|| {
                     at.invalid(
                         "controller.ss_file",
                         path.display(),
                         "a controller file that was read",
                     )
                 })?;
-                let (m, n) = (m.clone(), *n);
-                let tick = boxed_ss(&m, n, period, limits).ok_or_else(|| ConfigError::Invalid {
-                    path: Some(path.clone()),
-                    line: None,
-                    key: "a".into(),
-                    value: format!("{n} states"),
-                    range: format!(
-                        "1..={} states, finite entries",
-                        crate::controller_file::MAX_SS_ORDER
+                let n = m.order();
+                let block = |r0: usize, c0: usize, rows: usize, cols: usize| {
+                    DMatrix::from_fn(rows, cols, |i, j| m.entry(r0 + i, c0 + j))
+                };
+                (
+                    on_channel(
+                        block(0, 0, n, n),
+                        block(0, n, n, 1),
+                        block(n, 0, 1, n),
+                        m.entry(n, n),
+                        0,
+                        -1.0,
                     ),
-                })?;
-                let linear = on_channel(
-                    m.view((0, 0), (n, n)).into_owned(),
-                    m.view((0, n), (n, 1)).into_owned(),
-                    m.view((n, 0), (1, n)).into_owned(),
-                    m[(n, n)],
-                    0,
-                    -1.0,
-                );
-                Controller {
-                    kind: Kind::Ss(tick),
-                    linear,
-                    limit_v: c.limit_v,
-                    pid: pid_cfg,
-                    description: format!("state space, {n} states ({})", path.display()),
-                }
+                    format!("state space, {n} states ({})", path.display()),
+                )
             }
+        };
+        Ok(Controller {
+            spec,
+            linear,
+            limit_v: c.limit_v,
+            description,
+            pid: pid_cfg,
         })
-    }
-
-    /// The controller latched a fault (a non-finite input or state): its output is 0 V until
-    /// it is rebuilt.
-    pub fn faulted(&self) -> bool {
-        match &self.kind {
-            Kind::Pid(p) => p.faulted(),
-            Kind::Accel(a) => a.faulted(),
-            Kind::Ss(s) => s.faulted(),
-        }
-    }
-
-    /// One tick: position error and accelerometer reading in V → command in V.
-    #[inline]
-    pub fn update(&mut self, error_v: f64, accel_v: f64) -> f64 {
-        match &mut self.kind {
-            Kind::Pid(p) => p.update(error_v),
-            Kind::Accel(a) => a.update(CascadeInput {
-                error: error_v,
-                accel: accel_v,
-            }),
-            Kind::Ss(s) => s.tick(error_v),
-        }
     }
 }
 

@@ -41,6 +41,9 @@ pub enum RunError {
     /// The plant side of a HIL run failed.
     #[error("plant process: {0}")]
     Serve(#[from] daq_io::serve::ServeError),
+    /// The controller's service (telemetry, health, control plane) could not start.
+    #[error("controller service: {0}")]
+    Service(#[from] servo_runtime::ServeError),
     /// No plant or controller published on the run's services in time.
     #[error("no plant or controller joined run {prefix} within {waited_s} s")]
     NoPeers {

@@ -1,16 +1,13 @@
-//! The feedforward of a run, built once from its plan: the stage-model inverse, or the ZPETC
-//! designed from the run's sampled closed loop (reference → tool, or reference → sensor
-//! reading for `zpetc-sensor`).
+//! The feedforward of a run, designed once from its plan: the stage-model inverse (evaluated by
+//! the runtime from the stage's numbers), or the ZPETC designed from the run's sampled closed
+//! loop (reference → tool, or reference → sensor reading for `zpetc-sensor`), handed to the
+//! runtime as coefficients.
 
 use crate::closed_loop::{input, output, ClosedLoop};
-use crate::config::{ConfigError, FeedforwardKind, Origin, RunConfig};
-use crate::preview::MAX_PREVIEW;
+use crate::config::{FeedforwardKind, RunConfig};
 use design::zpetc::{design, ZpetcDesign, ZpetcError};
 use lti::StateSpace;
-use servo_core::{Block, IirCoeffs, Zpetc, ZpetcConfig};
-
-/// Sections of the largest ZPETC filter the loop runs.
-pub const ZPETC_SECTIONS: usize = 12;
+use servo_runtime::{FeedforwardSpec, ZpetcSpec, MAX_PREVIEW, ZPETC_SECTIONS};
 
 /// Largest reduced order tried.
 const MAX_ORDER: usize = 2 * ZPETC_SECTIONS - 4;
@@ -41,72 +38,20 @@ pub enum FeedforwardError {
         /// Preview needed, ticks.
         preview: usize,
     },
-    /// servo-core refused the filter.
-    #[error("ZPETC feedforward: {0}")]
-    Block(servo_core::Error),
 }
 
-/// The feedforward of a loop, ready to run (cloned into each [`crate::ServoLoop`]).
-#[derive(Debug, Clone)]
-pub enum Feedforward {
-    /// Feedback only.
-    None,
-    /// Stage-model inverse on finite differences of the window (V).
-    Model(servo_core::Feedforward),
-    /// Reshaped reference (m).
-    Zpetc(Box<Zpetc<ZPETC_SECTIONS>>),
-}
-
-impl Feedforward {
-    /// The feedforward `config` asks for, on the loop `cl` (errors located in `at`).
-    pub fn build(
-        config: &RunConfig,
-        at: &Origin,
-        cl: &ClosedLoop,
-    ) -> Result<Self, crate::RunError> {
-        let c = &config.controller;
-        Ok(match c.feedforward {
-            FeedforwardKind::None => Feedforward::None,
-            FeedforwardKind::Model => Feedforward::Model(model(config, at)?),
-            FeedforwardKind::Zpetc | FeedforwardKind::ZpetcSensor => {
-                Feedforward::Zpetc(Box::new(zpetc(cl, c.feedforward)?))
-            }
-        })
-    }
-
-    /// Ticks of reference preview it needs.
-    pub fn preview(&self) -> usize {
-        match self {
-            Feedforward::None => 0,
-            Feedforward::Model(_) => 1,
-            Feedforward::Zpetc(z) => z.preview(),
+/// The feedforward `config` asks for, on the loop `cl`.
+pub fn feedforward_spec(
+    config: &RunConfig,
+    cl: &ClosedLoop,
+) -> Result<FeedforwardSpec, FeedforwardError> {
+    Ok(match config.controller.feedforward {
+        FeedforwardKind::None => FeedforwardSpec::None,
+        FeedforwardKind::Model => FeedforwardSpec::Model,
+        kind @ (FeedforwardKind::Zpetc | FeedforwardKind::ZpetcSensor) => {
+            FeedforwardSpec::Zpetc(zpetc(cl, kind)?)
         }
-    }
-
-    /// A block latched a fault.
-    pub fn faulted(&self) -> bool {
-        match self {
-            Feedforward::None => false,
-            Feedforward::Model(f) => f.faulted(),
-            Feedforward::Zpetc(z) => z.faulted(),
-        }
-    }
-}
-
-/// `m·r̈ + c·ṙ + k·r` of the configured stage, in V.
-fn model(config: &RunConfig, at: &Origin) -> Result<servo_core::Feedforward, ConfigError> {
-    let (st, a) = (&config.plant.stage, &config.plant.actuator);
-    let limit = config.controller.limit_v;
-    servo_core::FeedforwardConfig {
-        mass_kg: st.suspended_mass_kg(),
-        damping_n_s_per_m: st.c2_n_s_per_m,
-        stiffness_n_per_m: st.k2_n_per_m,
-        newton_per_unit: a.current_gain_a_per_v * a.kt_n_per_a,
-        limits: servo_core::Limits::try_new(-limit, limit)
-            .map_err(|e| at.invalid("controller.limit_v", e, "(0, 10] V"))?,
-    }
-    .try_build()
-    .map_err(|e| at.invalid("plant", e, "a valid stage for feedforward"))
+    })
 }
 
 /// The ZPETC design for the loop `cl`: reference in m → tool position in m (or the measured
@@ -133,14 +78,11 @@ pub fn design_for(cl: &ClosedLoop, kind: FeedforwardKind) -> Result<ZpetcDesign,
     )
 }
 
-/// The servo-core ZPETC block for the loop `cl`. The tool output of tick k is the tool at the
+/// The ZPETC coefficients for the loop `cl`. The tool output of tick k is the tool at the
 /// tick's end; the measured output is the sample the tick *starts* with, so the sensor design
 /// is advanced by one tick (its preview shrinks by one) to make the sample closing tick k
 /// follow the trajectory at that time, as the telemetry pairs them.
-pub fn zpetc(
-    cl: &ClosedLoop,
-    kind: FeedforwardKind,
-) -> Result<Zpetc<ZPETC_SECTIONS>, FeedforwardError> {
+pub fn zpetc(cl: &ClosedLoop, kind: FeedforwardKind) -> Result<ZpetcSpec, FeedforwardError> {
     let mut d = design_for(cl, kind)?;
     if kind == FeedforwardKind::ZpetcSensor {
         d.preview = d
@@ -154,15 +96,12 @@ pub fn zpetc(
             preview: d.preview,
         });
     }
-    let mut sections = [IirCoeffs::<2>::IDENTITY; ZPETC_SECTIONS];
-    for (s, &[b0, b1, b2, a1, a2]) in sections.iter_mut().zip(&d.sections) {
-        *s = IirCoeffs::new(b0, [b1, b2], [a1, a2]);
-    }
-    ZpetcConfig {
+    let mut sections = [[1.0, 0.0, 0.0, 0.0, 0.0]; ZPETC_SECTIONS];
+    sections[..d.sections.len()].copy_from_slice(&d.sections);
+    Ok(ZpetcSpec {
         gain: d.gain,
-        sections,
         preview: d.preview,
-    }
-    .try_build()
-    .map_err(FeedforwardError::Block)
+        sections,
+        sections_used: d.sections.len(),
+    })
 }

@@ -9,23 +9,22 @@
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
 use crate::config::Role;
-use crate::control_plane::{ControlPlane, SERVICE_TICKS};
 use crate::error::RunError;
+use crate::hot_swap::PlanCheck;
 use crate::join::Joiner;
 use crate::operator_log::{GainChange, Swap};
 use crate::plan::Plan;
-use crate::protection::TripCause;
 use crate::recording;
 use crate::servo_loop::ServoLoop;
 use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
-use daq_io::clock::monotonic_ns;
 use daq_io::contract::{command, role};
-use daq_io::ipc::{leaf, take, BlockWriter, ControlSender, ControllerLink, Endpoint, Tap};
+use daq_io::ipc::{leaf, take, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
-use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Daq, Health, TelemetryBlock};
+use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Daq, Health};
 use recorder::{Frame, Recorder};
+use servo_runtime::{TripCause, SERVICE_TICKS};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -102,9 +101,10 @@ pub struct ControllerEnd {
 
 /// `servo controller`: runs the controller of `plan` against the plant of run `prefix` until
 /// the plant closes the run. `stop` (Ctrl-C) asks the plant to stop; so does a trip, after the
-/// safe state was held. Applies `[realtime]`'s controller settings first; keeps each tick's
-/// start lateness (after the sample's publication) and execution time (sample to command) and
-/// reports them in its health messages.
+/// safe state was held. Applies `[realtime]`'s controller settings first. The runtime serves
+/// the loop (telemetry, health with each tick's start lateness after the sample's publication
+/// and execution time, the control plane with loads checked on the run's model) from a thread
+/// of its own, off the servo CPU.
 pub fn controller(
     plan: &Plan,
     prefix: &str,
@@ -112,82 +112,55 @@ pub fn controller(
 ) -> Result<ControllerEnd, RunError> {
     let rt = &plan.config.realtime;
     daq_io::realtime::apply(&rt.settings(Role::Controller))?;
-    let mut servo = ServoLoop::new(plan)?;
-    let ep = Endpoint::open(prefix, "controller")?;
     // The orchestrator checked stability too; a controller never trusts that it did (the
-    // control plane's gain range refuses an unstable loop).
-    let mut plane = ControlPlane::new(&ep, plan, false)?;
+    // gain range refuses an unstable loop).
+    let deployment = crate::gain_range::checked(plan)?;
+    let mut servo = ServoLoop::with_deployment(plan, &deployment)?;
+    let ep = Endpoint::open(prefix, "controller")?;
     let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;
-    let telemetry_pub = ep.publisher::<TelemetryBlock>(leaf::TELEMETRY)?;
     let stopper = ControlSender::new(&ep)?;
-    let mut telemetry = BlockWriter::<TelemetryBlock>::new(0);
-    let mut stats = daq_io::TickStats::default();
+    servo.servo_mut().serve_with(
+        prefix,
+        servo_runtime::ServeOptions {
+            serves_plant: false,
+            vet: Some(Box::new(PlanCheck { plan: plan.clone() })),
+            ..servo_runtime::ServeOptions::default()
+        },
+    )?;
     // With sleep-then-spin the controller sleeps until shortly before the next sample is due.
     let wait = rt.wait();
     let period_ns = (plan.config.plant.period_s() * 1e9).round() as u64;
     let mut stop_sent = false;
-    let mut expected_seq = 0;
     let result = loop {
         let s = match link.read() {
             Ok(s) => s,
             Err(e) => break Err(RunError::PlantLost(e)),
         };
-        let started_ns = monotonic_ns();
-        if s.seq == 0 {
-            // The run's identity, from its first sample (the link refuses samples of another).
-            telemetry = BlockWriter::new(link.run_id());
-            // Tick 0 is untimed (see daq_io::serve): set up every connection now.
-            daq_io::ipc::connect(&telemetry_pub);
-            plane.begin();
-        }
-        let (cmd, t) = servo.tick(&s);
+        let (cmd, _) = servo.tick(&s);
         let Some(cmd) = cmd else {
-            if let Some(t) = t {
-                telemetry.push(&telemetry_pub, t);
-            }
             break Ok(s.seq);
         };
         if let Err(e) = link.write(cmd) {
             break Err(RunError::PlantLost(e));
         }
-        if s.seq > 0 {
-            stats.execution.record(monotonic_ns() - started_ns);
-            if s.published_ns != 0 {
-                // After the publication of the sample it should have taken: a controller that
-                // fell behind takes the newest and skips the rest, a period each.
-                let skipped = s.seq.saturating_sub(expected_seq) * period_ns;
-                let late = started_ns.saturating_sub(s.published_ns) + skipped;
-                stats.lateness.record(late);
-            }
-        }
-        expected_seq = s.seq + 1;
-        if let Some(t) = t {
-            telemetry.push(&telemetry_pub, t);
-        }
         link.prepare();
-        if servo.run_over(s.seq) && !stop_sent {
+        if servo.run_over() && !stop_sent {
             stop_sent = stopper.send(stop_for(daq_io::stop_cause::TRIPPED)).is_ok();
         }
-        if s.seq.is_multiple_of(SERVICE_TICKS) {
-            plane.service(&mut servo, s.seq + 1, 0, &stats);
-            if stop.is_set() && !stop_sent {
-                let cause = stop.cell().load(std::sync::atomic::Ordering::Relaxed) as u32;
-                stop_sent = stopper.send(stop_for(cause)).is_ok();
-            }
+        if s.seq.is_multiple_of(SERVICE_TICKS) && stop.is_set() && !stop_sent {
+            let cause = stop.cell().load(std::sync::atomic::Ordering::Relaxed) as u32;
+            stop_sent = stopper.send(stop_for(cause)).is_ok();
         }
         if s.published_ns != 0 {
             wait.sleep_before(s.published_ns + period_ns);
         }
     };
-    let (end, faults) = match result {
-        Ok(_) => (flags::END, 0),
-        Err(_) => (flags::END | flags::FAULT_PEER_LOST, flags::FAULT_PEER_LOST),
+    let faults = if result.is_ok() {
+        0
+    } else {
+        flags::FAULT_PEER_LOST
     };
-    telemetry.flush(&telemetry_pub, end);
-    let ticks = *result.as_ref().unwrap_or(&0);
-    plane.finish(ticks, 0, &stats, faults, 0);
-    let service = ep.service::<TelemetryBlock>(leaf::TELEMETRY)?;
-    daq_io::ipc::linger(&service, Duration::from_secs(5));
+    servo.servo_mut().close(faults);
     result.map(|ticks| ControllerEnd {
         ticks,
         trip: servo.trip(),

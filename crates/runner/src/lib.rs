@@ -21,9 +21,7 @@
 
 pub mod closed_loop;
 pub mod config;
-pub mod control_plane;
 pub mod controller;
-pub mod controller_file;
 mod error;
 pub mod feedforward;
 pub mod gain_range;
@@ -33,8 +31,6 @@ pub mod join;
 pub mod machining;
 pub mod operator_log;
 pub mod plan;
-pub mod preview;
-pub mod protection;
 pub mod recording;
 pub mod remote_plant;
 pub mod replay;

@@ -5,8 +5,10 @@
 
 use crate::config::Machining;
 use crate::surface::LoadedSurface;
+use daq_io::Sensor;
 use servo_core::surface::Surface;
 use servo_core::{Block, Encoder, SpindleTracker, SpindleTrackerConfig, Spiral};
+use servo_runtime::Reference;
 
 /// A surface cut along the facing spiral: the design height under the tool at each unwrapped
 /// spindle angle (what the plant cuts, the controller follows and the form is judged against).
@@ -122,21 +124,32 @@ impl SurfaceReference {
         })
     }
 
-    /// Reads the encoder count of this tick's sample.
-    #[inline]
-    pub fn track(&mut self, encoder_count: u64) {
-        self.tracker.update(encoder_count);
-    }
-
     /// The height at the end of tick `k + ahead` (k: the last tracked tick).
     #[inline]
-    pub fn height_m(&self, ahead: usize) -> f64 {
+    fn height_m(&self, ahead: usize) -> f64 {
         self.cut
             .height_m(self.tracker.predict_rad(ahead as f64 + 1.0))
     }
+}
 
-    /// Whether the tracker lost the encoder.
-    pub fn faulted(&self) -> bool {
+/// The trajectory the runtime reads ahead: the tracked encoder of each sample, then the surface
+/// height under the tool.
+impl Reference for SurfaceReference {
+    fn prime(&mut self, sample: &Sensor, out: &mut [f64]) {
+        self.tracker.update(sample.encoder_count);
+        for (j, v) in out.iter_mut().enumerate() {
+            *v = self.height_m(j);
+        }
+    }
+
+    #[inline]
+    fn next(&mut self, sample: &Sensor, ahead: usize) -> f64 {
+        self.tracker.update(sample.encoder_count);
+        self.height_m(ahead)
+    }
+
+    /// The tracker lost the encoder.
+    fn faulted(&self) -> bool {
         self.tracker.faulted()
     }
 }

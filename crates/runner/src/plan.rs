@@ -7,18 +7,19 @@
 use crate::closed_loop::ClosedLoop;
 use crate::config::input_file::{read_input, read_text, MAX_IMAGE_BYTES};
 use crate::config::{
-    ControllerConfig, ControllerKind, Loaded, Origin, RunConfig, Scenario, SurfaceConfig,
+    check_made_for, made_for_plant, ConfigError, ControllerConfig, ControllerKind, Loaded, Origin,
+    RunConfig, Scenario, SurfaceConfig,
 };
-use crate::controller::Controller;
-use crate::controller_file::ControllerFile;
+use crate::controller::{stage_of, Controller};
 use crate::error::RunError;
-use crate::feedforward::Feedforward;
+use crate::feedforward::feedforward_spec;
 use crate::surface::LoadedSurface;
 use plant_sim::model::ModelError;
 use plant_sim::params::CurrentLoopModel;
 use plant_sim::sim::SimError;
 use plant_sim::Simulator;
 use recorder::Input;
+use servo_runtime::{Deployment, Invalid, ReferenceSpec, SsMatrices};
 
 /// Attachment name of the controller file in a recording.
 pub const CONTROLLER_INPUT: &str = "controller.toml";
@@ -35,15 +36,16 @@ pub struct Plan {
     pub origin: Origin,
     /// The simulated stage at tick 0 (seeded, with the scenario's cutting profile).
     pub sim: Simulator,
-    /// The controller in its initial state.
+    /// The controller: what the runtime runs, and its linear model.
     pub controller: Controller,
     /// The sampled closed loop of `sim` and `controller` (a `coil` current loop linearised as
     /// the ideal loop of eq 5-9).
     pub closed_loop: ClosedLoop,
     /// The machined surface, for a machining scenario.
     pub surface: Option<LoadedSurface>,
-    /// The feedforward in its initial state.
-    pub feedforward: Feedforward,
+    /// Everything the runtime's `Servo` runs (the feedforward designed, the stability range
+    /// not yet computed: [`crate::gain_range::checked`] adds it).
+    pub deployment: Deployment,
     /// The files the run read (controller file, surface image), to embed in its recording.
     pub inputs: Vec<Input>,
 }
@@ -155,11 +157,11 @@ impl Plan {
         mut inputs: Vec<Input>,
     ) -> Result<Self, RunError> {
         let c = &config.controller;
-        let run = crate::config::MadeFor::of(&config.plant);
+        let run = made_for_plant(&config.plant);
         if let Some(made_for) = &c.made_for {
-            made_for.check(&run, &origin, "controller.made_for", c.force)?;
+            check_made_for(made_for, &run, &origin, "controller.made_for", c.force)?;
         }
-        let file = match (&c.kind, &c.ss_file) {
+        let ss = match (&c.kind, &c.ss_file) {
             (ControllerKind::Ss, Some(path)) => {
                 let read = inputs.iter().find(|i| i.name == CONTROLLER_INPUT);
                 let text = match read {
@@ -174,16 +176,31 @@ impl Plan {
                         text
                     }
                 };
-                Some(ControllerFile::parse(&text, path, &run, c.force)?)
+                Some(read_ss_file(&text, path, &config, &run)?)
             }
             _ => {
                 inputs.retain(|i| i.name != CONTROLLER_INPUT);
                 None
             }
         };
-        let controller = Controller::build(&config, &origin, file.as_ref())?;
+        let controller = Controller::build(&config, &origin, ss)?;
         let closed_loop = closed_loop_of(&config, &origin, &sim, &controller)?;
-        let feedforward = Feedforward::build(&config, &origin, &closed_loop)?;
+        let deployment = Deployment {
+            servo_rate_hz: config.plant.timing.servo_rate_hz,
+            stage: stage_of(&config),
+            controller: controller.spec.clone(),
+            stability: None,
+            reference: config
+                .scenario
+                .reference(config.run.duration_s)
+                .unwrap_or(ReferenceSpec::Hold),
+            feedforward: feedforward_spec(&config, &closed_loop)?,
+            smoothing_hz: config.controller.smoothing_hz,
+            protection: config.protection,
+        };
+        deployment
+            .check()
+            .map_err(|e| located_in_run(&e, &origin))?;
         Ok(Plan {
             config,
             origin,
@@ -191,7 +208,7 @@ impl Plan {
             controller,
             closed_loop,
             surface,
-            feedforward,
+            deployment,
             inputs,
         })
     }
@@ -219,6 +236,48 @@ impl Plan {
     pub fn period_s(&self) -> f64 {
         self.config.plant.period_s()
     }
+}
+
+/// The state-space controller file `text` named by `controller.ss_file` (at `path`): its
+/// matrices, checked for shape, finiteness, the run's servo rate and — when it says what it was
+/// made for — the run's plant (`run`), unless `controller.force`.
+fn read_ss_file(
+    text: &str,
+    path: &std::path::Path,
+    config: &RunConfig,
+    run: &servo_runtime::MadeFor,
+) -> Result<SsMatrices, ConfigError> {
+    let at = Origin {
+        path: Some(path.to_owned()),
+        text: Some(text.to_owned()),
+    };
+    let running = config.controller.spec(None);
+    let f = servo_runtime::parse_controller_file(
+        text,
+        &at,
+        config.plant.timing.servo_rate_hz,
+        &running,
+    )?;
+    if let Some(made_for) = &f.made_for {
+        check_made_for(made_for, run, &at, "made_for", config.controller.force)?;
+    }
+    f.spec.ss.ok_or_else(|| {
+        at.invalid(
+            "a",
+            "(a [controller] table)",
+            "a state-space controller file (sample_rate_hz, a, b, c, d) for controller.ss_file",
+        )
+    })
+}
+
+/// A deployment value out of range, at the key of the run configuration it came from.
+pub fn located_in_run(e: &Invalid, at: &Origin) -> ConfigError {
+    let e = match (e.section, e.key) {
+        ("", "smoothing_hz") => e.in_section("controller"),
+        ("reference", _) => e.in_section("scenario"),
+        _ => *e,
+    };
+    at.located(&e)
 }
 
 /// Makes the config's relative paths relative to the working directory (they are written

@@ -78,7 +78,7 @@ pub fn run_with(
         let Some(command) = command else { break };
         daq.write(command).expect("in-process writes cannot fail");
         truth = daq.backend().truth().unwrap_or_default();
-        if servo.run_over(s.seq) && reason == EndReason::Completed {
+        if servo.run_over() && reason == EndReason::Completed {
             // Tripped, and the safe state held long enough: the next sample closes the run.
             reason = EndReason::Tripped;
             daq.stop();

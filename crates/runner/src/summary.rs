@@ -2,10 +2,10 @@
 //! (so `servo inspect` recomputes exactly the same numbers from the file).
 
 use crate::config::RunConfig;
-use crate::protection::TripCause;
 use daq_io::Latency;
 use recorder::Frame;
 use serde::{Deserialize, Serialize};
+use servo_runtime::TripCause;
 use std::fmt;
 
 /// RMS, peak-to-valley and mean of a signal.

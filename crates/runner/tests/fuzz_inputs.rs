@@ -5,7 +5,6 @@
 
 use proptest::prelude::*;
 use runner::config::{Loaded, Origin, RunConfig};
-use runner::controller_file::ControllerFile;
 use runner::Plan;
 use std::path::Path;
 
@@ -161,11 +160,13 @@ proptest! {
     #[test]
     fn controller_files_are_read_or_refused_with_the_file_named(text in controller_text()) {
         let path = Path::new("fuzz-controller.toml");
-        let run = runner::config::MadeFor::of(&Default::default());
-        match ControllerFile::parse(&text, path, &run, false) {
+        let at = runner::config::Origin { path: Some(path.into()), text: Some(text.clone()) };
+        let running = servo_runtime::ControllerSpec::default();
+        match servo_runtime::parse_controller_file(&text, &at, 199_600.0, &running) {
             Ok(f) => {
-                prop_assert!(f.m.iter().all(|x| x.is_finite()), "{text}");
-                prop_assert_eq!(f.m.nrows(), f.n + 1);
+                let m = f.spec.ss.expect("a state-space file holds matrices");
+                let n = m.order();
+                prop_assert!((0..=n).all(|i| (0..=n).all(|j| m.entry(i, j).is_finite())), "{text}");
             }
             Err(e) => prop_assert!(e.to_string().contains("fuzz-controller.toml"), "{e}"),
         }

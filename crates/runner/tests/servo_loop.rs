@@ -4,8 +4,8 @@
 
 use daq_io::{flags, Sensor};
 use runner::config::{Loaded, SafeState};
-use runner::protection::TripCause;
 use runner::{Plan, ServoLoop};
+use servo_runtime::TripCause;
 
 fn sample(seq: u64, gap_v: f64) -> Sensor {
     Sensor {
@@ -58,7 +58,7 @@ fn a_nan_reading_trips_to_the_configured_safe_state() {
             let (c, t) = servo.tick(&sample(k, 0.01));
             assert_eq!(c.unwrap().dac_v, want);
             assert_eq!(t.unwrap().flags & bits, bits);
-            assert_eq!(servo.run_over(k), k == 999, "tick {k}");
+            assert_eq!(servo.run_over(), k == 999, "tick {k}");
         }
     }
 }

@@ -167,7 +167,7 @@ pub fn h2_design_with(
         sample_rate_hz: c.plant.timing.servo_rate_hz,
         h2_norm: k.h2_norm,
         spectral_radius: k.spectral_radius,
-        made_for: MadeFor::of(&plan.config.plant),
+        made_for: runner::config::made_for_plant(&plan.config.plant),
     })
 }
 
@@ -304,6 +304,6 @@ pub fn thesis_design(plan: &Plan, w: &ThesisWeights, effort: f64) -> Result<Desi
         sample_rate_hz: fs,
         h2_norm: k.h2_norm,
         spectral_radius: k.spectral_radius,
-        made_for: MadeFor::of(&plan.config.plant),
+        made_for: runner::config::made_for_plant(&plan.config.plant),
     })
 }

@@ -241,7 +241,7 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
             kd: gains[2],
             tf_s: plan.config.controller.pid.tf_s,
         },
-        made_for: runner::config::MadeFor::of(&plan.config.plant),
+        made_for: runner::config::made_for_plant(&plan.config.plant),
         plant: plan.config.plant,
     })
 }

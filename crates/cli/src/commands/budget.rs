@@ -68,7 +68,7 @@ impl BudgetCmd {
             plan.controller.description,
             stage.m1_kg + stage.m2_kg
         );
-        let made_for = runner::config::MadeFor::of(&plan.config.plant);
+        let made_for = runner::config::made_for_plant(&plan.config.plant);
         let made = (&made_for, plan.controller.description.as_str());
         // The plant without a linear tick (the coil model) has no margins to report.
         let margins = studies::margins::loop_margins(&plan).ok();

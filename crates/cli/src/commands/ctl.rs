@@ -226,7 +226,7 @@ fn load_report(file: &std::path::Path, a: &Ack, status: u32) -> Result<String, S
         )),
         ack_status::REFUSED_PROVENANCE => Err(format!(
             "controller {name} refused: made for another plant or rate than the run's ({}); the controller process names both",
-            runner::config::MadeFor::describe_file(file).unwrap_or_else(|| "its made_for".into())
+            runner::config::describe_made_for(file).unwrap_or_else(|| "its made_for".into())
         )),
         ack_status::REFUSED_MARGIN if a.value >= 1.0 => Err(format!(
             "controller {name} refused: the closed loop on the run's model would be unstable (spectral radius {:.6} ≥ 1); the running controller stays",

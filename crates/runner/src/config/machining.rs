@@ -2,7 +2,7 @@
 //! surface, the spindle and the tool path. Data and range checks only; the surface is loaded
 //! by `crate::surface` and cut by `crate::machining`.
 
-use super::origin::{ConfigError, Origin};
+use super::{ConfigError, Origin};
 use serde::{Deserialize, Serialize};
 use servo_core::Spiral;
 use std::f64::consts::TAU;

@@ -1,21 +1,24 @@
 //! The one configuration of a run (TOML), every default the thesis prototype, and errors that
 //! name the file, line, key and allowed range.
 
-pub mod input_file;
 mod machining;
 mod made_for;
-mod origin;
 mod plant_file;
 pub mod presets;
-mod protection;
 mod realtime;
 
+/// Reading the files a run depends on, bounded (the runtime's, shared).
+pub mod input_file {
+    pub use servo_runtime::{read_input, read_text, MAX_IMAGE_BYTES, MAX_TEXT_BYTES};
+}
+
 pub use machining::{Machining, SurfaceConfig, GRID_EDGE_RADIUS_M};
-pub use made_for::{plant_toml, sha256_hex, MadeFor};
-pub use origin::{line_of, ConfigError, Origin};
+pub use made_for::{check_made_for, describe_made_for, made_for_plant, plant_toml, sha256_hex};
 pub use plant_file::read_plant_file;
-pub use protection::{ProtectionConfig, SafeState};
 pub use realtime::{RealtimeConfig, Role, WaitKind};
+pub use servo_runtime::{
+    line_of, ConfigError, ControllerKind, MadeFor, Origin, PidGains, ProtectionConfig, SafeState,
+};
 
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::PlantParams;
@@ -125,6 +128,34 @@ impl Scenario {
         }
     }
 
+    /// The runtime's reference generator for this scenario over a run of `duration_s` (None
+    /// for a machining scenario, whose reference the run supplies from the surface).
+    pub fn reference(&self, duration_s: f64) -> Option<servo_runtime::ReferenceSpec> {
+        use servo_runtime::ReferenceSpec as R;
+        Some(match *self {
+            Scenario::Hold | Scenario::IntermittentCut { .. } => R::Hold,
+            Scenario::Sine {
+                amplitude_m,
+                frequency_hz,
+            } => R::Sine {
+                amplitude_m,
+                frequency_hz,
+            },
+            Scenario::Step { amplitude_m, at_s } => R::Step { amplitude_m, at_s },
+            Scenario::Chirp {
+                amplitude_m,
+                f_start_hz,
+                f_end_hz,
+            } => R::Chirp {
+                amplitude_m,
+                f_start_hz,
+                f_end_hz,
+                duration_s,
+            },
+            Scenario::Machine(_) => return None,
+        })
+    }
+
     /// The cutting profile this scenario applies.
     pub fn cutting(&self) -> CuttingProfile {
         match *self {
@@ -136,46 +167,6 @@ impl Scenario {
                 spindle_rpm,
             },
             _ => CuttingProfile::None,
-        }
-    }
-}
-
-/// Controller kinds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
-#[serde(rename_all = "kebab-case")]
-pub enum ControllerKind {
-    /// Position PID (eq 7-8) on the capacitive sensor.
-    #[default]
-    Pid,
-    /// PID plus acceleration feedback `− Ha(Ka·a)` (Fig 7-6).
-    Accel,
-    /// A discrete state-space controller from `ss_file`.
-    Ss,
-}
-
-/// PID gains on sensor volts (V/V), thesis §7.5.3 by default.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct PidGains {
-    /// Proportional gain (V/V).
-    pub kp: f64,
-    /// Integral gain (1/s).
-    pub ki: f64,
-    /// Derivative gain (s).
-    pub kd: f64,
-    /// Derivative filter time constant (s).
-    pub tf_s: f64,
-}
-
-impl Default for PidGains {
-    fn default() -> Self {
-        let p = servo_core::PidConfig::THESIS_CH7;
-        PidGains {
-            kp: p.kp,
-            ki: p.ki,
-            kd: p.kd,
-            tf_s: p.tf_s,
         }
     }
 }
@@ -214,7 +205,10 @@ pub struct ControllerConfig {
     /// What the gains or the controller file were made for (written by `servo tune`; a
     /// controller file carries its own `[made_for]`): checked against this run's plant and
     /// rate, a mismatch refused with both named.
-    pub made_for: Option<made_for::MadeFor>,
+    pub made_for: Option<MadeFor>,
+    /// The offline check of the gains' loop (written by `servo tune`): what a running loop
+    /// that loads this fragment keeps as its gain range. A run checks its own loop again.
+    pub stability: Option<servo_runtime::Stability>,
     /// Run a controller made for another plant or rate anyway (`--force`).
     pub force: bool,
     /// Zero-phase smoothing of the previewed trajectory before the controller and the
@@ -222,6 +216,23 @@ pub struct ControllerConfig {
     /// point), adding half of it to the preview. For surfaces with kinks or steps (beam
     /// integrator, images) whose exact inverse would saturate the DAC; 0 = off.
     pub smoothing_hz: f64,
+}
+
+impl ControllerConfig {
+    /// The runtime's controller of this configuration, with the matrices of a state-space
+    /// controller when `ss` holds them (read from `ss_file`).
+    pub fn spec(&self, ss: Option<servo_runtime::SsMatrices>) -> servo_runtime::ControllerSpec {
+        servo_runtime::ControllerSpec {
+            kind: self.kind,
+            pid: self.pid,
+            ka: self.ka,
+            kg_scaling: self.kg_scaling,
+            accel_filter_hz: self.accel_filter_hz,
+            accel_filter_order: self.accel_filter_order,
+            ss,
+            limit_v: self.limit_v,
+        }
+    }
 }
 
 /// Feedforward kinds (see [`ControllerConfig::feedforward`]).
@@ -255,6 +266,7 @@ impl Default for ControllerConfig {
             limit_v: 10.0,
             feedforward: FeedforwardKind::None,
             made_for: None,
+            stability: None,
             force: false,
             smoothing_hz: 0.0,
         }
@@ -313,78 +325,33 @@ impl RunConfig {
             return Err(at.invalid("plant.timing.servo_rate_hz", rate, "[100, 2e6] Hz"));
         }
         let nyquist = rate / 2.0;
-        let amp = |key: &str, a: f64| {
-            if a.is_finite() && a.abs() <= 1e-3 {
-                Ok(())
-            } else {
-                Err(at.invalid(key, a, "[-1e-3, 1e-3] m"))
-            }
-        };
-        let freq = |key: &str, f: f64| {
-            if f > 0.0 && f < nyquist {
-                Ok(())
-            } else {
-                Err(at.invalid(key, f, &format!("(0, {nyquist}) Hz")))
-            }
-        };
-        match &self.scenario {
-            Scenario::Hold => {}
-            Scenario::Sine {
-                amplitude_m,
-                frequency_hz,
-            } => {
-                amp("scenario.amplitude_m", *amplitude_m)?;
-                freq("scenario.frequency_hz", *frequency_hz)?;
-            }
-            Scenario::Step { amplitude_m, at_s } => {
-                amp("scenario.amplitude_m", *amplitude_m)?;
-                if !(*at_s >= 0.0 && *at_s < r.duration_s) {
-                    return Err(at.invalid("scenario.at_s", at_s, "[0, run.duration_s) s"));
+        match (&self.scenario, self.scenario.reference(r.duration_s)) {
+            (_, Some(reference)) => {
+                servo_runtime::check_reference(&reference, nyquist, "scenario")
+                    .map_err(|e| at.located(&e))?;
+                if let Scenario::Step { at_s, .. } = self.scenario {
+                    if !(at_s >= 0.0 && at_s < r.duration_s) {
+                        return Err(at.invalid("scenario.at_s", at_s, "[0, run.duration_s) s"));
+                    }
                 }
             }
-            Scenario::Chirp {
-                amplitude_m,
-                f_start_hz,
-                f_end_hz,
-            } => {
-                amp("scenario.amplitude_m", *amplitude_m)?;
-                freq("scenario.f_start_hz", *f_start_hz)?;
-                freq("scenario.f_end_hz", *f_end_hz)?;
+            (Scenario::Machine(m), None) => m.validate(at)?,
+            (_, None) => {}
+        }
+        if let Scenario::IntermittentCut {
+            force_n,
+            spindle_rpm,
+        } = self.scenario
+        {
+            if !(force_n.is_finite() && force_n.abs() <= 100.0) {
+                return Err(at.invalid("scenario.force_n", force_n, "[-100, 100] N"));
             }
-            Scenario::Machine(m) => m.validate(at)?,
-            Scenario::IntermittentCut {
-                force_n,
-                spindle_rpm,
-            } => {
-                if !(force_n.is_finite() && force_n.abs() <= 100.0) {
-                    return Err(at.invalid("scenario.force_n", force_n, "[-100, 100] N"));
-                }
-                if !(*spindle_rpm > 0.0 && *spindle_rpm <= 1e5) {
-                    return Err(at.invalid("scenario.spindle_rpm", spindle_rpm, "(0, 1e5] rpm"));
-                }
+            if !(spindle_rpm > 0.0 && spindle_rpm <= 1e5) {
+                return Err(at.invalid("scenario.spindle_rpm", spindle_rpm, "(0, 1e5] rpm"));
             }
         }
         let c = &self.controller;
-        if !(c.limit_v > 0.0 && c.limit_v <= 10.0) {
-            return Err(at.invalid("controller.limit_v", c.limit_v, "(0, 10] V (the DAC range)"));
-        }
-        if !(c.ka >= 0.0 && c.ka <= 1e3) {
-            return Err(at.invalid("controller.ka", c.ka, "[0, 1000] V/V"));
-        }
-        if !(c.accel_filter_hz == 0.0 || (c.accel_filter_hz > 0.0 && c.accel_filter_hz < nyquist)) {
-            return Err(at.invalid(
-                "controller.accel_filter_hz",
-                c.accel_filter_hz,
-                &format!("0 (none) or (0, {nyquist}) Hz"),
-            ));
-        }
-        if !(1..=2).contains(&c.accel_filter_order) {
-            return Err(at.invalid(
-                "controller.accel_filter_order",
-                c.accel_filter_order,
-                "1 or 2",
-            ));
-        }
+        servo_runtime::check_controller(&c.spec(None), rate).map_err(|e| at.located(&e))?;
         if !(c.smoothing_hz == 0.0 || (c.smoothing_hz > 0.0 && c.smoothing_hz < nyquist)) {
             return Err(at.invalid(
                 "controller.smoothing_hz",
@@ -400,7 +367,8 @@ impl RunConfig {
             ));
         }
         self.protection
-            .validate(at, c.limit_v, self.plant.dc_gain_m_per_v())?;
+            .check(c.limit_v, self.plant.dc_gain_m_per_v())
+            .map_err(|e| at.located(&e))?;
         self.realtime.validate(at, self.plant.period_s())
     }
 }
@@ -416,5 +384,66 @@ mod tests {
         assert_eq!(back, c);
         assert_eq!(c.plant.timing.servo_rate_hz, 199_600.0);
         assert_eq!(c.controller.pid.kp, 1.65);
+    }
+
+    fn error_of(toml_text: &str) -> String {
+        let config: RunConfig = toml::from_str(toml_text).unwrap();
+        let at = Origin {
+            path: Some("p.toml".into()),
+            text: Some(toml_text.into()),
+        };
+        config.validate(&at).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn out_of_range_limits_are_located_errors() {
+        for (text, key, range) in [
+            (
+                "[protection]\nretract_m = 2e-3\n",
+                "protection.retract_m",
+                "1.000e-3",
+            ),
+            // 0.1 V through 0.167 mm/V reaches 16.7 µm.
+            (
+                "[controller]\nlimit_v = 0.1\n[protection]\nretract_m = -2e-5\n",
+                "protection.retract_m",
+                "1.670e-5",
+            ),
+            (
+                "[protection]\nfollowing_error_m = -1e-6\n",
+                "protection.following_error_m",
+                "1e-3] m",
+            ),
+            (
+                "[protection]\nsaturation_s = nan\n",
+                "protection.saturation_s",
+                "(0, 10] s",
+            ),
+            (
+                "[protection]\nposition_limit_m = 0.0\n",
+                "protection.position_limit_m",
+                "(0, 1e-3] m",
+            ),
+            (
+                "[protection]\nafter_trip_s = 2.0\n",
+                "protection.after_trip_s",
+                "[0, 1] s",
+            ),
+            (
+                "[protection]\nretract_speed_m_per_s = inf\n",
+                "protection.retract_speed_m_per_s",
+                "(0, 1] m/s",
+            ),
+        ] {
+            let e = error_of(text);
+            assert!(
+                e.contains("p.toml") && e.contains(key) && e.contains(range),
+                "{e}"
+            );
+        }
+        // The default retract (−5 µm = −0.03 V) is within reach.
+        let ok: RunConfig = toml::from_str("[protection]\nretract_m = -1e-3\n").unwrap();
+        let at = Origin::default();
+        assert!(ok.validate(&at).is_ok());
     }
 }

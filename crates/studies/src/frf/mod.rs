@@ -12,7 +12,7 @@ use daq_io::{Backend, Sensor};
 use lti::spectral::h1_at_bin;
 use num_complex::Complex64;
 use runner::closed_loop::ClosedLoop;
-use runner::controller::{Controller, LinearController};
+use runner::controller::LinearController;
 use runner::remote_plant::RemotePlant;
 use runner::sim_backend::SimBackend;
 use runner::Plan;
@@ -206,7 +206,7 @@ pub fn simulated(plan: &Plan) -> SimBackend {
 /// Plant, controller and model of one measurement, and the drive tick.
 struct Rig<'p> {
     plant: &'p mut dyn FrfPlant,
-    ctrl: Controller,
+    ctrl: servo_runtime::Controller,
     model: ClosedLoop,
     which: FrfLoop,
     sample: Sensor,
@@ -217,14 +217,19 @@ impl<'p> Rig<'p> {
     /// The rig of `plan`'s controller and model driving `plant`.
     fn new(plan: &Plan, which: FrfLoop, plant: &'p mut dyn FrfPlant) -> Result<Self, StudyError> {
         let c = &plan.config;
-        let ctrl = plan.controller.clone();
+        let ctrl = servo_runtime::Controller::build(
+            &plan.controller.spec,
+            &plan.deployment.stage,
+            plan.period_s(),
+        )
+        .map_err(|e| runner::RunError::from(plan.origin.located(&e)))?;
         let linear = plan
             .sim
             .linear_tick()
             .ok_or(StudyError::NeedsLinearPlant { what: "the FRF" })?;
         let model_ctrl = match which {
             FrfLoop::Open => LinearController::none(),
-            FrfLoop::Closed => ctrl.linear.clone(),
+            FrfLoop::Closed => plan.controller.linear.clone(),
         };
         let sensitivity = c.plant.capa.sensitivity_v_per_m;
         let model = ClosedLoop::new(&linear, &model_ctrl, sensitivity, plan.sim.period_s());

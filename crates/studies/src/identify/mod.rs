@@ -115,7 +115,7 @@ impl Identified {
                 r.pole_hz, r.pole_zeta, r.zero_hz, r.zero_zeta, r.peak_db
             );
         }
-        let made_for = runner::config::MadeFor::of(&plant);
+        let made_for = runner::config::made_for_plant(&plant);
         out += &format!("# made for {}; {}\n", made_for.describe(), made_for.tool);
         out + &runner::config::plant_toml(&plant)
     }

@@ -220,7 +220,11 @@ impl FrameSink for SpectrumSink {
             previous_ns: None,
             lost: None,
         });
-        self.header = Some((MadeFor::of(&config.plant), h.controller.clone(), from_s));
+        self.header = Some((
+            runner::config::made_for_plant(&config.plant),
+            h.controller.clone(),
+            from_s,
+        ));
         // The controller in the loop at the window's start, and any swap inside the window.
         let running = o.swaps.iter().rev().find(|w| swap_s(w) <= from_s);
         let to_s = o.to_s.unwrap_or(f64::INFINITY);

@@ -15,9 +15,9 @@ use num_complex::Complex64 as C;
 use plant_sim::impedance::Impedances;
 use runner::closed_loop::{input, output};
 use runner::config::{ControllerConfig, ControllerKind};
-use runner::controller::accel_shaping;
 use runner::Plan;
 use serde::Serialize;
+use servo_runtime::accel_shaping;
 use std::f64::consts::{PI, SQRT_2};
 
 /// One Ka's compliance curves.
@@ -92,11 +92,12 @@ pub fn compliance(
                 * second_order(wr, 1.0 / (2.0 * acc.resonance_q), s)
                 * (s / (s + 1.0 / acc.highpass_time_constant_s))
                 * second_order(2.0 * PI * acc.lowpass_hz, SQRT_2 / 2.0, s);
-            let h_a = accel_shaping(&c.config.controller).map_or(C::new(1.0, 0.0), |d| {
-                let (num, den) = d.analog();
-                let at = |p: [f64; 3]| p[0] * s * s + p[1] * s + p[2];
-                at(num) / at(den)
-            });
+            let h_a =
+                accel_shaping(&c.config.controller.spec(None)).map_or(C::new(1.0, 0.0), |d| {
+                    let (num, den) = d.analog();
+                    let at = |p: [f64; 3]| p[0] * s * s + p[1] * s + p[2];
+                    at(num) / at(den)
+                });
             let pid_s = pid.kp + pid.ki / s + pid.kd * s / (pid.tf_s * s + 1.0);
             let z_ctrl = (pid_s * h_capa + ka * h_a * h_acc * s * s)
                 * h_i

@@ -1,8 +1,11 @@
 //! Reading the files a run depends on, bounded: only regular files, at most a stated size, so
-//! a path naming a device, a FIFO or a huge file fails at once with a clear error.
+//! a path naming a device, a FIFO or a huge file fails at once with a clear error. The file is
+//! opened without blocking (a FIFO with no writer would otherwise hang in `open`) and checked
+//! to be a regular file before a byte is read.
 
 use super::origin::ConfigError;
 use std::io::Read;
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::Path;
 
 /// Largest configuration or controller file, bytes.
@@ -16,7 +19,11 @@ pub fn read_input(path: &Path, limit: u64) -> Result<Vec<u8>, ConfigError> {
         path: path.to_owned(),
         source,
     };
-    let file = std::fs::File::open(path).map_err(err)?;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(nix::fcntl::OFlag::O_NONBLOCK.bits())
+        .open(path)
+        .map_err(err)?;
     let meta = file.metadata().map_err(err)?;
     if !meta.is_file() {
         return Err(err(std::io::Error::other("not a regular file")));

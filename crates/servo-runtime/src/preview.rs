@@ -3,12 +3,12 @@
 //! kinks or steps — beam-integrator cell edges, image pixels — that no loop can follow and
 //! whose inverse would saturate the actuator). Fixed capacity: the tick never allocates.
 
-/// Most ticks of preview (feedforward preview plus half the smoothing window).
-pub const MAX_PREVIEW: usize = 62;
+use crate::deployment::MAX_PREVIEW;
 
 const LEN: usize = 2 * MAX_PREVIEW + 2;
 
 /// `y_d[k + j]` for `j ∈ −past..=preview`, with Hann weights for smoothing.
+#[derive(Debug, Clone)]
 pub(crate) struct Window {
     y: [f64; LEN],
     past: usize,
@@ -30,7 +30,7 @@ impl Window {
         let n = (2 * half + 2) as f64;
         for (i, w) in weights.iter_mut().enumerate().take(half + 1) {
             // Hann over 2·half + 1 taps, endpoints (zero) excluded.
-            *w = 0.5 + 0.5 * (std::f64::consts::TAU * i as f64 / n).cos();
+            *w = 0.5 + 0.5 * libm::cos(core::f64::consts::TAU * i as f64 / n);
         }
         let sum = weights[0] + 2.0 * weights[1..=half].iter().sum::<f64>();
         weights.iter_mut().for_each(|w| *w /= sum);

@@ -1,6 +1,7 @@
 //! Where a configuration came from, and errors that name the file, line, key and allowed
 //! range.
 
+use crate::check::Invalid;
 use std::path::{Path, PathBuf};
 
 /// Configuration errors.
@@ -67,6 +68,18 @@ impl Origin {
             value: value.to_string(),
             range: range.to_owned(),
         }
+    }
+
+    /// `invalid` (a key checked without allocation) located in this file.
+    pub fn located(&self, invalid: &Invalid) -> ConfigError {
+        let mut key = String::new();
+        let _ = invalid.write_key(&mut key);
+        let value = if invalid.value.is_nan() {
+            "(not a number, or missing)".to_owned()
+        } else {
+            invalid.value.to_string()
+        };
+        self.invalid(&key, value, &invalid.allowed.to_string())
     }
 
     /// Resolves a path from the config relative to the config file's directory.

@@ -1,0 +1,272 @@
+//! The feedback controller of a loop, built from its [`ControllerSpec`]: PID, the acceleration
+//! cascade, or a state-space controller of any order up to [`MAX_SS_ORDER`] held in fixed
+//! storage (a `StateSpace<N>` of servo-core for the file's order, chosen once at build: the
+//! tick runs the const-generic product of that order, and nothing is allocated).
+
+use crate::check::{Allowed, Invalid};
+use crate::deployment::{ControllerKind, ControllerSpec, SsMatrices, Stage, MAX_SS_ORDER};
+use nalgebra::SMatrix;
+use servo_core::{
+    kg, AccelCascade, AccelCascadeConfig, BiquadDesign, Block, CascadeInput, Iir, IirCoeffs,
+    Limits, Pid, PidConfig, StateSpace, StateSpaceConfig,
+};
+
+macro_rules! state_space_orders {
+    ($($n:literal => $v:ident),+ $(,)?) => {
+        /// A single-input single-output state-space controller of order 1 to
+        /// [`MAX_SS_ORDER`].
+        // Fixed storage for the largest order is the point: nothing is allocated.
+        #[allow(clippy::large_enum_variant)]
+        #[derive(Debug, Clone)]
+        enum AnyStateSpace {
+            $(
+                #[doc = concat!("Order ", stringify!($n), ".")]
+                $v(StateSpace<$n, 1, 1>),
+            )+
+        }
+
+        impl AnyStateSpace {
+            fn build(m: &SsMatrices, period_s: f64, limits: Limits) -> Result<Self, servo_core::Error> {
+                match m.order() {
+                    $($n => Ok(AnyStateSpace::$v(config::<$n>(m, limits).try_build(period_s)?)),)+
+                    _ => Err(servo_core::Error::OutOfRange {
+                        param: "order",
+                        value: m.order() as f64,
+                        min: 1.0,
+                        max: MAX_SS_ORDER as f64,
+                    }),
+                }
+            }
+
+            #[inline]
+            fn update(&mut self, e: f64) -> f64 {
+                match self {
+                    $(AnyStateSpace::$v(s) => s.update([e])[0],)+
+                }
+            }
+
+            fn faulted(&self) -> bool {
+                match self {
+                    $(AnyStateSpace::$v(s) => s.faulted(),)+
+                }
+            }
+
+            fn reset(&mut self) {
+                match self {
+                    $(AnyStateSpace::$v(s) => s.reset(),)+
+                }
+            }
+        }
+    };
+}
+
+state_space_orders! {
+    1 => N1, 2 => N2, 3 => N3, 4 => N4, 5 => N5, 6 => N6, 7 => N7, 8 => N8, 9 => N9, 10 => N10,
+    11 => N11, 12 => N12, 13 => N13, 14 => N14, 15 => N15, 16 => N16, 17 => N17, 18 => N18,
+    19 => N19, 20 => N20, 21 => N21, 22 => N22, 23 => N23, 24 => N24, 25 => N25, 26 => N26,
+    27 => N27, 28 => N28, 29 => N29, 30 => N30, 31 => N31, 32 => N32, 33 => N33, 34 => N34,
+    35 => N35, 36 => N36, 37 => N37, 38 => N38, 39 => N39, 40 => N40,
+}
+
+const _: () = assert!(MAX_SS_ORDER == 40, "the orders above list 1..=MAX_SS_ORDER");
+
+/// The servo-core configuration of `m` (order `N`).
+fn config<const N: usize>(m: &SsMatrices, limits: Limits) -> StateSpaceConfig<N, 1, 1> {
+    StateSpaceConfig::<N, 1, 1> {
+        a: SMatrix::from_fn(|i, j| m.entry(i, j)),
+        b: SMatrix::from_fn(|i, _| m.entry(i, N)),
+        c: SMatrix::from_fn(|_, j| m.entry(N, j)),
+        d: SMatrix::from_element(m.entry(N, N)),
+        limits,
+    }
+}
+
+// Fixed storage for the largest order is the point: nothing is allocated.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone)]
+enum Kind {
+    Pid(Pid),
+    Accel(AccelCascade<Iir<2>>),
+    Ss(AnyStateSpace),
+}
+
+/// The feedback law of a loop alone, in its running state: position error and accelerometer
+/// reading in V → command in V (what [`crate::Servo`] runs inside its tick, for a host that
+/// closes a loop of its own — a frequency-response measurement with an injection added to the
+/// command). Plain data: moving it copies it, dropping it frees nothing.
+///
+/// ```
+/// use servo_runtime::{Controller, Deployment};
+/// let d = Deployment::thesis_prototype();
+/// let mut c = Controller::build(&d.controller, &d.stage, d.period_s())?;
+/// let u = c.update(1e-3, 0.0); // 1 mV of position error in sensor volts
+/// assert!(u > 1.65e-3 && !c.faulted());
+/// # Ok::<(), servo_runtime::Invalid>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct Controller {
+    kind: Kind,
+    /// Output limit in V.
+    pub(crate) limit_v: f64,
+}
+
+/// The acceleration shaping filter Ha of `c` (None: no filter): a first-order low pass or a
+/// Butterworth at `accel_filter_hz`, by `accel_filter_order`.
+pub fn accel_shaping(c: &ControllerSpec) -> Option<BiquadDesign> {
+    let f0_hz = c.accel_filter_hz;
+    (f0_hz > 0.0).then_some(match c.accel_filter_order {
+        1 => BiquadDesign::FirstOrderLowPass { f0_hz },
+        _ => BiquadDesign::LowPass {
+            f0_hz,
+            q: core::f64::consts::FRAC_1_SQRT_2,
+        },
+    })
+}
+
+/// The position PID `c` runs, after Kg scaling (§7.4.1) for an `accel` controller with
+/// `kg_scaling` on `stage`.
+pub fn position_pid(c: &ControllerSpec, stage: &Stage) -> Result<PidConfig, Invalid> {
+    let limits = Limits::try_new(-c.limit_v, c.limit_v).map_err(|_| {
+        Invalid::new(
+            "controller",
+            "limit_v",
+            c.limit_v,
+            Allowed::Text("(0, 10] V (the DAC range)"),
+        )
+    })?;
+    let pid = PidConfig {
+        kp: c.pid.kp,
+        ki: c.pid.ki,
+        kd: c.pid.kd,
+        tf_s: c.pid.tf_s,
+        limits,
+    };
+    Ok(if c.kind == ControllerKind::Accel && c.kg_scaling {
+        pid.with_gain_scale(1.0 / kg_of(c, stage))
+    } else {
+        pid
+    })
+}
+
+/// Kg of §7.4.1 for the acceleration gain of `c` on `stage` (dimensionless).
+pub fn kg_of(c: &ControllerSpec, stage: &Stage) -> f64 {
+    kg(
+        stage.suspended_mass_kg,
+        c.ka,
+        stage.accel_sensitivity_v_per_m_s2,
+        stage.current_gain_a_per_v,
+        stage.kt_n_per_a,
+    )
+}
+
+/// A servo-core build error as the key of `[controller]` it came from.
+fn block_error(e: servo_core::Error, key: &'static str) -> Invalid {
+    match e {
+        servo_core::Error::OutOfRange {
+            param,
+            value,
+            min,
+            max,
+        } => Invalid::new(
+            "controller",
+            pid_key(param).unwrap_or(key),
+            value,
+            Allowed::between(min, max, ""),
+        ),
+        _ => Invalid::new("controller", key, f64::NAN, Allowed::Text("a valid value")),
+    }
+}
+
+/// `pid.kp` … for a PID parameter's name.
+fn pid_key(param: &str) -> Option<&'static str> {
+    Some(match param {
+        "kp" => "pid.kp",
+        "ki" => "pid.ki",
+        "kd" => "pid.kd",
+        "tf_s" => "pid.tf_s",
+        _ => return None,
+    })
+}
+
+impl Controller {
+    /// The controller of `c` on `stage` at `period_s` (s), in its initial state.
+    pub fn build(c: &ControllerSpec, stage: &Stage, period_s: f64) -> Result<Self, Invalid> {
+        let pid_cfg = position_pid(c, stage)?;
+        let limits = pid_cfg.limits;
+        let kind = match c.kind {
+            ControllerKind::Pid => Kind::Pid(
+                pid_cfg
+                    .try_build(period_s)
+                    .map_err(|e| block_error(e, "pid"))?,
+            ),
+            ControllerKind::Accel => {
+                let ha = match accel_shaping(c) {
+                    Some(d) => d
+                        .try_coeffs(period_s)
+                        .map_err(|e| block_error(e, "accel_filter_hz"))?,
+                    None => IirCoeffs::<2>::IDENTITY,
+                };
+                pid_cfg
+                    .try_build(period_s)
+                    .map_err(|e| block_error(e, "pid"))?;
+                Kind::Accel(
+                    AccelCascadeConfig {
+                        pid: pid_cfg,
+                        ka: c.ka,
+                        limits,
+                    }
+                    .try_build(period_s, Iir::new(ha))
+                    .map_err(|e| block_error(e, "ka"))?,
+                )
+            }
+            ControllerKind::Ss => {
+                let m = c.ss.as_ref().ok_or(Invalid::new(
+                    "controller",
+                    "ss",
+                    f64::NAN,
+                    Allowed::Text("the matrices of a state-space controller for kind = \"ss\""),
+                ))?;
+                Kind::Ss(
+                    AnyStateSpace::build(m, period_s, limits)
+                        .map_err(|e| block_error(e, "ss.a"))?,
+                )
+            }
+        };
+        Ok(Controller {
+            kind,
+            limit_v: c.limit_v,
+        })
+    }
+
+    /// The controller latched a fault (a non-finite input or state): its output is 0 V until
+    /// it is rebuilt.
+    pub fn faulted(&self) -> bool {
+        match &self.kind {
+            Kind::Pid(p) => p.faulted(),
+            Kind::Accel(a) => a.faulted(),
+            Kind::Ss(s) => s.faulted(),
+        }
+    }
+
+    /// Back to the initial state (zero states, fault cleared).
+    pub fn reset(&mut self) {
+        match &mut self.kind {
+            Kind::Pid(p) => p.reset(),
+            Kind::Accel(a) => a.reset(),
+            Kind::Ss(s) => s.reset(),
+        }
+    }
+
+    /// One tick: position error and accelerometer reading in V → command in V.
+    #[inline]
+    pub fn update(&mut self, error_v: f64, accel_v: f64) -> f64 {
+        match &mut self.kind {
+            Kind::Pid(p) => p.update(error_v),
+            Kind::Accel(a) => a.update(CascadeInput {
+                error: error_v,
+                accel: accel_v,
+            }),
+            Kind::Ss(s) => s.update(error_v),
+        }
+    }
+}

@@ -1,0 +1,635 @@
+//! What a [`crate::Servo`] runs: every number of the loop, in SI units, made offline (`servo
+//! deploy` writes it from a run configuration after checking the loop on the plant model) and
+//! checked once by [`Deployment::check`]. Plain data: no allocation, so a microcontroller build
+//! can hold one in a `static`.
+
+use crate::check::{Allowed, Invalid};
+pub use crate::protection::{ProtectionConfig, SafeState};
+
+/// Largest state-space controller order a loop runs (the thesis's full order is 27; `servo
+/// synth` writes up to 29 with the loop delay).
+pub const MAX_SS_ORDER: usize = 40;
+
+/// Sections of the largest ZPETC filter a loop runs (second-order sections).
+pub const ZPETC_SECTIONS: usize = 12;
+
+/// Most ticks of reference preview (feedforward preview plus half the smoothing window).
+pub const MAX_PREVIEW: usize = 62;
+
+/// A whole loop: the stage's numbers the tick uses, the controller, its checked gain range,
+/// the reference, the feedforward and machine protection.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Deployment {
+    /// The servo (sample) rate in Hz.
+    pub servo_rate_hz: f64,
+    /// The stage's numbers the tick uses (sensor scales, the static gain for a retract, the
+    /// model-inverse feedforward, Kg scaling).
+    pub stage: Stage,
+    /// The feedback controller.
+    pub controller: ControllerSpec,
+    /// What the offline check of the loop found (None: not checked — gain changes and loads
+    /// are refused).
+    pub stability: Option<Stability>,
+    /// The built-in reference generator ([`crate::Servo::tick`]; a host's own trajectory goes
+    /// through [`crate::Servo::tick_with`]).
+    pub reference: ReferenceSpec,
+    /// The feedforward from the reference.
+    pub feedforward: FeedforwardSpec,
+    /// Zero-phase Hann smoothing of the previewed reference in Hz (0: off): a window of
+    /// `servo_rate_hz / smoothing_hz` ticks, half of it added to the preview.
+    pub smoothing_hz: f64,
+    /// Machine-protection limits and the safe state.
+    pub protection: ProtectionConfig,
+}
+
+/// The stage's numbers the tick uses, from the plant model the loop was made for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "std", serde(deny_unknown_fields))]
+pub struct Stage {
+    /// Capacitive gap sensor sensitivity in V/m (0.16 V/µm on the thesis prototype).
+    pub gap_sensitivity_v_per_m: f64,
+    /// Accelerometer sensitivity in V/(m/s²) (1000 mV/g).
+    pub accel_sensitivity_v_per_m_s2: f64,
+    /// Moving mass on the flexure (m1 + m2 + m4) in kg.
+    pub suspended_mass_kg: f64,
+    /// Flexure damping c2 in N·s/m.
+    pub damping_n_s_per_m: f64,
+    /// Flexure stiffness k2 in N/m.
+    pub stiffness_n_per_m: f64,
+    /// Current amplifier gain in A/V.
+    pub current_gain_a_per_v: f64,
+    /// Motor constant K_T in N/A.
+    pub kt_n_per_a: f64,
+    /// Static gain from command to gap in m/V (the plant's DC compliance × force per volt).
+    pub dc_gain_m_per_v: f64,
+}
+
+/// Controller kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "std", serde(rename_all = "kebab-case"))]
+pub enum ControllerKind {
+    /// Position PID (eq 7-8) on the capacitive sensor.
+    #[default]
+    Pid,
+    /// PID plus acceleration feedback `− Ha(Ka·a)` (Fig 7-6).
+    Accel,
+    /// A discrete state-space controller from `ss_file`.
+    Ss,
+}
+
+/// PID gains on sensor volts (V/V), thesis §7.5.3 by default.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "std", serde(deny_unknown_fields, default))]
+pub struct PidGains {
+    /// Proportional gain (V/V).
+    pub kp: f64,
+    /// Integral gain (1/s).
+    pub ki: f64,
+    /// Derivative gain (s).
+    pub kd: f64,
+    /// Derivative filter time constant (s).
+    pub tf_s: f64,
+}
+
+impl Default for PidGains {
+    fn default() -> Self {
+        let p = servo_core::PidConfig::THESIS_CH7;
+        PidGains {
+            kp: p.kp,
+            ki: p.ki,
+            kd: p.kd,
+            tf_s: p.tf_s,
+        }
+    }
+}
+
+/// A discrete state-space controller `x⁺ = A x + B e`, `u = C x + D e` from the position error
+/// `e = reference − measurement` in sensor volts to the command in volts, in fixed storage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SsMatrices {
+    order: usize,
+    /// `[[A, B], [C, D]]` in the top-left `(order + 1)²` corner.
+    m: [[f64; MAX_SS_ORDER + 1]; MAX_SS_ORDER + 1],
+}
+
+impl SsMatrices {
+    /// `[[A, B], [C, D]]` of order `n` from `entry(i, j)` for `i, j ∈ 0..=n`; None unless
+    /// `1 ≤ n ≤` [`MAX_SS_ORDER`].
+    pub fn from_fn(n: usize, mut entry: impl FnMut(usize, usize) -> f64) -> Option<Self> {
+        if n == 0 || n > MAX_SS_ORDER {
+            return None;
+        }
+        let mut m = [[0.0; MAX_SS_ORDER + 1]; MAX_SS_ORDER + 1];
+        for (i, row) in m.iter_mut().enumerate().take(n + 1) {
+            for (j, v) in row.iter_mut().enumerate().take(n + 1) {
+                *v = entry(i, j);
+            }
+        }
+        Some(SsMatrices { order: n, m })
+    }
+
+    /// The order n.
+    pub fn order(&self) -> usize {
+        self.order
+    }
+
+    /// Entry `(i, j)` of `[[A, B], [C, D]]`, `i, j ∈ 0..=n`.
+    pub fn entry(&self, i: usize, j: usize) -> f64 {
+        self.m[i][j]
+    }
+}
+
+/// The feedback controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControllerSpec {
+    /// `pid`, `accel` or `ss`.
+    pub kind: ControllerKind,
+    /// Position PID gains (for `pid` and `accel`).
+    pub pid: PidGains,
+    /// Acceleration gain Ka (V/V on accelerometer volts), for `accel`.
+    pub ka: f64,
+    /// Multiply the PID gains by 1/Kg (§7.4.1) so reference tracking stays unchanged.
+    pub kg_scaling: bool,
+    /// Corner of the acceleration shaping filter Ha in Hz; 0 = none.
+    pub accel_filter_hz: f64,
+    /// Order of Ha: 1 (first-order low pass) or 2 (Butterworth).
+    pub accel_filter_order: u8,
+    /// The matrices of an `ss` controller.
+    pub ss: Option<SsMatrices>,
+    /// Output limit ±V.
+    pub limit_v: f64,
+}
+
+impl Default for ControllerSpec {
+    fn default() -> Self {
+        ControllerSpec {
+            kind: ControllerKind::Pid,
+            pid: PidGains::default(),
+            ka: 0.0,
+            kg_scaling: false,
+            accel_filter_hz: 300.0,
+            accel_filter_order: 1,
+            ss: None,
+            limit_v: 10.0,
+        }
+    }
+}
+
+/// What the offline check of a loop (the sampled closed loop of the plant model and the
+/// controller) found: its spectral radius and the output scales between which it stays stable.
+/// A gain change or a loaded controller keeps [`GAIN_MARGIN`] from both limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "std", serde(deny_unknown_fields))]
+pub struct Stability {
+    /// Spectral radius of the sampled closed loop at scale 1 (< 1: stable).
+    pub spectral_radius: f64,
+    /// The loop is unstable at or below this output scale (0: stable down to no control).
+    pub unstable_below: f64,
+    /// The loop is unstable at or above this output scale (∞ is written as 1e300: not within
+    /// 1000×).
+    pub unstable_above: f64,
+}
+
+/// The gain margin every accepted change keeps, as a factor (2 = 6 dB).
+pub const GAIN_MARGIN: f64 = 2.0;
+
+impl Stability {
+    /// The lowest output scale a change may set: [`GAIN_MARGIN`] above the lower limit.
+    pub fn low(&self) -> f64 {
+        self.unstable_below * GAIN_MARGIN
+    }
+
+    /// The highest output scale a change may set: [`GAIN_MARGIN`] below the upper limit.
+    pub fn high(&self) -> f64 {
+        self.unstable_above / GAIN_MARGIN
+    }
+
+    /// Whether the output scale `scale` is allowed (finite, within `low()..=high()`).
+    pub fn allows(&self, scale: f64) -> bool {
+        scale.is_finite() && scale >= self.low() && scale <= self.high()
+    }
+}
+
+/// The built-in reference generators (m, positive away from the workpiece).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "std",
+    serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)
+)]
+pub enum ReferenceSpec {
+    /// Hold position 0.
+    #[default]
+    Hold,
+    /// `amplitude_m · sin(2π·frequency_hz·t)`.
+    Sine {
+        /// Amplitude in m.
+        amplitude_m: f64,
+        /// Frequency in Hz.
+        frequency_hz: f64,
+    },
+    /// A step of `amplitude_m` at `at_s`.
+    Step {
+        /// Step height in m.
+        amplitude_m: f64,
+        /// Time of the step in s.
+        at_s: f64,
+    },
+    /// An exponential chirp from `f_start_hz` to `f_end_hz` over `duration_s`.
+    Chirp {
+        /// Amplitude in m.
+        amplitude_m: f64,
+        /// Start frequency in Hz.
+        f_start_hz: f64,
+        /// End frequency in Hz.
+        f_end_hz: f64,
+        /// Sweep duration in s.
+        duration_s: f64,
+    },
+}
+
+/// The feedforward from the reference.
+// Plain data in fixed storage (a microcontroller build holds it in a `static`).
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum FeedforwardSpec {
+    /// Feedback only.
+    #[default]
+    None,
+    /// The stage-model inverse `m·r̈ + c·ṙ + k·r` ([`Stage`]) added to the output, one tick of
+    /// preview.
+    Model,
+    /// A zero-phase-error tracking filter (designed offline from the sampled closed loop): the
+    /// reference `preview` ticks ahead through `gain · Π sections`.
+    Zpetc(ZpetcSpec),
+}
+
+/// The coefficients of a ZPETC feedforward filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ZpetcSpec {
+    /// Overall gain (dimensionless, m/m).
+    pub gain: f64,
+    /// Ticks of preview.
+    pub preview: usize,
+    /// Second-order sections `[b0, b1, b2, a1, a2]` (`a0 = 1`), the first `sections_used`.
+    pub sections: [[f64; 5]; ZPETC_SECTIONS],
+    /// Sections in use.
+    pub sections_used: usize,
+}
+
+impl ZpetcSpec {
+    /// The servo-core filter of these coefficients (unused sections are identities).
+    pub fn build(&self) -> Result<servo_core::Zpetc<ZPETC_SECTIONS>, servo_core::Error> {
+        let mut sections = [servo_core::IirCoeffs::<2>::IDENTITY; ZPETC_SECTIONS];
+        let used = &self.sections[..self.sections_used.min(ZPETC_SECTIONS)];
+        for (s, &[b0, b1, b2, a1, a2]) in sections.iter_mut().zip(used) {
+            *s = servo_core::IirCoeffs::new(b0, [b1, b2], [a1, a2]);
+        }
+        servo_core::ZpetcConfig {
+            gain: self.gain,
+            sections,
+            preview: self.preview,
+        }
+        .try_build()
+    }
+}
+
+impl FeedforwardSpec {
+    /// Ticks of reference preview the feedforward needs.
+    pub fn preview(&self) -> usize {
+        match self {
+            FeedforwardSpec::None => 0,
+            FeedforwardSpec::Model => 1,
+            FeedforwardSpec::Zpetc(z) => z.preview,
+        }
+    }
+}
+
+impl Deployment {
+    /// The thesis prototype as `servo deploy` writes it with no configuration: the Table 5-2
+    /// stage (0.074 kg moving mass) at 199.6 kHz under the Chapter 7 PID (§7.5.3), holding
+    /// position, default protection. (A test keeps it equal to `servo deploy`'s.)
+    pub fn thesis_prototype() -> Self {
+        let (k2, k3, kt) = (21965.0, 5e7, 3.6658);
+        Deployment {
+            servo_rate_hz: 199_600.0,
+            stage: Stage {
+                gap_sensitivity_v_per_m: 160_000.0,
+                accel_sensitivity_v_per_m_s2: 1.0 / servo_core::STANDARD_GRAVITY_M_S2,
+                suspended_mass_kg: 0.004 + 0.070 + 0.008,
+                damping_n_s_per_m: 2.28,
+                stiffness_n_per_m: k2,
+                current_gain_a_per_v: 1.0,
+                kt_n_per_a: kt,
+                dc_gain_m_per_v: 1.0 * kt / (k2 * k3 / (k2 + k3) + 0.0),
+            },
+            controller: ControllerSpec::default(),
+            stability: None,
+            reference: ReferenceSpec::Hold,
+            feedforward: FeedforwardSpec::None,
+            smoothing_hz: 0.0,
+            protection: ProtectionConfig::default(),
+        }
+    }
+
+    /// The servo period in s.
+    pub fn period_s(&self) -> f64 {
+        1.0 / self.servo_rate_hz
+    }
+
+    /// Half the smoothing window in ticks (0: no smoothing).
+    pub(crate) fn smoothing_half(&self) -> usize {
+        if self.smoothing_hz > 0.0 {
+            libm::round(self.servo_rate_hz / self.smoothing_hz / 2.0) as usize
+        } else {
+            0
+        }
+    }
+
+    /// Checks every value (the keys as a deployment file names them); the blocks' own checks
+    /// follow when a [`crate::Servo`] is built.
+    pub fn check(&self) -> Result<(), Invalid> {
+        let rate = self.servo_rate_hz;
+        if !(1e2..=2e6).contains(&rate) {
+            return Err(Invalid::new(
+                "",
+                "servo_rate_hz",
+                rate,
+                Allowed::between(1e2, 2e6, "Hz"),
+            ));
+        }
+        let nyquist = rate / 2.0;
+        check_stage(&self.stage)?;
+        check_controller(&self.controller, rate)?;
+        if self.controller.kind == ControllerKind::Ss && self.controller.ss.is_none() {
+            return Err(Invalid::new(
+                "controller",
+                "ss",
+                f64::NAN,
+                Allowed::Text("the matrices of a state-space controller for kind = \"ss\""),
+            ));
+        }
+        if let Some(s) = &self.stability {
+            if !(s.spectral_radius >= 0.0 && s.spectral_radius < 1.0) {
+                return Err(Invalid::new(
+                    "stability",
+                    "spectral_radius",
+                    s.spectral_radius,
+                    Allowed::Text("[0, 1): a stable loop"),
+                ));
+            }
+            if !(s.unstable_below >= 0.0 && s.unstable_below < 1.0) {
+                return Err(Invalid::new(
+                    "stability",
+                    "unstable_below",
+                    s.unstable_below,
+                    Allowed::Text("[0, 1): the loop is stable at scale 1"),
+                ));
+            }
+            if s.unstable_above.is_nan() || s.unstable_above <= 1.0 {
+                return Err(Invalid::new(
+                    "stability",
+                    "unstable_above",
+                    s.unstable_above,
+                    Allowed::Text("(1, ∞): the loop is stable at scale 1"),
+                ));
+            }
+        }
+        check_reference(&self.reference, nyquist, "reference")?;
+        if let FeedforwardSpec::Zpetc(z) = &self.feedforward {
+            if z.sections_used > ZPETC_SECTIONS {
+                return Err(Invalid::new(
+                    "feedforward",
+                    "sections",
+                    z.sections_used as f64,
+                    Allowed::between(0.0, ZPETC_SECTIONS as f64, "sections"),
+                ));
+            }
+            let finite = z.gain.is_finite() && z.sections.iter().flatten().all(|x| x.is_finite());
+            if !finite {
+                return Err(Invalid::new(
+                    "feedforward",
+                    "sections",
+                    f64::NAN,
+                    Allowed::Text("finite coefficients"),
+                ));
+            }
+        }
+        if !(self.smoothing_hz == 0.0 || (self.smoothing_hz > 0.0 && self.smoothing_hz < nyquist)) {
+            return Err(Invalid::new(
+                "",
+                "smoothing_hz",
+                self.smoothing_hz,
+                Allowed::OffOrBelow {
+                    high: nyquist,
+                    unit: "Hz",
+                },
+            ));
+        }
+        let preview = self.feedforward.preview() + self.smoothing_half();
+        if preview > MAX_PREVIEW {
+            let lowest = rate / (2.0 * (MAX_PREVIEW - self.feedforward.preview()) as f64 + 1.0);
+            return Err(Invalid::new(
+                "",
+                "smoothing_hz",
+                self.smoothing_hz,
+                Allowed::OffOrAtLeast {
+                    low: lowest,
+                    unit: "Hz (the preview holds 62 ticks, the feedforward takes its share)",
+                },
+            ));
+        }
+        self.protection
+            .check(self.controller.limit_v, self.stage.dc_gain_m_per_v)
+            .map_err(|e| e.in_section("protection"))
+    }
+}
+
+fn positive(
+    section: &'static str,
+    key: &'static str,
+    x: f64,
+    unit: &'static str,
+) -> Result<(), Invalid> {
+    if x.is_finite() && x > 0.0 {
+        Ok(())
+    } else {
+        Err(Invalid::new(section, key, x, Allowed::Positive { unit }))
+    }
+}
+
+fn check_stage(s: &Stage) -> Result<(), Invalid> {
+    positive(
+        "stage",
+        "gap_sensitivity_v_per_m",
+        s.gap_sensitivity_v_per_m,
+        "V/m",
+    )?;
+    positive(
+        "stage",
+        "accel_sensitivity_v_per_m_s2",
+        s.accel_sensitivity_v_per_m_s2,
+        "V/(m/s²)",
+    )?;
+    positive("stage", "suspended_mass_kg", s.suspended_mass_kg, "kg")?;
+    positive("stage", "stiffness_n_per_m", s.stiffness_n_per_m, "N/m")?;
+    positive(
+        "stage",
+        "current_gain_a_per_v",
+        s.current_gain_a_per_v,
+        "A/V",
+    )?;
+    positive("stage", "kt_n_per_a", s.kt_n_per_a, "N/A")?;
+    if !(s.damping_n_s_per_m.is_finite() && s.damping_n_s_per_m >= 0.0) {
+        return Err(Invalid::new(
+            "stage",
+            "damping_n_s_per_m",
+            s.damping_n_s_per_m,
+            Allowed::Text("≥ 0 N·s/m"),
+        ));
+    }
+    if !(s.dc_gain_m_per_v.is_finite() && s.dc_gain_m_per_v != 0.0) {
+        return Err(Invalid::new(
+            "stage",
+            "dc_gain_m_per_v",
+            s.dc_gain_m_per_v,
+            Allowed::Text("a finite, nonzero static gain in m/V"),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks the controller values a run configuration and a deployment share (keys in the
+/// `[controller]` table) for a loop at `rate_hz`: the scalars, and a state-space controller's
+/// matrices when they are there.
+pub fn check_controller(c: &ControllerSpec, rate_hz: f64) -> Result<(), Invalid> {
+    let nyquist = rate_hz / 2.0;
+    if !(c.limit_v > 0.0 && c.limit_v <= 10.0) {
+        return Err(Invalid::new(
+            "controller",
+            "limit_v",
+            c.limit_v,
+            Allowed::Text("(0, 10] V (the DAC range)"),
+        ));
+    }
+    if !(c.ka >= 0.0 && c.ka <= 1e3) {
+        return Err(Invalid::new(
+            "controller",
+            "ka",
+            c.ka,
+            Allowed::between(0.0, 1e3, "V/V"),
+        ));
+    }
+    if !(c.accel_filter_hz == 0.0 || (c.accel_filter_hz > 0.0 && c.accel_filter_hz < nyquist)) {
+        return Err(Invalid::new(
+            "controller",
+            "accel_filter_hz",
+            c.accel_filter_hz,
+            Allowed::OffOrBelow {
+                high: nyquist,
+                unit: "Hz",
+            },
+        ));
+    }
+    if !(1..=2).contains(&c.accel_filter_order) {
+        return Err(Invalid::new(
+            "controller",
+            "accel_filter_order",
+            f64::from(c.accel_filter_order),
+            Allowed::Text("1 or 2"),
+        ));
+    }
+    if let Some(ss) = &c.ss {
+        let n = ss.order();
+        for i in 0..=n {
+            for j in 0..=n {
+                if !ss.entry(i, j).is_finite() {
+                    let key = match (i < n, j < n) {
+                        (true, true) => "ss.a",
+                        (true, false) => "ss.b",
+                        (false, true) => "ss.c",
+                        (false, false) => "ss.d",
+                    };
+                    return Err(Invalid::new(
+                        "controller",
+                        key,
+                        ss.entry(i, j),
+                        Allowed::Text("finite"),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks a reference generator's values for a loop with Nyquist frequency `nyquist` (Hz), with
+/// keys in `section` (`reference` in a deployment, `scenario` in a run configuration).
+pub fn check_reference(
+    r: &ReferenceSpec,
+    nyquist: f64,
+    section: &'static str,
+) -> Result<(), Invalid> {
+    let amp = |key: &'static str, a: f64| {
+        if a.is_finite() && a.abs() <= 1e-3 {
+            Ok(())
+        } else {
+            Err(Invalid::new(
+                section,
+                key,
+                a,
+                Allowed::between(-1e-3, 1e-3, "m"),
+            ))
+        }
+    };
+    let freq = |key: &'static str, f: f64| {
+        if f > 0.0 && f < nyquist {
+            Ok(())
+        } else {
+            Err(Invalid::new(
+                section,
+                key,
+                f,
+                Allowed::Open {
+                    low: 0.0,
+                    high: nyquist,
+                    unit: "Hz",
+                },
+            ))
+        }
+    };
+    match *r {
+        ReferenceSpec::Hold => Ok(()),
+        ReferenceSpec::Sine {
+            amplitude_m,
+            frequency_hz,
+        } => {
+            amp("amplitude_m", amplitude_m)?;
+            freq("frequency_hz", frequency_hz)
+        }
+        ReferenceSpec::Step { amplitude_m, at_s } => {
+            amp("amplitude_m", amplitude_m)?;
+            if at_s.is_finite() && at_s >= 0.0 {
+                Ok(())
+            } else {
+                Err(Invalid::new(section, "at_s", at_s, Allowed::Text("≥ 0 s")))
+            }
+        }
+        ReferenceSpec::Chirp {
+            amplitude_m,
+            f_start_hz,
+            f_end_hz,
+            duration_s,
+        } => {
+            amp("amplitude_m", amplitude_m)?;
+            freq("f_start_hz", f_start_hz)?;
+            freq("f_end_hz", f_end_hz)?;
+            positive(section, "duration_s", duration_s, "s")
+        }
+    }
+}

@@ -1,0 +1,99 @@
+//! The feedforward of a loop, evaluated per tick from the previewed reference: the stage-model
+//! inverse on finite differences, or a ZPETC filter whose coefficients were designed offline.
+
+use crate::check::{Allowed, Invalid};
+use crate::deployment::{FeedforwardSpec, Stage, ZPETC_SECTIONS};
+use crate::preview::Window;
+use servo_core::{Block, Limits, Setpoint, Zpetc};
+
+/// A feedforward ready to run.
+// Fixed storage: nothing is allocated.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone)]
+pub(crate) enum Feedforward {
+    /// Feedback only.
+    None,
+    /// Stage-model inverse on finite differences of the window (V).
+    Model(servo_core::Feedforward),
+    /// Reshaped reference (m).
+    Zpetc(Zpetc<ZPETC_SECTIONS>),
+}
+
+impl Feedforward {
+    /// The feedforward of `spec` on `stage`, clamped to ±`limit_v`.
+    pub(crate) fn build(
+        spec: &FeedforwardSpec,
+        stage: &Stage,
+        limit_v: f64,
+    ) -> Result<Self, Invalid> {
+        Ok(match spec {
+            FeedforwardSpec::None => Feedforward::None,
+            FeedforwardSpec::Model => Feedforward::Model(
+                servo_core::FeedforwardConfig {
+                    mass_kg: stage.suspended_mass_kg,
+                    damping_n_s_per_m: stage.damping_n_s_per_m,
+                    stiffness_n_per_m: stage.stiffness_n_per_m,
+                    newton_per_unit: stage.current_gain_a_per_v * stage.kt_n_per_a,
+                    limits: Limits::try_new(-limit_v, limit_v).map_err(|_| {
+                        Invalid::new("controller", "limit_v", limit_v, Allowed::Text("(0, 10] V"))
+                    })?,
+                }
+                .try_build()
+                .map_err(|_| {
+                    Invalid::new(
+                        "stage",
+                        "suspended_mass_kg",
+                        stage.suspended_mass_kg,
+                        Allowed::Text("a valid stage for feedforward"),
+                    )
+                })?,
+            ),
+            FeedforwardSpec::Zpetc(z) => Feedforward::Zpetc(z.build().map_err(|_| {
+                Invalid::new(
+                    "feedforward",
+                    "sections",
+                    f64::NAN,
+                    Allowed::Text("a ZPETC filter servo-core accepts"),
+                )
+            })?),
+        })
+    }
+
+    /// A block latched a fault.
+    pub(crate) fn faulted(&self) -> bool {
+        match self {
+            Feedforward::None => false,
+            Feedforward::Model(f) => f.faulted(),
+            Feedforward::Zpetc(z) => z.faulted(),
+        }
+    }
+
+    /// Back to the initial state.
+    pub(crate) fn reset(&mut self) {
+        match self {
+            Feedforward::None => {}
+            Feedforward::Model(f) => f.reset(),
+            Feedforward::Zpetc(z) => z.reset(),
+        }
+    }
+
+    /// This tick's reference for the feedback (m) and the feedforward command (V), from the
+    /// window `w` (at `period_s`, s).
+    #[inline]
+    pub(crate) fn evaluate(&mut self, w: &Window, period_s: f64) -> (f64, f64) {
+        match self {
+            Feedforward::None => (w.smooth(0), 0.0),
+            Feedforward::Model(ff) => {
+                let t = period_s;
+                let (prev, now, next) = (w.smooth(-1), w.smooth(0), w.smooth(1));
+                let sp = Setpoint {
+                    position: now,
+                    velocity: (next - prev) / (2.0 * t),
+                    acceleration: (next - 2.0 * now + prev) / (t * t),
+                };
+                (now, ff.update(sp))
+            }
+            Feedforward::Zpetc(z) => (z.update(w.smooth(z.preview() as isize)), 0.0),
+        }
+    }
+}

@@ -1,0 +1,171 @@
+//! Controllers loaded into a running loop: parsed, checked and built off the ticking thread,
+//! handed over bumplessly at a tick boundary.
+//!
+//! The check is the deployment's own rule — design work stays offline: a file is taken only
+//! if it was made for the loop's plant and rate (`[made_for]`) and carries the offline check of
+//! its closed loop (`[stability]`, which `servo synth`, `servo tune` and `servo deploy` write)
+//! whose range allows the output scale in force. A host that has the plant model (our own
+//! simulated runs) checks with the model instead ([`Vet`]).
+
+use crate::check::Invalid;
+use crate::controller::Controller;
+use crate::deployment::{ControllerSpec, Stability, Stage};
+use crate::file::{parse_controller_file, ConfigError, MadeFor, Origin};
+use daq_io::ack_status;
+use std::fmt;
+
+/// The name a loaded file takes in messages.
+pub const LOADED_FILE: &str = "controller loaded into the running loop";
+
+/// Why a controller was not taken.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refusal {
+    /// One of [`ack_status`]: `REFUSED_INVALID`, `REFUSED_PROVENANCE`, `REFUSED_MARGIN`.
+    pub status: u32,
+    /// The new loop's spectral radius when that was the reason (NaN otherwise).
+    pub spectral_radius: f64,
+    /// Why, naming the file's key.
+    pub message: String,
+}
+
+impl Refusal {
+    /// A refusal with `status` for `why`.
+    pub fn new(status: u32, why: impl fmt::Display) -> Self {
+        Refusal {
+            status,
+            spectral_radius: f64::NAN,
+            message: why.to_string(),
+        }
+    }
+}
+
+impl fmt::Display for Refusal {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Refusal {}
+
+/// A controller that passed its check: what to build, and the stable range it brings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Vetted {
+    /// The controller.
+    pub spec: ControllerSpec,
+    /// Its loop's offline check (the gain range a running loop keeps from now on).
+    pub stability: Stability,
+}
+
+/// The check a loaded controller file passes before it may run: the bytes of the file in, the
+/// controller and its loop's stability out — or why not. Runs off the ticking thread.
+pub trait Vet: Send {
+    /// Checks `file` (UTF-8 TOML).
+    fn vet(&self, file: &[u8]) -> Result<Vetted, Refusal>;
+}
+
+/// The deployment's rule ([module docs](self)): provenance and a carried stability record.
+pub struct CarriedCheck {
+    /// The loop's plant and rate.
+    pub made_for: Option<MadeFor>,
+    /// The loop's servo rate in Hz.
+    pub servo_rate_hz: f64,
+    /// The controller running now (a state-space file takes its output limit).
+    pub running: ControllerSpec,
+}
+
+impl Vet for CarriedCheck {
+    fn vet(&self, file: &[u8]) -> Result<Vetted, Refusal> {
+        let invalid = |e: &dyn fmt::Display| Refusal::new(ack_status::REFUSED_INVALID, e);
+        let text = std::str::from_utf8(file).map_err(|e| invalid(&e))?;
+        let at = Origin {
+            path: Some(LOADED_FILE.into()),
+            text: Some(text.to_owned()),
+        };
+        let f = parse_controller_file(text, &at, self.servo_rate_hz, &self.running)
+            .map_err(|e| invalid(&e))?;
+        let (Some(file_for), Some(run)) = (&f.made_for, &self.made_for) else {
+            return Err(Refusal::new(
+                ack_status::REFUSED_PROVENANCE,
+                "the file does not say what it was made for ([made_for]), or this loop does not: a running loop takes only controllers made for its plant",
+            ));
+        };
+        file_for
+            .check(run)
+            .map_err(|e| Refusal::new(ack_status::REFUSED_PROVENANCE, e))?;
+        let stability = f.stability.ok_or_else(|| {
+            Refusal::new(
+                ack_status::REFUSED_MARGIN,
+                "the file carries no offline check of its loop ([stability]): check it on the plant model first (servo deploy)",
+            )
+        })?;
+        Ok(Vetted {
+            spec: f.spec,
+            stability,
+        })
+    }
+}
+
+/// A vetted controller built for the loop (`stage`, `period_s`), boxed to cross threads.
+pub(crate) fn build(v: &Vetted, stage: &Stage, period_s: f64) -> Result<Box<Controller>, Invalid> {
+    crate::deployment::check_controller(&v.spec, 1.0 / period_s)?;
+    Controller::build(&v.spec, stage, period_s).map(Box::new)
+}
+
+/// Why [`crate::Servo::load`] did not take a controller.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LoadError {
+    /// The check refused it.
+    #[error("{0}")]
+    Refused(Refusal),
+    /// It passed the check but does not build for this loop.
+    #[error("{0}")]
+    Invalid(ConfigError),
+    /// Stable at scale 1, but not at the output scale in force.
+    #[error("the new loop is stable only for output scales {low:.4}..={high:.4}; the scale in force is {scale}")]
+    Margin {
+        /// The scale in force.
+        scale: f64,
+        /// The lowest scale the new loop allows.
+        low: f64,
+        /// The highest.
+        high: f64,
+    },
+}
+
+impl crate::Servo {
+    /// Loads the controller file `file` (UTF-8 TOML: a `[controller]` table, or a state-space
+    /// file as `servo synth` writes it) into the running loop: checked by the deployment's rule
+    /// (made for this plant and rate, carrying its offline stability check, whose range allows
+    /// the output scale in force), built, and handed over bumplessly at the next tick. Parses
+    /// and allocates on the calling thread: call it between ticks from a thread that may, or
+    /// let [`crate::Servo::serve`] take loads (`servo ctl load`) on its own thread.
+    pub fn load(&mut self, file: &[u8]) -> Result<(), LoadError> {
+        let check = CarriedCheck {
+            made_for: self.host.made_for.clone(),
+            servo_rate_hz: 1.0 / self.period_s(),
+            running: self.host.spec.clone(),
+        };
+        let v = check.vet(file).map_err(LoadError::Refused)?;
+        let scale = self.status().gain_scale;
+        if !v.stability.allows(scale) {
+            return Err(LoadError::Margin {
+                scale,
+                low: v.stability.low(),
+                high: v.stability.high(),
+            });
+        }
+        let at = Origin {
+            path: Some(LOADED_FILE.into()),
+            text: std::str::from_utf8(file).ok().map(str::to_owned),
+        };
+        let controller = build(&v, self.stage(), self.period_s())
+            .map_err(|e| LoadError::Invalid(at.located(&e)))?;
+        // The controller the last load replaced is freed here, off the tick.
+        drop(self.core_mut().take_replaced());
+        self.core_mut().hand_over(controller);
+        self.set_stability(v.stability);
+        self.host.spec = v.spec;
+        Ok(())
+    }
+}

@@ -1,0 +1,297 @@
+//! The controller's half of a tick: reference (with preview and smoothing) + feedforward +
+//! controller → command and telemetry, machine protection on every sample, bumpless handover
+//! of a new controller and bumpless re-arm after a trip. Allocation-free, `no_std`.
+
+use crate::check::{Allowed, Invalid};
+use crate::controller::Controller;
+use crate::deployment::{Deployment, MAX_PREVIEW};
+use crate::feedforward::Feedforward;
+use crate::preview::Window;
+use crate::protection::{Observation, Protection, TripCause};
+use crate::reference::Reference;
+use daq_io::{flags, Command, Sensor, Telemetry};
+
+/// A controller on its way into the loop: boxed with the standard library (it crosses threads
+/// and the one it replaces is freed off the ticking thread), by value without.
+#[cfg(feature = "std")]
+pub(crate) type Slot = std::boxed::Box<Controller>;
+/// A controller on its way into the loop: boxed with the standard library (it crosses threads
+/// and the one it replaces is freed off the ticking thread), by value without.
+#[cfg(not(feature = "std"))]
+pub(crate) type Slot = Controller;
+
+/// Time constant of a bumpless handover (s): the difference between the old and the new
+/// controller's output at the swap tick fades with it (5 ms: slower than the loop's 1–3 kHz
+/// bandwidth, so the new controller's own states take over without a kick).
+pub const HANDOVER_TIME_CONSTANT_S: f64 = 5e-3;
+
+/// The controller's half of a tick: reads tick k's sample, returns tick k's command and the
+/// telemetry of tick k−1 (what the sample at its end showed). A non-finite reading latches the
+/// controller's fault: [`flags::FAULT_CONTROLLER`] on the command and telemetry, and a trip.
+/// Machine protection checks every sample; once tripped, the command is the configured safe
+/// state and carries [`flags::TRIPPED`] with the cause's bit (0 V on a fault when protection
+/// is disabled).
+#[derive(Debug, Clone)]
+pub(crate) struct ServoLoop {
+    controller: Controller,
+    feedforward: Feedforward,
+    window: Window,
+    primed: bool,
+    r: f64,
+    last_u: f64,
+    /// Whether any block had latched a fault after the last command.
+    last_fault: bool,
+    /// The command came out non-finite once (latched like a block fault).
+    output_fault: bool,
+    /// The protection flags of the last command.
+    last_trip_flags: u32,
+    protection: Protection,
+    gain_scale: f64,
+    sensitivity: f64,
+    accel_scale: f64,
+    period_s: f64,
+    /// A controller handed over, taking the loop at the next tick.
+    incoming: Option<Slot>,
+    /// The controller the last handover replaced, to be freed off the ticking thread.
+    #[cfg(feature = "std")]
+    replaced: Option<Slot>,
+    /// The tick the last handover took effect.
+    handed_over_at: Option<u64>,
+    /// Handovers that took effect.
+    handovers: u64,
+    /// Re-armed after a trip: the next tick starts from the safe state's command.
+    rearm: bool,
+    /// Bumpless handover: the old output minus the new one's at the swap tick (V, after the
+    /// gain scale), added to the output and decaying by `handover_decay` a tick.
+    handover_v: f64,
+    handover_decay: f64,
+}
+
+impl ServoLoop {
+    /// The loop of `d` in its initial state (`d` checked by the caller).
+    pub(crate) fn new(d: &Deployment) -> Result<Self, Invalid> {
+        let period = d.period_s();
+        let controller = Controller::build(&d.controller, &d.stage, period)?;
+        let feedforward = Feedforward::build(&d.feedforward, &d.stage, d.controller.limit_v)?;
+        let lead = d.feedforward.preview();
+        let window = Window::new(lead, d.smoothing_half()).ok_or(Invalid::new(
+            "",
+            "smoothing_hz",
+            d.smoothing_hz,
+            Allowed::OffOrAtLeast {
+                low: d.servo_rate_hz / (2.0 * (MAX_PREVIEW.saturating_sub(lead)) as f64 + 1.0),
+                unit: "Hz (the preview holds 62 ticks, the feedforward takes its share)",
+            },
+        ))?;
+        Ok(ServoLoop {
+            controller,
+            feedforward,
+            window,
+            primed: false,
+            r: 0.0,
+            last_u: 0.0,
+            last_fault: false,
+            output_fault: false,
+            last_trip_flags: 0,
+            protection: Protection::new(&d.protection, d.servo_rate_hz, d.stage.dc_gain_m_per_v),
+            gain_scale: 1.0,
+            sensitivity: d.stage.gap_sensitivity_v_per_m,
+            accel_scale: 1.0 / d.stage.accel_sensitivity_v_per_m_s2,
+            period_s: period,
+            incoming: None,
+            #[cfg(feature = "std")]
+            replaced: None,
+            handed_over_at: None,
+            handovers: 0,
+            rearm: false,
+            handover_v: 0.0,
+            handover_decay: libm::exp(-period / HANDOVER_TIME_CONSTANT_S),
+        })
+    }
+
+    /// Hands the loop to `controller` at the next tick, bumplessly; returns the controller a
+    /// handover not yet taken up held (None when the slot was free).
+    #[cfg(feature = "std")]
+    pub(crate) fn hand_over(&mut self, controller: Slot) -> Option<Slot> {
+        self.handed_over_at = None;
+        self.incoming.replace(controller)
+    }
+
+    /// The controller the last handover replaced (to free off the ticking thread).
+    #[cfg(feature = "std")]
+    pub(crate) fn take_replaced(&mut self) -> Option<Slot> {
+        self.replaced.take()
+    }
+
+    /// Controllers handed over so far.
+    pub(crate) fn handovers(&self) -> u64 {
+        self.handovers
+    }
+
+    /// The tick the last handover took effect, once it has.
+    #[cfg(feature = "serve")]
+    pub(crate) fn handed_over_at(&self) -> Option<u64> {
+        self.handed_over_at
+    }
+
+    /// Multiplies the controller output by `scale` from the next tick (checked by the caller).
+    pub(crate) fn set_gain_scale(&mut self, scale: f64) {
+        self.gain_scale = scale;
+    }
+
+    /// The cause and tick of the machine-protection trip, if the loop tripped.
+    pub(crate) fn trip(&self) -> Option<(TripCause, u64)> {
+        self.protection.trip()
+    }
+
+    /// Tripped, and the safe state has been held for `protection.after_trip_s` at tick `seq`.
+    pub(crate) fn trip_settled(&self, seq: u64) -> bool {
+        self.protection.run_over(seq)
+    }
+
+    /// Re-arms after a trip: protection cleared, the controller and the feedforward back to
+    /// their initial state; the next command starts from the safe state's and the difference
+    /// fades like a handover.
+    pub(crate) fn rearm(&mut self) {
+        self.protection.clear();
+        self.controller.reset();
+        self.feedforward.reset();
+        self.output_fault = false;
+        self.last_fault = false;
+        self.last_trip_flags = 0;
+        self.rearm = true;
+    }
+
+    /// The fault a block latched, as a trip cause (None: no fault).
+    fn fault(&self, source_faulted: bool) -> Option<TripCause> {
+        if self.controller.faulted() || self.output_fault {
+            Some(TripCause::NotFinite)
+        } else if source_faulted || self.feedforward.faulted() {
+            Some(TripCause::ReferenceFault)
+        } else {
+            None
+        }
+    }
+
+    /// Reads this tick's reference into the window (the first tick fills it).
+    #[inline]
+    fn advance<R: Reference + ?Sized>(&mut self, s: &Sensor, source: &mut R) {
+        let p = self.window.preview();
+        if !self.primed {
+            self.primed = true;
+            let mut ahead = [0.0; MAX_PREVIEW + 1];
+            source.prime(s, &mut ahead[..=p]);
+            self.window.prime(&ahead);
+            return;
+        }
+        let ahead = source.next(s, p);
+        self.window.push(ahead);
+    }
+
+    /// One tick for sample `s` with the trajectory `source`: the command (None when `s`
+    /// closes the run) and the telemetry of the previous tick (None for the first sample).
+    #[inline]
+    pub(crate) fn tick<R: Reference + ?Sized>(
+        &mut self,
+        s: &Sensor,
+        source: &mut R,
+    ) -> (Option<Command>, Option<Telemetry>) {
+        let faulted = self.last_fault;
+        let telemetry = (s.seq > 0).then(|| {
+            let measured = s.gap_v / self.sensitivity;
+            let saturated = libm::fabs(self.last_u) >= self.controller.limit_v
+                || s.flags & flags::DAC_CLIPPED != 0;
+            Telemetry {
+                seq: s.seq - 1,
+                time_s: s.time_s,
+                reference_m: self.r,
+                measured_m: measured,
+                following_error_m: self.r - measured,
+                control_v: self.last_u,
+                accel_m_s2: s.accel_v * self.accel_scale,
+                flags: (s.flags & !flags::END)
+                    | if saturated { flags::SATURATED } else { 0 }
+                    | if faulted { flags::FAULT_CONTROLLER } else { 0 }
+                    | self.last_trip_flags,
+                reserved: 0,
+            }
+        });
+        if s.flags & flags::END != 0 {
+            return (None, telemetry);
+        }
+        if let Some(t) = &telemetry {
+            let seen = Observation {
+                following_error_m: t.following_error_m,
+                measured_m: t.measured_m,
+                gap_clipped: s.flags & flags::GAP_CLIPPED != 0,
+                saturated: t.flags & flags::SATURATED != 0,
+            };
+            self.protection.watch(s.seq, &seen, self.last_u);
+        }
+        self.advance(s, source);
+        let desired = self.window.at(0);
+        // The controller runs until the loop trips; a fault it latches trips it now.
+        let raw = self.protection.trip().is_none().then(|| {
+            let u = self.control(s);
+            self.output_fault |= !u.is_finite();
+            u
+        });
+        let fault = self.fault(source.faulted());
+        if let (Some(cause), Some(_)) = (fault, raw) {
+            self.protection.fault(cause, s.seq, self.last_u);
+        }
+        let u = match raw {
+            Some(u) if fault.is_none() => u,
+            _ if self.protection.trip().is_some() => self.protection.safe_command(),
+            _ => 0.0, // a fault with protection disabled
+        };
+        let faulted = fault.is_some();
+        self.last_u = u;
+        self.last_fault = faulted;
+        self.last_trip_flags = self.protection.flags();
+        self.r = desired;
+        let command = Command {
+            seq: s.seq,
+            dac_v: u,
+            flags: if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.last_trip_flags,
+            reserved: 0,
+        };
+        (Some(command), telemetry)
+    }
+
+    /// The controller's command for sample `s` (feedback on the smoothed reference plus the
+    /// feedforward, scaled and clamped to the output limit), in V.
+    #[inline]
+    fn control(&mut self, s: &Sensor) -> f64 {
+        let (reference, u_ff) = self.feedforward.evaluate(&self.window, self.period_s);
+        let (error_v, accel_v) = (reference * self.sensitivity - s.gap_v, s.accel_v);
+        let mut raw = self.controller.update(error_v, accel_v);
+        if let Some(new) = self.incoming.take() {
+            // The swap: both see this tick; the command stays the old one's.
+            #[cfg(feature = "std")]
+            {
+                let mut new = new;
+                core::mem::swap(&mut self.controller, &mut *new);
+                self.replaced = Some(new);
+            }
+            #[cfg(not(feature = "std"))]
+            {
+                self.controller = new;
+            }
+            let raw_new = self.controller.update(error_v, accel_v);
+            self.handover_v = (raw - raw_new) * self.gain_scale;
+            raw = raw_new;
+            self.handed_over_at = Some(s.seq);
+            self.handovers += 1;
+        }
+        if self.rearm {
+            // Re-armed: this tick's command is the safe state's; the difference fades.
+            self.rearm = false;
+            self.handover_v = self.last_u - (raw * self.gain_scale + u_ff);
+        }
+        let handover = self.handover_v;
+        self.handover_v *= self.handover_decay;
+        let limit = self.controller.limit_v;
+        (raw * self.gain_scale + handover + u_ff).clamp(-limit, limit)
+    }
+}
