@@ -22,6 +22,7 @@
 pub mod closed_loop;
 pub mod config;
 pub mod controller;
+pub mod deploy;
 mod error;
 pub mod feedforward;
 pub mod gain_range;

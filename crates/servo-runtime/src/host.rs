@@ -23,6 +23,9 @@ pub(crate) struct Host {
     period_ns: u64,
     expected_seq: u64,
     overruns: u64,
+    /// Telemetry dropped by a service that has ended.
+    #[cfg(feature = "serve")]
+    pub(crate) dropped: u64,
     pub(crate) made_for: Option<crate::file::MadeFor>,
     /// The controller the loop runs (a loaded state-space file takes its output limit).
     pub(crate) spec: crate::deployment::ControllerSpec,
@@ -37,6 +40,8 @@ impl Host {
             period_ns: (d.period_s() * 1e9).round() as u64,
             expected_seq: 0,
             overruns: 0,
+            #[cfg(feature = "serve")]
+            dropped: 0,
             made_for: None,
             spec: d.controller.clone(),
             #[cfg(feature = "serve")]
@@ -76,6 +81,18 @@ impl Host {
     /// Ticks that started a period or more late.
     pub(crate) fn overruns(&self) -> u64 {
         self.overruns
+    }
+
+    /// Telemetry records the service ring dropped.
+    pub(crate) fn telemetry_dropped(&self) -> u64 {
+        #[cfg(feature = "serve")]
+        {
+            self.dropped + self.link.as_ref().map_or(0, |l| l.dropped())
+        }
+        #[cfg(not(feature = "serve"))]
+        {
+            0
+        }
     }
 
     pub(crate) fn timing(&self) -> Timing {

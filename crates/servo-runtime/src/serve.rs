@@ -130,7 +130,16 @@ pub(crate) struct Link {
     /// A handed-over controller not yet taken up: (request, spectral radius of its loop).
     pending: Option<(u64, f64)>,
     started: bool,
+    /// Telemetry records the ring could not take.
+    dropped: u64,
     thread: Option<JoinHandle<()>>,
+}
+
+impl Link {
+    /// Telemetry records dropped so far.
+    pub(crate) fn dropped(&self) -> u64 {
+        self.dropped
+    }
 }
 
 /// After each tick: telemetry out, requests in, handovers acknowledged, health every
@@ -147,8 +156,11 @@ pub(crate) fn after_tick(servo: &mut Servo, sample: &Sensor) {
         });
     }
     if let Some(t) = servo.telemetry() {
-        // A full ring drops the record (the recorder counts the gap); the tick never waits.
-        let _ = link.telemetry.push(*t);
+        // A full ring drops the record (counted; the recorder sees the gap); the tick never
+        // waits.
+        if link.telemetry.push(*t).is_err() {
+            link.dropped += 1;
+        }
     }
     if let Some((id, radius)) = link.pending {
         if let Some(tick) = servo.core_mut().handed_over_at() {
@@ -249,6 +261,7 @@ impl Servo {
             requests,
             pending: None,
             started: false,
+            dropped: 0,
             thread: Some(thread),
         });
         Ok(())
@@ -282,6 +295,7 @@ impl Servo {
         if let Some(t) = link.thread.take() {
             let _ = t.join();
         }
+        self.host.dropped += link.dropped;
     }
 }
 

@@ -40,6 +40,9 @@ pub struct Status {
     /// Ticks that started a whole period or more after their sample was taken
     /// ([`Sensor::published_ns`]; `std` only, 0 otherwise).
     pub overruns: u64,
+    /// Telemetry records a served loop dropped because its service thread fell behind (the
+    /// tick never waits; feature `serve`, 0 otherwise).
+    pub telemetry_dropped: u64,
 }
 
 /// Why a gain change was refused ([`Servo::set_gain`]).
@@ -132,6 +135,7 @@ impl Servo {
                 handovers: 0,
                 trips: 0,
                 overruns: 0,
+                telemetry_dropped: 0,
             },
             #[cfg(feature = "std")]
             host: crate::host::Host::new(deployment),
@@ -222,6 +226,7 @@ impl Servo {
         {
             Status {
                 overruns: self.host.overruns(),
+                telemetry_dropped: self.host.telemetry_dropped(),
                 ..self.status
             }
         }

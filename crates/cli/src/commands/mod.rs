@@ -4,6 +4,7 @@ pub mod budget;
 pub mod completions;
 pub mod config;
 pub mod ctl;
+pub mod deploy;
 pub mod export;
 pub mod frf;
 pub mod hil;

@@ -1,0 +1,55 @@
+//! `servo deploy`: the deployment a daemon embeds.
+
+use crate::args::RunArgs;
+use crate::output::{print_margins, CliError};
+use clap::Args;
+use runner::Plan;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Write the deployment a daemon embeds (`Servo::from_file`, `fts_servo_open`).
+///
+/// Resolves the run configuration, designs what the loop needs offline (ZPETC feedforward),
+/// checks the sampled closed loop on the plant model and stores its output-scale range, and
+/// writes every coefficient with the plant and rate it was made for.
+/// Example: servo deploy --controller accel --ka 1 --kg-scaling --mass heavy -o deploy.toml
+#[derive(Args, Debug)]
+pub struct DeployCmd {
+    #[command(flatten)]
+    run: RunArgs,
+    /// Deployment file to write.
+    #[arg(short, long, default_value = "deploy.toml")]
+    out: PathBuf,
+    /// Replace the output file if it exists.
+    #[arg(long)]
+    overwrite: bool,
+}
+
+impl DeployCmd {
+    /// Checks, writes and prints.
+    pub fn exec(&self) -> Result<ExitCode, CliError> {
+        let plan = Plan::new(&self.run.load()?)?;
+        let (d, text) = runner::deploy::deployment_file(&plan)?;
+        crate::output::write_result(&self.out, &text, self.overwrite)?;
+        let s = d.stability.expect("a deployment is checked");
+        println!("Deployment: {}", plan.controller.description);
+        println!(
+            "  closed loop stable on the plant model: spectral radius {:.6}",
+            s.spectral_radius
+        );
+        print_margins(&plan);
+        println!(
+            "  output scales allowed while running: {:.4}..={:.4} (unstable below {:.4} and from {:.4})",
+            s.low(),
+            s.high(),
+            s.unstable_below,
+            s.unstable_above
+        );
+        println!(
+            "  wrote {} — embed it: Servo::from_file(\"{}\")",
+            self.out.display(),
+            self.out.display()
+        );
+        Ok(ExitCode::SUCCESS)
+    }
+}

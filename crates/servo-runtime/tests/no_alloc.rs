@@ -1,0 +1,126 @@
+//! Through the front door, the ticking thread allocates nothing: PID, the acceleration cascade
+//! and a 29-state controller with ZPETC, timed ticks, served (telemetry into the service
+//! thread's ring, health every 2048 ticks), a gain change and a controller handed over while
+//! ticking.
+
+use daq_io::Sensor;
+use densa_alloc::{is_active, measure, CountingAllocator};
+use servo_runtime::{
+    controller_toml, ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, MadeFor, Servo,
+    SsMatrices, Stability, ZpetcSpec, ZPETC_SECTIONS,
+};
+
+/// Counts per thread: the test harness's own threads never enter a measurement.
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator::system();
+
+fn deployments() -> Vec<Deployment> {
+    let base = Deployment {
+        stability: Some(Stability {
+            spectral_radius: 0.9999,
+            unstable_below: 0.1,
+            unstable_above: 5.0,
+        }),
+        ..Deployment::thesis_prototype()
+    };
+    let mut accel = base.clone();
+    accel.controller.kind = ControllerKind::Accel;
+    accel.controller.ka = 1.0;
+    accel.controller.kg_scaling = true;
+    let mut ss = base.clone();
+    ss.controller.kind = ControllerKind::Ss;
+    // A stable 29-state realisation (diagonal A inside the unit circle).
+    ss.controller.ss = SsMatrices::from_fn(29, |i, j| match (i < 29, j < 29) {
+        (true, true) if i == j => 0.5 + 0.01 * i as f64,
+        (true, true) => 0.0,
+        (false, false) => 0.1,
+        _ => 0.01,
+    });
+    let mut sections = [[1.0, 0.0, 0.0, 0.0, 0.0]; ZPETC_SECTIONS];
+    sections[0] = [0.5, 0.3, 0.2, -0.2, 0.05];
+    ss.feedforward = FeedforwardSpec::Zpetc(ZpetcSpec {
+        gain: 1.0,
+        preview: 3,
+        sections,
+        sections_used: 1,
+    });
+    ss.reference = servo_runtime::ReferenceSpec::Sine {
+        amplitude_m: 1e-6,
+        frequency_hz: 200.0,
+    };
+    ss.smoothing_hz = 10_000.0;
+    vec![base, accel, ss]
+}
+
+/// Ticks `n` samples (timed: each says when it was taken).
+fn ticks(servo: &mut Servo, from: u64, n: u64) -> f64 {
+    let mut acc = 0.0;
+    for k in from..from + n {
+        let s = Sensor {
+            seq: k,
+            gap_v: 1e-3 * ((k % 7) as f64 - 3.0),
+            published_ns: 1 + k * 5_000,
+            run_id: 7,
+            ..Default::default()
+        };
+        acc += servo.tick(&s).dac_v;
+    }
+    acc
+}
+
+#[test]
+fn the_front_door_tick_allocates_nothing() {
+    assert!(is_active(), "the counting allocator must be installed");
+    for (i, d) in deployments().into_iter().enumerate() {
+        let mut servo = Servo::new(&d).unwrap();
+        ticks(&mut servo, 0, 10);
+        let (acc, stats) = measure(|| {
+            let a = ticks(&mut servo, 10, 20_000);
+            servo.set_gain(0.8).unwrap();
+            a + ticks(&mut servo, 20_010, 5_000)
+        });
+        assert!(acc.is_finite());
+        assert_eq!(
+            (stats.allocs, stats.reallocs, stats.deallocs),
+            (0, 0, 0),
+            "deployment {i}: {stats:?}"
+        );
+    }
+}
+
+#[test]
+fn a_loaded_controller_is_handed_over_without_allocating_on_the_tick() {
+    let d = deployments().remove(0);
+    let made_for = MadeFor {
+        tool: "test".into(),
+        plant_sha256: "p".into(),
+        stage: "light".into(),
+        servo_rate_hz: 199_600.0,
+    };
+    let text = servo_runtime::deployment_toml(&d, Some(&made_for), "t");
+    let mut servo = Servo::from_toml(&text).unwrap();
+    ticks(&mut servo, 0, 100);
+    let mut c = ControllerSpec::default();
+    c.pid.kp *= 0.9;
+    let file = controller_toml(&c, Some(&made_for), d.stability.as_ref());
+    // Parsing and building allocate on the calling thread; the handover happens in the ticks.
+    servo.load(file.as_bytes()).unwrap();
+    let (_, stats) = measure(|| ticks(&mut servo, 100, 1_000));
+    assert_eq!((stats.allocs, stats.deallocs), (0, 0), "{stats:?}");
+    assert_eq!(servo.status().handovers, 1);
+}
+
+#[cfg(feature = "serve")]
+#[test]
+fn a_served_tick_allocates_nothing() {
+    let prefix = format!("rt-noalloc-{}", std::process::id());
+    for d in deployments() {
+        let mut servo = Servo::new(&d).unwrap();
+        servo.serve(&prefix).unwrap();
+        ticks(&mut servo, 0, 10);
+        let (acc, stats) = measure(|| ticks(&mut servo, 10, 10_000));
+        servo.close(0);
+        assert!(acc.is_finite());
+        assert_eq!((stats.allocs, stats.deallocs), (0, 0), "{stats:?}");
+    }
+}
