@@ -201,22 +201,34 @@ def tune(
     return {**json.loads(report), "controller_toml": toml_text}
 
 
-def synth_h2(config: Config = None, effort_weight: Optional[float] = None, thesis_weights: bool = False, **tables: Any) -> Dict[str, Any]:
+def synth_h2(
+    config: Config = None,
+    effort_weight: Optional[float] = None,
+    thesis_weights: bool = False,
+    sensor_noise_scale: float = 1.0,
+    order: Optional[int] = None,
+    **tables: Any,
+) -> Dict[str, Any]:
     """``servo synth h2``: the discrete H2-optimal controller of the exact sampled plant.
 
     ``effort_weight`` weighs the command against the error (default 1 nm/V, or 1000 with the
-    §6.3 ``thesis_weights``). Returns ``controller`` (a :class:`Model`: position error in V to
-    command in V), ``controller_toml`` (the file ``servo run --controller ss`` loads, stamped
-    with its plant and rate), ``h2_norm`` and ``spectral_radius``.
+    §6.3 ``thesis_weights``); ``sensor_noise_scale`` scales the sensor noise the design assumes;
+    ``order`` reduces the controller by balanced truncation. Returns ``controller`` (a
+    :class:`Model`: position error in V to command in V), ``controller_toml`` (the file
+    ``servo run --controller ss`` loads, stamped with its plant and rate and its loop's checked
+    gain range), ``h2_norm``, ``spectral_radius`` and ``prediction`` — what ``servo synth h2
+    --json`` prints (states, bandwidth, predicted RMS errors in m, the stability range and the
+    margins), computed by the same function.
     """
     config, overrides = _args(config, tables)
     weight = effort_weight if effort_weight is not None else (1000.0 if thesis_weights else 1.0)
-    d = _native.synth_h2(weight, thesis_weights, config, overrides)
+    d = _native.synth_h2(weight, thesis_weights, float(sensor_noise_scale), order, config, overrides)
     return {
         "controller": Model(d["abcd_dt"], d["inputs"], d["outputs"], d["what"]),
         "controller_toml": d["controller_toml"],
         "h2_norm": d["h2_norm"],
         "spectral_radius": d["spectral_radius"],
+        "prediction": json.loads(d["prediction"]),
     }
 
 

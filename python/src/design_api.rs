@@ -30,29 +30,36 @@ pub fn tune(
 }
 
 /// `servo synth h2`: the discrete H2-optimal controller of the exact sampled plant with its
-/// noise models (`thesis_weights`: the §6.3 weighting filters instead), as the controller
-/// file (TOML) `servo run --controller ss --ss-file` loads, plus `(A, B, C, D)`, its H2 norm
-/// and spectral radius.
+/// noise models (`thesis_weights`: the §6.3 weighting filters instead), reduced to `order`
+/// states if asked, checked in the loop it closes — the controller file (TOML) `servo run
+/// --controller ss --ss-file` loads, `(A, B, C, D)`, its H2 norm and the prediction (JSON) of
+/// `servo synth h2 --json`, from the same function.
 #[pyfunction]
-#[pyo3(signature = (effort_weight, thesis_weights, config=None, overrides=None))]
+#[pyo3(signature = (effort_weight, thesis_weights, sensor_noise_scale=1.0, order=None, config=None, overrides=None))]
 pub fn synth_h2<'py>(
     py: Python<'py>,
     effort_weight: f64,
     thesis_weights: bool,
+    sensor_noise_scale: f64,
+    order: Option<usize>,
     config: Option<&Bound<'py, PyAny>>,
     overrides: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    use studies::synth::{synthesize, SynthRequest, SynthWeights};
     let loaded = load(config, overrides)?;
-    let d = py.detach(|| {
+    let s = py.detach(|| {
         let plan = built(&loaded)?;
-        if thesis_weights {
-            let w = studies::synth::ThesisWeights::default();
-            studies::synth::thesis_design(&plan, &w, effort_weight)
+        let weights = if thesis_weights {
+            SynthWeights::Thesis { effort_weight }
         } else {
-            studies::synth::h2_design(&plan, effort_weight)
-        }
-        .map_err(servo_err)
+            SynthWeights::Exact {
+                effort_weight,
+                sensor_noise_scale,
+            }
+        };
+        synthesize(&plan, &SynthRequest { weights, order }).map_err(servo_err)
     })?;
+    let d = &s.design;
     let out = crate::models::model(
         py,
         &d.controller,
@@ -64,6 +71,10 @@ pub fn synth_h2<'py>(
     out.set_item("controller_toml", d.to_toml())?;
     out.set_item("h2_norm", d.h2_norm)?;
     out.set_item("spectral_radius", d.spectral_radius)?;
+    out.set_item(
+        "prediction",
+        serde_json::to_string(&s.prediction).map_err(servo_err)?,
+    )?;
     Ok(out)
 }
 

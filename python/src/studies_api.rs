@@ -22,14 +22,11 @@ pub fn budget(
     let loaded = load(config, overrides)?;
     py.detach(|| {
         let plan = built(&loaded)?;
-        plan.check_stable().map_err(servo_err)?;
-        let b =
-            studies::budget::Budget::new(&plan.closed_loop, points.max(16)).map_err(servo_err)?;
-        let m = studies::margins::loop_margins(&plan).map_err(servo_err)?;
+        let a = studies::budget::analyse(&plan, points).map_err(servo_err)?;
         let json = serde_json::json!({
-            "budget": b,
-            "margins": m,
-            "bandwidth_hz": b.bandwidth_hz,
+            "budget": a.budget,
+            "margins": a.margins,
+            "bandwidth_hz": a.budget.bandwidth_hz,
             "controller": plan.controller.description,
         });
         Ok(json.to_string())

@@ -208,6 +208,26 @@ def test_the_h2_controller_closes_a_stable_loop_and_runs_as_the_cli_runs_it(tmp_
     assert ours.summary["following_error_m"]["rms"] < 2e-9
 
 
+def test_budget_and_synthesis_are_the_clis_numbers_from_the_same_function(tmp_path: Path) -> None:
+    """`servo budget --json` and `fs.budget`, `servo synth h2 --json` and `fs.synth_h2`: one
+    library function each (studies::budget::analyse, studies::synth::synthesize), so the same
+    numbers to the last bit — margins, stability range and the file included."""
+    cli = json.loads(servo("budget", "--json", "--mass", "heavy", "--out-dir", str(tmp_path / "b")).stdout)
+    ours = fs.budget(plant={"stage": {"m2_kg": 0.17}})
+    assert ours["budget"] == cli["budget"] and ours["margins"] == cli["margins"]
+    assert ours["margins"]["gain_margin_db"] > 6.0
+    out = tmp_path / "h2.toml"
+    cli = json.loads(
+        servo("synth", "h2", "--json", "--rate", "20000", "--order", "13", "--out", str(out)).stdout
+    )
+    d = fs.synth_h2(order=13, plant={"timing": {"servo_rate_hz": 20000.0}})
+    assert d["prediction"] == cli["prediction"]
+    assert d["controller_toml"] == out.read_text()
+    p = d["prediction"]
+    assert p["states"] == 13 and 0 < p["stability"]["unstable_below"] < 1 < p["stability"]["unstable_above"]
+    assert "[stability]" in d["controller_toml"]
+
+
 def test_identification_recovers_a_known_stage_from_its_frequency_response() -> None:
     drawn = {"k2_n_per_m": 21965.0 * 1.1, "m4_kg": 0.0088, "c4_n_s_per_m": 7.0}
     f = np.logspace(np.log10(20.0), 4.0, 80)

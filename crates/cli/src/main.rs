@@ -89,9 +89,7 @@ fn main() -> ExitCode {
     sigpipe::reset();
     interrupt::follow_parent();
     let cli = Cli::parse();
-    cli.command
-        .exec()
-        .unwrap_or_else(|e| output::fail(&e, e.exit_code()))
+    cli.command.exec().unwrap_or_else(|e| output::fail_cli(&e))
 }
 
 #[cfg(test)]

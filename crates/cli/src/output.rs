@@ -99,6 +99,70 @@ impl CliError {
     }
 }
 
+impl CliError {
+    /// The flag a library error's key stands for: the libraries name their options as keys
+    /// (`order`, `bandwidth_hz`), the command line as flags (`--order`, `--bandwidth-hz`).
+    pub fn flag_hint(&self) -> Option<String> {
+        let config = match self {
+            CliError::Config(c)
+            | CliError::Study(StudyError::Config(c))
+            | CliError::Run(RunError::Config(c))
+            | CliError::Study(StudyError::Run(RunError::Config(c))) => c,
+            CliError::Run(RunError::RateMismatch { served_hz, .. })
+            | CliError::Study(StudyError::Run(RunError::RateMismatch { served_hz, .. })) => {
+                return Some(format!("--rate {served_hz:.0}"))
+            }
+            CliError::Run(RunError::NoTruth(_)) => return Some("--plant model.toml".into()),
+            CliError::Study(StudyError::NoTuningStart { .. }) => return Some("--ms, --mt".into()),
+            CliError::Study(StudyError::FrfAborted { .. }) => return Some("--amplitude".into()),
+            CliError::Run(RunError::Record(recorder::RecordError::Exists { .. }))
+            | CliError::Export(recorder::export::ExportError::Write(
+                recorder::RecordError::Exists { .. },
+            )) => return Some("--overwrite".into()),
+            CliError::Export(recorder::export::ExportError::Selection(_)) => {
+                return Some("--topics, --from, --to, --every".into())
+            }
+            _ => return None,
+        };
+        match config {
+            ConfigError::Invalid {
+                path: None, key, ..
+            } if !key.contains('.') && !key.starts_with('-') => Some(match key.as_str() {
+                // The one field whose flag is shorter than its name.
+                "probe_noise_rms_m" => "--probe-noise-m".into(),
+                key => format!("--{}", key.replace('_', "-")),
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// Prints `e` with its chain of causes (`error: writing x: I/O error: No space left…`) and its
+/// flag (a library names the option's key) and returns exit code `code`.
+pub fn fail_cli(e: &CliError) -> ExitCode {
+    let code = e.exit_code();
+    match e.flag_hint() {
+        Some(flag) => fail(&Hinted(e, flag), code),
+        None => fail(e, code),
+    }
+}
+
+/// An error with the command-line flag it concerns.
+#[derive(Debug)]
+struct Hinted<'a>(&'a CliError, String);
+
+impl std::fmt::Display for Hinted<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} (flag {})", self.0, self.1)
+    }
+}
+
+impl std::error::Error for Hinted<'_> {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        std::error::Error::source(self.0)
+    }
+}
+
 /// Prints `e` with its chain of causes (`error: writing x: I/O error: No space left…`) and
 /// returns exit code `code`.
 pub fn fail(e: &dyn std::error::Error, code: u8) -> ExitCode {

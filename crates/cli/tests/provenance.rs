@@ -139,7 +139,7 @@ fn identify_refuses_an_frf_that_is_not_the_plant() {
     let e = stderr(&id);
     assert_ne!(id.status.code(), Some(0), "{e}");
     assert!(
-        e.contains("frf.csv") && e.contains("quantity PS") && e.contains("--loop open"),
+        e.contains("frf.csv") && e.contains("quantity PS") && e.contains("loop = open"),
         "{e}"
     );
 }

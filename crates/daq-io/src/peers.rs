@@ -90,7 +90,7 @@ pub fn refusal(prefix: &str, role: &str, peers: &[Peer]) -> Option<String> {
     if EXCLUSIVE_ROLES.contains(&role) {
         if let Some(p) = peers.iter().find(|p| p.role == role) {
             return Some(format!(
-                "run prefix {prefix:?} is in use by a live run: {} holds it; choose another --prefix or stop that run (`servo ctl --prefix {prefix} stop`)",
+                "run prefix {prefix:?} is in use by a live run: {} holds it; choose another run prefix or stop that run (a STOP on its control plane)",
                 p.describe()
             ));
         }

@@ -165,7 +165,7 @@ pub enum ServeError {
     #[error(transparent)]
     Ipc(#[from] IpcError),
     /// No controller or recorder subscribed, or no START came, within the startup timeout.
-    #[error("no {0} in run {1} within {2:?}: start it with the same --prefix")]
+    #[error("no {0} in run {1} within {2:?}: start it on the same run prefix")]
     NoPeer(&'static str, String, Duration),
 }
 

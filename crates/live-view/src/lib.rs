@@ -91,7 +91,7 @@ pub enum ViewError {
         detail: String,
     },
     /// No run appeared.
-    #[error("no run on prefix {0:?} within {1:?}: start it (servo run --hil --prefix …) first")]
+    #[error("no run on prefix {0:?} within {1:?}: start the run on that prefix first")]
     NoRun(String, Duration),
 }
 

@@ -59,7 +59,7 @@ pub enum RecordError {
         source: std::io::Error,
     },
     /// The target exists and [`Overwrite::Refuse`] was asked for.
-    #[error("{} exists: not overwritten (pass --overwrite to replace it)", path.display())]
+    #[error("{} exists: not overwritten (set overwrite to replace it)", path.display())]
     Exists {
         /// The target.
         path: PathBuf,

@@ -320,7 +320,7 @@ fn existing_recordings_are_not_overwritten() {
         .err()
         .expect("refused");
     assert!(matches!(err, RecordError::Exists { .. }));
-    assert!(err.to_string().contains("keep.mcap") && err.to_string().contains("--overwrite"));
+    assert!(err.to_string().contains("keep.mcap") && err.to_string().contains("overwrite"));
     assert_eq!(std::fs::read(&path).unwrap(), before);
     let options = RecordOptions {
         overwrite: Overwrite::Replace,

@@ -78,7 +78,7 @@ pub enum RunError {
     NotARun(PathBuf),
     /// The plant served on the prefix ended its run (its duration, a STOP, a fault) before
     /// this side was done with it.
-    #[error("the plant ended its run at tick {ticks}{} before this measurement finished: start it with a longer --duration", if *faults != 0 { format!(" with faults {faults:#x}") } else { String::new() })]
+    #[error("the plant ended its run at tick {ticks}{} before this measurement finished: start it with a longer run (run.duration_s)", if *faults != 0 { format!(" with faults {faults:#x}") } else { String::new() })]
     PlantEnded {
         /// The tick of its last sample.
         ticks: u64,
@@ -86,7 +86,7 @@ pub enum RunError {
         faults: u32,
     },
     /// The plant on the prefix serves another rate than this side is configured for.
-    #[error("the plant serves {served_hz:.1} Hz; this side is configured for {configured_hz:.1} Hz: give --rate {served_hz:.0} (or start the plant at the configured rate)")]
+    #[error("the plant serves {served_hz:.1} Hz; this side is configured for {configured_hz:.1} Hz: set plant.timing.servo_rate_hz = {served_hz:.0} (or start the plant at the configured rate)")]
     RateMismatch {
         /// The plant's rate (from its sample times), Hz.
         served_hz: f64,
@@ -95,7 +95,7 @@ pub enum RunError {
     },
     /// A recording of a plant without simulator truth (a DAQ daemon, a real stage) asked to
     /// replay on the simulator's own stage.
-    #[error("{}: recorded against a plant without simulator truth (a DAQ daemon or a real stage): its plant and noise cannot be re-run as they were; replay it on an identified model with --plant model.toml", .0.display())]
+    #[error("{}: recorded against a plant without simulator truth (a DAQ daemon or a real stage): its plant and noise cannot be re-run as they were; replay it on an identified plant model (a plant file, as `servo identify` writes it)", .0.display())]
     NoTruth(PathBuf),
 }
 

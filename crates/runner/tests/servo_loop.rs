@@ -62,3 +62,31 @@ fn a_nan_reading_trips_to_the_configured_safe_state() {
         }
     }
 }
+
+/// The runtime's thesis prototype is what `servo deploy` makes of the default configuration:
+/// the stage's numbers from the plant model, the Chapter 7 PID, and its loop's checked range
+/// (bisection to 1e-6, eigenvalues to rounding).
+#[test]
+fn the_runtime_thesis_prototype_is_the_default_deployment() {
+    let plan = Plan::new(&Loaded::default()).unwrap();
+    let (deployed, _) = runner::deploy::deployment_file(&plan).unwrap();
+    let preset = servo_runtime::Deployment::thesis_prototype();
+    let (a, b) = (deployed.stability.unwrap(), preset.stability.unwrap());
+    for (x, y) in [
+        (a.spectral_radius, b.spectral_radius),
+        (a.unstable_below, b.unstable_below),
+        (a.unstable_above, b.unstable_above),
+    ] {
+        assert!((x - y).abs() <= 1e-9 * y, "{x} vs {y}");
+    }
+    assert_eq!(
+        servo_runtime::Deployment {
+            stability: None,
+            ..deployed
+        },
+        servo_runtime::Deployment {
+            stability: None,
+            ..preset
+        }
+    );
+}

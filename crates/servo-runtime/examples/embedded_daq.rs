@@ -38,13 +38,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     servo.close(0);
     let (status, timing) = (servo.status(), servo.timing());
+    let end = match (status.stop, status.trip) {
+        (Some(daq_io::stop_cause::CONTROL), _) => "stopped by the control plane".to_owned(),
+        (_, Some(trip)) => format!("tripped ({}) at tick {}", trip.cause.name(), trip.tick),
+        _ => "ran its time".to_owned(),
+    };
     println!(
-        "{} ticks, {} overruns, gain scale {}, stop cause {:?}, trip {:?}",
-        status.ticks, status.overruns, status.gain_scale, status.stop, status.trip
+        "{} ticks at output scale {}, {end}",
+        status.ticks, status.gain_scale
     );
     println!(
-        "lateness p99.99 {} ns, execution p99.99 {} ns",
-        timing.lateness.p9999_ns, timing.execution.p9999_ns
+        "  start lateness p99.99 {:.1} µs, execution p99.99 {:.2} µs, {} overruns",
+        timing.lateness.p9999_ns as f64 * 1e-3,
+        timing.execution.p9999_ns as f64 * 1e-3,
+        status.overruns
     );
     Ok(())
 }

@@ -39,7 +39,9 @@ pub enum StudyError {
     #[error(transparent)]
     Tuning(#[from] design::tune::TuneError),
     /// No scaling of the configured PID satisfies the tuning bounds to start from.
-    #[error("no scaling of the configured PID is stable with |S| ≤ {ms}, |T| ≤ {mt}: raise --ms or --mt")]
+    #[error(
+        "no scaling of the configured PID is stable with |S| ≤ {ms}, |T| ≤ {mt}: raise ms or mt"
+    )]
     NoTuningStart {
         /// Sensitivity bound.
         ms: f64,
@@ -87,7 +89,7 @@ pub enum StudyError {
     },
     /// A measurement on a plant served on a prefix stopped to keep the stage safe: the plant
     /// was put back to 0 V and its run closed.
-    #[error("FRF aborted at {freq_hz:.1} Hz: {what}; the plant was set to 0 V and its run closed — lower --amplitude (or the band)")]
+    #[error("FRF aborted at {freq_hz:.1} Hz: {what}; the plant was set to 0 V and its run closed — lower amplitude_v (or the band)")]
     FrfAborted {
         /// The frequency being measured, Hz.
         freq_hz: f64,

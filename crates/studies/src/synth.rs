@@ -5,13 +5,15 @@
 //! The transport delay, the hold and the ADC averaging are in the tick, so the design knows
 //! them (DESIGN.md, "Discrete controllers are designed knowing this delay").
 
+use crate::budget::Budget;
 use crate::error::StudyError;
 use design::h2::{h2syn_discrete, GeneralizedPlant};
 use lti::StateSpace;
 use nalgebra::DMatrix;
 use plant_sim::sensor_noise::SampledSensorNoise;
-use runner::config::MadeFor;
+use runner::config::{ControllerConfig, ControllerKind, MadeFor, Origin};
 use runner::Plan;
+use servo_runtime::{Stability, MAX_SS_ORDER};
 
 /// The designed controller in the form `servo run --controller ss` loads (input: position
 /// error `r − gap` in sensor volts, output: command in V) and what the design predicts.
@@ -27,6 +29,9 @@ pub struct Design {
     pub spectral_radius: f64,
     /// The plant and rate it was designed for (written into the controller file).
     pub made_for: MadeFor,
+    /// The offline check of its loop on the plant (written into the controller file: a running
+    /// loop that loads it keeps this gain range), once checked ([`synthesize`]).
+    pub stability: Option<Stability>,
 }
 
 impl Design {
@@ -51,7 +56,7 @@ impl Design {
             "# H2-optimal controller designed by `servo synth h2` on the simulator's exact model.\n\
              # x⁺ = A x + B e, u = C x + D e; e = reference − measurement in sensor volts, u in V.\n\
              # {} states; design closed-loop H2 norm {:.6e}, spectral radius {:.6}.\n\
-             sample_rate_hz = {}\na = {}\nb = {}\nc = {}\nd = {}\n\n{}",
+             sample_rate_hz = {}\na = {}\nb = {}\nc = {}\nd = {}\n\n{}{}",
             k.nx(),
             self.h2_norm,
             self.spectral_radius,
@@ -60,7 +65,13 @@ impl Design {
             rows(&k.b),
             rows(&k.c),
             rows(&k.d),
-            self.made_for.to_toml("made_for")
+            self.made_for.to_toml("made_for"),
+            self.stability.map_or(String::new(), |s| format!(
+                "\n[stability]\nspectral_radius = {}\nunstable_below = {}\nunstable_above = {}\n",
+                servo_runtime::num(s.spectral_radius),
+                servo_runtime::num(s.unstable_below),
+                servo_runtime::num(s.unstable_above)
+            ))
         )
     }
 }
@@ -168,6 +179,162 @@ pub fn h2_design_with(
         h2_norm: k.h2_norm,
         spectral_radius: k.spectral_radius,
         made_for: runner::config::made_for_plant(&plan.config.plant),
+        stability: None,
+    })
+}
+
+/// What `servo synth h2` (and `fts_servo.synth_h2`) is asked for.
+#[derive(Debug, Clone, Copy)]
+pub struct SynthRequest {
+    /// The design problem.
+    pub weights: SynthWeights,
+    /// Reduce the controller to this many states by balanced truncation (None: full order).
+    pub order: Option<usize>,
+}
+
+/// The H2 design problem.
+#[derive(Debug, Clone, Copy)]
+pub enum SynthWeights {
+    /// The simulator's exact discrete model and noise ([`h2_design_with`]).
+    Exact {
+        /// ρ, nm of tool error per V of command.
+        effort_weight: f64,
+        /// Scale of the sensor noise the design assumes (1: the plant's).
+        sensor_noise_scale: f64,
+    },
+    /// §6.3's weighting filters ([`thesis_design`]).
+    Thesis {
+        /// ρ on the We/Wu problem.
+        effort_weight: f64,
+    },
+}
+
+/// A synthesised controller, checked in the loop it closes: what `servo synth h2` writes and
+/// prints and `fts_servo.synth_h2` returns.
+#[derive(Clone)]
+pub struct Synthesis {
+    /// The controller (reduced when asked), with its loop's offline check.
+    pub design: Design,
+    /// States before reduction, the Hankel singular values and the H∞ error bound of the
+    /// controller (when reduced).
+    pub reduction: Option<(usize, Vec<f64>, f64)>,
+    /// The run of `plan` with this controller.
+    pub plan: Plan,
+    /// What the loop it closes is predicted to do.
+    pub prediction: SynthPrediction,
+}
+
+/// What a synthesised controller's loop is predicted to do.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SynthPrediction {
+    /// Controller states.
+    pub states: usize,
+    /// Its sample rate, Hz.
+    pub sample_rate_hz: f64,
+    /// Spectral radius of the sampled closed loop.
+    pub spectral_radius: f64,
+    /// −3 dB closed-loop bandwidth, Hz.
+    pub bandwidth_hz: f64,
+    /// Predicted RMS following error, m.
+    pub following_rms_m: f64,
+    /// Predicted RMS true tool error, m.
+    pub true_rms_m: f64,
+    /// The output scales between which the loop is stable.
+    pub stability: Stability,
+    /// Margins of the loop broken at the DAC (None on a plant without a linear tick).
+    pub margins: Option<design::loops::Margins>,
+}
+
+/// Designs the H2 controller of `request` for `plan`, reduces it if asked, closes the loop
+/// with it, checks that loop (its gain range goes into the controller file) and predicts its
+/// budget. Errors name the request's keys (`order`, `sensor_noise_scale`, `effort_weight`).
+pub fn synthesize(plan: &Plan, request: &SynthRequest) -> Result<Synthesis, StudyError> {
+    let at = Origin::default();
+    let mut design = match request.weights {
+        SynthWeights::Exact {
+            effort_weight,
+            sensor_noise_scale,
+        } => {
+            if !(sensor_noise_scale > 0.0 && sensor_noise_scale.is_finite()) {
+                return Err(at
+                    .invalid(
+                        "sensor_noise_scale",
+                        sensor_noise_scale,
+                        "> 0 (1: the plant's sensor noise)",
+                    )
+                    .into());
+            }
+            if !(effort_weight > 0.0 && effort_weight.is_finite()) {
+                return Err(at
+                    .invalid("effort_weight", effort_weight, "> 0 nm/V")
+                    .into());
+            }
+            h2_design_with(plan, effort_weight, sensor_noise_scale)?
+        }
+        SynthWeights::Thesis { effort_weight } => {
+            if !(effort_weight > 0.0 && effort_weight.is_finite()) {
+                return Err(at.invalid("effort_weight", effort_weight, "> 0").into());
+            }
+            thesis_design(plan, &ThesisWeights::default(), effort_weight)?
+        }
+    };
+    let full = design.controller.nx();
+    let writable = full.min(MAX_SS_ORDER);
+    let reduction = match request.order {
+        Some(n) if !(1..=writable).contains(&n) => {
+            return Err(at
+                .invalid(
+                    "order",
+                    n,
+                    &format!(
+                        "1..={writable} states (the design has {full}; a controller file holds at most {MAX_SS_ORDER})"
+                    ),
+                )
+                .into())
+        }
+        None if full > MAX_SS_ORDER => {
+            return Err(at
+                .invalid(
+                    "order",
+                    "none (full order)",
+                    &format!(
+                        "1..={MAX_SS_ORDER} states: the full-order design has {full}, more than a controller file holds"
+                    ),
+                )
+                .into())
+        }
+        Some(n) => {
+            let (reduced, hankel, bound) = design.reduced(n)?;
+            design = reduced;
+            Some((full, hankel, bound))
+        }
+        None => None,
+    };
+    // The loop it closes, from the file's own text (what a run reads back).
+    let controller = ControllerConfig {
+        kind: ControllerKind::Ss,
+        ss_file: Some(runner::hot_swap::LOADED_FILE.into()),
+        ..plan.config.controller.clone()
+    };
+    let with = plan.with_controller_file(controller, Some(design.to_toml().into_bytes()))?;
+    let stability = runner::gain_range::gain_range(&with)?;
+    design.stability = Some(stability);
+    let b = Budget::new(&with.closed_loop, 400)?;
+    let prediction = SynthPrediction {
+        states: design.controller.nx(),
+        sample_rate_hz: design.sample_rate_hz,
+        spectral_radius: with.closed_loop.spectral_radius(),
+        bandwidth_hz: b.bandwidth_hz,
+        following_rms_m: b.following_rms_m,
+        true_rms_m: b.true_rms_m,
+        stability,
+        margins: crate::margins::loop_margins(&with).ok(),
+    };
+    Ok(Synthesis {
+        design,
+        reduction,
+        plan: with,
+        prediction,
     })
 }
 
@@ -305,5 +472,6 @@ pub fn thesis_design(plan: &Plan, w: &ThesisWeights, effort: f64) -> Result<Desi
         h2_norm: k.h2_norm,
         spectral_radius: k.spectral_radius,
         made_for: runner::config::made_for_plant(&plan.config.plant),
+        stability: None,
     })
 }

@@ -59,6 +59,9 @@ pub struct TuneReport {
     pub pid: PidGains,
     /// The plant and rate they were tuned for.
     pub made_for: runner::config::MadeFor,
+    /// The offline check of the fragment's loop (a PID with these gains on this plant): the
+    /// output scales a running loop that loads it may take.
+    pub stability: servo_runtime::Stability,
     /// The plant they were tuned for (written into the fragment, so `servo run -c` runs it).
     #[serde(skip)]
     pub plant: plant_sim::PlantParams,
@@ -73,7 +76,8 @@ impl TuneReport {
              # max|S| {:.3}, closed-loop bandwidth {:.0} Hz, predicted RMS following {:.3} nm / true {:.3} nm.\n\
              # The fragment carries the plant the gains were tuned for: `servo run -c FILE` runs on\n\
              # it, and a run on another plant or rate refuses the gains (controller.made_for).\n\
-             [controller.pid]\nkp = {:e}\nki = {:e}\nkd = {:e}\ntf_s = {:e}\n\n{}\n{}",
+             [controller.pid]\nkp = {:e}\nki = {:e}\nkd = {:e}\ntf_s = {:e}\n\n{}\n\
+             [controller.stability]\nspectral_radius = {}\nunstable_below = {}\nunstable_above = {}\n\n{}",
             self.ms,
             self.mt,
             self.bandwidth_target_hz,
@@ -86,6 +90,9 @@ impl TuneReport {
             p.kd,
             p.tf_s,
             self.made_for.to_toml("controller.made_for"),
+            servo_runtime::num(self.stability.spectral_radius),
+            servo_runtime::num(self.stability.unstable_below),
+            servo_runtime::num(self.stability.unstable_above),
             runner::config::plant_toml(&self.plant)
         )
     }
@@ -181,7 +188,7 @@ fn report(plan: &Plan, k: [f64; 3], fine: &PidTuning) -> Result<PidReport, Study
 /// Tunes the PID of `plan`: largest `ki` with `|S| ≤ ms`, `|T| ≤ mt` and `|T| ≥ −3 dB` at
 /// `bandwidth_hz`.
 pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneReport, StudyError> {
-    for (key, v) in [("--ms", ms), ("--mt", mt)] {
+    for (key, v) in [("ms", ms), ("mt", mt)] {
         if !(v > 1.0 && v < 10.0) {
             return Err(plan.origin.invalid(key, v, "1 < M < 10").into());
         }
@@ -190,7 +197,7 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
     if !(bandwidth_hz > 0.0 && bandwidth_hz < 0.25 * fs) {
         return Err(plan
             .origin
-            .invalid("--bandwidth-hz", bandwidth_hz, "0 < f < servo rate / 4")
+            .invalid("bandwidth_hz", bandwidth_hz, "0 < f < servo rate / 4")
             .into());
     }
     let problem = |points: usize| -> Result<PidTuning, StudyError> {
@@ -228,6 +235,20 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
     } = coarse.solve(start, 200)?;
     let tuned = report(plan, gains, &fine)?;
     let reference = report(plan, thesis, &fine)?;
+    // What the fragment describes when a running loop loads it: a PID with these gains.
+    let pid = PidGains {
+        kp: gains[0],
+        ki: gains[1],
+        kd: gains[2],
+        tf_s: plan.config.controller.pid.tf_s,
+    };
+    let fragment = plan.with_controller(runner::config::ControllerConfig {
+        pid,
+        feedforward: plan.config.controller.feedforward,
+        smoothing_hz: plan.config.controller.smoothing_hz,
+        ..Default::default()
+    })?;
+    let stability = runner::gain_range::gain_range(&fragment)?;
     Ok(TuneReport {
         ms,
         mt,
@@ -235,13 +256,9 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
         iterations,
         tuned,
         reference,
-        pid: PidGains {
-            kp: gains[0],
-            ki: gains[1],
-            kd: gains[2],
-            tf_s: plan.config.controller.pid.tf_s,
-        },
+        pid,
         made_for: runner::config::made_for_plant(&plan.config.plant),
+        stability,
         plant: plan.config.plant,
     })
 }

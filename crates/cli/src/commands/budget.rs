@@ -60,20 +60,11 @@ impl BudgetCmd {
         self.controller.apply(&mut l);
         crate::args::set(&mut l.config.run.seed, self.seed);
         let plan = Plan::new(&l)?;
-        plan.check_stable()?;
-        let b = Budget::new(&plan.closed_loop, self.points.max(16)).map_err(StudyError::from)?;
-        let stage = &plan.config.plant.stage;
-        let title = format!(
-            "{}, {:.3} kg stage",
-            plan.controller.description,
-            stage.m1_kg + stage.m2_kg
-        );
-        let made_for = runner::config::made_for_plant(&plan.config.plant);
-        let made = (&made_for, plan.controller.description.as_str());
-        // The plant without a linear tick (the coil model) has no margins to report.
-        let margins = studies::margins::loop_margins(&plan).ok();
+        let a = studies::budget::analyse(&plan, self.points)?;
+        let (b, title) = (&a.budget, &a.title);
+        let made = (&a.made_for, plan.controller.description.as_str());
         let written =
-            studies::budget::report::write(&b, &title, made, margins.as_ref(), &self.out_dir)
+            studies::budget::report::write(b, title, made, a.margins.as_ref(), &self.out_dir)
                 .map_err(StudyError::from)?;
         let sweeps = if self.sweep {
             Some(self.sweeps(&plan)?)
@@ -81,10 +72,10 @@ impl BudgetCmd {
             None
         };
         if self.json {
-            print_json(&serde_json::json!({ "budget": b, "sweeps": sweeps }));
+            print_json(&serde_json::json!({ "budget": b, "margins": a.margins, "sweeps": sweeps }));
             return Ok(ExitCode::SUCCESS);
         }
-        print_budget(&plan, &b, &title);
+        print_budget(&plan, b, title);
         print_written(&written);
         if let Some(s) = &sweeps {
             print_sweeps(s, self.validate.is_some());

@@ -7,7 +7,7 @@ use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Write the deployment a daemon embeds (`Servo::from_file`, `fts_servo_open`).
+/// Write the deployment a daemon embeds (`servo_runtime::Servo::from_file`).
 ///
 /// Resolves the run configuration, designs what the loop needs offline (ZPETC feedforward),
 /// checks the sampled closed loop on the plant model and stores its output-scale range, and

@@ -3,14 +3,10 @@
 use crate::args::PlantArgs;
 use crate::output::{print_json, print_margins, CliError};
 use clap::{Args, ValueEnum};
-use runner::config::{ControllerConfig, ControllerKind, Origin};
 use runner::Plan;
-use servo_runtime::MAX_SS_ORDER;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use studies::budget::Budget;
-use studies::synth::{self, ThesisWeights};
-use studies::StudyError;
+use studies::synth::{self, SynthRequest, SynthWeights};
 
 /// Design an H2-optimal controller and write a controller file (thesis Ch. 6).
 ///
@@ -71,105 +67,41 @@ enum Weights {
     Thesis,
 }
 
-/// What `servo synth` predicts for the loop its controller closes.
-#[derive(Debug, serde::Serialize)]
-struct Prediction {
-    states: usize,
-    sample_rate_hz: f64,
-    spectral_radius: f64,
-    bandwidth_hz: f64,
-    following_rms_m: f64,
-    true_rms_m: f64,
-    file: PathBuf,
-}
-
 impl SynthCmd {
     /// Designs, writes the file and predicts the loop it closes.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let SynthMethod::H2 = self.method;
-        let scale = self.sensor_noise_scale;
-        if !(scale > 0.0 && scale.is_finite()) {
-            return Err(Origin::default()
-                .invalid(
-                    "--sensor-noise-scale",
-                    scale,
-                    "> 0 (1: the plant's sensor noise)",
-                )
-                .into());
-        }
         let plan = Plan::new(&self.plant.load()?)?;
-        let mut design = match self.weights {
-            Weights::Exact => synth::h2_design_with(
-                &plan,
-                self.effort_weight.unwrap_or(1.0),
-                self.sensor_noise_scale,
-            )?,
-            Weights::Thesis => synth::thesis_design(
-                &plan,
-                &ThesisWeights::default(),
-                self.effort_weight.unwrap_or(1000.0),
-            )?,
+        let weights = match self.weights {
+            Weights::Exact => SynthWeights::Exact {
+                effort_weight: self.effort_weight.unwrap_or(1.0),
+                sensor_noise_scale: self.sensor_noise_scale,
+            },
+            Weights::Thesis => SynthWeights::Thesis {
+                effort_weight: self.effort_weight.unwrap_or(1000.0),
+            },
         };
-        let full = design.controller.nx();
-        let writable = full.min(MAX_SS_ORDER);
-        if let Some(n) = self.order.filter(|n| !(1..=writable).contains(n)) {
-            return Err(Origin::default()
-                .invalid(
-                    "--order",
-                    n,
-                    &format!(
-                        "1..={writable} states (the design has {full}; a controller file holds at most {MAX_SS_ORDER})"
-                    ),
-                )
-                .into());
-        }
-        if self.order.is_none() && full > MAX_SS_ORDER {
-            return Err(Origin::default()
-                .invalid(
-                    "--order",
-                    "none (full order)",
-                    &format!(
-                        "1..={MAX_SS_ORDER} states: the full-order design has {full}, more than a controller file holds"
-                    ),
-                )
-                .into());
-        }
-        if let Some(n) = self.order {
-            let (reduced, hankel, bound) = design.reduced(n)?;
-            if !self.json {
-                let shown: Vec<String> =
-                    hankel.iter().take(16).map(|h| format!("{h:.2e}")).collect();
-                println!(
-                    "Hankel singular values of the {}-state controller: {} …",
-                    design.controller.nx(),
-                    shown.join(" ")
-                );
-                println!("  kept {n} states; H∞ error bound of the controller {bound:.3e}");
-            }
-            design = reduced;
-        }
-        let out = &self.out;
-        crate::output::write_result(out, &design.to_toml(), self.overwrite)?;
-        // Predict what it does with the budget of the loop it closes.
-        let with = plan.with_controller(ControllerConfig {
-            kind: ControllerKind::Ss,
-            ss_file: Some(std::fs::canonicalize(out).unwrap_or(out.to_owned())),
-            ..plan.config.controller.clone()
-        })?;
-        let cl = &with.closed_loop;
-        let b = Budget::new(cl, 400).map_err(StudyError::from)?;
-        let p = Prediction {
-            states: design.controller.nx(),
-            sample_rate_hz: design.sample_rate_hz,
-            spectral_radius: cl.spectral_radius(),
-            bandwidth_hz: b.bandwidth_hz,
-            following_rms_m: b.following_rms_m,
-            true_rms_m: b.true_rms_m,
-            file: out.clone(),
+        let request = SynthRequest {
+            weights,
+            order: self.order,
         };
+        let s = synth::synthesize(&plan, &request)?;
+        crate::output::write_result(&self.out, &s.design.to_toml(), self.overwrite)?;
+        let p = &s.prediction;
         if self.json {
-            print_json(&p);
+            print_json(&serde_json::json!({ "prediction": p, "file": self.out }));
             return Ok(ExitCode::SUCCESS);
+        }
+        if let Some((full, hankel, bound)) = &s.reduction {
+            let shown: Vec<String> = hankel.iter().take(16).map(|h| format!("{h:.2e}")).collect();
+            println!(
+                "Hankel singular values of the {full}-state controller: {} …",
+                shown.join(" ")
+            );
+            println!(
+                "  kept {} states; H∞ error bound of the controller {bound:.3e}",
+                p.states
+            );
         }
         println!(
             "H2 controller: {} states at {:.0} Hz (thesis §6.4.1: 27)",
@@ -179,13 +111,19 @@ impl SynthCmd {
             "  closed loop: spectral radius {:.6}, bandwidth {:.0} Hz",
             p.spectral_radius, p.bandwidth_hz
         );
-        print_margins(&with);
+        print_margins(&s.plan);
+        println!(
+            "  output scales allowed while running: {:.4}..={:.4}",
+            p.stability.low(),
+            p.stability.high()
+        );
         println!(
             "  predicted RMS: following {:.3} nm, true {:.3} nm",
             p.following_rms_m * 1e9,
             p.true_rms_m * 1e9
         );
         // The same plant flags the design was made with: the file refuses any other plant.
+        let out = &self.out;
         println!(
             "  wrote {} — run it: servo run --controller ss --ss-file {}{}",
             out.display(),

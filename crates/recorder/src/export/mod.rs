@@ -105,20 +105,20 @@ impl Selection {
     fn check(&self, format: Format) -> Result<(), ExportError> {
         let bad = |m: String| Err(ExportError::Selection(m));
         if !(self.telemetry || self.truth || self.overview) {
-            return bad("--topics: nothing selected (allowed: telemetry, truth, overview)".into());
+            return bad("topics: nothing selected (allowed: telemetry, truth, overview)".into());
         }
         if !(self.from_s >= 0.0 && self.to_s > self.from_s) {
             return bad(format!(
-                "--from {} --to {}: need 0 ≤ from < to (s)",
+                "from_s {} to_s {}: need 0 ≤ from < to (s)",
                 self.from_s, self.to_s
             ));
         }
         if self.every == 0 {
-            return bad("--every: must be ≥ 1".into());
+            return bad("every: must be ≥ 1".into());
         }
         if format == Format::Csv && self.overview && (self.telemetry || self.truth) {
             return bad(
-                "--topics: the 1 kHz overview and the full-rate topics cannot share one CSV \
+                "topics: the 1 kHz overview and the full-rate topics cannot share one CSV \
                  (export them separately, or to .npz)"
                     .into(),
             );

@@ -153,3 +153,36 @@ impl Budget {
         })
     }
 }
+
+/// The error budget of a plan's loop with what it is reported with: what `servo budget` and
+/// `fts_servo.budget` compute — one function, so both print the same numbers.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Analysis {
+    /// The budget.
+    pub budget: Budget,
+    /// The loop's margins broken at the DAC (None for a plant without an exact sampled model:
+    /// the `coil` current loop).
+    pub margins: Option<design::loops::Margins>,
+    /// `controller, stage mass` for titles.
+    pub title: String,
+    /// The plant and rate it was computed for.
+    pub made_for: runner::config::MadeFor,
+}
+
+/// The budget of `plan`'s loop on `points` log-spaced frequencies (at least 16), with its
+/// margins; refused when the loop is unstable.
+pub fn analyse(plan: &runner::Plan, points: usize) -> Result<Analysis, crate::StudyError> {
+    plan.check_stable()?;
+    let budget = Budget::new(&plan.closed_loop, points.max(16))?;
+    let stage = &plan.config.plant.stage;
+    Ok(Analysis {
+        budget,
+        margins: crate::margins::loop_margins(plan).ok(),
+        title: format!(
+            "{}, {:.3} kg stage",
+            plan.controller.description,
+            stage.m1_kg + stage.m2_kg
+        ),
+        made_for: runner::config::made_for_plant(&plan.config.plant),
+    })
+}

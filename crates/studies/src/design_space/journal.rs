@@ -111,7 +111,7 @@ pub fn claim(study: &Study, dir: &Path) -> Result<(), StudyError> {
         Ok(held) => Err(foreign(
             &path,
             format!(
-                "this folder holds another study (SHA-256 {}, this one {}): choose another --out-dir, or remove the folder to start over",
+                "this folder holds another study (SHA-256 {}, this one {}): choose another output folder, or remove this one to start over",
                 &sha256_hex(&held)[..12],
                 &study.sha256[..12]
             ),

@@ -170,7 +170,7 @@ pub fn read_frf_csv(
             return Err(bad(
                 i + 1,
                 &format!(
-                    "quantity {q}: identification fits the plant P (an open-loop FRF, `servo frf --loop open`); this file holds {}",
+                    "quantity {q}: identification fits the plant P (an open-loop FRF: loop = open); this file holds {}",
                     line.split('(').nth(1).and_then(|d| d.split(')').next()).unwrap_or(q)
                 ),
             ));

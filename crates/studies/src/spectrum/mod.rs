@@ -185,7 +185,7 @@ impl FrameSink for SpectrumSink {
             Welch::new(fs_hz, &settings).map_err(|e| {
                 h.loaded
                     .origin
-                    .invalid("--resolution-hz", o.resolution_hz, &e.to_string())
+                    .invalid("resolution_hz", o.resolution_hz, &e.to_string())
             })
         };
         // The window is checked against the recording's own length when it has been read (a
@@ -198,11 +198,11 @@ impl FrameSink for SpectrumSink {
             .unwrap_or_else(|| config.run.settle() + o.swaps.last().map_or(0.0, swap_s));
         let at = runner::config::Origin::default();
         if !(from_s >= 0.0 && from_s.is_finite()) {
-            return Err(at.invalid("--from-s", from_s, "≥ 0 s").into());
+            return Err(at.invalid("from_s", from_s, "≥ 0 s").into());
         }
         if let Some(to_s) = o.to_s.filter(|&t| !(t > from_s && t.is_finite())) {
             return Err(at
-                .invalid("--to-s", to_s, &format!("> {from_s} s (--from-s)"))
+                .invalid("to_s", to_s, &format!("> {from_s} s (from_s)"))
                 .into());
         }
         self.estimates = Some(Estimates {
@@ -311,7 +311,7 @@ impl SpectrumSink {
             let end_s = e.last_ns as f64 * 1e-9;
             return Err(runner::config::Origin::default()
                 .invalid(
-                    "--from-s",
+                    "from_s",
                     from_s,
                     &format!(
                         "a window of at least one {segment_s} s segment before the recording's \
@@ -325,7 +325,7 @@ impl SpectrumSink {
         if let Some((ticks, at_s)) = e.lost {
             return Err(runner::config::Origin::default()
                 .invalid(
-                    "--from-s",
+                    "from_s",
                     from_s,
                     &format!(
                         "a window without lost ticks: the recording lacks {ticks} tick(s) in it, \

@@ -136,31 +136,31 @@ fn recovery(s: &Separation, truth: &[Vec<f64>; 3]) -> Recovery {
 }
 
 impl SpindleStudy {
-    /// Checks every value (the errors name the command-line flag).
+    /// Checks every value (the errors name the field).
     pub fn validate(&self) -> Result<(), ConfigError> {
         let bad = |key: &str, v: String, range: &str| Origin::default().invalid(key, v, range);
         if !(64..=1 << 20).contains(&self.per_rev) {
-            return Err(bad("--per-rev", self.per_rev.to_string(), "64..=1048576"));
+            return Err(bad("per_rev", self.per_rev.to_string(), "64..=1048576"));
         }
         if !(1..=10_000).contains(&self.revolutions) {
             return Err(bad(
-                "--revolutions",
+                "revolutions",
                 self.revolutions.to_string(),
                 "1..=10000",
             ));
         }
         if !(2..self.per_rev / 2).contains(&self.max_harmonic) {
             return Err(bad(
-                "--max-harmonic",
+                "max_harmonic",
                 self.max_harmonic.to_string(),
                 "2..per_rev/2",
             ));
         }
         for (key, v) in [
-            ("--artefact-rms-m", self.artefact_rms_m),
-            ("--motion-rms-m", self.motion_rms_m),
-            ("--asynchronous-rms-m", self.asynchronous_rms_m),
-            ("--probe-noise-m", self.probe_noise_rms_m),
+            ("artefact_rms_m", self.artefact_rms_m),
+            ("motion_rms_m", self.motion_rms_m),
+            ("asynchronous_rms_m", self.asynchronous_rms_m),
+            ("probe_noise_rms_m", self.probe_noise_rms_m),
         ] {
             if !(0.0..=1e-3).contains(&v) {
                 return Err(bad(key, v.to_string(), "[0, 1e-3] m"));
