@@ -47,6 +47,7 @@
 #define FTS_FLAG_FAULT_CONTROLLER (1u << 19)
 #define FTS_FLAG_FAULT_OVERRUN_BUDGET (1u << 20) /* the controller kept answering late */
 #define FTS_FLAG_NO_TELEMETRY (1u << 21) /* recordings: truth only, the telemetry was lost */
+#define FTS_FLAG_NO_TRUTH (1u << 22) /* truth records: the plant knows no truth (real hardware) */
 
 /* Control-plane commands (fts_Control.command). */
 #define FTS_COMMAND_STOP 1u

@@ -89,7 +89,7 @@ def script_of(block: str) -> str:
         # folder would miss the checkout's .cargo/config.toml and rebuild without it).
         line = re.sub(r"cargo run --release -p servo-cli --", "servo", line)
         line = re.sub(
-            r"cargo run --release -p [\w-]+ --example (\w+) --",
+            r"cargo run --release -p [\w-]+ (?:--features [\w,-]+ )?--example (\w+) --",
             lambda m: str(ROOT / "target" / "release" / "examples" / m.group(1)),
             line,
         )

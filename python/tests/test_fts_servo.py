@@ -212,7 +212,9 @@ def test_budget_and_synthesis_are_the_clis_numbers_from_the_same_function(tmp_pa
     """`servo budget --json` and `fs.budget`, `servo synth h2 --json` and `fs.synth_h2`: one
     library function each (studies::budget::analyse, studies::synth::synthesize), so the same
     numbers to the last bit — margins, stability range and the file included."""
-    cli = json.loads(servo("budget", "--json", "--mass", "heavy", "--out-dir", str(tmp_path / "b")).stdout)
+    cli = json.loads(
+        servo("budget", "--json", "--points", "400", "--mass", "heavy", "--out-dir", str(tmp_path / "b")).stdout
+    )
     ours = fs.budget(plant={"stage": {"m2_kg": 0.17}})
     assert ours["budget"] == cli["budget"] and ours["margins"] == cli["margins"]
     assert ours["margins"]["gain_margin_db"] > 6.0

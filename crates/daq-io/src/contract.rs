@@ -75,6 +75,10 @@ pub mod flags {
     /// controller's telemetry (lost in transport, or the controller was gone); the telemetry
     /// fields are zero, not the loop's.
     pub const NO_TELEMETRY: u32 = 1 << 21;
+    /// Truth records and recorded frames: the plant knows no truth (a DAQ daemon on real
+    /// hardware): the truth fields are zero but the command it applied; the true tool error is
+    /// not known.
+    pub const NO_TRUTH: u32 = 1 << 22;
     /// Every fault that ends a run at the plant.
     pub const PLANT_FAULTS: u32 = FAULT_PEER_LOST | FAULT_OVERRUN_BUDGET;
 }

@@ -32,6 +32,7 @@ fn constants() -> Vec<(&'static str, u64)> {
         f("FTS_FLAG_FAULT_CONTROLLER", flags::FAULT_CONTROLLER),
         f("FTS_FLAG_FAULT_OVERRUN_BUDGET", flags::FAULT_OVERRUN_BUDGET),
         f("FTS_FLAG_NO_TELEMETRY", flags::NO_TELEMETRY),
+        f("FTS_FLAG_NO_TRUTH", flags::NO_TRUTH),
         f("FTS_COMMAND_STOP", command::STOP),
         f("FTS_COMMAND_SET_GAIN_SCALE", command::SET_GAIN_SCALE),
         f("FTS_COMMAND_START", command::START),

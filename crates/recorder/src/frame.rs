@@ -172,8 +172,8 @@ impl Frame {
                 flags: (t.flags | truth.flags) as f32,
             },
             truth: Truth {
-                tool_m: truth.tool_m as f32,
-                true_error_m: (truth.tool_m - t.reference_m) as f32,
+                tool_m: known(truth, truth.tool_m),
+                true_error_m: known(truth, truth.tool_m - t.reference_m),
                 gap_m: truth.gap_m as f32,
                 motor_force_n: truth.motor_force_n as f32,
                 cutting_force_n: truth.cutting_force_n as f32,
@@ -184,6 +184,16 @@ impl Frame {
             },
         }
     }
+}
+
+/// `x` as recorded, or NaN where the plant knows no truth ([`daq_io::flags::NO_TRUTH`]).
+fn known(truth: &daq_io::Truth, x: f64) -> f32 {
+    if truth.flags & daq_io::flags::NO_TRUTH != 0 {
+        f32::NAN
+    } else {
+        x as f32
+    }
+
 }
 
 #[cfg(test)]

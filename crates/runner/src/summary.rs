@@ -19,6 +19,15 @@ pub struct Stats {
     pub mean: f64,
 }
 
+impl Stats {
+    /// Not known (NaN; `null` in JSON): a true error where the plant knows no truth.
+    pub const UNKNOWN: Stats = Stats {
+        rms: f64::NAN,
+        pv: f64::NAN,
+        mean: f64::NAN,
+    };
+}
+
 /// Running RMS, peak-to-valley and mean.
 #[derive(Debug, Clone, Copy)]
 pub struct Acc {
@@ -109,7 +118,9 @@ impl SummaryBuilder {
             return;
         }
         self.following.add(f.telemetry.following_error_m as f64);
-        self.truth.add(f.truth.true_error_m as f64);
+        if flags & daq_io::flags::NO_TRUTH == 0 {
+            self.truth.add(f.truth.true_error_m as f64);
+        }
         self.control.add(f.telemetry.control_v as f64);
         if flags & daq_io::flags::SATURATED != 0 {
             self.saturated += 1;
@@ -139,7 +150,12 @@ impl SummaryBuilder {
             simulated_s: self.last_ns as f64 * 1e-9,
             stats_ticks: self.following.n,
             following_error_m: self.following.stats(),
-            true_error_m: self.truth.stats(),
+            true_error_m: if self.truth.n == 0 && self.following.n > 0 {
+                // The plant knows no truth: not known, not zero.
+                Stats::UNKNOWN
+            } else {
+                self.truth.stats()
+            },
             control_v: self.control.stats(),
             saturated_ticks: self.saturated,
             adc_clipped_ticks: self.adc_clipped,
@@ -272,7 +288,14 @@ impl fmt::Display for Summary {
             "  following error (sensor)  {}",
             nm(&self.following_error_m)
         )?;
-        writeln!(f, "  true tool error           {}", nm(&self.true_error_m))?;
+        if self.true_error_m.rms.is_nan() {
+            writeln!(
+                f,
+                "  true tool error           not known (the plant knows no simulator truth)"
+            )?;
+        } else {
+            writeln!(f, "  true tool error           {}", nm(&self.true_error_m))?;
+        }
         writeln!(
             f,
             "  control output            RMS {:>8.4} V    saturated {} ticks",
@@ -325,7 +348,11 @@ impl fmt::Display for Summary {
                     l.max_ns as f64 * 1e-3
                 )
             };
-            let ticks = h.latency.count.max(1) as f64;
+            // Over the exchanges the plant timed; an embedding daemon has none: its ticks.
+            let ticks = match h.latency.count {
+                0 => self.ticks.max(1),
+                n => n,
+            } as f64;
             writeln!(
                 f,
                 "  {:<26}{} overruns ({:.4} %); round trip {}",

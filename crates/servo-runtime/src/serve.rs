@@ -560,6 +560,7 @@ impl Service {
                 seq: t.seq,
                 time_s: t.time_s,
                 dac_v: t.control_v,
+                flags: daq_io::flags::NO_TRUTH,
                 ..Default::default()
             };
             p.truth.push(truth_pub, truth);
