@@ -1,5 +1,5 @@
 /*
- * fts-servo sample contract, version 5: the messages plant, controller and recorder exchange
+ * fts-servo sample contract, version 6: the messages plant, controller and recorder exchange
  * over iceoryx2 (publish-subscribe services `fts-servo/<prefix>/<leaf>`), for a DAQ daemon
  * written in C or C++ (iceoryx2's C/C++ bindings).
  *
@@ -8,14 +8,14 @@
  * (crates/daq-io/tests/c_header.rs), so this file cannot drift from them.
  *
  * To interoperate, a peer must:
- *   - use the iceoryx2 type names "fts_servo::v5::<Type>" (FTS_SERVO_TYPE_NAME below) for
+ *   - use the iceoryx2 type names "fts_servo::v6::<Type>" (FTS_SERVO_TYPE_NAME below) for
  *     the services of its leaf (sensor: fts_Sensor, command: fts_Command, telemetry:
  *     fts_TelemetryBlock, truth: fts_TruthBlock, control: fts_Control, ack: fts_Ack,
  *     health: fts_Health, controller_load: fts_ControllerLoad, recorded: fts_Health);
  *   - in lockstep, a plant that waits for a recorder holds its ticks while the recorder's
  *     `recorded` report (role FTS_ROLE_RECORDER, ticks taken) lags by half the truth queue,
  *     so that a lockstep recording loses nothing (see crates/daq-io/src/recorder_pace.rs);
- *   - name its iceoryx2 node "fts-servo/v5/<prefix>/<role>" (role: plant, controller,
+ *   - name its iceoryx2 node "fts-servo/v6/<prefix>/<role>" (role: plant, controller,
  *     recorder, …): peers refuse a run whose nodes speak another contract version, naming both.
  * Units are SI; times in s; flags are the FTS_FLAG_* bits.
  */
@@ -24,8 +24,8 @@
 
 #include <stdint.h>
 
-#define FTS_SERVO_CONTRACT_VERSION 5
-#define FTS_SERVO_TYPE_NAME(type) "fts_servo::v5::" #type
+#define FTS_SERVO_CONTRACT_VERSION 6
+#define FTS_SERVO_TYPE_NAME(type) "fts_servo::v6::" #type
 #define FTS_SERVO_BLOCK_TICKS 64
 #define FTS_SERVO_MAX_LOAD_BYTES 65536
 
@@ -98,15 +98,18 @@ typedef struct fts_Command {
     uint32_t reserved;
 } fts_Command;
 
-/* What the controller saw and did over one tick. */
+/* What the controller saw and did on one tick: the reading it acted on (sample seq), the
+ * tick's reference, the errors it formed and its command (contract v6; v5 paired the
+ * reference with the next reading). */
 typedef struct fts_Telemetry {
     uint64_t seq;
-    double time_s;            /* end of the tick, run time, s */
-    double reference_m;       /* m */
-    double measured_m;        /* m */
-    double following_error_m; /* reference - measured, m */
-    double control_v;         /* V */
-    double accel_m_s2;        /* m/s^2 */
+    double time_s;             /* the reading's time (start of the tick), run time, s */
+    double reference_m;        /* the tick's reference, m */
+    double measured_m;         /* the reading the tick acted on, m */
+    double following_error_m;  /* reference - measured, m */
+    double controller_error_m; /* shaped reference (smoothing, ZPETC) - measured, m */
+    double control_v;          /* the tick's command, V */
+    double accel_m_s2;         /* m/s^2 */
     uint32_t flags;
     uint32_t reserved;
 } fts_Telemetry;

@@ -28,7 +28,7 @@ END = 1 << 16  # daq_io::flags::END
 
 
 class Telemetry(ctypes.Structure):
-    """daq_io::Telemetry: what the controller saw and did over one tick (SI units)."""
+    """daq_io::Telemetry: what the controller saw and did on one tick (SI units)."""
 
     _fields_ = [
         ("seq", ctypes.c_uint64),
@@ -36,6 +36,7 @@ class Telemetry(ctypes.Structure):
         ("reference_m", ctypes.c_double),
         ("measured_m", ctypes.c_double),
         ("following_error_m", ctypes.c_double),
+        ("controller_error_m", ctypes.c_double),
         ("control_v", ctypes.c_double),
         ("accel_m_s2", ctypes.c_double),
         ("flags", ctypes.c_uint32),
@@ -44,7 +45,7 @@ class Telemetry(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "fts_servo::v5::Telemetry"
+        return "fts_servo::v6::Telemetry"
 
 
 class TelemetryBlock(ctypes.Structure):
@@ -60,16 +61,16 @@ class TelemetryBlock(ctypes.Structure):
 
     @staticmethod
     def type_name() -> str:
-        return "fts_servo::v5::TelemetryBlock"
+        return "fts_servo::v6::TelemetryBlock"
 
 
 def open_subscriber(prefix: str):
     """Subscribes to fts-servo/<prefix>/telemetry with daq-io's settings for that service."""
-    # Named as every fts-servo process names its node (contract version 3), so peers see a
+    # Named as every fts-servo process names its node (contract version 6), so peers see a
     # tap of this version on the run.
     node = (
         iox2.NodeBuilder.new()
-        .name(iox2.NodeName.new(f"fts-servo/v5/{prefix}/tap-{os.getpid()}"))
+        .name(iox2.NodeName.new(f"fts-servo/v6/{prefix}/tap-{os.getpid()}"))
         .create(iox2.ServiceType.Ipc)
     )
     service = (

@@ -5,12 +5,12 @@
 //! [`TelemetryBlock`] with `ctypes`, and `include/fts_servo_contract.h` declares them for a C
 //! or C++ DAQ daemon (CI compiles a C file asserting every size and offset against these
 //! types). The layouts are versioned: [`CONTRACT_VERSION`] is in every iceoryx2 type name
-//! (`fts_servo::v5::…`) and in every node name, and a peer of another version is refused at
+//! (`fts_servo::v6::…`) and in every node name, and a peer of another version is refused at
 //! connect with both versions named ([`crate::ipc::Endpoint::open`]). Change a layout, bump
 //! the version (a test pins [`crate::layout::LAYOUT_FINGERPRINT`]).
 
 /// The version of the sample contract's layouts (every `#[repr(C)]` type here).
-pub const CONTRACT_VERSION: u32 = 5;
+pub const CONTRACT_VERSION: u32 = 6;
 
 #[cfg(feature = "ipc")]
 use iceoryx2::prelude::ZeroCopySend;
@@ -87,7 +87,7 @@ pub mod flags {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Sensor"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::Sensor"))]
 pub struct Sensor {
     /// Tick index (0 for the reading before the first command).
     pub seq: u64,
@@ -115,7 +115,7 @@ pub struct Sensor {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Command"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::Command"))]
 pub struct Command {
     /// The tick this command answers (the echoed [`Sensor::seq`]).
     pub seq: u64,
@@ -127,27 +127,38 @@ pub struct Command {
     pub reserved: u32,
 }
 
-/// What the controller saw and did over one tick (recorded on `/telemetry`).
+/// What the controller saw and did on one tick (recorded on `/telemetry`): the reading it
+/// acted on, the reference of that tick, the errors it formed and the command it gave.
+///
+/// Convention (contract v6): record `seq = k` pairs tick k's reference with the reading of
+/// sample k — the one the controller used — so `following_error_m` is `r − y` as the
+/// controller saw it. (Contract v5 paired the reference with the *next* reading; recordings
+/// say which convention they hold.)
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Telemetry"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::Telemetry"))]
 pub struct Telemetry {
     /// Tick index.
     pub seq: u64,
-    /// Time at the end of the tick in s since the run's first reading (run time).
+    /// Time of the reading the tick acted on (the start of the tick), in s since the run's
+    /// first reading (run time).
     pub time_s: f64,
-    /// Reference position in m.
+    /// Reference position of the tick in m (the desired tool position at the tick's end).
     pub reference_m: f64,
-    /// Measured position (gap reading / sensitivity) in m.
+    /// Measured position the tick acted on (gap reading / sensitivity) in m.
     pub measured_m: f64,
     /// Following error `reference − measured` in m.
     pub following_error_m: f64,
-    /// Command output in V.
+    /// The feedback's own error `shaped reference − measured` in m: the reference after
+    /// smoothing or ZPETC (equal to the following error without them, and while tripped).
+    pub controller_error_m: f64,
+    /// Command output of the tick in V.
     pub control_v: f64,
-    /// Accelerometer reading in m/s².
+    /// Accelerometer reading the tick acted on in m/s².
     pub accel_m_s2: f64,
-    /// Sensor flags plus the controller's (saturation, faults).
+    /// The sample's flags (its DAC bit is about the previous command) plus the controller's
+    /// for this tick's command (saturation, faults, trip).
     pub flags: u32,
     /// Reserved, 0.
     pub reserved: u32,
@@ -157,7 +168,7 @@ pub struct Telemetry {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Truth"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::Truth"))]
 pub struct Truth {
     /// Tick index.
     pub seq: u64,
@@ -195,7 +206,7 @@ pub const BLOCK_TICKS: usize = 64;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::TelemetryBlock"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::TelemetryBlock"))]
 pub struct TelemetryBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -213,7 +224,7 @@ pub struct TelemetryBlock {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::TruthBlock"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::TruthBlock"))]
 pub struct TruthBlock {
     /// Block index (consecutive; a gap means blocks were dropped).
     pub block: u64,
@@ -299,7 +310,7 @@ pub mod command {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Control"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::Control"))]
 pub struct Control {
     /// One of [`command`].
     pub command: u32,
@@ -329,7 +340,7 @@ pub mod ack_status {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Ack"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::Ack"))]
 pub struct Ack {
     /// The request's [`Control::id`].
     pub id: u64,
@@ -379,7 +390,7 @@ pub const MAX_LOAD_BYTES: usize = 65_536;
 #[derive(Clone, Copy)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::ControllerLoad"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::ControllerLoad"))]
 pub struct ControllerLoad {
     /// Request id the [`Ack`] echoes (nonzero).
     pub id: u64,
@@ -486,7 +497,7 @@ pub mod state {
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Latency"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::Latency"))]
 pub struct Latency {
     /// Exchanges measured.
     pub count: u64,
@@ -508,7 +519,7 @@ pub struct Latency {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[cfg_attr(feature = "ipc", derive(ZeroCopySend))]
 #[repr(C)]
-#[cfg_attr(feature = "ipc", type_name("fts_servo::v5::Health"))]
+#[cfg_attr(feature = "ipc", type_name("fts_servo::v6::Health"))]
 pub struct Health {
     /// One of [`role`].
     pub role: u32,

@@ -36,7 +36,7 @@ macro_rules! layouts {
 layouts! {
     Sensor { seq, time_s, gap_v, accel_v, encoder_count, flags, reserved, run_id, published_ns }
     Command { seq, dac_v, flags, reserved }
-    Telemetry { seq, time_s, reference_m, measured_m, following_error_m, control_v, accel_m_s2, flags, reserved }
+    Telemetry { seq, time_s, reference_m, measured_m, following_error_m, controller_error_m, control_v, accel_m_s2, flags, reserved }
     Truth { seq, time_s, tool_m, gap_m, motor_force_n, cutting_force_n, coil_current_a, current_noise_a, base_m, sensor_noise_v, dac_v, flags, reserved }
     TelemetryBlock { block, count, flags, run_id, ticks }
     TruthBlock { block, count, flags, run_id, ticks }
@@ -81,7 +81,7 @@ mod tests {
         // fingerprint.
         assert_eq!(
             (CONTRACT_VERSION, LAYOUT_FINGERPRINT),
-            (5, 0x0b6b_cb69_a4c3_b83d),
+            (6, 0xccba_2bb2_2bed_bcc7),
             "fingerprint {LAYOUT_FINGERPRINT:#018x}"
         );
     }

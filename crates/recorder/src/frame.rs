@@ -104,14 +104,17 @@ macro_rules! message {
 const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
 
 fields!(
-    /// What the controller knew this tick (all SI; the reference and measurement in m).
+    /// What the controller knew this tick (all SI; the reference and measurement in m): the
+    /// tick's reference with the reading it acted on.
     Telemetry {
     /// Reference position in m.
     reference_m,
-    /// Measured position (ADC gap reading / sensitivity) in m.
+    /// Measured position the tick acted on (ADC gap reading / sensitivity) in m.
     measured_m,
     /// Following error `reference − measured` in m.
     following_error_m,
+    /// The feedback's own error `shaped reference − measured` in m (after smoothing or ZPETC).
+    controller_error_m,
     /// Controller output (DAC command) in V.
     control_v,
     /// Accelerometer reading in m/s².
@@ -159,14 +162,15 @@ pub struct Frame {
 impl Frame {
     /// The frame of one tick: the controller's telemetry joined with the plant's truth (the
     /// one conversion from the f64 sample contract to the f32 recorded schemas; the flags of
-    /// both, [`daq_io::flags`] bits, are merged).
+    /// both, [`daq_io::flags`] bits, are merged), stamped at the tick's end (the truth's time).
     pub fn join(t: &daq_io::Telemetry, truth: &daq_io::Truth) -> Frame {
         Frame {
-            time_ns: (t.time_s * 1e9).round() as u64,
+            time_ns: (truth.time_s * 1e9).round() as u64,
             telemetry: Telemetry {
                 reference_m: t.reference_m as f32,
                 measured_m: t.measured_m as f32,
                 following_error_m: t.following_error_m as f32,
+                controller_error_m: t.controller_error_m as f32,
                 control_v: t.control_v as f32,
                 accel_m_s2: t.accel_m_s2 as f32,
                 flags: (t.flags | truth.flags) as f32,
@@ -193,7 +197,27 @@ fn known(truth: &daq_io::Truth, x: f64) -> f32 {
     } else {
         x as f32
     }
+}
 
+/// The recorded telemetry of a recording made before contract v6 (no `controller_error_m`;
+/// the reference paired with the next reading): its five signals and flags, the controller's
+/// error taken as the following error.
+pub(crate) fn legacy_telemetry(data: &[u8]) -> Option<Telemetry> {
+    let body = data.strip_prefix(&CDR_LE_HEADER[..])?;
+    if body.len() != 6 * 4 {
+        return None;
+    }
+    let mut f = floats(body);
+    let (reference_m, measured_m, following_error_m) = (f.next()?, f.next()?, f.next()?);
+    Some(Telemetry {
+        reference_m,
+        measured_m,
+        following_error_m,
+        controller_error_m: following_error_m,
+        control_v: f.next()?,
+        accel_m_s2: f.next()?,
+        flags: f.next()?,
+    })
 }
 
 #[cfg(test)]

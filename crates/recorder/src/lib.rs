@@ -28,5 +28,5 @@ pub use reader::{
 pub use writer::{
     check_target, create_private, partial_path, partial_path_of, Input, Overwrite, RecordError,
     RecordOptions, RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY,
-    EVERY_KEY, SYNC_INTERVAL,
+    EVERY_KEY, SYNC_INTERVAL, TELEMETRY_KEY, TELEMETRY_READING_USED,
 };

@@ -388,7 +388,9 @@ impl Streamer {
         match topic {
             Telemetry::TOPIC => {
                 self.messages += 1;
-                self.pending = Telemetry::decode(data).map(|t| (sequence, time_ns, t));
+                self.pending = Telemetry::decode(data)
+                    .or_else(|| crate::frame::legacy_telemetry(data))
+                    .map(|t| (sequence, time_ns, t));
             }
             Truth::TOPIC => {
                 self.messages += 1;

@@ -233,6 +233,7 @@ impl Recorder {
         let mut run = metadata;
         run.insert(EPOCH_KEY.into(), options.epoch_ns.to_string());
         run.insert(EVERY_KEY.into(), options.every.to_string());
+        run.insert(TELEMETRY_KEY.into(), TELEMETRY_READING_USED.into());
         w.metadata("run", &run).map_err(io)?;
         let mut environment = options.environment;
         environment.insert("started".into(), utc_now());
@@ -356,6 +357,15 @@ pub const EPOCH_KEY: &str = "log_time_epoch_ns";
 
 /// The `run` metadata key holding the full-rate decimation ([`RecordOptions::every`]).
 pub const EVERY_KEY: &str = "record_every";
+
+/// Key of the `run` metadata naming the telemetry convention of the recording's frames:
+/// [`TELEMETRY_READING_USED`] since contract v6; absent in older recordings, whose telemetry
+/// paired each tick's reference with the next reading.
+pub const TELEMETRY_KEY: &str = "telemetry";
+
+/// The contract-v6 telemetry: each tick's reference with the reading it acted on.
+pub const TELEMETRY_READING_USED: &str =
+    "reference with the reading the tick acted on (contract v6)";
 
 /// Now, as an RFC 3339 UTC time.
 fn utc_now() -> String {

@@ -50,7 +50,7 @@ fn npz_holds_every_recorded_value() {
     .unwrap();
     assert_eq!(done.rows, 5_000);
     let arrays = npz(&out);
-    assert_eq!(arrays.len(), 1 + 6 + 9);
+    assert_eq!(arrays.len(), 1 + 7 + 9);
     let (_, dtype, time) = &arrays[0];
     assert_eq!((arrays[0].0.as_str(), dtype.as_str()), ("time_s", "<f8"));
     let t: Vec<f64> = time

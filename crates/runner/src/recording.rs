@@ -152,6 +152,10 @@ pub struct RunHeader {
     pub inputs: BTreeMap<String, Vec<u8>>,
     /// Full-rate decimation the run was recorded with (every n-th tick; 1 = all).
     pub every: NonZeroU32,
+    /// Whether its telemetry pairs each tick's reference with the reading the tick acted on
+    /// (contract v6); false for older recordings, which paired it with the next reading (the
+    /// noise statistics agree; a moving reference's error reads one tick's motion apart).
+    pub reading_used: bool,
 }
 
 impl RunHeader {
@@ -292,6 +296,8 @@ impl<S: FrameSink> RunReader<'_, S> {
         };
         Ok(RunHeader {
             every,
+            reading_used: run.get(recorder::TELEMETRY_KEY).map(String::as_str)
+                == Some(recorder::TELEMETRY_READING_USED),
             controller: run
                 .get("controller")
                 .cloned()

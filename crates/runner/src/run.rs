@@ -49,7 +49,6 @@ pub fn run_with(
     let mut summary = SummaryBuilder::new(c.run.settle());
     let start = Instant::now();
     let mut daq = InProcess::new(backend, total);
-    let mut truth = daq_io::Truth::default();
     let mut reason = EndReason::Completed;
     loop {
         let s = daq.read().expect("in-process reads cannot fail");
@@ -62,6 +61,10 @@ pub fn run_with(
             }
         }
         let (command, telemetry) = servo.tick(&s);
+        let Some(command) = command else { break };
+        daq.write(command).expect("in-process writes cannot fail");
+        // The tick's telemetry with what the plant did over it.
+        let truth = daq.backend().truth().unwrap_or_default();
         if let Some(t) = telemetry {
             let frame = Frame::join(&t, &truth);
             summary.add(&frame);
@@ -75,9 +78,6 @@ pub fn run_with(
                 }
             }
         }
-        let Some(command) = command else { break };
-        daq.write(command).expect("in-process writes cannot fail");
-        truth = daq.backend().truth().unwrap_or_default();
         if servo.run_over() && reason == EndReason::Completed {
             // Tripped, and the safe state held long enough: the next sample closes the run.
             reason = EndReason::Tripped;

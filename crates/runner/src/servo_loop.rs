@@ -39,8 +39,8 @@ impl ServoLoop {
         Ok(ServoLoop { servo, surface })
     }
 
-    /// One tick for sample `s`: the command (None when `s` closes the run) and the telemetry
-    /// of the previous tick (None for the first sample). Allocation-free.
+    /// One tick for sample `s`: the command and the tick's telemetry (both None when `s` closes
+    /// the run). Allocation-free.
     #[inline]
     pub fn tick(&mut self, s: &Sensor) -> (Option<Command>, Option<Telemetry>) {
         let command = match &mut self.surface {

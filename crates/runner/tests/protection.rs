@@ -1,7 +1,9 @@
 //! Machine protection in whole closed-loop runs of the simulated prototype: each limit trips
 //! at the first tick its condition shows in the recorded frames (found independently here,
-//! from the frames), the loop then commands the configured safe state, the run ends
-//! `after_trip_s` later as `tripped`, and the summary names cause and tick.
+//! from the frames: the following error and the reading of a frame are what its tick acted
+//! on, so that tick trips; a saturated command is seen by the next), the loop then commands
+//! the configured safe state, the run ends `after_trip_s` later as `tripped`, and the summary
+//! names cause and tick.
 
 use daq_io::flags;
 use recorder::Frame;
@@ -60,14 +62,15 @@ fn assert_tripped(
 #[test]
 fn a_step_beyond_the_following_error_limit_trips_to_zero_volts() {
     let run = step_run(22e-6, |_| {});
-    // The first tick whose following error passed 20 µm; its command was the last normal one.
+    // The first tick whose following error (its reference with the reading it acted on) passed
+    // 20 µm trips: its own command is already the safe state.
     let over = run
         .1
         .iter()
         .position(|f| f.telemetry.following_error_m.abs() > 20e-6)
         .unwrap();
-    assert_tripped(&run, "following-error", over + 1, |_| 0.0);
-    assert_ne!(bits(&run.1[over + 1]) & flags::TRIP_FOLLOWING_ERROR, 0);
+    assert_tripped(&run, "following-error", over, |_| 0.0);
+    assert_ne!(bits(&run.1[over]) & flags::TRIP_FOLLOWING_ERROR, 0);
     // Below the limit, the same step runs to its end untripped.
     let (ok, frames) = step_run(18e-6, |_| {});
     assert!(ok.trip.is_none() && frames.iter().all(|f| bits(f) & flags::TRIPPED == 0));
@@ -86,7 +89,7 @@ fn a_clipped_gap_reading_trips_and_the_tool_stays_in_reach() {
         .iter()
         .position(|f| bits(f) & flags::GAP_CLIPPED != 0)
         .unwrap();
-    assert_tripped(&run, "sensor-range", clipped + 1, |_| 0.0);
+    assert_tripped(&run, "sensor-range", clipped, |_| 0.0);
     // Unprotected, the blind loop drives the tool millimetres (the 2.7 mm); tripped,
     // it coasts from where the clip caught it (≈ 0.14 mm) and springs back.
     let worst = |frames: &[Frame]| {
@@ -114,9 +117,10 @@ fn a_position_limit_trips_inside_the_sensor_range_and_holds_the_command() {
         .iter()
         .position(|f| f.telemetry.measured_m.abs() > 0.5e-6)
         .unwrap();
-    let held = run.1[over].telemetry.control_v as f64;
+    // The tick that read it trips and holds the last normal command, the tick before's.
+    let held = run.1[over - 1].telemetry.control_v as f64;
     assert!(held.abs() > 1e-3 && held.abs() < 10.0, "{held} V");
-    assert_tripped(&run, "sensor-range", over + 1, |_| held);
+    assert_tripped(&run, "sensor-range", over, |_| held);
 }
 
 #[test]

@@ -19,15 +19,17 @@ fn sample(seq: u64, gap_v: f64) -> Sensor {
 #[test]
 fn a_nan_reading_gives_zero_volts_and_a_fault_flag() {
     let mut servo = ServoLoop::new(&Plan::new(&Loaded::default()).unwrap()).unwrap();
-    let (c, _) = servo.tick(&sample(0, 0.01));
+    let (c, t) = servo.tick(&sample(0, 0.01));
     let c = c.unwrap();
     assert!(c.dac_v != 0.0 && c.flags & flags::FAULT_CONTROLLER == 0);
+    // The telemetry of tick 0 (before the bad reading) is clean.
+    assert_eq!(t.unwrap().flags & flags::FAULT_CONTROLLER, 0);
     let (c, t) = servo.tick(&sample(1, f64::NAN));
     let c = c.unwrap();
     assert_eq!(c.dac_v, 0.0);
     assert_ne!(c.flags & flags::FAULT_CONTROLLER, 0);
-    // Telemetry of tick 0 (before the bad reading) is clean.
-    assert_eq!(t.unwrap().flags & flags::FAULT_CONTROLLER, 0);
+    // The tick that read it says so.
+    assert_ne!(t.unwrap().flags & flags::FAULT_CONTROLLER, 0);
     // Latched: good readings afterwards still give 0 V, and the command and the telemetry of
     // every tick from the bad one on carry the flag.
     for k in 2..10 {

@@ -476,7 +476,7 @@ impl Service {
                         stop_cause,
                     } => {
                         while let Ok(t) = telemetry.pop() {
-                            Self::publish(&mut p, t);
+                            self.publish(&mut p, t);
                         }
                         p.telemetry
                             .flush(&p.telemetry_pub, daq_io::flags::END | faults);
@@ -498,7 +498,7 @@ impl Service {
                 while let Ok(t) = telemetry.pop() {
                     idle = false;
                     last_tick = t.seq;
-                    Self::publish(&mut p, t);
+                    self.publish(&mut p, t);
                 }
             }
             while let Some(c) = take(&p.control) {
@@ -552,13 +552,13 @@ impl Service {
     }
 
     /// Publishes telemetry record `t` (and, for a daemon, the plant's record of the tick: the
-    /// command it applied).
-    fn publish(p: &mut Ports, t: Telemetry) {
+    /// command it applied, at the tick's end).
+    fn publish(&self, p: &mut Ports, t: Telemetry) {
         p.telemetry.push(&p.telemetry_pub, t);
         if let Some(truth_pub) = &p.truth_pub {
             let truth = Truth {
                 seq: t.seq,
-                time_s: t.time_s,
+                time_s: t.time_s + self.period_s,
                 dac_v: t.control_v,
                 flags: daq_io::flags::NO_TRUTH,
                 ..Default::default()

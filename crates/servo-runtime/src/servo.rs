@@ -31,7 +31,7 @@ pub struct Status {
     pub stop: Option<u32>,
     /// The output scale in force (dimensionless, 1 as deployed).
     pub gain_scale: f64,
-    /// Ticks whose command was at the output limit or clipped at the DAC.
+    /// Ticks whose command was at the output limit.
     pub saturated_ticks: u64,
     /// Controllers handed over while running ([`Servo::load`], `servo ctl load`).
     pub handovers: u64,
@@ -143,8 +143,7 @@ impl Servo {
     }
 
     /// One tick on the deployment's own reference: reads sample `k`, returns command `k`.
-    /// A sample flagged [`flags::END`] closes the run: its command is 0 V with `END` and only
-    /// the last tick's telemetry is completed.
+    /// A sample flagged [`flags::END`] closes the run: its command is 0 V with `END`.
     #[inline]
     pub fn tick(&mut self, sample: &Sensor) -> Command {
         #[cfg(feature = "std")]
@@ -197,11 +196,11 @@ impl Servo {
     #[inline]
     fn account(&mut self, sample: &Sensor, command: &Command) {
         let st = &mut self.status;
-        if let Some(t) = &self.last {
-            st.saturated_ticks += u64::from(t.flags & flags::SATURATED != 0);
-        }
         if command.flags & flags::END != 0 {
             return;
+        }
+        if let Some(t) = &self.last {
+            st.saturated_ticks += u64::from(t.flags & flags::SATURATED != 0);
         }
         st.ticks += 1;
         let trip = self.core.trip().map(|(cause, tick)| Trip { cause, tick });
@@ -213,9 +212,9 @@ impl Servo {
         st.trip_settled = self.core.trip_settled(sample.seq);
     }
 
-    /// The telemetry the last tick completed: tick k−1's record (reference, measurement,
-    /// following error, command, acceleration, flags), completed by sample k. None before the
-    /// second sample.
+    /// The last tick's telemetry: its reference, the reading it acted on, the following error
+    /// and the feedback's own error, its command and flags. None before the first tick and
+    /// after a closing sample.
     pub fn telemetry(&self) -> Option<&Telemetry> {
         self.last.as_ref()
     }

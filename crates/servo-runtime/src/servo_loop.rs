@@ -25,9 +25,10 @@ pub(crate) type Slot = Controller;
 /// bandwidth, so the new controller's own states take over without a kick).
 pub const HANDOVER_TIME_CONSTANT_S: f64 = 5e-3;
 
-/// The controller's half of a tick: reads tick k's sample, returns tick k's command and the
-/// telemetry of tick k−1 (what the sample at its end showed). A non-finite reading latches the
-/// controller's fault: [`flags::FAULT_CONTROLLER`] on the command and telemetry, and a trip.
+/// The controller's half of a tick: reads tick k's sample, returns tick k's command and its
+/// telemetry (the tick's reference with the reading it acted on). A non-finite reading latches
+/// the controller's fault: [`flags::FAULT_CONTROLLER`] on the command and telemetry, and a
+/// trip.
 /// Machine protection checks every sample; once tripped, the command is the configured safe
 /// state and carries [`flags::TRIPPED`] with the cause's bit (0 V on a fault when protection
 /// is disabled).
@@ -37,10 +38,7 @@ pub(crate) struct ServoLoop {
     feedforward: Feedforward,
     window: Window,
     primed: bool,
-    r: f64,
     last_u: f64,
-    /// Whether any block had latched a fault after the last command.
-    last_fault: bool,
     /// The command came out non-finite once (latched like a block fault).
     output_fault: bool,
     /// The protection flags of the last command.
@@ -88,9 +86,7 @@ impl ServoLoop {
             feedforward,
             window,
             primed: false,
-            r: 0.0,
             last_u: 0.0,
-            last_fault: false,
             output_fault: false,
             last_trip_flags: 0,
             protection: Protection::new(&d.protection, d.servo_rate_hz, d.stage.dc_gain_m_per_v),
@@ -157,7 +153,6 @@ impl ServoLoop {
         self.controller.reset();
         self.feedforward.reset();
         self.output_fault = false;
-        self.last_fault = false;
         self.last_trip_flags = 0;
         self.rearm = true;
     }
@@ -188,81 +183,81 @@ impl ServoLoop {
         self.window.push(ahead);
     }
 
-    /// One tick for sample `s` with the trajectory `source`: the command (None when `s`
-    /// closes the run) and the telemetry of the previous tick (None for the first sample).
+    /// One tick for sample `s` with the trajectory `source`: the command and the tick's
+    /// telemetry (its reference with the reading it acted on); both None when `s` closes the
+    /// run.
     #[inline]
     pub(crate) fn tick<R: Reference + ?Sized>(
         &mut self,
         s: &Sensor,
         source: &mut R,
     ) -> (Option<Command>, Option<Telemetry>) {
-        let faulted = self.last_fault;
-        let telemetry = (s.seq > 0).then(|| {
-            let measured = s.gap_v / self.sensitivity;
-            let saturated = libm::fabs(self.last_u) >= self.controller.limit_v
-                || s.flags & flags::DAC_CLIPPED != 0;
-            Telemetry {
-                seq: s.seq - 1,
-                time_s: s.time_s,
-                reference_m: self.r,
-                measured_m: measured,
-                following_error_m: self.r - measured,
-                control_v: self.last_u,
-                accel_m_s2: s.accel_v * self.accel_scale,
-                flags: (s.flags & !flags::END)
-                    | if saturated { flags::SATURATED } else { 0 }
-                    | if faulted { flags::FAULT_CONTROLLER } else { 0 }
-                    | self.last_trip_flags,
-                reserved: 0,
-            }
-        });
         if s.flags & flags::END != 0 {
-            return (None, telemetry);
+            return (None, None);
         }
-        if let Some(t) = &telemetry {
-            let seen = Observation {
-                following_error_m: t.following_error_m,
-                measured_m: t.measured_m,
-                gap_clipped: s.flags & flags::GAP_CLIPPED != 0,
-                saturated: t.flags & flags::SATURATED != 0,
-            };
-            self.protection.watch(s.seq, &seen, self.last_u);
-        }
+        let measured = s.gap_v / self.sensitivity;
         self.advance(s, source);
         let desired = self.window.at(0);
+        let following = desired - measured;
+        let seen = Observation {
+            following_error_m: following,
+            measured_m: measured,
+            gap_clipped: s.flags & flags::GAP_CLIPPED != 0,
+            // The previous command: at its limit, or clipped at the DAC (this sample's bit).
+            saturated: s.seq > 0
+                && (libm::fabs(self.last_u) >= self.controller.limit_v
+                    || s.flags & flags::DAC_CLIPPED != 0),
+        };
+        self.protection.watch(s.seq, &seen, self.last_u);
         // The controller runs until the loop trips; a fault it latches trips it now.
         let raw = self.protection.trip().is_none().then(|| {
-            let u = self.control(s);
+            let (u, shaped) = self.control(s);
             self.output_fault |= !u.is_finite();
-            u
+            (u, shaped)
         });
         let fault = self.fault(source.faulted());
         if let (Some(cause), Some(_)) = (fault, raw) {
             self.protection.fault(cause, s.seq, self.last_u);
         }
         let u = match raw {
-            Some(u) if fault.is_none() => u,
+            Some((u, _)) if fault.is_none() => u,
             _ if self.protection.trip().is_some() => self.protection.safe_command(),
             _ => 0.0, // a fault with protection disabled
         };
         let faulted = fault.is_some();
         self.last_u = u;
-        self.last_fault = faulted;
         self.last_trip_flags = self.protection.flags();
-        self.r = desired;
+        let controller_flags =
+            if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.last_trip_flags;
+        let saturated = libm::fabs(u) >= self.controller.limit_v;
+        let telemetry = Telemetry {
+            seq: s.seq,
+            time_s: s.time_s,
+            reference_m: desired,
+            measured_m: measured,
+            following_error_m: following,
+            controller_error_m: raw.map_or(following, |(_, shaped)| shaped - measured),
+            control_v: u,
+            accel_m_s2: s.accel_v * self.accel_scale,
+            flags: (s.flags & !flags::END)
+                | if saturated { flags::SATURATED } else { 0 }
+                | controller_flags,
+            reserved: 0,
+        };
         let command = Command {
             seq: s.seq,
             dac_v: u,
-            flags: if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.last_trip_flags,
+            flags: controller_flags,
             reserved: 0,
         };
-        (Some(command), telemetry)
+        (Some(command), Some(telemetry))
     }
 
     /// The controller's command for sample `s` (feedback on the smoothed reference plus the
-    /// feedforward, scaled and clamped to the output limit), in V.
+    /// feedforward, scaled and clamped to the output limit), in V, and the shaped reference the
+    /// feedback followed, in m.
     #[inline]
-    fn control(&mut self, s: &Sensor) -> f64 {
+    fn control(&mut self, s: &Sensor) -> (f64, f64) {
         let (reference, u_ff) = self.feedforward.evaluate(&self.window, self.period_s);
         let (error_v, accel_v) = (reference * self.sensitivity - s.gap_v, s.accel_v);
         let mut raw = self.controller.update(error_v, accel_v);
@@ -292,6 +287,9 @@ impl ServoLoop {
         let handover = self.handover_v;
         self.handover_v *= self.handover_decay;
         let limit = self.controller.limit_v;
-        (raw * self.gain_scale + handover + u_ff).clamp(-limit, limit)
+        (
+            (raw * self.gain_scale + handover + u_ff).clamp(-limit, limit),
+            reference,
+        )
     }
 }

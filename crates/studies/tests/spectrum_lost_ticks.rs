@@ -21,6 +21,7 @@ fn spectrum_of(skipped: &[u64], no_telemetry: &[u64]) -> Result<(), String> {
         controller: "PID".into(),
         inputs: BTreeMap::new(),
         every: NonZeroU32::MIN,
+        reading_used: true,
     };
     let mut sink = SpectrumSink::new(SpectrumOptions {
         resolution_hz: 20.0,

@@ -15,6 +15,7 @@ pub fn frames(n: usize) -> Vec<Frame> {
                     reference_m: (1e-9 * (t * 300.0).sin()) as f32,
                     measured_m: k as f32 * 1e-12,
                     following_error_m: -1e-10,
+                    controller_error_m: -2e-10,
                     control_v: 0.1,
                     accel_m_s2: 0.0,
                     flags: (k % 3) as f32,

@@ -228,6 +228,7 @@ impl FrameSink for SpectrumSink {
         // The controller in the loop at the window's start, and any swap inside the window.
         let running = o.swaps.iter().rev().find(|w| swap_s(w) <= from_s);
         let to_s = o.to_s.unwrap_or(f64::INFINITY);
+        let moving = !matches!(config.scenario, runner::config::Scenario::Hold);
         let window_note = o
             .swaps
             .iter()
@@ -235,9 +236,17 @@ impl FrameSink for SpectrumSink {
             .map(|w| {
                 format!(
                     "a controller was swapped in at {:.3} s, inside the window: the budget is \
-                     for the one before it (choose --from-s / --to-s on one side)",
+                     for the one before it (choose from_s / to_s on one side)",
                     swap_s(w)
                 )
+            })
+            .or_else(|| {
+                (!h.reading_used && moving).then(|| {
+                    "recorded before contract v6: its following error pairs each tick's \
+                     reference with the next reading, so a moving reference adds a tick of its \
+                     motion to it (the noise is unaffected)"
+                        .to_owned()
+                })
             });
         let swapped_at_s = o.swaps.iter().map(swap_s).collect();
         self.prediction = if every > 1 {
