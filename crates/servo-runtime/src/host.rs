@@ -1,13 +1,11 @@
-//! What a [`Servo`] does beside the tick on a host with the standard library: it times each
-//! tick (start lateness after the sample was taken, execution), keeps what the loop was made
-//! for, and — once served — exchanges telemetry, health and control-plane requests with the
-//! service thread over lock-free rings.
+//! What a [`crate::Servo`] keeps beside the tick on a host with the standard library: each
+//! tick's timing (start lateness after the sample was taken, execution), what the loop was made
+//! for, the controller it runs.
 
-use crate::servo::Servo;
 use daq_io::clock::monotonic_ns;
 use daq_io::{Latency, Sensor, TickStats};
 
-/// Tick timing of a loop ([`Servo::timing`]), percentiles in ns.
+/// Tick timing of a loop ([`crate::Servo::timing`]), percentiles in ns.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Timing {
     /// Each tick's start after its sample was taken ([`Sensor::published_ns`]), plus a period
@@ -17,20 +15,18 @@ pub struct Timing {
     pub execution: Latency,
 }
 
-/// The host side of a [`Servo`].
+/// The host side of a [`crate::Servo`].
 pub(crate) struct Host {
     stats: TickStats,
     period_ns: u64,
     expected_seq: u64,
     overruns: u64,
-    /// Telemetry dropped by a service that has ended.
+    /// Telemetry dropped by services that have ended.
     #[cfg(feature = "serve")]
     pub(crate) dropped: u64,
     pub(crate) made_for: Option<crate::file::MadeFor>,
     /// The controller the loop runs (a loaded state-space file takes its output limit).
     pub(crate) spec: crate::deployment::ControllerSpec,
-    #[cfg(feature = "serve")]
-    pub(crate) link: Option<crate::serve::Link>,
 }
 
 impl Host {
@@ -44,8 +40,6 @@ impl Host {
             dropped: 0,
             made_for: None,
             spec: d.controller.clone(),
-            #[cfg(feature = "serve")]
-            link: None,
         }
     }
 
@@ -62,7 +56,7 @@ impl Host {
 
     /// Records the timing of the tick of `sample` that started at `started_ns`.
     #[inline]
-    fn record(&mut self, sample: &Sensor, started_ns: u64) {
+    pub(crate) fn record(&mut self, sample: &Sensor, started_ns: u64) {
         // Tick 0 sets things up (connections, caches): it is not timed.
         if started_ns == 0 || sample.seq == 0 {
             return;
@@ -83,41 +77,11 @@ impl Host {
         self.overruns
     }
 
-    /// Telemetry records the service ring dropped.
-    pub(crate) fn telemetry_dropped(&self) -> u64 {
-        #[cfg(feature = "serve")]
-        {
-            self.dropped + self.link.as_ref().map_or(0, |l| l.dropped())
-        }
-        #[cfg(not(feature = "serve"))]
-        {
-            0
-        }
-    }
-
+    /// Percentiles of the tick timing so far.
     pub(crate) fn timing(&self) -> Timing {
         Timing {
             lateness: self.stats.lateness.summary(),
             execution: self.stats.execution.summary(),
         }
-    }
-}
-
-impl Servo {
-    /// After the tick of `sample` (started at `started_ns`): its timing and, when served, the
-    /// exchange with the service thread.
-    #[inline]
-    pub(crate) fn after_tick(&mut self, sample: &Sensor, started_ns: u64) {
-        self.host.record(sample, started_ns);
-        #[cfg(feature = "serve")]
-        crate::serve::after_tick(self, sample);
-        #[cfg(not(feature = "serve"))]
-        let _ = sample;
-    }
-
-    /// Percentiles of the tick timing so far (ticks whose sample carried
-    /// [`Sensor::published_ns`]; nothing is timed otherwise).
-    pub fn timing(&self) -> Timing {
-        self.host.timing()
     }
 }

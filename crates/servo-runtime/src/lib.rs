@@ -52,6 +52,7 @@ mod protection;
 mod reference;
 mod servo;
 mod servo_loop;
+mod status;
 
 #[cfg(feature = "std")]
 mod file;
@@ -71,8 +72,9 @@ pub use deployment::{
 };
 pub use protection::TripCause;
 pub use reference::Reference;
-pub use servo::{GainRefused, Servo, Status, Trip};
+pub use servo::Servo;
 pub use servo_loop::HANDOVER_TIME_CONSTANT_S;
+pub use status::{GainRefused, Status, Trip};
 
 #[cfg(feature = "std")]
 pub use file::{

@@ -105,7 +105,8 @@ impl Vet for CarriedCheck {
     }
 }
 
-/// A vetted controller built for the loop (`stage`, `period_s`), boxed to cross threads.
+/// A vetted controller built for the loop (`stage`, `period_s`), boxed to cross threads (and
+/// so that the one it replaces is freed off the ticking thread).
 pub(crate) fn build(v: &Vetted, stage: &Stage, period_s: f64) -> Result<Box<Controller>, Invalid> {
     crate::deployment::check_controller(&v.spec, 1.0 / period_s)?;
     Controller::build(&v.spec, stage, period_s).map(Box::new)
@@ -131,41 +132,4 @@ pub enum LoadError {
         /// The highest.
         high: f64,
     },
-}
-
-impl crate::Servo {
-    /// Loads the controller file `file` (UTF-8 TOML: a `[controller]` table, or a state-space
-    /// file as `servo synth` writes it) into the running loop: checked by the deployment's rule
-    /// (made for this plant and rate, carrying its offline stability check, whose range allows
-    /// the output scale in force), built, and handed over bumplessly at the next tick. Parses
-    /// and allocates on the calling thread: call it between ticks from a thread that may, or
-    /// let [`crate::Servo::serve`] take loads (`servo ctl load`) on its own thread.
-    pub fn load(&mut self, file: &[u8]) -> Result<(), LoadError> {
-        let check = CarriedCheck {
-            made_for: self.host.made_for.clone(),
-            servo_rate_hz: 1.0 / self.period_s(),
-            running: self.host.spec.clone(),
-        };
-        let v = check.vet(file).map_err(LoadError::Refused)?;
-        let scale = self.status().gain_scale;
-        if !v.stability.allows(scale) {
-            return Err(LoadError::Margin {
-                scale,
-                low: v.stability.low(),
-                high: v.stability.high(),
-            });
-        }
-        let at = Origin {
-            path: Some(LOADED_FILE.into()),
-            text: std::str::from_utf8(file).ok().map(str::to_owned),
-        };
-        let controller = build(&v, self.stage(), self.period_s())
-            .map_err(|e| LoadError::Invalid(at.located(&e)))?;
-        // The controller the last load replaced is freed here, off the tick.
-        drop(self.core_mut().take_replaced());
-        self.core_mut().hand_over(controller);
-        self.set_stability(v.stability);
-        self.host.spec = v.spec;
-        Ok(())
-    }
 }

@@ -10,9 +10,10 @@
 
 use crate::controller::Controller;
 use crate::deployment::{Stability, Stage};
-use crate::host::Timing;
-use crate::load::{self, CarriedCheck, Refusal, Vet};
-use crate::servo::Servo;
+use crate::host::{Host, Timing};
+use crate::load::{self, Refusal, Vet};
+use crate::servo_loop::ServoLoop;
+use crate::status::Status;
 use daq_io::contract::{command, role, state};
 use daq_io::ipc::{leaf, take, BlockWriter, Endpoint, IpcError, Sender};
 use daq_io::{
@@ -33,7 +34,7 @@ const TELEMETRY_RING: usize = 1 << 17;
 /// How the service thread sleeps when there is nothing to do.
 const IDLE: Duration = Duration::from_micros(200);
 
-/// How a loop is served ([`Servo::serve_with`]).
+/// How a loop is served ([`crate::Servo::serve_with`]).
 pub struct ServeOptions {
     /// This process closes the loop on its own hardware (an embedding daemon): it holds the
     /// run's `plant` and `controller` roles, takes STOP and START, and publishes the plant's
@@ -41,7 +42,7 @@ pub struct ServeOptions {
     /// controller process of a HIL run whose plant is another process.
     pub serves_plant: bool,
     /// The check a loaded controller passes (None: the deployment's own rule,
-    /// [`CarriedCheck`]: made for this plant and carrying its offline stability check).
+    /// [`crate::CarriedCheck`]: made for this plant and carrying its offline stability check).
     pub vet: Option<Box<dyn Vet>>,
     /// Wait up to this long for a recorder to subscribe before `serve` returns (0: do not).
     pub wait_for_recorder: Duration,
@@ -92,6 +93,15 @@ enum Request {
     },
 }
 
+/// How a served run ended (the final health report).
+pub(crate) struct End {
+    pub(crate) ticks: u64,
+    pub(crate) overruns: u64,
+    pub(crate) timing: Timing,
+    pub(crate) faults: u32,
+    pub(crate) stop_cause: u32,
+}
+
 /// Ticking thread → service thread.
 enum Event {
     Started {
@@ -113,13 +123,7 @@ enum Event {
         overruns: u64,
         timing: Timing,
     },
-    End {
-        ticks: u64,
-        overruns: u64,
-        timing: Timing,
-        faults: u32,
-        stop_cause: u32,
-    },
+    End(End),
 }
 
 /// The ticking thread's end of the rings.
@@ -142,20 +146,26 @@ impl Link {
     }
 }
 
+/// The parts of a [`crate::Servo`] the exchange after a tick reads and changes.
+pub(crate) struct TickView<'a> {
+    pub(crate) core: &'a mut ServoLoop,
+    pub(crate) status: &'a mut Status,
+    pub(crate) stability: &'a mut Option<Stability>,
+    pub(crate) telemetry: Option<&'a Telemetry>,
+    pub(crate) host: &'a Host,
+}
+
 /// After each tick: telemetry out, requests in, handovers acknowledged, health every
 /// [`SERVICE_TICKS`].
 #[inline]
-pub(crate) fn after_tick(servo: &mut Servo, sample: &Sensor) {
-    let Some(mut link) = servo.host.link.take() else {
-        return;
-    };
+pub(crate) fn after_tick(link: &mut Link, sample: &Sensor, v: TickView<'_>) {
     if !link.started {
         link.started = true;
         let _ = link.events.push(Event::Started {
             run_id: sample.run_id,
         });
     }
-    if let Some(t) = servo.telemetry() {
+    if let Some(t) = v.telemetry {
         // A full ring drops the record (counted; the recorder sees the gap); the tick never
         // waits.
         if link.telemetry.push(*t).is_err() {
@@ -163,9 +173,9 @@ pub(crate) fn after_tick(servo: &mut Servo, sample: &Sensor) {
         }
     }
     if let Some((id, radius)) = link.pending {
-        if let Some(tick) = servo.core_mut().handed_over_at() {
+        if let Some(tick) = v.core.handed_over_at() {
             link.pending = None;
-            let replaced = servo.core_mut().take_replaced();
+            let replaced = v.core.take_replaced();
             let _ = link.events.push(Event::Loaded {
                 id,
                 tick,
@@ -177,7 +187,8 @@ pub(crate) fn after_tick(servo: &mut Servo, sample: &Sensor) {
     while let Ok(request) = link.requests.pop() {
         match request {
             Request::Gain { id, scale } => {
-                servo.apply_gain(scale);
+                v.core.set_gain_scale(scale);
+                v.status.gain_scale = scale;
                 let _ = link.events.push(Event::Gain {
                     id,
                     tick: sample.seq + 1,
@@ -190,113 +201,93 @@ pub(crate) fn after_tick(servo: &mut Servo, sample: &Sensor) {
                 stability,
                 radius,
             } => {
-                servo.core_mut().hand_over(controller);
-                servo.set_stability(stability);
+                // Only one load is in flight (the service refuses others meanwhile).
+                let _ = v.core.hand_over(controller);
+                *v.stability = Some(stability);
                 link.pending = Some((id, radius));
             }
-            Request::Stop { cause } => servo.request_stop(cause),
+            Request::Stop { cause } => {
+                v.status.stop.get_or_insert(cause);
+            }
         }
     }
     if sample.seq.is_multiple_of(SERVICE_TICKS) {
         let _ = link.events.push(Event::Health {
-            ticks: servo.status().ticks,
-            overruns: servo.status().overruns,
-            timing: servo.timing(),
+            ticks: v.status.ticks,
+            overruns: v.host.overruns(),
+            timing: v.host.timing(),
         });
     }
-    servo.host.link = Some(link);
 }
 
-impl Servo {
-    /// Serves this loop on run `prefix` as an embedding daemon ([`ServeOptions::default`]):
-    /// telemetry, health and the control plane over iceoryx2 from a thread of its own.
-    pub fn serve(&mut self, prefix: &str) -> Result<(), ServeError> {
-        self.serve_with(prefix, ServeOptions::default())
-    }
+/// What the service needs to know of the loop it serves.
+pub(crate) struct Setup {
+    pub(crate) prefix: String,
+    pub(crate) serves_plant: bool,
+    pub(crate) wait_for_recorder: Duration,
+    pub(crate) linger: Duration,
+    pub(crate) vet: Box<dyn Vet>,
+    pub(crate) stage: Stage,
+    pub(crate) period_s: f64,
+    pub(crate) stability: Option<Stability>,
+    pub(crate) scale: f64,
+}
 
-    /// [`Servo::serve`] with `options`. Returns once the service is up (the run's roles held,
-    /// the ports open, a recorder subscribed if asked to wait for one).
-    pub fn serve_with(&mut self, prefix: &str, options: ServeOptions) -> Result<(), ServeError> {
-        if self.host.link.is_some() {
-            return Err(ServeError::AlreadyServed);
+/// Starts the service thread of `setup`; returns once it is up.
+pub(crate) fn start(setup: Setup) -> Result<Link, ServeError> {
+    let (telemetry, telemetry_rx) = RingBuffer::new(TELEMETRY_RING);
+    let (events, events_rx) = RingBuffer::new(64);
+    let (requests_tx, requests) = RingBuffer::new(8);
+    let service = Service {
+        prefix: setup.prefix,
+        serves_plant: setup.serves_plant,
+        wait_for_recorder: setup.wait_for_recorder,
+        linger: setup.linger,
+        vet: setup.vet,
+        stage: setup.stage,
+        period_s: setup.period_s,
+        stability: setup.stability,
+        scale: setup.scale,
+        tick_cpus: daq_io::realtime::current_cpus(),
+    };
+    let (ready_tx, ready) = mpsc::sync_channel(1);
+    let thread = std::thread::Builder::new()
+        .name("servo-service".into())
+        .spawn(move || service.run(telemetry_rx, events_rx, requests_tx, ready_tx))
+        .map_err(|_| ServeError::Lost)?;
+    match ready.recv() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => {
+            let _ = thread.join();
+            return Err(e.into());
         }
-        let (telemetry, telemetry_rx) = RingBuffer::new(TELEMETRY_RING);
-        let (events, events_rx) = RingBuffer::new(64);
-        let (requests_tx, requests) = RingBuffer::new(8);
-        let vet = options.vet.unwrap_or_else(|| {
-            Box::new(CarriedCheck {
-                made_for: self.host.made_for.clone(),
-                servo_rate_hz: 1.0 / self.period_s(),
-                running: self.host.spec.clone(),
-            })
-        });
-        let service = Service {
-            prefix: prefix.to_owned(),
-            serves_plant: options.serves_plant,
-            wait_for_recorder: options.wait_for_recorder,
-            linger: options.linger,
-            vet,
-            stage: *self.stage(),
-            period_s: self.period_s(),
-            stability: self.stability(),
-            scale: self.status().gain_scale,
-            tick_cpus: daq_io::realtime::current_cpus(),
-        };
-        let (ready_tx, ready) = mpsc::sync_channel(1);
-        let thread = std::thread::Builder::new()
-            .name("servo-service".into())
-            .spawn(move || service.run(telemetry_rx, events_rx, requests_tx, ready_tx))
-            .map_err(|_| ServeError::Lost)?;
-        match ready.recv() {
-            Ok(Ok(())) => {}
-            Ok(Err(e)) => {
-                let _ = thread.join();
-                return Err(e.into());
-            }
-            Err(_) => return Err(ServeError::Lost),
-        }
-        self.host.link = Some(Link {
-            telemetry,
-            events,
-            requests,
-            pending: None,
-            started: false,
-            dropped: 0,
-            thread: Some(thread),
-        });
-        Ok(())
+        Err(_) => return Err(ServeError::Lost),
     }
+    Ok(Link {
+        telemetry,
+        events,
+        requests,
+        pending: None,
+        started: false,
+        dropped: 0,
+        thread: Some(thread),
+    })
+}
 
-    /// Ends the service of a served loop: the last telemetry is published with the run's end,
-    /// then a final health report (done, or faulted with `faults`, a [`daq_io::flags`] set, and
-    /// the stop cause), and the service waits for subscribers to take them. Nothing to do for
-    /// a loop that is not served.
-    pub fn close(&mut self, faults: u32) {
-        let Some(mut link) = self.host.link.take() else {
-            return;
-        };
-        let status = self.status();
-        let end = Event::End {
-            ticks: status.ticks,
-            overruns: status.overruns,
-            timing: self.timing(),
-            faults,
-            stop_cause: status.stop.unwrap_or(0),
-        };
-        // The ring has room: the service thread drains it; wait for a slot rather than lose
-        // the end.
-        let mut end = Some(end);
-        while let Some(e) = end.take() {
-            if let Err(rtrb::PushError::Full(e)) = link.events.push(e) {
-                end = Some(e);
-                std::thread::sleep(IDLE);
-            }
+/// Ends the service of `link` with `end` (waiting for the ring to take it), joins its thread;
+/// the telemetry records it dropped.
+pub(crate) fn close(mut link: Link, end: End) -> u64 {
+    let mut end = Some(Event::End(end));
+    while let Some(e) = end.take() {
+        if let Err(rtrb::PushError::Full(e)) = link.events.push(e) {
+            end = Some(e);
+            std::thread::sleep(IDLE);
         }
-        if let Some(t) = link.thread.take() {
-            let _ = t.join();
-        }
-        self.host.dropped += link.dropped;
     }
+    if let Some(t) = link.thread.take() {
+        let _ = t.join();
+    }
+    link.dropped
 }
 
 /// The service thread's state.
@@ -468,13 +459,13 @@ impl Service {
                         overruns,
                         timing,
                     } => report(&mut p, start, ticks, overruns, timing),
-                    Event::End {
+                    Event::End(End {
                         ticks,
                         overruns,
                         timing,
                         faults,
                         stop_cause,
-                    } => {
+                    }) => {
                         while let Ok(t) = telemetry.pop() {
                             self.publish(&mut p, t);
                         }
@@ -664,11 +655,4 @@ fn report(p: &mut Ports, start: Instant, ticks: u64, overruns: u64, timing: Timi
     p.health.execution = timing.execution;
     p.health_pub.send(p.health);
     p.health_pub.prepare();
-}
-
-impl Drop for Servo {
-    /// A served loop ends its service ([`Servo::close`] with no faults) when dropped.
-    fn drop(&mut self) {
-        self.close(0);
-    }
 }

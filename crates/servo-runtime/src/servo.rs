@@ -4,79 +4,10 @@ use crate::check::Invalid;
 #[cfg(feature = "std")]
 use crate::deployment::Stage;
 use crate::deployment::{Deployment, Stability};
-use crate::protection::TripCause;
 use crate::reference::{Generator, Reference};
 use crate::servo_loop::ServoLoop;
+use crate::status::{GainRefused, Status, Trip};
 use daq_io::{flags, Command, Sensor, Telemetry};
-
-/// A machine-protection trip: why, and the tick.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Trip {
-    /// Which limit (or latched fault) tripped the loop.
-    pub cause: TripCause,
-    /// The tick whose command was the first in the safe state.
-    pub tick: u64,
-}
-
-/// What a [`Servo`] has done so far ([`Servo::status`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Status {
-    /// Ticks run (commands given).
-    pub ticks: u64,
-    /// The trip the loop is in, if any (until [`Servo::reset`]).
-    pub trip: Option<Trip>,
-    /// Tripped, and the safe state has been held for `protection.after_trip_s`: a run may end.
-    pub trip_settled: bool,
-    /// A stop the control plane asked for ([`daq_io::stop_cause`]), if any.
-    pub stop: Option<u32>,
-    /// The output scale in force (dimensionless, 1 as deployed).
-    pub gain_scale: f64,
-    /// Ticks whose command was at the output limit.
-    pub saturated_ticks: u64,
-    /// Controllers handed over while running ([`Servo::load`], `servo ctl load`).
-    pub handovers: u64,
-    /// Trips since the start (each re-arm clears one).
-    pub trips: u64,
-    /// Ticks that started a whole period or more after their sample was taken
-    /// ([`Sensor::published_ns`]; `std` only, 0 otherwise).
-    pub overruns: u64,
-    /// Telemetry records a served loop dropped because its service thread fell behind (the
-    /// tick never waits; feature `serve`, 0 otherwise).
-    pub telemetry_dropped: u64,
-}
-
-/// Why a gain change was refused ([`Servo::set_gain`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum GainRefused {
-    /// The deployment carries no checked stability range.
-    NotChecked,
-    /// Outside `low..=high` (the stable range with the margin), or not a number.
-    OutOfRange {
-        /// The requested scale.
-        scale: f64,
-        /// The lowest scale allowed.
-        low: f64,
-        /// The highest scale allowed.
-        high: f64,
-    },
-}
-
-impl core::fmt::Display for GainRefused {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            GainRefused::NotChecked => f.write_str(
-                "gain change refused: the deployment carries no [stability] record (check the loop offline with `servo deploy`)",
-            ),
-            GainRefused::OutOfRange { scale, low, high } => write!(
-                f,
-                "gain scale {scale} refused: allowed {low:.4}..={high:.4} (the stable range with a 2× margin on each side)"
-            ),
-        }
-    }
-}
-
-#[cfg(feature = "std")]
-impl std::error::Error for GainRefused {}
 
 /// The controller a daemon embeds: reference with preview, feedforward, the feedback
 /// controller, machine protection and its safe state, bumpless controller swap and checked gain
@@ -109,7 +40,9 @@ pub struct Servo {
     last: Option<Telemetry>,
     status: Status,
     #[cfg(feature = "std")]
-    pub(crate) host: crate::host::Host,
+    host: crate::host::Host,
+    #[cfg(feature = "serve")]
+    link: Option<crate::serve::Link>,
 }
 
 impl Servo {
@@ -139,6 +72,8 @@ impl Servo {
             },
             #[cfg(feature = "std")]
             host: crate::host::Host::new(deployment),
+            #[cfg(feature = "serve")]
+            link: None,
         })
     }
 
@@ -223,9 +158,13 @@ impl Servo {
     pub fn status(&self) -> Status {
         #[cfg(feature = "std")]
         {
+            #[cfg(feature = "serve")]
+            let dropped = self.host.dropped + self.link.as_ref().map_or(0, |l| l.dropped());
+            #[cfg(not(feature = "serve"))]
+            let dropped = 0;
             Status {
                 overruns: self.host.overruns(),
-                telemetry_dropped: self.host.telemetry_dropped(),
+                telemetry_dropped: dropped,
                 ..self.status
             }
         }
@@ -251,14 +190,9 @@ impl Servo {
                 high: s.high(),
             });
         }
-        self.apply_gain(scale);
-        Ok(())
-    }
-
-    /// Sets the output scale (checked by the caller).
-    pub(crate) fn apply_gain(&mut self, scale: f64) {
         self.core.set_gain_scale(scale);
         self.status.gain_scale = scale;
+        Ok(())
     }
 
     /// Re-arms the loop after a trip: protection cleared, the controller and feedforward back
@@ -271,31 +205,178 @@ impl Servo {
         self.status.stop = None;
     }
 
-    /// Asks the daemon to end the run ([`Status::stop`]), with a [`daq_io::stop_cause`].
-    pub fn request_stop(&mut self, cause: u32) {
-        self.status.stop.get_or_insert(cause);
-    }
-
     /// The servo period in s.
     pub fn period_s(&self) -> f64 {
         self.period_s
     }
 
-    /// The stage numbers the loop was deployed with.
+    /// After the tick of `sample` (started at `started_ns`): its timing and, when served, the
+    /// exchange with the service thread.
     #[cfg(feature = "std")]
-    pub(crate) fn stage(&self) -> &Stage {
-        &self.stage
+    #[inline]
+    fn after_tick(&mut self, sample: &Sensor, started_ns: u64) {
+        self.host.record(sample, started_ns);
+        #[cfg(feature = "serve")]
+        if let Some(link) = &mut self.link {
+            crate::serve::after_tick(
+                link,
+                sample,
+                crate::serve::TickView {
+                    core: &mut self.core,
+                    status: &mut self.status,
+                    stability: &mut self.stability,
+                    telemetry: self.last.as_ref(),
+                    host: &self.host,
+                },
+            );
+        }
+    }
+}
+
+/// With the standard library: deployment files, loads, timing.
+#[cfg(feature = "std")]
+impl Servo {
+    /// The loop of the deployment `text` (TOML, as `servo deploy` writes it), checked and built.
+    pub fn from_toml(text: &str) -> Result<Self, crate::ConfigError> {
+        Self::from_text(text, &crate::Origin::default())
     }
 
-    /// The loop core (for the host layer: handovers).
-    #[cfg(feature = "std")]
-    pub(crate) fn core_mut(&mut self) -> &mut ServoLoop {
-        &mut self.core
+    /// The loop of the deployment file `path` (a regular file of at most 4 MiB), checked and
+    /// built; errors name the file, line, key and allowed range.
+    pub fn from_file(path: impl AsRef<std::path::Path>) -> Result<Self, crate::ConfigError> {
+        let path = path.as_ref();
+        let text = crate::read_text(path)?;
+        Self::from_text(
+            &text,
+            &crate::Origin {
+                path: Some(path.to_owned()),
+                text: None,
+            },
+        )
     }
 
-    /// Replaces the checked stability range (a loaded controller brings its own).
-    #[cfg(feature = "std")]
-    pub(crate) fn set_stability(&mut self, s: Stability) {
-        self.stability = Some(s);
+    fn from_text(text: &str, at: &crate::Origin) -> Result<Self, crate::ConfigError> {
+        let at = crate::Origin {
+            text: Some(text.to_owned()),
+            ..at.clone()
+        };
+        let d = crate::parse_deployment(text, &at)?;
+        let mut servo = Servo::new(&d.deployment).map_err(|e| at.located(&e))?;
+        servo.host.made_for = d.made_for;
+        Ok(servo)
+    }
+
+    /// Loads the controller file `file` (UTF-8 TOML: a `[controller]` table, or a state-space
+    /// file as `servo synth` writes it) into the running loop: checked by the deployment's rule
+    /// (made for this plant and rate, carrying its offline stability check, whose range allows
+    /// the output scale in force), built, and handed over bumplessly at the next tick. Parses
+    /// and allocates on the calling thread: call it between ticks from a thread that may, or
+    /// let [`Servo::serve`] take loads (`servo ctl load`) on its own thread.
+    pub fn load(&mut self, file: &[u8]) -> Result<(), crate::LoadError> {
+        use crate::load::{build, LoadError, Vet, LOADED_FILE};
+        let check = crate::CarriedCheck {
+            made_for: self.host.made_for.clone(),
+            servo_rate_hz: 1.0 / self.period_s,
+            running: self.host.spec.clone(),
+        };
+        let v = check.vet(file).map_err(LoadError::Refused)?;
+        let scale = self.status.gain_scale;
+        if !v.stability.allows(scale) {
+            return Err(LoadError::Margin {
+                scale,
+                low: v.stability.low(),
+                high: v.stability.high(),
+            });
+        }
+        let at = crate::Origin {
+            path: Some(LOADED_FILE.into()),
+            text: std::str::from_utf8(file).ok().map(str::to_owned),
+        };
+        let controller = build(&v, &self.stage, self.period_s)
+            .map_err(|e| LoadError::Invalid(at.located(&e)))?;
+        // The controller the last load replaced is freed here, off the tick.
+        drop(self.core.take_replaced());
+        self.core.hand_over(controller);
+        self.stability = Some(v.stability);
+        self.host.spec = v.spec;
+        Ok(())
+    }
+
+    /// Percentiles of the tick timing so far (ticks whose sample carried
+    /// [`Sensor::published_ns`]; nothing is timed otherwise).
+    pub fn timing(&self) -> crate::Timing {
+        self.host.timing()
+    }
+}
+
+/// Serving the loop (feature `serve`).
+#[cfg(feature = "serve")]
+impl Servo {
+    /// Serves this loop on run `prefix` as an embedding daemon
+    /// ([`crate::ServeOptions::default`]): telemetry, health and the control plane over
+    /// iceoryx2 from a thread of its own.
+    pub fn serve(&mut self, prefix: &str) -> Result<(), crate::ServeError> {
+        self.serve_with(prefix, crate::ServeOptions::default())
+    }
+
+    /// [`Servo::serve`] with `options`. Returns once the service is up (the run's roles held,
+    /// the ports open, a recorder subscribed if asked to wait for one).
+    pub fn serve_with(
+        &mut self,
+        prefix: &str,
+        options: crate::ServeOptions,
+    ) -> Result<(), crate::ServeError> {
+        if self.link.is_some() {
+            return Err(crate::ServeError::AlreadyServed);
+        }
+        let vet = options.vet.unwrap_or_else(|| {
+            Box::new(crate::CarriedCheck {
+                made_for: self.host.made_for.clone(),
+                servo_rate_hz: 1.0 / self.period_s,
+                running: self.host.spec.clone(),
+            })
+        });
+        let setup = crate::serve::Setup {
+            prefix: prefix.to_owned(),
+            serves_plant: options.serves_plant,
+            wait_for_recorder: options.wait_for_recorder,
+            linger: options.linger,
+            vet,
+            stage: self.stage,
+            period_s: self.period_s,
+            stability: self.stability,
+            scale: self.status.gain_scale,
+        };
+        self.link = Some(crate::serve::start(setup)?);
+        Ok(())
+    }
+
+    /// Ends the service of a served loop: the last telemetry is published with the run's end,
+    /// then a final health report (done, or faulted with `faults`, a [`daq_io::flags`] set, and
+    /// the stop cause), and the service waits for subscribers to take them. Nothing to do for
+    /// a loop that is not served.
+    pub fn close(&mut self, faults: u32) {
+        let Some(link) = self.link.take() else {
+            return;
+        };
+        let status = self.status();
+        self.host.dropped += crate::serve::close(
+            link,
+            crate::serve::End {
+                ticks: status.ticks,
+                overruns: status.overruns,
+                timing: self.host.timing(),
+                faults,
+                stop_cause: status.stop.unwrap_or(0),
+            },
+        );
+    }
+}
+
+#[cfg(feature = "serve")]
+impl Drop for Servo {
+    /// A served loop ends its service ([`Servo::close`] with no faults) when dropped.
+    fn drop(&mut self) {
+        self.close(0);
     }
 }
