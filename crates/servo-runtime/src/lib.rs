@@ -53,6 +53,7 @@ mod reference;
 mod servo;
 mod servo_loop;
 mod status;
+mod validate;
 
 #[cfg(feature = "std")]
 mod file;
@@ -66,15 +67,16 @@ mod serve;
 pub use check::{Allowed, Invalid};
 pub use controller::{accel_shaping, kg_of, position_pid, Controller};
 pub use deployment::{
-    check_controller, check_reference, ControllerKind, ControllerSpec, Deployment, FeedforwardSpec,
-    PidGains, ProtectionConfig, ReferenceSpec, SafeState, SsMatrices, Stability, Stage, ZpetcSpec,
-    GAIN_MARGIN, MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
+    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ProtectionConfig,
+    ReferenceSpec, SafeState, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN, MAX_PREVIEW,
+    MAX_SS_ORDER, ZPETC_SECTIONS,
 };
 pub use protection::TripCause;
 pub use reference::Reference;
 pub use servo::Servo;
 pub use servo_loop::HANDOVER_TIME_CONSTANT_S;
 pub use status::{GainRefused, Status, Trip};
+pub use validate::{check_controller, check_reference};
 
 #[cfg(feature = "std")]
 pub use file::{

@@ -108,7 +108,7 @@ impl Vet for CarriedCheck {
 /// A vetted controller built for the loop (`stage`, `period_s`), boxed to cross threads (and
 /// so that the one it replaces is freed off the ticking thread).
 pub(crate) fn build(v: &Vetted, stage: &Stage, period_s: f64) -> Result<Box<Controller>, Invalid> {
-    crate::deployment::check_controller(&v.spec, 1.0 / period_s)?;
+    crate::validate::check_controller(&v.spec, 1.0 / period_s)?;
     Controller::build(&v.spec, stage, period_s).map(Box::new)
 }
 
