@@ -6,6 +6,12 @@
 set -euo pipefail
 case "${1:-}" in
 start)
+    # Token authentication (RAY_AUTH_MODE=token, as the tests run it) needs a token before the
+    # head starts; Ray makes one the first time it is asked.
+    if [ "${RAY_AUTH_MODE:-}" = token ] && [ -z "${RAY_AUTH_TOKEN:-}" ] &&
+        [ ! -s "${RAY_AUTH_TOKEN_PATH:-$HOME/.ray/auth_token}" ]; then
+        ray get-auth-token --generate >/dev/null
+    fi
     dir=$(mktemp -d)
     chmod 700 "$dir"
     port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("", 0)); print(s.getsockname()[1])')

@@ -50,7 +50,8 @@ else:
 @pytest.fixture(scope="module")
 def cluster():
     """A Ray head on this machine, as a multi-node cluster's head is started; its address."""
-    out = subprocess.run([str(CLUSTER), "start", "2"], capture_output=True, text=True, check=True)
+    out = subprocess.run([str(CLUSTER), "start", "2"], capture_output=True, text=True)
+    assert out.returncode == 0, f"the Ray head did not start:\n{out.stderr}"
     address, temp_dir = out.stdout.split()
     ray.init(address=address, log_to_driver=False)
     yield address
