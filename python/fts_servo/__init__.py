@@ -7,6 +7,12 @@ column name says which (``duration_s``, ``following_error_m``, ``control_v``).
 
 Errors raise :class:`ServoError` with the message the ``servo`` CLI prints: the file, the key
 and the allowed range.
+
+Tick by tick: :class:`Servo` is the controller a daemon embeds (from the deployment ``servo
+deploy`` writes; ``tick(seq, gap_v, accel_v)`` gives the command and its flags, ``telemetry()``,
+``status()``, ``set_gain``, ``reset``, ``load``), :class:`Plant` the simulated stage of a
+configuration (``initial()``, ``step(dac_v)``). For trying a controller idea in a notebook: each
+tick crosses into Python (microseconds), far from real time.
 """
 
 from __future__ import annotations
@@ -19,11 +25,13 @@ from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _native
-from ._native import ServoError
+from ._native import Plant, Servo, ServoError
 from .study import run_study_ray, study_info, study_rows
 
 __all__ = [
     "ServoError",
+    "Servo",
+    "Plant",
     "Run",
     "Recording",
     "Model",

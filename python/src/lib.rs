@@ -7,6 +7,7 @@ use pyo3::prelude::*;
 mod arrays;
 mod config;
 mod design_api;
+mod loop_api;
 mod models;
 mod recording;
 mod simulate;
@@ -30,6 +31,8 @@ pub(crate) fn servo_err(e: impl std::fmt::Display) -> PyErr {
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("ServoError", m.py().get_type::<ServoError>())?;
+    m.add_class::<loop_api::Servo>()?;
+    m.add_class::<loop_api::Plant>()?;
     m.add_function(wrap_pyfunction!(simulate::run, m)?)?;
     m.add_function(wrap_pyfunction!(config::resolved_config, m)?)?;
     m.add_function(wrap_pyfunction!(models::models, m)?)?;

@@ -240,3 +240,30 @@ def test_identification_recovers_a_known_stage_from_its_frequency_response() -> 
     assert fitted["m4 kg"] == pytest.approx(drawn["m4_kg"], rel=1e-6)
     assert fitted["c4 N·s/m"] == pytest.approx(drawn["c4_n_s_per_m"], rel=1e-5)
     assert "k2_n_per_m" in r["model_toml"]
+
+
+def test_a_python_loop_of_servo_and_plant_is_servo_runs_loop(tmp_path: Path) -> None:
+    """Servo and Plant tick by tick close the loop `servo run --digest` closes: the same
+    samples and commands, bit for bit (the FNV-1a digest, written again here)."""
+    import struct
+
+    run = tmp_path / "run.toml"
+    run.write_text("[run]\nduration_s = 0.02\n")
+    deployment = tmp_path / "deploy.toml"
+    servo("deploy", "-c", str(run), "-o", str(deployment))
+    want = json.loads(servo("run", "-q", "--no-record", "--json", "--digest", "-c", str(run)).stdout)
+    loop = fs.Servo(str(deployment))
+    plant = fs.Plant(run)
+    h = 0xCBF29CE484222325
+    seq, _, gap, accel, _, flags = plant.initial()
+    for _ in range(plant.ticks):
+        dac, _ = loop.tick(seq, gap, accel, flags=flags)
+        for word in struct.pack("<Qddd", seq, gap, accel, dac):
+            h = ((h ^ word) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+        seq, _, gap, accel, _, flags = plant.step(dac)
+    assert f"{h:016x}" == want["meta"]["loop_digest"]
+    assert loop.status()["ticks"] == plant.ticks and loop.status()["trip"] is None
+    t = loop.telemetry()
+    assert t["following_error_m"] == pytest.approx(t["reference_m"] - t["measured_m"], abs=1e-15)
+    with pytest.raises(fs.ServoError, match="allowed"):
+        loop.set_gain(100.0)

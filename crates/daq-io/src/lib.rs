@@ -26,6 +26,7 @@
 pub mod clock;
 pub mod contract;
 mod daq;
+pub mod digest;
 #[cfg(feature = "std")]
 mod histogram;
 #[cfg(feature = "ipc")]

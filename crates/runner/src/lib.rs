@@ -13,7 +13,7 @@
 //! // thesis prototype, Chapter 7 PID, hold position, 1 s
 //! let plan = Plan::new(&Loaded::default())?;
 //! let stop = StopRequest::new();
-//! let opts = RunOptions { out: None, stop: &stop, progress: &mut |_, _| {} };
+//! let opts = RunOptions { out: None, stop: &stop, progress: &mut |_, _| {}, digest: false };
 //! let summary = run(&plan, opts)?;
 //! println!("{summary}");
 //! # Ok::<(), runner::RunError>(())

@@ -252,11 +252,11 @@ fn read_ss_file(
         text: Some(text.to_owned()),
     };
     let running = config.controller.spec(None);
-    let f = servo_runtime::parse_controller_file(
-        text,
-        &at,
+    let f = servo_runtime::parse_controller_file(text, &at, &running)?;
+    f.check_rate(
         config.plant.timing.servo_rate_hz,
-        &running,
+        &at,
+        "the run's plant.timing.servo_rate_hz",
     )?;
     if let Some(made_for) = &f.made_for {
         check_made_for(made_for, run, &at, "made_for", config.controller.force)?;

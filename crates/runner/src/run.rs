@@ -22,6 +22,8 @@ pub struct RunOptions<'a> {
     pub stop: &'a StopRequest,
     /// Called every few thousand ticks with (done, total).
     pub progress: &'a mut dyn FnMut(u64, u64),
+    /// Compute the loop's digest ([`daq_io::digest::LoopDigest`]) into the summary.
+    pub digest: bool,
 }
 
 /// Runs `plan`: checks closed-loop stability, runs, records, summarises.
@@ -50,6 +52,7 @@ pub fn run_with(
     let start = Instant::now();
     let mut daq = InProcess::new(backend, total);
     let mut reason = EndReason::Completed;
+    let mut digest = opts.digest.then(daq_io::digest::LoopDigest::default);
     loop {
         let s = daq.read().expect("in-process reads cannot fail");
         if s.seq.is_multiple_of(8192) {
@@ -62,6 +65,9 @@ pub fn run_with(
         }
         let (command, telemetry) = servo.tick(&s);
         let Some(command) = command else { break };
+        if let Some(d) = &mut digest {
+            d.add(&s, &command);
+        }
         daq.write(command).expect("in-process writes cannot fail");
         // The tick's telemetry with what the plant did over it.
         let truth = daq.backend().truth().unwrap_or_default();
@@ -98,6 +104,7 @@ pub fn run_with(
         recorded_messages: stats.map(|s| s.messages),
         dropped_frames: stats.map(|s| s.dropped_frames),
         spectral_radius: Some(radius),
+        loop_digest: digest.map(|d| format!("{:016x}", d.value())),
         ..RunMeta::of(c, description)
     }))
 }
@@ -117,6 +124,7 @@ pub fn run_to_end_with(plan: &Plan, on_frame: impl FnMut(&Frame)) -> Result<Summ
             out: None,
             stop: &stop,
             progress: &mut |_, _| {},
+            digest: false,
         },
         on_frame,
     )

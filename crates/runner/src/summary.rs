@@ -214,6 +214,9 @@ pub struct RunMeta {
     /// Summary of a recording decimated at every n-th tick (`record_every` > 1): its counts
     /// are of the recorded ticks and its statistics an estimate from them.
     pub recorded_every: Option<u32>,
+    /// The loop's digest ([`daq_io::digest::LoopDigest`], hex), when asked for: equal for
+    /// two loops that read the same samples and gave the same commands.
+    pub loop_digest: Option<String>,
 }
 
 /// The summary of a run.
@@ -315,6 +318,9 @@ impl fmt::Display for Summary {
                 t.measured_m * 1e6,
                 t.control_v
             )?;
+        }
+        if let Some(d) = &m.loop_digest {
+            writeln!(f, "  loop digest               {d}")?;
         }
         if let Some(r) = m.spectral_radius {
             writeln!(
@@ -467,6 +473,7 @@ impl RunMeta {
             hil: None,
             end_reason: None,
             recorded_every: None,
+            loop_digest: None,
         }
     }
 }

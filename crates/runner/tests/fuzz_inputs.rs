@@ -162,7 +162,9 @@ proptest! {
         let path = Path::new("fuzz-controller.toml");
         let at = runner::config::Origin { path: Some(path.into()), text: Some(text.clone()) };
         let running = servo_runtime::ControllerSpec::default();
-        match servo_runtime::parse_controller_file(&text, &at, 199_600.0, &running) {
+        match servo_runtime::parse_controller_file(&text, &at, &running)
+            .and_then(|f| f.check_rate(199_600.0, &at, "the rate").map(|()| f))
+        {
             Ok(f) => {
                 let m = f.spec.ss.expect("a state-space file holds matrices");
                 let n = m.order();

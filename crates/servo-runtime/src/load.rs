@@ -81,8 +81,7 @@ impl Vet for CarriedCheck {
             path: Some(LOADED_FILE.into()),
             text: Some(text.to_owned()),
         };
-        let f = parse_controller_file(text, &at, self.servo_rate_hz, &self.running)
-            .map_err(|e| invalid(&e))?;
+        let f = parse_controller_file(text, &at, &self.running).map_err(|e| invalid(&e))?;
         let (Some(file_for), Some(run)) = (&f.made_for, &self.made_for) else {
             return Err(Refusal::new(
                 ack_status::REFUSED_PROVENANCE,
@@ -92,6 +91,8 @@ impl Vet for CarriedCheck {
         file_for
             .check(run)
             .map_err(|e| Refusal::new(ack_status::REFUSED_PROVENANCE, e))?;
+        f.check_rate(self.servo_rate_hz, &at, "the loop's servo rate")
+            .map_err(|e| invalid(&e))?;
         let stability = f.stability.ok_or_else(|| {
             Refusal::new(
                 ack_status::REFUSED_MARGIN,

@@ -68,6 +68,7 @@ fn machine(l: &Loaded) -> Result<crate::form::FormReport, StudyError> {
             out: None,
             stop: &stop,
             progress: &mut |_, _| {},
+            digest: false,
         },
     )?;
     Ok(a.report())

@@ -34,6 +34,7 @@ fn machine(cfg: &Loaded) -> FormReport {
             out: None,
             stop: &stop,
             progress: &mut |_, _| {},
+            digest: false,
         },
     )
     .unwrap();

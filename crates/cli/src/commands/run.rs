@@ -28,6 +28,10 @@ pub struct Run {
     hil_args: HilArgs,
     #[command(flatten)]
     timeout: PeerTimeoutArgs,
+    /// Print the loop's digest (FNV-1a over each tick's seq, gap and accelerometer readings and
+    /// command): what a C, C++ or Python loop of the same deployment and stage prints.
+    #[arg(long, conflicts_with = "hil")]
+    digest: bool,
 }
 
 impl Run {
@@ -42,7 +46,13 @@ impl Run {
         } else {
             let stop = stop_on_signals();
             let summary = with_progress(rec, out.clone(), &stop, "simulating", |opts| {
-                run(&plan, opts)
+                run(
+                    &plan,
+                    RunOptions {
+                        digest: self.digest,
+                        ..opts
+                    },
+                )
             })?;
             let code = crate::interrupt::exit_code(&stop, summary.trip.is_some());
             (summary, code)
@@ -78,6 +88,7 @@ where
         out,
         stop,
         progress: &mut progress,
+        digest: false,
     });
     bar.finish_and_clear();
     result

@@ -367,6 +367,9 @@ pub struct ControllerFile {
     pub made_for: Option<MadeFor>,
     /// The offline check of its loop, if it carries one.
     pub stability: Option<Stability>,
+    /// The sample rate a state-space file says it was designed for, Hz (checked against the
+    /// loop's by the caller, after what it was made for).
+    pub sample_rate_hz: Option<f64>,
 }
 
 /// A state-space controller file as `servo synth` (MATLAB, python-control) writes it.
@@ -392,14 +395,12 @@ struct Fragment {
     plant: Option<toml::Table>,
 }
 
-/// Parses a controller file for a loop at `servo_rate_hz` (Hz) whose other settings are
-/// `running` (a state-space file takes the running loop's output limit): a state-space file
-/// (`sample_rate_hz`, `a`, `b`, `c`, `d`, `[made_for]`, `[stability]`) or a `[controller]`
-/// fragment.
+/// Parses a controller file for a loop whose other settings are `running` (a state-space file
+/// takes the running loop's output limit): a state-space file (`sample_rate_hz`, `a`, `b`,
+/// `c`, `d`, `[made_for]`, `[stability]`) or a `[controller]` fragment.
 pub fn parse_controller_file(
     text: &str,
     at: &Origin,
-    servo_rate_hz: f64,
     running: &ControllerSpec,
 ) -> Result<ControllerFile, ConfigError> {
     let table: toml::Table = toml::from_str(text).map_err(|e| parse_error(at, e))?;
@@ -409,6 +410,7 @@ pub fn parse_controller_file(
             spec: f.controller.spec(at)?,
             made_for: f.controller.made_for,
             stability: f.controller.stability,
+            sample_rate_hz: None,
         });
     }
     let f: SsFile = table.try_into().map_err(|e| parse_error(at, e))?;
@@ -419,14 +421,6 @@ pub fn parse_controller_file(
         d: f.d,
     }
     .matrices(at, "")?;
-    let off = (f.sample_rate_hz - servo_rate_hz).abs();
-    if off.is_nan() || off > 1e-6 * servo_rate_hz {
-        return Err(at.invalid(
-            "sample_rate_hz",
-            f.sample_rate_hz,
-            &format!("{servo_rate_hz} Hz (the loop's servo rate)"),
-        ));
-    }
     Ok(ControllerFile {
         spec: ControllerSpec {
             kind: ControllerKind::Ss,
@@ -435,5 +429,30 @@ pub fn parse_controller_file(
         },
         made_for: f.made_for,
         stability: f.stability,
+        sample_rate_hz: Some(f.sample_rate_hz),
     })
+}
+
+impl ControllerFile {
+    /// Checks that a state-space file was designed for `servo_rate_hz` (Hz); `running_key`
+    /// names the loop's rate where the caller configures it.
+    pub fn check_rate(
+        &self,
+        servo_rate_hz: f64,
+        at: &Origin,
+        running_key: &str,
+    ) -> Result<(), ConfigError> {
+        let Some(rate) = self.sample_rate_hz else {
+            return Ok(());
+        };
+        let off = (rate - servo_rate_hz).abs();
+        if off.is_nan() || off > 1e-6 * servo_rate_hz {
+            return Err(at.invalid(
+                "sample_rate_hz",
+                rate,
+                &format!("{servo_rate_hz} Hz ({running_key})"),
+            ));
+        }
+        Ok(())
+    }
 }
