@@ -82,7 +82,8 @@ def script_of(block: str) -> str:
     lines = []
     for line in block.splitlines():
         bare = line.split("#", 1)[0].strip()
-        if bare.startswith(("cargo test", "pip install")):
+        # What .ci/run itself builds and installs (at the checkout's root, not in this folder).
+        if bare.startswith(("cargo test", "pip install", "cargo build", "make -C examples")):
             continue
         line = line.replace("--realtime", "--lockstep")
         # `cargo run` of this checkout's binaries: the ones CI built (a cargo run from another
