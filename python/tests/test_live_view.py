@@ -122,7 +122,8 @@ def steer(client: Client, common: list) -> None:
     client.pump(lambda: "meta" in client.parameters)
     meta = {p["name"]: p["value"] for p in client.parameters["meta"]}
     assert meta["gain_scale"] == 1.0
-    subprocess.run([SERVO, "ctl", *common, "start"], check=True, capture_output=True)
+    started = subprocess.run([SERVO, "ctl", *common, "start"], capture_output=True, text=True)
+    assert started.returncode == 0, started.stderr
     # A tenth of a second of run, then a gain the loop can take: the controller applies it.
     client.pump(lambda: len(client.overview) >= 100)
     gain = {"name": "gain_scale", "value": 1.2, "type": "float64"}

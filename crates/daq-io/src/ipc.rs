@@ -260,6 +260,15 @@ pub fn subscriber_count<T: Debug + ZeroCopySend>(service: &Service<T>) -> usize 
     service.dynamic_config().number_of_subscribers()
 }
 
+/// Whether run `ep`'s recorder is there and listening: it publishes its progress on the
+/// `recorded` leaf only after subscribing to telemetry and truth, so a publisher there means
+/// it takes every block from now on (a live view or a tap also subscribes to telemetry and
+/// truth, so their subscriber counts do not tell).
+pub fn recorder_present(ep: &Endpoint) -> Result<bool, IpcError> {
+    let recorded = ep.service::<Health>(leaf::RECORDED)?;
+    Ok(recorded.dynamic_config().number_of_publishers() > 0)
+}
+
 /// Waits up to `timeout` for the subscribers of `service` to leave (they take the last
 /// samples first: samples of a publisher that is gone cannot be received).
 pub fn linger<T: Debug + ZeroCopySend>(service: &Service<T>, timeout: Duration) {

@@ -65,7 +65,7 @@ pub struct ServeOptions {
     pub overrun_burst_s: f64,
     /// How long to wait for the controller (and recorder) to subscribe.
     pub startup_timeout: Duration,
-    /// Also wait for a truth subscriber (the recorder) before the first tick.
+    /// Also wait for the recorder (listening to telemetry and truth) before the first tick.
     pub wait_for_recorder: bool,
     /// After the peers are there, also wait for a control-plane START (`servo ctl start`).
     pub wait_for_start: bool,
@@ -200,7 +200,6 @@ fn wait_for_peers(
 ) -> Result<(), ServeError> {
     use crate::ipc::subscriber_count;
     let sensor_service = ep.service::<Sensor>(leaf::SENSOR)?;
-    let truth_service = ep.service::<TruthBlock>(leaf::TRUTH)?;
     let health = Health {
         role: role::PLANT,
         state: state::WAITING,
@@ -210,7 +209,7 @@ fn wait_for_peers(
     let mut started = !opts.wait_for_start;
     loop {
         let controller = subscriber_count(&sensor_service) > 0;
-        let recorder = !opts.wait_for_recorder || subscriber_count(&truth_service) > 0;
+        let recorder = !opts.wait_for_recorder || crate::ipc::recorder_present(ep)?;
         while let Some(c) = take(control_sub) {
             started |= c.command == command::START;
             ack(&c, 0);

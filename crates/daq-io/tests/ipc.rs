@@ -1,12 +1,12 @@
 //! The iceoryx2 transport against the in-process one: the same backend and the same controller
 //! law give bit-identical sequences; a silent controller puts the plant in the safe state.
 
-use daq_io::ipc::{ControllerLink, Endpoint, Tap};
+use daq_io::ipc::{ControllerLink, Endpoint};
 use daq_io::serve::{serve, Pacing, ServeOptions, ServeReport};
 use daq_io::{flags, Command, Daq, InProcess};
 
 mod common;
-use common::{prefix, truth_until_end, Lag};
+use common::{prefix, recorder_tap, truth_until_end, Lag};
 use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
@@ -65,7 +65,7 @@ fn silent_controller_drives_zero_and_flags_the_fault() {
     let p = prefix("silent");
     let p2 = p.clone();
     let ep = Endpoint::open(&p, "recorder").unwrap();
-    let tap = Tap::new(&ep).unwrap();
+    let (tap, _progress) = recorder_tap(&ep);
     let plant = std::thread::spawn(move || {
         let ep = Endpoint::open(&p2, "plant").unwrap();
         let mut opts = ServeOptions::new(1_000_000, 1e-5, Pacing::Lockstep);
@@ -278,10 +278,7 @@ fn the_server_measures_lateness_against_the_backends_own_clock() {
 /// the plant allows, whatever the two threads' speeds; what it received.
 fn late_reporting_recorder(ep: &Endpoint, reports: bool) -> Vec<daq_io::Truth> {
     use daq_io::contract::{role, state};
-    let tap = Tap::new(ep).unwrap();
-    let progress = ep
-        .publisher::<daq_io::Health>(daq_io::ipc::leaf::RECORDED)
-        .unwrap();
+    let (tap, progress) = recorder_tap(ep);
     let mut truth: Vec<daq_io::Truth> = Vec::new();
     let mut held = false;
     loop {

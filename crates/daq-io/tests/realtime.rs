@@ -1,14 +1,14 @@
 //! Real-time pacing (own test binary: only the plant and controller threads spin here, as
 //! in a real deployment; the other transport tests would compete for the two cores).
 
-use daq_io::ipc::{ControllerLink, Endpoint, Tap};
+use daq_io::ipc::{ControllerLink, Endpoint};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{flags, Command, Daq};
 use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
 mod common;
-use common::{prefix, truth_until_end, Lag};
+use common::{prefix, recorder_tap, truth_until_end, Lag};
 
 /// Peer timeout of the test, s: long against any scheduling stall of a busy machine, so only
 /// the controller's real silence trips it (how fast the default 0.5 ms trips is a wall-clock
@@ -22,7 +22,7 @@ fn attempt(n: u32) -> Option<()> {
     let p2 = p.clone();
     let period = 1e-5;
     let ep = Endpoint::open(&p, "recorder").unwrap();
-    let tap = Tap::new(&ep).unwrap();
+    let (tap, _progress) = recorder_tap(&ep);
     let plant = std::thread::spawn(move || {
         let ep = Endpoint::open(&p2, "plant").unwrap();
         let mut opts = ServeOptions::new(1_000_000, period, Pacing::RealTime);

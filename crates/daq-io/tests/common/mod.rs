@@ -1,7 +1,7 @@
 //! Shared by the transport tests.
 
-use daq_io::ipc::Tap;
-use daq_io::{flags, Backend, Sensor, Truth};
+use daq_io::ipc::{Endpoint, Publisher, Tap};
+use daq_io::{flags, Backend, Health, Sensor, Truth};
 use std::time::Duration;
 
 /// A first-order plant y⁺ = 0.9 y + 0.1 u with a deterministic pseudo-noise term.
@@ -35,6 +35,14 @@ impl Backend for Lag {
 /// A run prefix unique to this test process.
 pub fn prefix(tag: &str) -> String {
     format!("test-{tag}-{}", std::process::id())
+}
+
+/// A recorder's ports on run `ep`: its tap, then its progress publisher (made after the tap,
+/// as `servo record` does: its presence tells a plant the recorder listens).
+pub fn recorder_tap(ep: &Endpoint) -> (Tap, Publisher<Health>) {
+    let tap = Tap::new(ep).unwrap();
+    let progress = ep.publisher(daq_io::ipc::leaf::RECORDED).unwrap();
+    (tap, progress)
 }
 
 /// Every truth record of the run up to its END block; then leaves (so the plant can finish).

@@ -43,7 +43,7 @@ pub struct ServeOptions {
     /// The check a loaded controller passes (None: the deployment's own rule,
     /// [`crate::CarriedCheck`]: made for this plant and carrying its offline stability check).
     pub vet: Option<Box<dyn Vet>>,
-    /// Wait up to this long for a recorder to subscribe before `serve` returns (0: do not).
+    /// Wait up to this long for the run's recorder to listen before `serve` returns (0: do not).
     pub wait_for_recorder: Duration,
     /// After the run, how long to wait for subscribers to take the last records.
     pub linger: Duration,

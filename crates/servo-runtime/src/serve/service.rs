@@ -108,11 +108,8 @@ impl Service {
             _roles: Vec::new(),
         };
         if !self.wait_for_recorder.is_zero() {
-            let telemetry = ep.service::<TelemetryBlock>(leaf::TELEMETRY)?;
             let asked = Instant::now();
-            while daq_io::ipc::subscriber_count(&telemetry) == 0
-                && asked.elapsed() < self.wait_for_recorder
-            {
+            while !daq_io::ipc::recorder_present(ep)? && asked.elapsed() < self.wait_for_recorder {
                 std::thread::sleep(Duration::from_millis(5));
             }
         }
