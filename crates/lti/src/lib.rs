@@ -11,12 +11,14 @@
 //! | [`riccati`] | continuous and discrete algebraic Riccati equations |
 //! | [`schur_lyapunov`] | Lyapunov and Stein equations by the Schur form (many right-hand sides, one matrix) |
 //! | [`reduce`] | balanced truncation |
+//! | [`level_crossing`] | where a sampled response first falls below a level (bandwidth), found exactly |
 //! | [`interconnect`] | named-signal block interconnection (the four-mass stage is built with it) |
 //! | [`spectral`] | log grids, exact-bin DFT, Welch PSD, H1 FRF and coherence, CAS |
 //! | [`welch_statistics`] | what a Welch estimate of a modelled signal should read, and how far it strays by chance |
 
 pub mod discretise;
 pub mod interconnect;
+pub mod level_crossing;
 pub mod lyapunov;
 pub mod reduce;
 pub mod riccati;

@@ -13,6 +13,8 @@ pub mod metrology;
 pub mod model;
 pub mod params;
 pub mod practice;
+pub mod quantisation;
+pub mod sampled_noise;
 pub mod sensor_noise;
 pub mod sim;
 mod tick_matrix;

@@ -259,10 +259,10 @@ impl Default for DacParams {
 pub struct NoiseParams {
     /// Sensor noise one-sided ASD in V/√Hz, flat at the sensor electronics and band-limited by
     /// its output filter (`capa.bandwidth_hz`, the Butterworth of eq 5-8), so each conversion
-    /// sees `Ws²·π f_c/(2√2)` whatever the servo rate (calibrated 9.841e-7; thesis eq 6-6:
+    /// sees `Ws²·π f_c/(2√2)` whatever the servo rate (calibrated 9.708e-7; thesis eq 6-6:
     /// 1.36e-6).
     pub sensor_v_per_rt_hz: f64,
-    /// Current noise gain of Wi in A/√Hz (calibrated 3.078e-7; thesis eq 6-7: 1.64e-7).
+    /// Current noise gain of Wi in A/√Hz (calibrated 3.225e-7; thesis eq 6-7: 1.64e-7).
     pub current_a_per_rt_hz: f64,
     /// Base vibration gain of Wg in m/√Hz (calibrated 4.159e-13; thesis eq 6-8: 2.83e-9).
     pub base_m_per_rt_hz: f64,
@@ -287,8 +287,8 @@ impl Default for NoiseParams {
             // Calibrated (plant-sim README; `cargo run --release -p studies --example
             // calibrate`): 0.83 nm following and 0.23 nm true error at 468 Hz on the 0.174 kg
             // stage (§5.7.4), base vibration 10 % of the true-error power.
-            sensor_v_per_rt_hz: 9.841e-7,
-            current_a_per_rt_hz: 3.078e-7,
+            sensor_v_per_rt_hz: 9.708e-7,
+            current_a_per_rt_hz: 3.225e-7,
             base_m_per_rt_hz: 4.159e-13,
             base_rolloff_hz: 15e3,
             accel_scale: 1.0,

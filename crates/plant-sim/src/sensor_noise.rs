@@ -11,11 +11,12 @@
 //! is integrated exactly between conversion instants (transition `e^{AΔ}` and the Van Loan
 //! covariance of the white input over `Δ`), one Gaussian draw per filter state per conversion.
 //!
-//! For analysis, [`SampledSensorNoise`] is the averaged reading of one tick as a discrete
-//! process in innovations form (one white input, the same spectrum), which the closed loop,
-//! the budget and the H2 design use.
+//! For analysis, [`SensorNoise::sampled`] is the averaged reading of one tick as a discrete
+//! process in innovations form ([`SampledNoise`]: one white input, the same spectrum), which
+//! the closed loop, the budget and the H2 design use.
 
-use lti::{expm, StateSpace};
+use crate::sampled_noise::SampledNoise;
+use lti::expm;
 use nalgebra::{DMatrix, SMatrix, SVector};
 use std::f64::consts::{PI, SQRT_2};
 
@@ -94,8 +95,9 @@ pub struct SensorNoise {
     /// Filter states in use (2, or 3 with the anti-aliasing stage) and the one read out.
     states: usize,
     out: usize,
-    /// Variance one conversion sees, V².
-    conversion_variance: f64,
+    /// The filter's continuous dynamics and the stationary covariance of its states, V².
+    a: Mat,
+    p: Mat,
     xi: Vect,
 }
 
@@ -118,13 +120,15 @@ impl SensorNoise {
         let gap = (period_s - (oversampling as f64 - 1.0) * spacing).max(0.0);
         // Stationary covariance: A P + P Aᵀ + b bᵀ·intensity = 0.
         let q = &b * b.transpose() * intensity;
-        let stationary = lti::riccati::lyap(&a, &q).map_or(f64::NAN, |(p, _)| p[(out, out)]);
+        let stationary = lti::riccati::lyap(&a, &q)
+            .map_or_else(|_| Mat::from_element(f64::NAN), |(p, _)| padded(&p));
         SensorNoise {
             between_ticks: Step::new(&a, &b, intensity, gap),
             between_conversions: Step::new(&a, &b, intensity, spacing),
             states: a.nrows(),
             out,
-            conversion_variance: stationary,
+            a: padded(&a),
+            p: stationary,
             xi: Vect::zeros(),
         }
     }
@@ -132,7 +136,7 @@ impl SensorNoise {
     /// Variance of the noise one conversion sees, V² (without the anti-aliasing stage
     /// `Ws²·π f_c/(2√2)`), whatever the rate.
     pub fn conversion_variance(&self) -> f64 {
-        self.conversion_variance
+        self.p[(self.out, self.out)]
     }
 
     /// Back to rest (the process starts at zero with the rest of the plant and is stationary
@@ -158,108 +162,59 @@ impl SensorNoise {
 
     /// The averaged noise of one tick of `oversampling` conversions as a discrete process
     /// in innovations form.
-    pub fn sampled(&self, oversampling: u32) -> SampledSensorNoise {
-        SampledSensorNoise::new(self, oversampling as usize)
+    pub fn sampled(&self, oversampling: u32) -> SampledNoise {
+        averaged(self, oversampling as usize)
+    }
+
+    /// Covariance of the noise at two instants `lag_s` seconds apart, V² (the conversion
+    /// variance at 0): `cᵀ e^{A|τ|} P c`, P the stationary covariance of the filter states.
+    pub fn lag_covariance(&self, lag_s: f64) -> f64 {
+        let n = self.states;
+        let a = DMatrix::from_fn(n, n, |i, j| self.a[(i, j)]);
+        let p = DMatrix::from_fn(n, n, |i, j| self.p[(i, j)]);
+        let phi = expm(&(a * lag_s.abs()));
+        (phi * p)[(self.out, self.out)]
     }
 }
 
-/// The tick-averaged sensor noise `n_k` as `ξ⁺ = a ξ + k e`, `n = c ξ + e`, with `e` white of
-/// per-tick variance `variance` (V²): the innovations form of the exact per-tick model, so its
-/// spectrum (and every variance a linear loop driven by it has) equals the simulator's.
-#[derive(Debug, Clone)]
-pub struct SampledSensorNoise {
-    /// The innovations form as a discrete system per tick: `A = a` (n × n, n = 2 or 3),
-    /// `B = k`, `C = c`, `D = 1`, from `e` to `n_k` (V/V).
-    pub sys: StateSpace,
-    /// Innovation variance per tick, V².
-    pub variance: f64,
-}
-
-impl SampledSensorNoise {
-    fn new(noise: &SensorNoise, os: usize) -> SampledSensorNoise {
-        // Exact model with the n·os unit draws v of the tick: ξ_{k+1} = Φ ξ_k + B v,
-        // n_k = C ξ_k + D v (the mean of the conversions' read-out state).
-        let n = noise.states;
-        let m = n * os;
-        let to_d = |x: &Mat| DMatrix::from_fn(n, n, |i, j| x[(i, j)]);
-        let (mut phi, mut bv) = (DMatrix::identity(n, n), DMatrix::zeros(n, m));
-        let (mut c, mut d) = (DMatrix::zeros(1, n), DMatrix::zeros(1, m));
-        for j in 0..os {
-            let s = if j == 0 {
-                &noise.between_ticks
-            } else {
-                &noise.between_conversions
-            };
-            phi = to_d(&s.phi) * phi;
-            bv = to_d(&s.phi) * bv;
-            bv.view_mut((0, n * j), (n, n)).copy_from(&to_d(&s.root));
-            c += phi.rows(noise.out, 1) / os as f64;
-            d += bv.rows(noise.out, 1) / os as f64;
+/// The tick-averaged noise of `os` conversions as a discrete process in innovations form.
+fn averaged(noise: &SensorNoise, os: usize) -> SampledNoise {
+    // Exact model with the n·os unit draws v of the tick: ξ_{k+1} = Φ ξ_k + B v,
+    // n_k = C ξ_k + D v (the mean of the conversions' read-out state).
+    let n = noise.states;
+    let m = n * os;
+    let to_d = |x: &Mat| DMatrix::from_fn(n, n, |i, j| x[(i, j)]);
+    let (mut phi, mut bv) = (DMatrix::identity(n, n), DMatrix::zeros(n, m));
+    let (mut c, mut d) = (DMatrix::zeros(1, n), DMatrix::zeros(1, m));
+    for j in 0..os {
+        let s = if j == 0 {
+            &noise.between_ticks
+        } else {
+            &noise.between_conversions
+        };
+        phi = to_d(&s.phi) * phi;
+        bv = to_d(&s.phi) * bv;
+        bv.view_mut((0, n * j), (n, n)).copy_from(&to_d(&s.root));
+        c += phi.rows(noise.out, 1) / os as f64;
+        d += bv.rows(noise.out, 1) / os as f64;
+    }
+    // Steady-state Kalman predictor of n from its own past (the dual DARE). R = DDᵀ > 0 for
+    // any positive density and Φ is stable, so it has a solution; should rounding defeat
+    // it on extreme parameters, the noise is kept white with its exact per-tick variance.
+    let q = &bv * bv.transpose();
+    let r = &d * d.transpose();
+    let s = &bv * d.transpose();
+    match lti::riccati::dare(&phi.transpose(), &c.transpose(), &q, &r, Some(&s)) {
+        Ok(ric) => {
+            let p = &ric.x;
+            let variance = (&c * p * c.transpose() + &r)[(0, 0)];
+            let k = (&phi * p * c.transpose() + &s) / variance;
+            SampledNoise::innovations(phi, k, c, variance)
         }
-        // Steady-state Kalman predictor of n from its own past (the dual DARE). R = DDᵀ > 0 for
-        // any positive density and Φ is stable, so it has a solution; should rounding defeat
-        // it on extreme parameters, the noise is kept white with its exact per-tick variance.
-        let q = &bv * bv.transpose();
-        let r = &d * d.transpose();
-        let s = &bv * d.transpose();
-        match lti::riccati::dare(&phi.transpose(), &c.transpose(), &q, &r, Some(&s)) {
-            Ok(ric) => {
-                let p = &ric.x;
-                let variance = (&c * p * c.transpose() + &r)[(0, 0)];
-                let k = (&phi * p * c.transpose() + &s) / variance;
-                SampledSensorNoise::innovations(phi, k, c, variance)
-            }
-            Err(_) => {
-                let (stationary, _) = lti::dlyap(&phi, &q).unwrap_or((DMatrix::zeros(n, n), 0.0));
-                let variance = (&c * stationary * c.transpose() + &r)[(0, 0)];
-                let zero = |rows, cols| DMatrix::zeros(rows, cols);
-                SampledSensorNoise::innovations(zero(n, n), zero(n, 1), zero(1, n), variance)
-            }
+        Err(_) => {
+            let (stationary, _) = lti::dlyap(&phi, &q).unwrap_or((DMatrix::zeros(n, n), 0.0));
+            SampledNoise::white((&c * stationary * c.transpose() + &r)[(0, 0)])
         }
-    }
-
-    fn innovations(a: DMatrix<f64>, k: DMatrix<f64>, c: DMatrix<f64>, variance: f64) -> Self {
-        SampledSensorNoise {
-            sys: StateSpace {
-                a,
-                b: k,
-                c,
-                d: DMatrix::identity(1, 1),
-            },
-            variance,
-        }
-    }
-
-    /// Its states.
-    pub fn states(&self) -> usize {
-        self.sys.nx()
-    }
-
-    /// Adds this noise to the reading in row `reading` of a discrete system `(a, b)` whose
-    /// states from `at` on are the noise's own, driven by input column `input` carrying the
-    /// innovation scaled by `scale`: `reading⁺ += c ξ + scale·e`, `ξ⁺ = a ξ + k·scale·e`.
-    pub fn place(
-        &self,
-        a: &mut DMatrix<f64>,
-        b: &mut DMatrix<f64>,
-        (reading, at, input): (usize, usize, usize),
-        scale: f64,
-    ) {
-        let (n, s) = (self.states(), &self.sys);
-        a.view_mut((reading, at), (1, n)).copy_from(&s.c);
-        a.view_mut((at, at), (n, n)).copy_from(&s.a);
-        b.view_mut((at, input), (n, 1)).copy_from(&(&s.b * scale));
-        b[(reading, input)] = scale;
-    }
-
-    /// One-sided PSD of the tick-averaged noise at `f_hz` for a tick of `period_s`, V²/Hz.
-    pub fn psd(&self, f_hz: f64, period_s: f64) -> f64 {
-        // H(e^{j2πfT}) = 1 + c (zI − a)⁻¹ k; the noise filter is stable, so z is never a pole.
-        self.sys
-            .freq_response_discrete(f_hz, period_s)
-            .map_or(f64::NAN, |h| {
-                2.0 * self.variance * period_s * h[(0, 0)].norm_sqr()
-            })
     }
 }
 
@@ -301,5 +256,21 @@ mod tests {
             }
         }
         assert!((model / want - 1.0).abs() < 1e-6, "{model} vs {want}");
+    }
+
+    /// The lag covariance is the Butterworth's analytic autocovariance.
+    #[test]
+    fn lag_covariance_is_the_butterworths() {
+        let fc = 15e3;
+        let noise = SensorNoise::new(1e-6, fc, 0.0, 1.0 / 199.6e3, 4, 1e6);
+        let w = 2.0 * PI * fc;
+        let (zeta, wd) = (1.0 / SQRT_2, w / SQRT_2);
+        let r0 = noise.conversion_variance();
+        for tau in [0.0, 1e-6, 3e-6, 2e-5, 1e-4] {
+            let want = r0 * (-zeta * w * tau).exp() * ((wd * tau).cos() + (wd * tau).sin());
+            let got = noise.lag_covariance(tau);
+            assert!((got - want).abs() < 1e-9 * r0, "τ {tau}: {got} vs {want}");
+            assert_eq!(noise.lag_covariance(-tau), got);
+        }
     }
 }

@@ -14,7 +14,9 @@ use crate::convert::Quantizer;
 use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
 use crate::model::{input, output, ModelError, PlantModel};
 use crate::params::{CurrentLoopModel, PlantParams};
-use crate::sensor_noise::{SampledSensorNoise, SensorNoise};
+use crate::quantisation::{averaged_rounding_error, ConversionGrid};
+use crate::sampled_noise::SampledNoise;
+use crate::sensor_noise::SensorNoise;
 use crate::tick_matrix::TickMatrix;
 use daq_io::flags;
 use lti::zoh;
@@ -129,10 +131,14 @@ pub struct LinearTick {
     pub white_variance: [f64; 3],
     /// The averaged sensor noise on the gap reading, V (a discrete process in innovations
     /// form with the simulator's spectrum), or None when that noise is off.
-    pub sensor_noise: Option<SampledSensorNoise>,
-    /// Variance per tick of the averaged ADC quantisation error on each reading, V²
-    /// (`LSB²/12/oversampling`; 0 for an ideal converter).
-    pub adc_quantisation_variance: f64,
+    pub sensor_noise: Option<SampledNoise>,
+    /// The ADC's rounding error on the averaged gap reading, V: coloured by the sensor noise
+    /// that dithers it ([`crate::quantisation`]); None for an ideal converter.
+    pub gap_quantisation: Option<SampledNoise>,
+    /// Variance per tick of the ADC's rounding error on the averaged accelerometer reading,
+    /// V², its conversions taken as independent (`LSB²/12/oversampling`; 0 for an ideal
+    /// converter).
+    pub accel_quantisation_variance: f64,
     /// Variance of the DAC quantisation error on the command, V² (`LSB²/12`).
     pub dac_quantisation_variance: f64,
 }
@@ -440,7 +446,16 @@ impl Simulator {
                 var(self.noise_on[2]),
             ],
             sensor_noise: self.sensor_noise.map(|s| s.sampled(os as u32)),
-            adc_quantisation_variance: self.adc_q.lsb_v().powi(2) / 12.0 / os as f64,
+            gap_quantisation: averaged_rounding_error(
+                self.adc_q.lsb_v(),
+                self.sensor_noise.as_ref(),
+                &ConversionGrid {
+                    period_s: self.period_s,
+                    oversampling: os as u32,
+                    conversion_rate_hz: self.params.adc.conversion_rate_hz,
+                },
+            ),
+            accel_quantisation_variance: self.adc_q.lsb_v().powi(2) / 12.0 / os as f64,
             dac_quantisation_variance: self.dac_q.lsb_v().powi(2) / 12.0,
         })
     }

@@ -5,7 +5,7 @@
 use crate::controller::LinearController;
 use lti::{LtiError, StateSpace};
 use nalgebra::DMatrix;
-use plant_sim::sensor_noise::SampledSensorNoise;
+use plant_sim::sampled_noise::SampledNoise;
 use plant_sim::LinearTick;
 
 /// Inputs of [`ClosedLoop::sys`].
@@ -13,7 +13,7 @@ pub mod input {
     /// Reference position in m.
     pub const REFERENCE_M: usize = 0;
     /// Innovation of the sensor noise on the averaged gap reading, V (per-tick white; the
-    /// noise itself is coloured, `plant_sim::sensor_noise::SampledSensorNoise`).
+    /// noise itself is coloured, `plant_sim::sampled_noise::SampledNoise`).
     pub const SENSOR_NOISE_V: usize = 1;
     /// Cutting force on the tool in N.
     pub const CUTTING_FORCE_N: usize = 2;
@@ -27,7 +27,8 @@ pub mod input {
     pub const CONTROL_DISTURBANCE_V: usize = 6;
     /// Error on the averaged accelerometer reading, V (its ADC quantisation).
     pub const ACCEL_READING_V: usize = 7;
-    /// Error on the averaged gap reading, V (its ADC quantisation; per-tick white).
+    /// Innovation of the ADC's rounding error on the averaged gap reading, V (per-tick white;
+    /// the error itself is coloured, `plant_sim::quantisation`).
     pub const GAP_READING_V: usize = 8;
     /// Count.
     pub const COUNT: usize = 9;
@@ -41,7 +42,7 @@ pub mod input {
         "accel_white",
         "control_disturbance_v",
         "accel_reading_error_v",
-        "gap_reading_error_v",
+        "gap_reading_error_innovation_v",
     ];
 }
 
@@ -57,8 +58,10 @@ pub mod output {
     pub const MEASURED_M: usize = 3;
     /// Tool position relative to the frame in m.
     pub const TOOL_M: usize = 4;
+    /// The averaged accelerometer reading the controller takes, V.
+    pub const ACCEL_READING_V: usize = 5;
     /// Count.
-    pub const COUNT: usize = 5;
+    pub const COUNT: usize = 6;
     /// Names, in order, with units.
     pub const NAMES: [&str; COUNT] = [
         "following_error_m",
@@ -66,6 +69,7 @@ pub mod output {
         "control_v",
         "measured_m",
         "tool_m",
+        "accel_reading_v",
     ];
 }
 
@@ -84,7 +88,8 @@ impl ClosedLoop {
     /// Closes the loop around `plant` with `ctrl`; `sensitivity_v_per_m` converts the gap
     /// reading to metres (the reference enters the controller as `S·r`).
     ///
-    /// State `[x, u[k−1], controller state, last sample (gap, accel), sensor-noise state]`;
+    /// State `[x, u[k−1], controller state, last sample (gap, accel), sensor-noise state,
+    /// gap-quantisation state]`;
     /// at tick k `u = C c + D (y − [S r, 0]) + d_u`.
     pub fn new(
         plant: &LinearTick,
@@ -96,11 +101,12 @@ impl ClosedLoop {
         let (n, nc) = (plant.phi.nrows(), ctrl.a.nrows());
         let (iu, ic, iy) = (n, n + 1, n + 1 + nc);
         let is = iy + 2;
-        let size = is
+        let iq = is + plant.sensor_noise.as_ref().map_or(0, SampledNoise::states);
+        let size = iq
             + plant
-                .sensor_noise
+                .gap_quantisation
                 .as_ref()
-                .map_or(0, SampledSensorNoise::states);
+                .map_or(0, SampledNoise::states);
         let m = input::COUNT;
         // u as rows over the state and over the inputs.
         let mut u_z = DMatrix::zeros(1, size);
@@ -154,7 +160,9 @@ impl ClosedLoop {
         if let Some(sn) = &plant.sensor_noise {
             sn.place(&mut a, &mut b, (iy, is, input::SENSOR_NOISE_V), 1.0);
         }
-        b[(iy, input::GAP_READING_V)] = 1.0;
+        if let Some(q) = &plant.gap_quantisation {
+            q.place(&mut a, &mut b, (iy, iq, input::GAP_READING_V), 1.0);
+        }
         b[(iy + 1, input::ACCEL_READING_V)] = 1.0;
         // Outputs.
         let mut c = DMatrix::zeros(output::COUNT, size);
@@ -162,6 +170,7 @@ impl ClosedLoop {
         c[(output::FOLLOWING_ERROR_M, iy)] = -1.0 / s;
         d[(output::FOLLOWING_ERROR_M, input::REFERENCE_M)] = 1.0;
         c[(output::MEASURED_M, iy)] = 1.0 / s;
+        c[(output::ACCEL_READING_V, iy + 1)] = 1.0;
         c.row_mut(output::CONTROL_V).copy_from(&u_z);
         d.row_mut(output::CONTROL_V).copy_from(&u_in);
         // tool at the tick end = t_x x + t0 u_prev + t1 u + t_held w
@@ -178,7 +187,6 @@ impl ClosedLoop {
         d.row_mut(output::TRUE_ERROR_M).copy_from(&tool_in);
         d[(output::TRUE_ERROR_M, input::REFERENCE_M)] -= 1.0;
         let [wc, wb, wa] = plant.white_variance;
-        let adc = plant.adc_quantisation_variance;
         ClosedLoop {
             sys: StateSpace { a, b, c, d },
             period_s,
@@ -187,8 +195,8 @@ impl ClosedLoop {
                 wc,
                 wb,
                 wa,
-                adc,
-                adc,
+                plant.gap_quantisation.as_ref().map_or(0.0, |q| q.variance),
+                plant.accel_quantisation_variance,
                 plant.dac_quantisation_variance,
             ],
         }
@@ -235,39 +243,34 @@ impl ClosedLoop {
         Ok(self.sys.freq_response_discrete(f_hz, self.period_s)?[(output, input)])
     }
 
-    /// −3 dB bandwidth of reference → measured position in Hz (first crossing below
-    /// 1/√2 of the low-frequency gain, refined by bisection), or Nyquist if none.
+    /// Closed-loop bandwidth in Hz: the first frequency at which |T| (reference → measured
+    /// position) falls below 1/√2 of its low-frequency gain — the first −3 dB crossing, found
+    /// exactly ([`lti::level_crossing::first_fall_below`]: however narrow a dip that reaches
+    /// it, e.g. at the m4 mode near 422 Hz), or Nyquist if |T| never falls that far. One
+    /// definition for the budget, the sweeps, tuning and the studies.
     pub fn bandwidth_hz(&self) -> Result<f64, LtiError> {
-        let nyquist = 0.5 / self.period_s;
-        let gain = |f: f64| {
-            self.response(output::MEASURED_M, input::REFERENCE_M, f)
-                .map(|h| h.norm())
+        let siso = StateSpace {
+            a: self.sys.a.clone(),
+            b: self.sys.b.columns(input::REFERENCE_M, 1).into_owned(),
+            c: self.sys.c.rows(output::MEASURED_M, 1).into_owned(),
+            d: self
+                .sys
+                .d
+                .view((output::MEASURED_M, input::REFERENCE_M), (1, 1))
+                .into_owned(),
         };
-        let target = gain(1e-3)? / 2f64.sqrt();
-        let (mut lo, mut f) = (1e-3, 1.0);
-        while f < nyquist {
-            if gain(f)? < target {
-                let mut hi = f;
-                for _ in 0..60 {
-                    let mid = (lo * hi).sqrt();
-                    if gain(mid)? < target {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
-                }
-                return Ok(hi);
-            }
-            lo = f;
-            f *= 1.02;
-        }
-        Ok(nyquist)
+        let low = siso.freq_response_discrete(1e-3, self.period_s)?[(0, 0)].norm();
+        Ok(
+            lti::level_crossing::first_fall_below(&siso, self.period_s, low / 2f64.sqrt())?
+                .unwrap_or(0.5 / self.period_s),
+        )
     }
 }
 
 /// The noise sources of the budget and their loop inputs, in [`ClosedLoop::noise_variance`]
 /// order: the thesis's three (sensor, current, base), the accelerometer (§7.5.2), and the
-/// converters' quantisation (white, `LSB²/12`, averaged over the oversampled conversions).
+/// converters' quantisation (the gap reading's coloured by the sensor noise that dithers the
+/// ADC, `plant_sim::quantisation`; the accelerometer reading's and the DAC's white).
 pub const SOURCES: [(&str, usize); 7] = [
     ("sensor", input::SENSOR_NOISE_V),
     ("current", input::W_CURRENT),

@@ -10,7 +10,7 @@ use crate::error::StudyError;
 use design::h2::{h2syn_discrete, GeneralizedPlant};
 use lti::StateSpace;
 use nalgebra::DMatrix;
-use plant_sim::sensor_noise::SampledSensorNoise;
+use plant_sim::sampled_noise::SampledNoise;
 use runner::config::{ControllerConfig, ControllerKind, MadeFor, Origin};
 use runner::Plan;
 use servo_runtime::{Stability, MAX_SS_ORDER};
@@ -109,25 +109,26 @@ pub fn h2_design_with(
         .linear_tick()
         .ok_or(StudyError::NeedsLinearPlant { what: "H2 design" })?;
     let n = t.phi.nrows();
-    // State [x, u[k−1], gap reading, sensor-noise state].
+    // State [x, u[k−1], gap reading, sensor-noise state, quantisation state].
     let (iu, iy, is) = (n, n + 1, n + 2);
-    let size = is
-        + t.sensor_noise
-            .as_ref()
-            .map_or(0, SampledSensorNoise::states);
+    let states = |s: &Option<SampledNoise>| s.as_ref().map_or(0, SampledNoise::states);
+    let iq = is + states(&t.sensor_noise);
+    let size = iq + states(&t.gap_quantisation);
     let sigma_w = t.white_variance.map(f64::sqrt);
     let sigma_s = t
         .sensor_noise
         .as_ref()
         .map_or(0.0, |s| s.variance.sqrt() * sensor_noise_scale);
-    // Measurement noise on the reading: the ADC's quantisation (a floor keeps D21 full rank for
-    // an ideal converter).
+    // Measurement noise on the reading: the ADC's rounding error, coloured as the budget has
+    // it (a floor on its innovation keeps D21 full rank for an ideal converter).
     let sigma_q = t
-        .adc_quantisation_variance
-        .sqrt()
+        .gap_quantisation
+        .as_ref()
+        .map_or(0.0, |q| q.variance.sqrt())
         .max(1e-3 * sigma_s)
         .max(1e-12);
-    // w = [sensor innovation, current, base, accelerometer, quantisation], unit variance.
+    // w = [sensor innovation, current, base, accelerometer, quantisation innovation], unit
+    // variance.
     let nw = 5;
     let mut a = DMatrix::zeros(size, size);
     let mut b1 = DMatrix::zeros(size, nw);
@@ -152,10 +153,18 @@ pub fn h2_design_with(
     c1.view_mut((0, 0), (1, n))
         .copy_from(&(t.t_start.row(0) * 1e9));
     let d12 = DMatrix::from_column_slice(2, 1, &[0.0, effort_nm_per_v]);
+    // The controller reads the stored reading plus its rounding error, c_q ξ + σ_q e now.
     let mut c2 = DMatrix::zeros(1, size);
     c2[(0, iy)] = 1.0;
     let mut d21 = DMatrix::zeros(1, nw);
     d21[(0, 4)] = sigma_q;
+    if let Some(q) = &t.gap_quantisation {
+        let m = q.states();
+        c2.view_mut((0, iq), (1, m)).copy_from(&q.sys.c);
+        a.view_mut((iq, iq), (m, m)).copy_from(&q.sys.a);
+        b1.view_mut((iq, 4), (m, 1))
+            .copy_from(&(&q.sys.b * sigma_q));
+    }
     let plant = GeneralizedPlant {
         a,
         b1,

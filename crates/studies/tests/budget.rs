@@ -3,7 +3,7 @@
 mod common;
 
 use common::plan;
-use runner::config::Loaded;
+use runner::config::{Loaded, PidGains};
 use runner::run::run_to_end;
 use studies::budget::Budget;
 
@@ -19,18 +19,12 @@ fn heavy_468() -> Loaded {
     l
 }
 
+/// The budget's CAS at Nyquist (eq 5-16, integrated on its log grid) is the exact (Lyapunov)
+/// RMS to the grid's accuracy; its totals against long simulations: `tests/budget_exact.rs`.
 #[test]
-fn budget_predicts_the_simulated_errors() {
-    let cfg = heavy_468();
-    let cl = plan(&cfg).closed_loop;
+fn cas_at_nyquist_is_the_exact_rms() {
+    let cl = plan(&heavy_468()).closed_loop;
     let b = Budget::new(&cl, 2000).unwrap();
-    let s = run_to_end(&plan(&cfg)).unwrap();
-    let (pf, pt) = (b.following_rms_m * 1e9, b.true_rms_m * 1e9);
-    let (sf, st) = (s.following_error_m.rms * 1e9, s.true_error_m.rms * 1e9);
-    println!(
-        "bandwidth {:.1} Hz; predicted {pf:.3}/{pt:.3} nm, simulated {sf:.3}/{st:.3} nm",
-        b.bandwidth_hz
-    );
     for c in &b.contributions {
         println!(
             "  {:>13}: {:.3} / {:.3} nm",
@@ -39,33 +33,7 @@ fn budget_predicts_the_simulated_errors() {
             c.true_rms_m * 1e9
         );
     }
-    assert!((pf / sf - 1.0).abs() < 0.10);
-    assert!((pt / st - 1.0).abs() < 0.10);
-    // CAS at Nyquist agrees with the exact (Lyapunov) RMS to the grid's accuracy.
     assert!((b.following_cas.last().unwrap() / b.following_rms_m - 1.0).abs() < 0.02);
-}
-
-/// The budget's sensor noise is the simulator's at any rate: at 20 kHz (each tick's four
-/// conversions still 1 µs apart, the noise band-limited at 15 kHz and aliased) the predicted
-/// errors match a 10 s seeded run within 5 %.
-#[test]
-fn budget_predicts_the_simulated_errors_at_20_khz() {
-    let mut cfg = heavy_468();
-    cfg.config.plant.timing.servo_rate_hz = 20e3;
-    cfg.config.run.duration_s = 10.0;
-    let b = Budget::new(&plan(&cfg).closed_loop, 400).unwrap();
-    let s = run_to_end(&plan(&cfg)).unwrap();
-    let (pf, pt) = (b.following_rms_m, b.true_rms_m);
-    let (sf, st) = (s.following_error_m.rms, s.true_error_m.rms);
-    println!(
-        "20 kHz: predicted {:.3}/{:.3} nm, simulated {:.3}/{:.3} nm",
-        pf * 1e9,
-        pt * 1e9,
-        sf * 1e9,
-        st * 1e9
-    );
-    assert!((pf / sf - 1.0).abs() < 0.05);
-    assert!((pt / st - 1.0).abs() < 0.05);
 }
 
 /// Fig 5-14 style sweep for both masses: at every bandwidth the budget's RMS following and
@@ -83,7 +51,17 @@ fn sweep_predictions_match_simulation_for_both_masses() {
     .unwrap();
     for s in &sweeps {
         let label = &s.label;
-        assert_eq!(s.points.len(), 5, "{label}: every bandwidth reachable");
+        println!("{label}: unreached {:?}", s.unreached);
+        // The light stage's |T| dips below −3 dB at the m4 mode (≈ 422 Hz) until the gain
+        // lifts the dip, so its first −3 dB crossing jumps from below 468 Hz to ≈ 575 Hz: 468 Hz
+        // is not a bandwidth any scaling of the PID has. Every other target is reached.
+        let unreached: Vec<f64> = s.unreached.iter().map(|u| u.0).collect();
+        let want: &[f64] = if label.starts_with("0.074") {
+            &[468.0]
+        } else {
+            &[]
+        };
+        assert_eq!(unreached, want, "{label}");
         for p in &s.points {
             let (sf, st) = (
                 p.simulated_following_m.unwrap(),
@@ -97,9 +75,7 @@ fn sweep_predictions_match_simulation_for_both_masses() {
                 p.predicted_true_m * 1e9,
                 st * 1e9
             );
-            // The achieved −3 dB bandwidth can sit below the target: on the light stage the
-            // 422 Hz parasitic (m4) mode dips |T| below −3 dB there over a range of gains.
-            assert!(p.bandwidth_hz <= p.target_hz * 1.01);
+            assert!((p.bandwidth_hz / p.target_hz - 1.0).abs() < 0.01);
             assert!(
                 (p.predicted_following_m / sf - 1.0).abs() < 0.05,
                 "{label} at {} Hz",
@@ -112,8 +88,9 @@ fn sweep_predictions_match_simulation_for_both_masses() {
             );
         }
         println!(
-            "{label}: predicted optimum following {:.0} Hz, true {:.0} Hz",
-            s.optimum_following_hz, s.optimum_true_hz
+            "{label}: predicted optimum following {}, true {}",
+            s.optimum_following.describe(),
+            s.optimum_true.describe()
         );
     }
 }
@@ -255,9 +232,8 @@ fn retuned_sweep_has_an_optimum_that_falls_with_mass() {
         let f: Vec<f64> = s.points.iter().map(|p| p.predicted_following_m).collect();
         let best = f.iter().copied().fold(f64::MAX, f64::min);
         println!(
-            "{label}: optimum {:.0} Hz ({:.3} nm); ends {:.3} / {:.3} nm",
-            s.optimum_following_hz,
-            best * 1e9,
+            "{label}: optimum {}; ends {:.3} / {:.3} nm",
+            s.optimum_following.describe(),
             f[0] * 1e9,
             f[f.len() - 1] * 1e9
         );
@@ -266,7 +242,7 @@ fn retuned_sweep_has_an_optimum_that_falls_with_mass() {
             f[0] > 1.01 * best && f[f.len() - 1] > 1.01 * best,
             "{label}"
         );
-        optima.push(s.optimum_following_hz);
+        optima.push(s.optimum_following.bandwidth_hz);
     }
     assert!(optima[1] < optima[0], "optima {optima:?}");
 }
@@ -437,4 +413,43 @@ fn thesis_weighted_h2_stabilises_the_exact_loop() {
         }
     }
     assert!(bandwidths[1] < bandwidths[0], "{bandwidths:?}");
+}
+
+/// With acceleration feedback the loop broken at the actuator input includes the inner
+/// acceleration path: the whole controller (PID and Ka, §7.4) scaled to 98 % of the upper gain
+/// margin is stable, to 102 % unstable — on the heavy stage at Ka = 1 with the PID × 3, where
+/// the margins of the gap channel alone say something else.
+#[test]
+fn gain_margin_with_acceleration_feedback_predicts_the_stability_limit() {
+    let mut cfg = heavy_468();
+    let c = &mut cfg.config.controller;
+    c.kind = runner::config::ControllerKind::Accel;
+    c.pid = PidGains {
+        kp: c.pid.kp * 3.0,
+        ki: c.pid.ki * 3.0,
+        kd: c.pid.kd * 3.0,
+        ..c.pid
+    };
+    c.ka = 1.0;
+    let m = studies::margins::loop_margins(&plan(&cfg)).unwrap();
+    let gm = m.gain_margin_db.expect("a phase crossover below Nyquist");
+    println!(
+        "Ka 1, PID ×3, heavy: crossover {:.0} Hz, PM {:.1}°, GM {gm:.2} dB at {:.0} Hz",
+        m.gain_crossover_hz.unwrap_or(f64::NAN),
+        m.phase_margin_deg.unwrap_or(f64::NAN),
+        m.phase_crossover_hz.unwrap_or(f64::NAN)
+    );
+    let up = 10f64.powf(gm / 20.0);
+    for (k, stable) in [(0.98 * up, true), (1.02 * up, false)] {
+        let mut s = cfg.clone();
+        let c = &mut s.config.controller;
+        (c.pid.kp, c.pid.ki, c.pid.kd, c.ka) = (c.pid.kp * k, c.pid.ki * k, c.pid.kd * k, c.ka * k);
+        let cl = plan(&s).closed_loop;
+        assert_eq!(
+            cl.spectral_radius() < 1.0,
+            stable,
+            "×{k:.3}: radius {}",
+            cl.spectral_radius()
+        );
+    }
 }

@@ -157,6 +157,11 @@ fn print_sweeps(results: &[Sweep], validated: bool) {
         for (target, reason) in &s.unreached {
             println!("  {} {target:>7.1} Hz: not reached — {reason}", s.label);
         }
-        println!("  {}: lowest following error at {:.0} Hz, lowest true error at {:.0} Hz (thesis: 874 Hz for 0.074 kg, 468 Hz for 0.174 kg)", s.label, s.optimum_following_hz, s.optimum_true_hz);
+        println!(
+            "  {}: lowest following error at {}; lowest true error at {} (thesis: 874 Hz for 0.074 kg, 468 Hz for 0.174 kg)",
+            s.label,
+            s.optimum_following.describe(),
+            s.optimum_true.describe()
+        );
     }
 }

@@ -51,10 +51,82 @@ pub struct Sweep {
     pub points: Vec<SweepPoint>,
     /// Requested bandwidths no PID reached, Hz, with the reason.
     pub unreached: Vec<(f64, String)>,
-    /// Bandwidth of the smallest predicted following error, Hz.
-    pub optimum_following_hz: f64,
-    /// Bandwidth of the smallest predicted true error, Hz.
-    pub optimum_true_hz: f64,
+    /// The smallest predicted following error and the band around it.
+    pub optimum_following: Optimum,
+    /// The smallest predicted true error and the band around it.
+    pub optimum_true: Optimum,
+}
+
+/// How close to the lowest error a bandwidth must come to count as optimal too: 0.5 %.
+pub const FLATNESS: f64 = 0.005;
+
+/// The lowest predicted error of a sweep and how flat the curve is around it (the error
+/// curves of Fig 5-14 are shallow: a single bandwidth would claim more than they say).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Optimum {
+    /// Bandwidth of the sweep's lowest point, Hz (NaN for an empty sweep).
+    pub bandwidth_hz: f64,
+    /// Its RMS error, m.
+    pub rms_m: f64,
+    /// The bandwidths between which the error stays within [`FLATNESS`] of the lowest, Hz
+    /// (interpolated, log frequency against error, between sweep points).
+    pub flat_hz: [f64; 2],
+    /// Whether the flat band reaches the sweep's lowest or highest bandwidth (it may extend
+    /// beyond).
+    pub flat_to_end: [bool; 2],
+}
+
+impl Optimum {
+    /// The optimum of `(bandwidth Hz, error m)` points in bandwidth order.
+    pub fn of(points: &[(f64, f64)]) -> Optimum {
+        let Some(best) = (0..points.len()).min_by(|&a, &b| points[a].1.total_cmp(&points[b].1))
+        else {
+            return Optimum {
+                bandwidth_hz: f64::NAN,
+                rms_m: f64::NAN,
+                flat_hz: [f64::NAN; 2],
+                flat_to_end: [false; 2],
+            };
+        };
+        let (f0, e0) = points[best];
+        let limit = e0 * (1.0 + FLATNESS);
+        // Where the error passes the limit between neighbours i (inside) and j (outside).
+        let edge = |i: usize, j: usize| {
+            let ((fi, ei), (fj, ej)) = (points[i], points[j]);
+            let t = (limit - ei) / (ej - ei);
+            (fi.ln() + t * (fj.ln() - fi.ln())).exp()
+        };
+        let below = (0..best).rev().find(|&j| points[j].1 > limit);
+        let above = (best + 1..points.len()).find(|&j| points[j].1 > limit);
+        Optimum {
+            bandwidth_hz: f0,
+            rms_m: e0,
+            flat_hz: [
+                below.map_or(points[0].0, |j| edge(j + 1, j)),
+                above.map_or(points[points.len() - 1].0, |j| edge(j - 1, j)),
+            ],
+            flat_to_end: [below.is_none(), above.is_none()],
+        }
+    }
+
+    /// "560 Hz (0.831 nm; within 0.5 % from 470 to 690 Hz)".
+    pub fn describe(&self) -> String {
+        let end = |hz: f64, open: bool, word: &str| {
+            if open {
+                format!("{word} {hz:.0} Hz (the sweep's end)")
+            } else {
+                format!("{word} {hz:.0} Hz")
+            }
+        };
+        format!(
+            "{:.0} Hz ({:.3} nm; within {} % {} {})",
+            self.bandwidth_hz,
+            self.rms_m * 1e9,
+            FLATNESS * 100.0,
+            end(self.flat_hz[0], self.flat_to_end[0], "from"),
+            end(self.flat_hz[1], self.flat_to_end[1], "to")
+        )
+    }
 }
 
 pub use loop_shape::loop_shaped;
@@ -114,7 +186,9 @@ fn pid_for(
     match tuning {
         SweepTuning::Scaled => Ok(scale_for_bandwidth(plan, target_hz)?
             .map(|(k, bw)| (scaled_pid(plan, k), bw, k))
-            .ok_or_else(|| "no stable scaling of the PID reaches it".to_owned())),
+            .ok_or_else(|| {
+                "no stable scaling of the PID has its first −3 dB crossing there: none reaches it, or the crossing jumps past it as the gain lifts a dip of |T| (the m4 mode)".to_owned()
+            })),
         SweepTuning::Retuned => {
             let pid = loop_shaped(plan, target_hz)?;
             let cl = with_pid(plan, pid)?.closed_loop;
@@ -132,10 +206,12 @@ fn pid_for(
     }
 }
 
-/// The gain scale giving bandwidth `target_hz`: a log scan from 1/100 to 100 finds the first
-/// pair of neighbouring *stable* gains that bracket the target (very low gains can be
+/// The gain scale giving bandwidth `target_hz` (the first −3 dB crossing,
+/// [`runner::closed_loop::ClosedLoop::bandwidth_hz`]): a log scan from 1/100 to 100 finds the
+/// first pair of neighbouring *stable* gains that bracket the target (very low gains can be
 /// unstable too, so plain bisection would be misled), then bisection refines it. `None` when no
-/// stable gain reaches the target.
+/// stable gain gives it within 1 %: none reaches it, or the crossing jumps past it as the gain
+/// rises (a dip of |T| below −3 dB that the gain lifts: the light stage's m4 mode near 422 Hz).
 pub fn scale_for_bandwidth(plan: &Plan, target_hz: f64) -> Result<Option<(f64, f64)>, StudyError> {
     let bw = |k: f64| -> Result<Option<f64>, StudyError> {
         let cl = scaled(plan, k)?.closed_loop;
@@ -159,7 +235,9 @@ pub fn scale_for_bandwidth(plan: &Plan, target_hz: f64) -> Result<Option<(f64, f
                     }
                 }
                 let k = (lo * hi).sqrt();
-                return Ok(bw(k)?.map(|b| (k, b)));
+                return Ok(bw(k)?
+                    .filter(|b| (b / target_hz - 1.0).abs() < 0.01)
+                    .map(|b| (k, b)));
             }
         }
         prev = here.map(|b| (k, b));
@@ -211,17 +289,19 @@ pub fn sweep(
     // Re-tuned loops need not reach bandwidths in the order of their crossovers.
     points.sort_by(|a, b| a.bandwidth_hz.total_cmp(&b.bandwidth_hz));
     let best = |f: fn(&SweepPoint) -> f64| {
-        points
-            .iter()
-            .min_by(|a, b| f(a).total_cmp(&f(b)))
-            .map_or(f64::NAN, |p| p.bandwidth_hz)
+        Optimum::of(
+            &points
+                .iter()
+                .map(|p| (p.bandwidth_hz, f(p)))
+                .collect::<Vec<_>>(),
+        )
     };
     Ok(Sweep {
         label: label.to_owned(),
         tuning,
         unreached,
-        optimum_following_hz: best(|p| p.predicted_following_m),
-        optimum_true_hz: best(|p| p.predicted_true_m),
+        optimum_following: best(|p| p.predicted_following_m),
+        optimum_true: best(|p| p.predicted_true_m),
         points,
     })
 }
@@ -256,4 +336,31 @@ pub fn thesis_sweeps(
             )
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// On e(f) = 1 + (ln f/500)², the band within 0.5 % of the minimum is
+    /// 500·e^{±√0.005} = 482.6 … 518.0 Hz; points every 2 % find it to interpolation accuracy,
+    /// and a curve still inside the band at the last point says the band runs to the end.
+    #[test]
+    fn the_flat_band_is_where_the_error_stays_within_half_a_percent() {
+        let e = |f: f64| 1.0 + (f / 500.0).ln().powi(2);
+        let points: Vec<(f64, f64)> = (0..60)
+            .map(|i| 300.0 * 1.02f64.powi(i))
+            .map(|f| (f, e(f)))
+            .collect();
+        let o = Optimum::of(&points);
+        let half_width = FLATNESS.sqrt();
+        let want = [500.0 * (-half_width).exp(), 500.0 * half_width.exp()];
+        for (got, want) in o.flat_hz.iter().zip(want) {
+            assert!((got / want - 1.0).abs() < 2e-3, "{got} vs {want}");
+        }
+        assert_eq!(o.flat_to_end, [false, false]);
+        assert!((o.bandwidth_hz / 500.0 - 1.0).abs() < 0.01);
+        let cut = Optimum::of(&points[..27]);
+        assert_eq!(cut.flat_to_end, [false, true]);
+    }
 }
