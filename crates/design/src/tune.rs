@@ -71,7 +71,7 @@ pub enum TuneError {
     InfeasibleStart(f64, f64),
     /// No gains meet the bandwidth under the peak bounds (the best found: the smallest `|T|`
     /// up to `f_b`, in dB).
-    #[error("PID tuning: the bandwidth is out of reach under the Ms, Mt bounds (the best gains keep |T| above {0:.2} dB up to it, −3 dB needed); lower the bandwidth or raise Ms/Mt")]
+    #[error("PID tuning: the bandwidth is out of reach under the Ms, Mt bounds (the best gains' |T| falls to {0:.2} dB below it, −3 dB needed); lower the bandwidth or raise Ms/Mt")]
     Unreachable(f64),
     /// clarabel did not solve a step.
     #[error("PID tuning: the linear program of iteration {0} ended {1}")]
@@ -130,7 +130,13 @@ impl PidTuning {
     }
 
     /// Runs the convex-concave iteration from `start` (which must satisfy `|S| ≤ Ms` on the
-    /// grid), at most `max_iterations` linear programs.
+    /// grid), at most `max_iterations` linear programs in all.
+    ///
+    /// `|T| ≥ 1/√2` is imposed at the bandwidth first; where the solution's `|T|` still falls
+    /// below it at a lower grid frequency (a dip, e.g. at a parasitic mode), that frequency
+    /// joins the constraints and the iteration resumes from the solution — a cutting-plane
+    /// loop, so each constraint is linearised near where `|T|` already is rather than deep
+    /// inside the excluded disk, where its tangent would point the wrong way.
     pub fn solve(&self, start: [f64; 3], max_iterations: usize) -> Result<PidTuned, TuneError> {
         self.check()?;
         let (s0, t0, _) = self.evaluate(&start);
@@ -138,17 +144,64 @@ impl PidTuning {
             return Err(TuneError::InfeasibleStart(s0, t0));
         }
         let bw = self.bandwidth_index();
+        let mut held = vec![bw];
+        let mut k = start;
+        let mut iterations = 0;
+        while iterations < max_iterations {
+            k = self.iterate(k, &held, max_iterations - iterations, &mut iterations)?;
+            let below = |i: &usize| {
+                self.closed_loop_gain(*i, &k) < std::f64::consts::FRAC_1_SQRT_2 * (1.0 - 1e-6)
+            };
+            if held.iter().any(below) {
+                break; // out of reach: reported below
+            }
+            let dip = (0..bw)
+                .filter(|i| !held.contains(i))
+                .map(|i| (i, self.closed_loop_gain(i, &k)))
+                .filter(|&(_, t)| t < std::f64::consts::FRAC_1_SQRT_2)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            match dip {
+                Some((i, _)) => held.push(i),
+                None => break,
+            }
+        }
+        let (max_sensitivity, _, t_up_to_bandwidth) = self.evaluate(&k);
+        if t_up_to_bandwidth < std::f64::consts::FRAC_1_SQRT_2 * (1.0 - 1e-6) {
+            return Err(TuneError::Unreachable(20.0 * t_up_to_bandwidth.log10()));
+        }
+        Ok(PidTuned {
+            gains: k,
+            iterations,
+            max_sensitivity,
+            t_up_to_bandwidth,
+        })
+    }
+
+    /// `|T|` at grid point `i` for gains `k`.
+    fn closed_loop_gain(&self, i: usize, k: &[f64; 3]) -> f64 {
+        let l = self.loop_gain(i, k);
+        l.norm() / (Complex64::new(1.0, 0.0) + l).norm()
+    }
+
+    /// The convex-concave iteration from `k` with `|T| ≥ 1/√2` held at the grid points
+    /// `held`: at most `budget` linear programs, counted in `iterations`.
+    fn iterate(
+        &self,
+        mut k: [f64; 3],
+        held: &[usize],
+        budget: usize,
+        iterations: &mut usize,
+    ) -> Result<[f64; 3], TuneError> {
         let mt2 = self.mt * self.mt;
         let (t_centre, t_radius) = (mt2 / (mt2 - 1.0), self.mt / (mt2 - 1.0));
         // Variables: the gains scaled by the upper bounds (order 1), then one slack.
         let scale = self.upper;
-        let mut k = start;
-        let mut iterations = 0;
         let mut last_objective = f64::INFINITY;
         // The penalty makes any bandwidth deficit cost more than all the ki there is.
         let penalty = 1e3;
-        for it in 1..=max_iterations {
-            iterations = it;
+        for _ in 0..budget {
+            *iterations += 1;
+            let it = *iterations;
             let mut rows: Vec<Vec<f64>> = Vec::new();
             let mut b = Vec::new();
             for i in 0..self.freq_hz.len() {
@@ -163,7 +216,7 @@ impl PidTuning {
                 };
                 half_plane(1.0, 1.0 / self.ms, 0.0);
                 half_plane(t_centre, t_radius, 0.0);
-                if self.freq_hz[i] <= self.freq_hz[bw] {
+                if held.contains(&i) {
                     half_plane(-1.0, std::f64::consts::SQRT_2, -1.0);
                 }
             }
@@ -190,15 +243,6 @@ impl PidTuning {
             }
             last_objective = objective;
         }
-        let (max_sensitivity, _, t_up_to_bandwidth) = self.evaluate(&k);
-        if t_up_to_bandwidth < std::f64::consts::FRAC_1_SQRT_2 * (1.0 - 1e-6) {
-            return Err(TuneError::Unreachable(20.0 * t_up_to_bandwidth.log10()));
-        }
-        Ok(PidTuned {
-            gains: k,
-            iterations,
-            max_sensitivity,
-            t_up_to_bandwidth,
-        })
+        Ok(k)
     }
 }

@@ -9,7 +9,7 @@ use studies::StudyError;
 
 /// Every headline number of thesis Chapters 5–8 beside the value this model computes for the
 /// same experiment (budgets, re-tuned sweeps, an H2 synthesis, intermittent and machining
-/// simulations; ≈ 5 s), with the section and the reason for any difference. Writes
+/// simulations; ≈ 7 s), with the section and the reason for any difference. Writes
 /// `thesis.md` (the README's table) and `thesis.json`.
 /// Example: servo thesis
 #[derive(Args, Debug)]
@@ -25,17 +25,17 @@ pub struct ThesisCmd {
 impl ThesisCmd {
     /// Computes, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let bar = points_bar(6, "comparing", "experiments");
-        let rows = thesis::comparison(&mut |done, _| bar.set_position(done as u64));
+        let bar = points_bar(7, "comparing", "experiments");
+        let comparison = thesis::comparison(&mut |done, _| bar.set_position(done as u64));
         bar.finish_and_clear();
-        let rows = rows?;
-        let written = thesis::write(&rows, &self.out_dir).map_err(StudyError::from)?;
+        let comparison = comparison?;
+        let written = thesis::write(&comparison, &self.out_dir).map_err(StudyError::from)?;
         if self.json {
-            print_json(&rows);
+            print_json(&comparison);
             return Ok(ExitCode::SUCCESS);
         }
         println!("Thesis vs this model (`servo thesis`):");
-        print!("{}", thesis::markdown(&rows));
+        print!("{}", thesis::markdown(&comparison));
         print_written(&written);
         Ok(ExitCode::SUCCESS)
     }
