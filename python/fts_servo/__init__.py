@@ -156,13 +156,15 @@ def run(config: Config = None, **tables: Any) -> Run:
     return Run(**_run_of(_native.run(*_args(config, tables))))
 
 
-def read_recording(path: Union[str, "os.PathLike[str]"]) -> Recording:
+def read_recording(path: Union[str, "os.PathLike[str]"], salvage: bool = False) -> Recording:
     """Reads an MCAP recording of ``servo run`` / ``servo record`` into NumPy arrays.
 
-    The summary is recomputed from the frames (as ``servo inspect`` does); an unfinished file
-    (a killed run) is read up to its last complete record and says so in ``finished``.
+    The summary is recomputed from the frames (as ``servo inspect`` does) and every byte of the
+    file is checked: a damaged or unfinished file raises :class:`ServoError` naming the damage.
+    With ``salvage=True`` it is read as far as it is intact (a killed run up to its last
+    complete record); ``finished`` and ``read`` then say what was skipped.
     """
-    d = _native.read_recording(os.fspath(path))
+    d = _native.read_recording(os.fspath(path), salvage)
     return Recording(**_run_of(d), end=dict(d["end"]), finished=d["finished"], read=d["read"])
 
 

@@ -66,12 +66,14 @@ impl FrameSink for Columns {
 }
 
 /// Reads recording `path` (an MCAP file `servo run` or `servo record` wrote) into columns, with
-/// its configuration, controller and summary.
+/// its configuration, controller and summary. A damaged or unfinished file raises, unless
+/// `salvage` (then what is intact is read, and `read` says what was skipped).
 #[pyfunction]
-pub fn read_recording(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> {
+#[pyo3(signature = (path, salvage = false))]
+pub fn read_recording(py: Python<'_>, path: PathBuf, salvage: bool) -> PyResult<Bound<'_, PyDict>> {
     let mut columns = Columns::default();
     let read = py
-        .detach(|| runner::recording::inspect_with(&path, &mut columns))
+        .detach(|| runner::recording::inspect_with(&path, &mut columns)?.intact(&path, salvage))
         .map_err(servo_err)?;
     let out = columns.into_dict(py)?;
     out.set_item(

@@ -157,6 +157,25 @@ def test_a_recording_read_through_the_package_equals_the_mcap_reader(tmp_path: P
     assert ours.summary["following_error_m"] == cli["summary"]["following_error_m"]
 
 
+def test_a_damaged_recording_raises_unless_salvaged(tmp_path: Path) -> None:
+    rec = tmp_path / "run.mcap"
+    servo("run", "-q", "--duration", "0.05", "--out", str(rec))
+    data = bytearray(rec.read_bytes())
+    data[len(data) // 3] ^= 0x01  # inside a chunk of messages
+    hit = tmp_path / "hit.mcap"
+    hit.write_bytes(bytes(data))
+    with pytest.raises(fs.ServoError, match="hit.mcap.*damaged.*salvage"):
+        fs.read_recording(hit)
+    salvaged = fs.read_recording(hit, salvage=True)
+    assert "chunk CRC mismatch" in salvaged.read
+    whole = fs.read_recording(rec)
+    assert 0 < len(salvaged.time_s) < len(whole.time_s)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(rec.read_bytes()[:-1])  # the closing magic's last byte
+    with pytest.raises(fs.ServoError, match="closing magic"):
+        fs.read_recording(cut)
+
+
 def test_errors_raise_with_the_located_message(tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text("[run]\nduration_s = -1.0\n")

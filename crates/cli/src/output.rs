@@ -113,6 +113,7 @@ impl CliError {
                 return Some(format!("--rate {served_hz:.0}"))
             }
             CliError::Run(RunError::NoTruth(_)) => return Some("--plant model.toml".into()),
+            CliError::Run(RunError::Damaged { .. }) => return Some("--salvage".into()),
             CliError::Study(StudyError::NoTuningStart { .. }) => return Some("--ms, --mt".into()),
             CliError::Study(StudyError::FrfAborted { .. }) => return Some("--amplitude".into()),
             CliError::Run(RunError::Record(recorder::RecordError::Exists { .. }))

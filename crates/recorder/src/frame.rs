@@ -54,6 +54,8 @@ pub trait Message: Sized {
     const TOPIC: &'static str;
     /// ROS 2 message type name (schema name).
     const SCHEMA_NAME: &'static str;
+    /// Bytes of an encoded message (CDR header and body): every message of the topic has it.
+    const PAYLOAD_BYTES: usize;
     /// The `ros2msg` schema text.
     fn schema_text() -> String;
     /// Appends the CDR body (after the encapsulation header).
@@ -86,6 +88,7 @@ macro_rules! message {
         impl Message for $name {
             const TOPIC: &'static str = $topic;
             const SCHEMA_NAME: &'static str = $schema;
+            const PAYLOAD_BYTES: usize = CDR_LE_HEADER.len() + 4 * Self::LEN;
             fn schema_text() -> String {
                 Self::field_text()
             }
@@ -199,12 +202,15 @@ fn known(truth: &daq_io::Truth, x: f64) -> f32 {
     }
 }
 
+/// Bytes of a telemetry message before contract v6 (CDR header, six `f32`).
+pub(crate) const LEGACY_TELEMETRY_BYTES: usize = 4 + 6 * 4;
+
 /// The recorded telemetry of a recording made before contract v6 (no `controller_error_m`;
 /// the reference paired with the next reading): its five signals and flags, the controller's
 /// error taken as the following error.
 pub(crate) fn legacy_telemetry(data: &[u8]) -> Option<Telemetry> {
     let body = data.strip_prefix(&CDR_LE_HEADER[..])?;
-    if body.len() != 6 * 4 {
+    if data.len() != LEGACY_TELEMETRY_BYTES {
         return None;
     }
     let mut f = floats(body);

@@ -16,6 +16,7 @@ pub mod mcap_file;
 pub mod overview;
 pub mod reader;
 mod syncer;
+mod verify;
 pub mod writer;
 
 pub use frame::{Frame, Message, Telemetry, Truth};

@@ -16,6 +16,11 @@ use std::io::{self, Write};
 /// MCAP magic bytes, at the start and end of a file.
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
 
+/// The header's `library` of the files written here: every byte is covered by a CRC (the data
+/// section's in the Data End record, the summary's in the footer, each chunk's and
+/// attachment's), so a reader treats a zero CRC in such a file as damage.
+pub const LIBRARY: &str = "fts-servo recorder 2 (every byte CRC-checked)";
+
 /// Record opcodes (MCAP specification).
 pub mod op {
     /// Header.
@@ -180,6 +185,8 @@ pub struct McapFile<W: Sink> {
     lanes: Vec<OpenChunk>,
     zstd: zstd::bulk::Compressor<'static>,
     compressed: Vec<u8>,
+    /// CRC-32 of everything written so far (the data section's, until its end).
+    data_crc: crc32fast::Hasher,
 }
 
 /// zstd level of the chunks: the fast end. Measured on the records of one simulated second of
@@ -189,20 +196,16 @@ pub struct McapFile<W: Sink> {
 pub const ZSTD_LEVEL: i32 = -3;
 
 impl<W: Sink> McapFile<W> {
-    /// Starts a file: magic and header (`profile`, `library`), written at once. `lanes` chunks
-    /// can be open at the same time, each expected to hold up to `chunk_bytes`.
-    pub fn create(
-        mut out: W,
-        profile: &str,
-        library: &str,
-        lanes: usize,
-        chunk_bytes: usize,
-    ) -> io::Result<Self> {
+    /// Starts a file: magic and header (`profile`, [`LIBRARY`]), written at once. `lanes`
+    /// chunks can be open at the same time, each expected to hold up to `chunk_bytes`.
+    pub fn create(mut out: W, profile: &str, lanes: usize, chunk_bytes: usize) -> io::Result<Self> {
         let mut head = MAGIC.to_vec();
         record(&mut head, op::HEADER, |b| {
-            b.str(profile).str(library);
+            b.str(profile).str(LIBRARY);
         });
         out.write_all(&head)?;
+        let mut data_crc = crc32fast::Hasher::new();
+        data_crc.update(&head);
         Ok(McapFile {
             out,
             position: head.len() as u64,
@@ -218,6 +221,7 @@ impl<W: Sink> McapFile<W> {
             lanes: (0..lanes).map(|_| OpenChunk::new(chunk_bytes)).collect(),
             zstd: zstd::bulk::Compressor::new(ZSTD_LEVEL)?,
             compressed: Vec::with_capacity(chunk_bytes),
+            data_crc,
         })
     }
 
@@ -408,6 +412,7 @@ impl<W: Sink> McapFile<W> {
 
     fn write_pending(&mut self) -> io::Result<()> {
         self.out.write_all(&self.pending)?;
+        self.data_crc.update(&self.pending);
         self.position += self.pending.len() as u64;
         self.pending.clear();
         Ok(())
@@ -420,8 +425,13 @@ impl<W: Sink> McapFile<W> {
         for lane in 0..self.lanes.len() {
             self.close_chunk(lane)?;
         }
+        // The data section's CRC covers every byte before the Data End record, from the
+        // opening magic on (records still pending included).
+        let mut crc = self.data_crc.clone();
+        crc.update(&self.pending);
+        let data_crc = crc.finalize();
         record(&mut self.pending, op::DATA_END, |b| {
-            b.u32(0);
+            b.u32(data_crc);
         });
         let c = &self.counts;
         let mut statistics = Vec::new();

@@ -57,6 +57,7 @@ pub struct Overview {
 impl Message for Overview {
     const TOPIC: &'static str = "/overview";
     const SCHEMA_NAME: &'static str = "fts_servo/msg/Overview";
+    const PAYLOAD_BYTES: usize = 4 + 4 + 3 * 4 * Signals::LEN;
 
     fn schema_text() -> String {
         format!(

@@ -7,6 +7,8 @@
 
 use crate::frame::{Frame, Message, Telemetry, Truth};
 use crate::mcap_file::{op, MAGIC};
+use crate::overview::Overview;
+use crate::verify::{ChunkIndex, Counts, Ledger};
 use crate::writer::EPOCH_KEY;
 use std::collections::BTreeMap;
 use std::io::{BufReader, Read};
@@ -72,7 +74,8 @@ pub enum FileState {
     },
 }
 
-/// A record that failed its check and was skipped.
+/// A record that failed its check (a chunk that fails is skipped whole; a failed index,
+/// summary or CRC check skips nothing but makes the file untrustworthy).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BadRecord {
     /// Offset of the record in the file.
@@ -106,6 +109,12 @@ impl ReadReport {
     pub fn is_damaged(&self) -> bool {
         self.bad_count > 0 || matches!(self.state, FileState::Corrupt { .. })
     }
+
+    /// Whether the file is complete and every check passed: what a reader may trust without
+    /// being told to salvage.
+    pub fn is_intact(&self) -> bool {
+        self.state == FileState::Finished && !self.is_damaged()
+    }
 }
 
 impl std::fmt::Display for ReadReport {
@@ -129,7 +138,7 @@ impl std::fmt::Display for ReadReport {
         if let Some(first) = self.bad.first() {
             write!(
                 f,
-                "; {} corrupt record(s) skipped, the first at byte {} ({})",
+                "; damaged: {} failed check(s), the first at byte {} ({})",
                 self.bad_count, first.at_byte, first.reason
             )?;
         }
@@ -162,6 +171,9 @@ pub fn stream(path: &Path, visit: &mut impl Visit) -> Result<ReadReport, ReadErr
         });
     }
     let mut s = Streamer::default();
+    let mut ledger = Ledger::default();
+    let mut data_crc = crc32fast::Hasher::new();
+    data_crc.update(MAGIC);
     let mut at = 8u64;
     let mut head = [0u8; 9];
     let mut body = Vec::new();
@@ -182,11 +194,48 @@ pub fn stream(path: &Path, visit: &mut impl Visit) -> Result<ReadReport, ReadErr
         if (got as u64) < len {
             break FileState::Unfinished;
         }
-        if opcode == op::FOOTER {
-            break FileState::Finished;
-        }
-        if let Err(reason) = s.record(opcode, &body, visit) {
-            s.bad(at, reason);
+        if ledger.in_summary() {
+            let counts = Counts {
+                per_channel: &s.per_channel,
+                time_range: s.time_range,
+            };
+            if opcode == op::FOOTER {
+                if let Err(reason) = ledger.footer(at, &head, &body) {
+                    s.bad(at, reason);
+                }
+                let mut tail = [0u8; 9];
+                let n = read_full(&mut input, &mut tail).map_err(io)?;
+                if n < 8 || tail[..8] != MAGIC[..] {
+                    s.bad(
+                        at + 9 + len,
+                        "the closing magic is missing or damaged".into(),
+                    );
+                } else if n > 8 {
+                    s.bad(at + 9 + len + 8, "bytes after the closing magic".into());
+                }
+                break FileState::Finished;
+            }
+            if let Err(reason) = ledger.summary_record(at, &head, &body, &counts) {
+                s.bad(at, reason);
+            }
+        } else if opcode == op::DATA_END {
+            if let Err(reason) =
+                ledger.data_end(at, &body, data_crc.clone().finalize(), s.bad_count > 0)
+            {
+                s.bad(at, reason);
+            }
+        } else {
+            data_crc.update(&head);
+            data_crc.update(&body);
+            let decoded = s.record(opcode, &body, visit);
+            let index = (opcode == op::CHUNK && decoded.is_ok())
+                .then(|| std::mem::take(&mut s.chunk_index));
+            if let Err(reason) = decoded {
+                s.bad(at, reason);
+            }
+            if let Err(reason) = ledger.data_record(at, opcode, &body, index) {
+                s.bad(at, reason);
+            }
         }
         at += 9 + len;
     };
@@ -232,16 +281,16 @@ impl<'a> Fields<'a> {
         self.0 = rest;
         Ok(head)
     }
-    fn u16(&mut self) -> Result<u16, String> {
+    pub(crate) fn u16(&mut self) -> Result<u16, String> {
         Ok(u16::from_le_bytes(self.bytes(2)?.try_into().expect("2")))
     }
-    fn u32(&mut self) -> Result<u32, String> {
+    pub(crate) fn u32(&mut self) -> Result<u32, String> {
         Ok(u32::from_le_bytes(self.bytes(4)?.try_into().expect("4")))
     }
     pub(crate) fn u64(&mut self) -> Result<u64, String> {
         Ok(u64::from_le_bytes(self.bytes(8)?.try_into().expect("8")))
     }
-    fn str(&mut self) -> Result<String, String> {
+    pub(crate) fn str(&mut self) -> Result<String, String> {
         let n = self.u32()? as usize;
         String::from_utf8(self.bytes(n)?.to_vec()).map_err(|_| "string not UTF-8".into())
     }
@@ -269,6 +318,13 @@ pub(crate) struct Streamer {
     bad_count: u64,
     zstd: Option<zstd::bulk::Decompressor<'static>>,
     chunk: Vec<u8>,
+    /// Messages per channel id, of every channel.
+    per_channel: BTreeMap<u16, u64>,
+    /// Earliest and latest log time of any message.
+    time_range: Option<(u64, u64)>,
+    /// Each message of the chunk being decoded: per channel, log time and offset in the
+    /// chunk's records (what its message indexes must say).
+    chunk_index: ChunkIndex,
 }
 
 impl Streamer {
@@ -361,11 +417,20 @@ impl Streamer {
             return Err("chunk CRC mismatch".into());
         }
         let mut inner = Fields(&records);
+        self.chunk_index.clear();
+        let total = records.len();
         let result = (|| {
             while !inner.0.is_empty() {
+                let offset = (total - inner.0.len()) as u64;
                 let opcode = inner.bytes(1)?[0];
                 let len = inner.u64()?;
                 let record = inner.bytes(usize::try_from(len).map_err(|_| "record too large")?)?;
+                if opcode == op::MESSAGE {
+                    let mut m = Fields(record);
+                    let (channel, _sequence, log_time) = (m.u16()?, m.u32()?, m.u64()?);
+                    let entries = self.chunk_index.entry(channel).or_default();
+                    entries.push((log_time, offset));
+                }
                 self.record(opcode, record, visit)?;
             }
             Ok(())
@@ -383,7 +448,36 @@ impl Streamer {
         let _publish = f.u64()?;
         let data = f.0;
         let time_ns = log_time.saturating_sub(self.epoch_ns);
-        let topic = self.topics.get(&channel).map_or("", String::as_str);
+        let topic = self
+            .topics
+            .get(&channel)
+            .ok_or_else(|| {
+                format!("a message on channel {channel}, which no Channel record declares")
+            })?
+            .as_str();
+        let sized = |want: &[usize]| {
+            if want.contains(&data.len()) {
+                Ok(())
+            } else {
+                Err(format!(
+                    "a {topic} message of {} bytes: its schema's are {want:?}",
+                    data.len()
+                ))
+            }
+        };
+        match topic {
+            Telemetry::TOPIC => sized(&[
+                Telemetry::PAYLOAD_BYTES,
+                crate::frame::LEGACY_TELEMETRY_BYTES,
+            ])?,
+            Truth::TOPIC => sized(&[Truth::PAYLOAD_BYTES])?,
+            Overview::TOPIC => sized(&[Overview::PAYLOAD_BYTES])?,
+            _ => {}
+        }
+        *self.per_channel.entry(channel).or_default() += 1;
+        self.time_range = Some(self.time_range.map_or((log_time, log_time), |(a, b)| {
+            (a.min(log_time), b.max(log_time))
+        }));
         visit.message(topic, sequence, time_ns, data);
         match topic {
             Telemetry::TOPIC => {

@@ -225,8 +225,7 @@ impl Recorder {
         let partial = partial_path(path);
         let file = create_private(&partial).map_err(io)?;
         let syncer = Syncer::start(&file).map_err(io)?;
-        let mut w =
-            McapFile::create(file, "ros2", "fts-servo recorder", 2, CHUNK_BYTES).map_err(io)?;
+        let mut w = McapFile::create(file, "ros2", 2, CHUNK_BYTES).map_err(io)?;
         register::<Telemetry>(&mut w, TELEMETRY_CH);
         register::<Truth>(&mut w, TRUTH_CH);
         register::<Overview>(&mut w, OVERVIEW_CH);

@@ -73,6 +73,14 @@ pub enum RunError {
         /// Attachment name.
         input: String,
     },
+    /// A recording that is damaged or unfinished, read without being told to salvage it.
+    #[error("{}: {report}; not trusted as a whole run (salvage reads what is intact)", path.display())]
+    Damaged {
+        /// The recording.
+        path: PathBuf,
+        /// What the read found, and where.
+        report: String,
+    },
     /// A recording without the metadata `servo run` writes.
     #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
     NotARun(PathBuf),

@@ -6,7 +6,7 @@
 //! opens a path named inside it.
 
 use crate::config::sha256_hex;
-use crate::config::{ConfigError, Loaded, RunConfig};
+use crate::config::{ConfigError, Loaded, Origin, RunConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::stop::EndReason;
@@ -206,6 +206,22 @@ pub struct Inspected {
     pub read: ReadReport,
 }
 
+impl Inspected {
+    /// `self` when the file is complete and every check passed, or when `salvage` accepts
+    /// what was intact of it; a [`RunError::Damaged`] naming the file and the damage
+    /// otherwise.
+    pub fn intact(self, path: &Path, salvage: bool) -> Result<Self, RunError> {
+        if salvage || self.read.is_intact() {
+            Ok(self)
+        } else {
+            Err(RunError::Damaged {
+                path: path.to_owned(),
+                report: self.read.to_string(),
+            })
+        }
+    }
+}
+
 /// Streams the recording `path` of a run (constant memory), recomputing its summary and
 /// showing every frame to `sink`.
 pub fn inspect_with(path: &Path, sink: &mut impl FrameSink) -> Result<Inspected, RunError> {
@@ -277,6 +293,12 @@ impl<S: FrameSink> RunReader<'_, S> {
         let config: RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
             path: self.path.to_owned(),
             message: e.to_string(),
+        })?;
+        // As strictly as a configuration file: every value in its range before anything uses
+        // it (errors name the recording and the key).
+        config.validate(&Origin {
+            path: Some(format!("{} (its configuration)", self.path.display()).into()),
+            text: Some(text.clone()),
         })?;
         for (name, data) in &self.attachments {
             if run.get(&input_key(name)) != Some(&sha256_hex(data)) {

@@ -11,8 +11,8 @@ use std::process::ExitCode;
 /// Export a recording to CSV or NumPy .npz. Example: servo export run.mcap --topics telemetry --every 20
 ///
 /// `.npz` holds one array per column (`numpy.load("run.npz")["telemetry.following_error_m"]`);
-/// names carry their SI unit. Works on unfinished (`.partial`) recordings too. Exit 1 if the
-/// recording is damaged (what is intact is exported).
+/// names carry their SI unit. Exit 1 if the recording is damaged or unfinished (what is intact
+/// is exported all the same), unless --salvage (a killed run's `.partial`).
 #[derive(Args, Debug)]
 pub struct ExportCmd {
     /// The MCAP recording.
@@ -42,6 +42,10 @@ pub struct ExportCmd {
     /// Print what was written as JSON.
     #[arg(long)]
     json: bool,
+    /// Read a damaged or unfinished recording (a killed run's `.partial`) as far as it is
+    /// intact, say what was skipped, and exit 0 (without it such a file exits 1).
+    #[arg(long)]
+    salvage: bool,
 }
 
 /// `--format`.
@@ -100,10 +104,15 @@ impl ExportCmd {
                 done.read
             );
         }
-        Ok(if done.read.is_damaged() {
-            ExitCode::FAILURE
-        } else {
+        Ok(if self.salvage || done.read.is_intact() {
             ExitCode::SUCCESS
+        } else {
+            eprintln!(
+                "error: {}: {}; not trusted as a whole run (--salvage reads what is intact)",
+                self.file.display(),
+                done.read
+            );
+            ExitCode::FAILURE
         })
     }
 }

@@ -5,15 +5,15 @@
 use super::machine::print_form;
 use crate::output::{print_json, print_summary, CliError};
 use clap::Args;
-use recorder::FileState;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::form::FormSink;
 
 /// Recompute and print the summary of a recording, finished or not. Example: servo inspect run.mcap
 ///
-/// Exit 0 for a complete or an unfinished (recovered) file, 1 when a record is corrupt (what
-/// precedes it is still printed).
+/// Every byte is checked (CRCs, indexes, summary, message sizes). Exit 0 for a complete,
+/// intact file; 1 for a damaged or unfinished one (what is intact is still printed, and where
+/// the damage is), unless --salvage.
 #[derive(Args, Debug)]
 pub struct InspectCmd {
     /// The MCAP file written by `servo run` (or its `.partial` file).
@@ -21,6 +21,10 @@ pub struct InspectCmd {
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
+    /// Read a damaged or unfinished recording (a killed run's `.partial`) as far as it is
+    /// intact, say what was skipped, and exit 0 (without it such a file exits 1).
+    #[arg(long)]
+    salvage: bool,
 }
 
 impl InspectCmd {
@@ -29,9 +33,15 @@ impl InspectCmd {
         let mut form = FormSink::default();
         let i = runner::recording::inspect_with(&self.file, &mut form)?;
         let report = form.analysis.map(|a| a.report());
-        let code = match i.read.state {
-            FileState::Corrupt { .. } => ExitCode::FAILURE,
-            _ => ExitCode::SUCCESS,
+        let code = if self.salvage || i.read.is_intact() {
+            ExitCode::SUCCESS
+        } else {
+            eprintln!(
+                "error: {}: {}; not trusted as a whole run (--salvage reads what is intact)",
+                self.file.display(),
+                i.read
+            );
+            ExitCode::FAILURE
         };
         if self.json {
             print_json(&serde_json::json!({

@@ -44,6 +44,10 @@ pub struct ReplayCmd {
     plant: Option<PathBuf>,
     #[command(flatten)]
     recording: RecordingArgs,
+    /// Read a damaged or unfinished recording (a killed run's `.partial`) as far as it is
+    /// intact, say what was skipped, and exit 0 (without it such a file exits 1).
+    #[arg(long)]
+    salvage: bool,
 }
 
 /// A replay's result.
@@ -72,7 +76,8 @@ impl ReplayCmd {
         // swap, a gain change) ends the part it can reproduce.
         let steered_at = runner::operator_log::OperatorLog::read(&self.file)?.first_tick();
         let mut rec = Recorded::new(steered_at.unwrap_or(u64::MAX));
-        let inspected = runner::recording::inspect_with(&self.file, &mut rec)?;
+        let inspected = runner::recording::inspect_with(&self.file, &mut rec)?
+            .intact(&self.file, self.salvage)?;
         let (Some(header), Some(recorded_digest)) = (rec.header, rec.digest) else {
             return Err(RunError::NotARun(self.file.clone()).into());
         };

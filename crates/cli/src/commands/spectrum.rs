@@ -43,6 +43,10 @@ pub struct SpectrumCmd {
     /// Print the result as JSON.
     #[arg(long)]
     json: bool,
+    /// Read a damaged or unfinished recording (a killed run's `.partial`) as far as it is
+    /// intact, say what was skipped, and exit 0 (without it such a file exits 1).
+    #[arg(long)]
+    salvage: bool,
 }
 
 impl SpectrumCmd {
@@ -69,7 +73,8 @@ impl SpectrumCmd {
             controller,
             swaps: runner::operator_log::OperatorLog::read(&self.file)?.swaps,
         });
-        let read = runner::recording::inspect_with(&self.file, &mut sink)?;
+        let read = runner::recording::inspect_with(&self.file, &mut sink)?
+            .intact(&self.file, self.salvage)?;
         let s = sink.finish()?;
         let title = self
             .file
