@@ -1,5 +1,5 @@
 """`servo view` (the Foxglove live view) against the recording of the same run: a WebSocket
-client speaking the Foxglove WebSocket protocol (foxglove.sdk.v1) subscribes to /overview, sets the gain_scale parameter
+client speaking the Foxglove WebSocket protocol (foxglove.websocket.v1) subscribes to /overview, sets the gain_scale parameter
 (the controller must apply it) and stops the run through the stop service; the samples it
 received equal the recording's /overview (the same bins), and the run ended by that stop."""
 
@@ -20,7 +20,7 @@ from websockets.exceptions import ConnectionClosed  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 SERVO = os.environ.get("FTS_SERVO_BIN", str(ROOT / "target" / "release" / "servo"))
-SUBPROTOCOL = "foxglove.sdk.v1"  # the SDK's name for foxglove.websocket.v1 with inline schemas
+SUBPROTOCOL = "foxglove.websocket.v1"  # the protocol's own name (the view also serves foxglove.sdk.v1)
 
 
 def spawn(*args: str, **kw) -> subprocess.Popen:

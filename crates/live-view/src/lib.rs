@@ -3,8 +3,8 @@
 //! A live view of a running HIL run in Foxglove: `servo view --prefix P` taps the run's
 //! telemetry and truth over shared memory the way the recorder does (its own process: the
 //! servo path never waits for it; a slow view loses its own samples, counted), joins them tick
-//! by tick, and serves on a Foxglove WebSocket (localhost by default; any other address is
-//! the user's explicit choice):
+//! by tick, and serves the Foxglove WebSocket protocol ([`ws`]: on loopback to the run's own
+//! Unix user only; beyond loopback only with a token; read-only if asked):
 //! - `/overview`: per millisecond of run, the minimum, maximum and mean of the main signals —
 //!   the recording's own `/overview` bins, so what a browser shows is what the file holds;
 //!   `every` publishes only each n-th bin;
@@ -15,19 +15,18 @@
 
 mod messages;
 mod operator;
+pub mod ws;
 
 pub use operator::{GAIN_SCALE, STOP_SERVICE};
 
 use daq_io::ipc::{take, Endpoint, IpcError, Tap};
-use foxglove::remote_common::service::{Service, ServiceSchema};
-use foxglove::remote_common::{Parameter, Status};
-use foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, WebSocketServer};
-use operator::{Asks, Operator};
+use operator::Operator;
 use recorder::OverviewBin;
 use runner::join::Joiner;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
+use ws::protocol::Parameter;
+use ws::{Channel, Front, FrontOptions, Service};
 
 /// What [`serve`] serves and where.
 #[derive(Debug, Clone)]
@@ -44,6 +43,11 @@ pub struct ViewOptions {
     pub startup_timeout: Duration,
     /// How long to keep serving after the run ended (clients take the last messages).
     pub linger: Duration,
+    /// Offer no parameters and no services (watch only).
+    pub read_only: bool,
+    /// A token every client must present (`?token=…`); required when `host` is not a
+    /// loopback address.
+    pub token: Option<String>,
 }
 
 impl ViewOptions {
@@ -56,6 +60,8 @@ impl ViewOptions {
             every: 1,
             startup_timeout: Duration::from_secs(30),
             linger: Duration::from_secs(1),
+            read_only: false,
+            token: None,
         }
     }
 }
@@ -73,6 +79,8 @@ pub struct ViewReport {
     pub applied_gains: Vec<f64>,
     /// Whether the run ended (rather than the view being stopped or timing out).
     pub run_ended: bool,
+    /// Connections refused (another Unix user, a missing token, too many clients).
+    pub refused: u64,
 }
 
 /// Live-view errors.
@@ -90,19 +98,17 @@ pub enum ViewError {
         /// What went wrong.
         detail: String,
     },
+    /// Served beyond loopback without a token.
+    #[error("a live view on {0} (not a loopback address) needs a token: any machine that reaches it could steer the run")]
+    NoToken(String),
     /// No run appeared.
     #[error("no run on prefix {0:?} within {1:?}: start the run on that prefix first")]
     NoRun(String, Duration),
 }
 
-fn json_channel(ctx: &Arc<Context>, topic: &str, name: &str, schema: Vec<u8>) -> Arc<RawChannel> {
-    ChannelBuilder::new(topic)
-        .message_encoding("json")
-        .schema(Schema::new(name, "jsonschema", schema))
-        .context(ctx)
-        .build_raw()
-        .expect("a fresh context has no channel of that topic")
-}
+/// Channel ids of the two topics.
+const OVERVIEW_CHANNEL: u32 = 1;
+const HEALTH_CHANNEL: u32 = 2;
 
 /// Serves run `o.prefix` until it ends (then `o.linger` more) or `stop` is set; `listening`
 /// hears the bound port first.
@@ -111,47 +117,27 @@ pub fn serve(
     stop: &AtomicBool,
     listening: impl FnOnce(u16),
 ) -> Result<ViewReport, ViewError> {
+    let loopback = o
+        .host
+        .parse::<std::net::IpAddr>()
+        .is_ok_and(ws::peer::is_loopback)
+        || o.host == "localhost";
+    if !loopback && o.token.is_none() {
+        return Err(ViewError::NoToken(o.host.clone()));
+    }
     let ep = Endpoint::open(&o.prefix, &format!("view-{}", std::process::id()))?;
     let tap = Tap::new(&ep)?;
     let (tx, rx) = std::sync::mpsc::channel();
     let mut operator = Operator::new(&ep, rx)?;
-    let ctx = Context::new();
-    let overview = json_channel(
-        &ctx,
-        messages::OVERVIEW_TOPIC,
-        "fts_servo.Overview",
-        messages::overview_schema(),
-    );
-    let health = json_channel(
-        &ctx,
-        messages::HEALTH_TOPIC,
-        "fts_servo.Health",
-        messages::health_schema(),
-    );
-    let object = |name: &str, what: &str| {
-        let schema = format!(r#"{{"type": "object", "description": "{what}"}}"#);
-        Schema::new(name, "jsonschema", schema.into_bytes())
-    };
-    let stop_schema = ServiceSchema::new("fts_servo.Stop")
-        .with_request("json", object("fts_servo.StopRequest", "empty"))
-        .with_response(
-            "json",
-            object(
-                "fts_servo.StopResponse",
-                "stopped_at_tick: the tick the run ends at",
-            ),
-        );
-    let stop_service = Service::builder(STOP_SERVICE, stop_schema).handler(Asks(tx.clone()));
+    let text = |v: Vec<u8>| String::from_utf8(v).expect("JSON schemas are UTF-8");
+    let object = |what: &str| format!(r#"{{"type": "object", "description": "{what}"}}"#);
     let addr = format!("{}:{}", o.host, o.port);
-    let server = WebSocketServer::new()
-        .name(format!("fts-servo run {}", o.prefix))
-        .bind(&o.host, o.port)
-        .context(&ctx)
-        .parameter_handler(Arc::new(Asks(tx)))
-        .services([stop_service])
-        .supported_encodings(["json"])
-        .server_info(
-            [
+    let server = Front::start(
+        FrontOptions {
+            name: format!("fts-servo run {}", o.prefix),
+            host: o.host.clone(),
+            port: o.port,
+            metadata: [
                 ("fts_servo.prefix".to_owned(), o.prefix.clone()),
                 (
                     "fts_servo.contract_version".to_owned(),
@@ -159,12 +145,36 @@ pub fn serve(
                 ),
             ]
             .into(),
-        )
-        .start_blocking()
-        .map_err(|e| ViewError::Server {
-            addr: addr.clone(),
-            detail: e.to_string(),
-        })?;
+            channels: vec![
+                Channel {
+                    id: OVERVIEW_CHANNEL,
+                    topic: messages::OVERVIEW_TOPIC.into(),
+                    schema_name: "fts_servo.Overview".into(),
+                    schema: text(messages::overview_schema()),
+                },
+                Channel {
+                    id: HEALTH_CHANNEL,
+                    topic: messages::HEALTH_TOPIC.into(),
+                    schema_name: "fts_servo.Health".into(),
+                    schema: text(messages::health_schema()),
+                },
+            ],
+            service: Some(Service {
+                id: 1,
+                name: STOP_SERVICE.into(),
+                type_name: "fts_servo.Stop".into(),
+                request_schema: object("empty"),
+                response_schema: object("stopped_at_tick: the tick the run ends at"),
+            }),
+            read_only: o.read_only,
+            token: o.token.clone(),
+        },
+        tx,
+    )
+    .map_err(|e| ViewError::Server {
+        addr: addr.clone(),
+        detail: e.to_string(),
+    })?;
     listening(server.port());
 
     let mut join = Joiner::default();
@@ -178,10 +188,7 @@ pub fn serve(
     let mut publish = |t_ns: u64, ov: &recorder::Overview, report: &mut ViewReport| {
         bins += 1;
         if bins.is_multiple_of(u64::from(o.every.max(1))) {
-            overview.log_with_meta(
-                &messages::overview(t_ns, ov),
-                PartialMetadata::with_log_time(t_ns),
-            );
+            server.publish(OVERVIEW_CHANNEL, t_ns, &messages::overview(t_ns, ov));
             report.overview_samples += 1;
         }
     };
@@ -207,7 +214,11 @@ pub fn serve(
         let silent = last_data.elapsed() > runner::hil::RECORDER_TIMEOUT;
         let end = join.run_over() || (run_id.is_some() && silent);
         while let Some(h) = take(&tap.health) {
-            health.log(&messages::health(&h));
+            // Health reports are stamped when the view saw them (wall clock, ns).
+            let now_ns = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_nanos() as u64);
+            server.publish(HEALTH_CHANNEL, now_ns, &messages::health(&h));
         }
         join.drain(end, |f| {
             report.ticks += 1;
@@ -224,16 +235,16 @@ pub fn serve(
         }
         let (values, problems) = operator.poll();
         if !values.is_empty() {
-            server.publish_parameter_values(values);
+            server.publish_parameters(&values);
         }
         for p in problems {
-            server.publish_status(Status::warning(p));
+            server.publish_status(1, &p);
         }
         if ended_at.is_some_and(|t| t.elapsed() >= o.linger) {
             break;
         }
         if run_id.is_none() && waiting.elapsed() > o.startup_timeout {
-            server.stop().wait_blocking();
+            server.stop();
             return Err(ViewError::NoRun(o.prefix.clone(), o.startup_timeout));
         }
         if !got {
@@ -242,7 +253,8 @@ pub fn serve(
     }
     report.dropped = join.dropped();
     report.applied_gains = operator.applied_gains.clone();
-    server.stop().wait_blocking();
+    report.refused = server.refused();
+    server.stop();
     Ok(report)
 }
 

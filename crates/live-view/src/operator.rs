@@ -5,15 +5,12 @@
 //! are queued by the server's threads and answered from the view's own loop, which owns the
 //! control plane; nothing here touches the servo path.
 
+use crate::ws::protocol::{Parameter, ParameterValue};
+use crate::ws::{Ask, Reply, ServiceReply};
 use daq_io::contract::{ack_status, command};
 use daq_io::ipc::{take, ControlSender, IpcError, Subscriber};
 use daq_io::{Ack, Control};
-use foxglove::remote_common::service::{Handler, Request, Responder};
-use foxglove::remote_common::{
-    AnyClient, GetParametersResponder, Parameter, ParameterHandler, ParameterValue,
-    SetParametersResponder,
-};
-use std::sync::mpsc::{Receiver, Sender};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 /// Name of the gain parameter (dimensionless scale of the controller output).
@@ -23,41 +20,10 @@ pub const STOP_SERVICE: &str = "stop";
 /// How long a request waits for the run's acknowledgement.
 pub const ACK_TIMEOUT: Duration = Duration::from_secs(5);
 
-/// A request from a Foxglove client.
-pub enum Ask {
-    /// Parameter values.
-    Get(Vec<String>, GetParametersResponder),
-    /// New parameter values.
-    Set(Vec<Parameter>, SetParametersResponder),
-    /// The stop service was called.
-    Stop(Responder),
-}
-
-/// Queues the clients' parameter requests and stop calls for the view's loop.
-#[derive(Clone)]
-pub struct Asks(pub Sender<Ask>);
-
-impl ParameterHandler for Asks {
-    fn get(&self, _: AnyClient, names: Vec<String>, _: Option<String>, r: GetParametersResponder) {
-        let _ = self.0.send(Ask::Get(names, r));
-    }
-
-    fn set(&self, _: AnyClient, p: Vec<Parameter>, _: Option<String>, r: SetParametersResponder) {
-        let _ = self.0.send(Ask::Set(p, r));
-    }
-}
-
-/// The view's one service, `stop`.
-impl Handler for Asks {
-    fn call(&self, _: Request, responder: Responder) {
-        let _ = self.0.send(Ask::Stop(responder));
-    }
-}
-
 /// What waits for an acknowledgement.
 enum Waiting {
-    Gain(f64, SetParametersResponder),
-    Stop(Responder),
+    Gain(f64, Reply),
+    Stop(ServiceReply),
 }
 
 /// The control-plane side: sends requests, pairs acknowledgements by id, answers.
@@ -155,7 +121,7 @@ impl Operator {
                         None => r.respond(vec![self.gain()]),
                     }
                 }
-                Ask::Stop(r) => self.send(command::STOP, 0.0, Waiting::Stop(r)),
+                Ask::Call(r) => self.send(command::STOP, 0.0, Waiting::Stop(r)),
             }
         }
         let mut publish = Vec::new();

@@ -15,18 +15,25 @@ use std::sync::Arc;
 /// /overview (min, max and mean of the main signals per millisecond of run: the recording's
 /// own bins) and /health; the gain_scale parameter and the stop service act on the run's
 /// control plane as `servo ctl gain` and `servo ctl stop` do (a gain is applied only if the
-/// loop keeps its 6 dB margin). Serves localhost only unless --host says otherwise; ends
-/// one second after the run.
+/// loop keeps its 6 dB margin). Speaks the Foxglove WebSocket protocol
+/// (foxglove.websocket.v1, also under the SDK's name foxglove.sdk.v1). On loopback (the
+/// default) only the Unix user running the view gets in — other users' connections are closed
+/// before they see anything; with --host beyond loopback every client also needs the token in
+/// the printed URL (cleartext: use an SSH tunnel over untrusted networks). Ends one second
+/// after the run.
 /// Example: servo run --hil --prefix bench & servo view --prefix bench
 #[derive(Args, Debug)]
 pub struct ViewCmd {
     /// Run prefix.
     #[arg(long)]
     prefix: String,
-    /// Address to listen on. Anything but a loopback address lets other machines steer the
-    /// run's gain and stop it: choose it knowingly.
+    /// Address to listen on. Anything but a loopback address lets other machines that have
+    /// the printed token steer the run's gain and stop it: choose it knowingly.
     #[arg(long, default_value = "127.0.0.1")]
     host: String,
+    /// Watch only: no parameters and no stop service.
+    #[arg(long)]
+    read_only: bool,
     /// TCP port (0: any free port; the address is printed).
     #[arg(long, default_value_t = 8765)]
     port: u16,
@@ -50,22 +57,46 @@ impl ViewCmd {
         let mut o = ViewOptions::new(&self.prefix, self.port);
         o.host = self.host.clone();
         o.every = self.every;
+        o.read_only = self.read_only;
+        let loopback = self
+            .host
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(live_view::ws::peer::is_loopback)
+            || self.host == "localhost";
+        if !loopback {
+            o.token = Some(
+                live_view::ws::new_token()
+                    .map_err(|e| CliError::Processes(format!("no token: {e}")))?,
+            );
+        }
+        let query = o
+            .token
+            .as_ref()
+            .map_or(String::new(), |t| format!("/?token={t}"));
         let report = serve(&o, &stop, |port| {
-            println!("ws://{}:{port}", self.host);
+            let url = format!("ws://{}:{port}{query}", self.host);
+            println!("{url}");
             eprintln!(
-                "live view of run {:?}: open Foxglove, Open connection → Foxglove WebSocket → ws://{}:{port}",
-                self.prefix, self.host
+                "live view of run {:?}{}: open Foxglove, Open connection → Foxglove WebSocket → {url}{}",
+                self.prefix,
+                if self.read_only { " (read-only)" } else { "" },
+                if loopback {
+                    " (only your Unix user can connect)"
+                } else {
+                    " (cleartext; anyone with this URL can steer the run)"
+                }
             );
         })
         .map_err(|e| CliError::Processes(e.to_string()))?;
         eprintln!(
-            "run {:?} {}: {} ticks seen, {} overview samples published, {} records lost by the view, gain changes applied {:?}",
+            "run {:?} {}: {} ticks seen, {} overview samples published, {} records lost by the view, gain changes applied {:?}, {} connections refused",
             self.prefix,
             if report.run_ended { "ended" } else { "left" },
             report.ticks,
             report.overview_samples,
             report.dropped,
-            report.applied_gains
+            report.applied_gains,
+            report.refused
         );
         Ok(ExitCode::SUCCESS)
     }
