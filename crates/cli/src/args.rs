@@ -16,7 +16,7 @@ pub struct PlantArgs {
     #[arg(short, long)]
     pub config: Option<PathBuf>,
     /// Servo (loop) rate in Hz.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub rate: Option<f64>,
     /// Plant file: a `[plant]` table only, e.g. the model.toml `servo identify` writes
     /// (replaces the configured plant; --rate and --noise still apply).
@@ -82,7 +82,7 @@ impl PlantArgs {
 #[derive(Args, Debug, Clone)]
 pub struct RunLengthArgs {
     /// Simulated duration in s.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub duration: Option<f64>,
     /// Noise seed.
     #[arg(long)]
@@ -104,7 +104,7 @@ pub struct AccelArgs {
     #[arg(long)]
     pub kg_scaling: bool,
     /// Corner of the acceleration shaping filter Ha in Hz (0: none).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub accel_filter_hz: Option<f64>,
     /// Order of Ha: 1 or 2.
     #[arg(long)]
@@ -128,7 +128,7 @@ pub struct ControllerArgs {
     #[arg(long, value_enum)]
     pub controller: Option<ControllerKind>,
     /// Acceleration feedback gain Ka (V/V), for --controller accel.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub ka: Option<f64>,
     /// Controller file for --controller ss (relative to the working directory).
     #[arg(long)]
@@ -163,7 +163,7 @@ pub struct FeedforwardArgs {
     pub feedforward: Option<FeedforwardKind>,
     /// Zero-phase smoothing of the previewed reference in Hz (Hann window; 0 = off), for
     /// surfaces with kinks or steps.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub smoothing_hz: Option<f64>,
 }
 
@@ -183,19 +183,19 @@ pub struct ScenarioArgs {
     #[arg(long, value_enum)]
     pub scenario: Option<ScenarioKind>,
     /// Reference amplitude in m (sine, step, chirp).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub amplitude: Option<f64>,
     /// Sine frequency, or chirp start frequency, in Hz.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub frequency: Option<f64>,
     /// Chirp end frequency in Hz.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub f_end: Option<f64>,
     /// Cutting force in N (intermittent-cut).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub force: Option<f64>,
     /// Spindle speed in rpm (intermittent-cut, machine).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub rpm: Option<f64>,
 }
 
@@ -333,6 +333,15 @@ impl RecordingArgs {
     }
 }
 
+/// Every number flag: a finite number (NaN and ±inf are refused before any command sees them).
+pub fn finite(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(format!("{s}: not a finite number")),
+        Err(e) => Err(format!("{s}: {e}")),
+    }
+}
+
 /// `--record-every`: 1 … 1 000 000.
 fn parse_every(s: &str) -> Result<NonZeroU32, String> {
     s.parse::<u32>()
@@ -420,16 +429,16 @@ pub struct RealtimeArgs {
     #[arg(long, value_enum)]
     pub wait: Option<runner::config::WaitKind>,
     /// With --wait sleep-spin: spin this long before each tick, µs.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub spin_margin_us: Option<f64>,
     /// Startup grace window, ms (overruns not charged to the budget).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub grace_ms: Option<f64>,
     /// Overrun budget: sustained fraction of late ticks absorbed (0..1).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub overrun_rate: Option<f64>,
     /// Overrun budget: burst of overruns beyond the sustained rate absorbed at once, ms.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub overrun_burst_ms: Option<f64>,
 }
 
@@ -491,7 +500,7 @@ impl HilArgs {
 pub struct PeerTimeoutArgs {
     /// Controller silence after which the plant declares it lost and drives zero current, ms
     /// (default 200 lockstep; real time: [realtime] peer_timeout_s, 0.5 ms; > 0).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     pub peer_timeout_ms: Option<f64>,
 }
 

@@ -14,10 +14,15 @@ use std::sync::Arc;
 pub fn stop_on_signals() -> StopRequest {
     let stop = StopRequest::new();
     let cell = stop.shared();
-    // In this order: the shutdown checks whether an earlier SIGINT armed it, then arms it.
-    let armed = Arc::new(AtomicBool::new(false));
-    let _ = flag::register_conditional_shutdown(SIGINT, 128 + SIGINT, armed.clone());
-    let _ = flag::register(SIGINT, armed);
+    // A second SIGINT ends the process at once — except in a HIL child of `servo run --hil`,
+    // which can get two from one Ctrl-C (the terminal's and the one its parent forwards): its
+    // parent handles the second, and the child follows its parent (`follow_parent`).
+    if std::env::var_os(PARENT_ENV).is_none() {
+        // In this order: the shutdown checks whether an earlier SIGINT armed it, then arms it.
+        let armed = Arc::new(AtomicBool::new(false));
+        let _ = flag::register_conditional_shutdown(SIGINT, 128 + SIGINT, armed.clone());
+        let _ = flag::register(SIGINT, armed);
+    }
     for signal in [SIGINT, SIGTERM, SIGHUP] {
         let _ = flag::register_usize(signal, cell.clone(), signal as usize);
     }

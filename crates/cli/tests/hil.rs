@@ -296,35 +296,38 @@ fn processes_of(prefix: &str) -> Vec<u32> {
         .collect()
 }
 
-/// SIGTERM sent to the `servo run --hil` parent alone (as a supervisor sends it) is
-/// forwarded: the plant stops at a tick boundary, the recorder finishes the file (complete,
-/// `end` record: interrupted by SIGTERM), the parent exits 128 + 15, and no child outlives it.
+/// SIGINT, SIGHUP or SIGTERM sent to the `servo run --hil` parent alone (as a supervisor
+/// sends it) is forwarded as itself: the plant stops at a tick boundary, the recorder finishes
+/// the file (complete, `end` record: interrupted by that signal), the parent exits 128 + its
+/// number (130, 129, 143), and no child outlives it.
 #[test]
 fn a_signal_to_the_hil_parent_stops_every_process_and_finishes_the_file() {
-    let p = prefix("term");
-    let out = tmp("term.mcap");
-    let mut parent = long_hil_run(&p, &out, |c| {
-        c.stderr(Stdio::piped());
-    });
-    let ok = Command::new("kill")
-        .args(["-TERM", &parent.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(ok.success());
-    let status = parent.wait().unwrap();
-    assert_eq!(status.code(), Some(143));
-    assert!(
-        processes_of(&p).is_empty(),
-        "children left: {:?}",
-        processes_of(&p)
-    );
-    let rec = recorder::read(&out).expect("a finished recording");
-    assert_eq!(rec.report.unwrap().state, recorder::FileState::Finished);
-    assert_eq!(rec.end["reason"], "interrupted");
-    assert_eq!(rec.end["signal"], "SIGTERM");
-    let ticks: usize = rec.end["ticks"].parse().unwrap();
-    assert!((20_000..60 * 199_600).contains(&ticks), "{ticks}");
-    assert_eq!(rec.frames.len(), ticks);
+    for (signal, code) in [("INT", 130), ("HUP", 129), ("TERM", 143)] {
+        let p = prefix(&format!("sig{code}"));
+        let out = tmp(&format!("sig{code}.mcap"));
+        let mut parent = long_hil_run(&p, &out, |c| {
+            c.stderr(Stdio::piped());
+        });
+        let ok = Command::new("kill")
+            .args([&format!("-{signal}"), &parent.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(ok.success());
+        let status = parent.wait().unwrap();
+        assert_eq!(status.code(), Some(code), "SIG{signal}");
+        assert!(
+            processes_of(&p).is_empty(),
+            "children left: {:?}",
+            processes_of(&p)
+        );
+        let rec = recorder::read(&out).expect("a finished recording");
+        assert_eq!(rec.report.unwrap().state, recorder::FileState::Finished);
+        assert_eq!(rec.end["reason"], "interrupted");
+        assert_eq!(rec.end["signal"], format!("SIG{signal}"));
+        let ticks: usize = rec.end["ticks"].parse().unwrap();
+        assert!((20_000..60 * 199_600).contains(&ticks), "{ticks}");
+        assert_eq!(rec.frames.len(), ticks);
+    }
 }
 
 /// The HIL recorder's disk filling mid-run (a 2 MB file-size limit on the recorder alone; on

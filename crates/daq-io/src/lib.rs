@@ -29,6 +29,8 @@ mod daq;
 pub mod digest;
 #[cfg(feature = "std")]
 mod histogram;
+#[cfg(feature = "std")]
+pub mod input_file;
 #[cfg(feature = "ipc")]
 pub mod ipc;
 pub mod layout;

@@ -184,13 +184,18 @@ impl CuttingForce {
     }
 }
 
-fn load_csv(path: &PathBuf) -> Result<Vec<(f64, f64)>, CuttingError> {
-    let text = std::fs::read_to_string(path).map_err(|source| CuttingError::Io {
-        path: path.clone(),
-        source,
+/// Largest cutting-force CSV, bytes.
+const MAX_CSV_BYTES: u64 = 256 << 20;
+
+fn load_csv(path: &std::path::Path) -> Result<Vec<(f64, f64)>, CuttingError> {
+    let text = daq_io::input_file::read_regular_text(path, MAX_CSV_BYTES).map_err(|source| {
+        CuttingError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
     })?;
     let err = |line: usize, reason: String| CuttingError::Parse {
-        path: path.clone(),
+        path: path.to_path_buf(),
         line,
         reason,
     };

@@ -4,8 +4,9 @@
 //! frames, when what it needs (the `end` record, files attached with it such as a controller
 //! a `servo ctl load` swapped in) was written after them.
 
+use crate::fields::Fields;
 use crate::mcap_file::{op, MAGIC};
-use crate::reader::{Fields, ReadError, Streamer, Visit, MAX_RECORD_BYTES};
+use crate::reader::{ReadError, Streamer, Visit, MAX_RECORD_BYTES};
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
@@ -28,8 +29,7 @@ pub fn visit_indexed(path: &Path, visit: &mut impl Visit) -> Result<bool, ReadEr
         path: path.to_owned(),
         reason,
     };
-    let mut file = std::fs::File::open(path).map_err(io)?;
-    let len = file.metadata().map_err(io)?.len();
+    let (mut file, len) = daq_io::input_file::open_regular(path, u64::MAX).map_err(io)?;
     let magic_at = match len.checked_sub(MAGIC.len() as u64 + FOOTER_BYTES) {
         Some(footer_at) if footer_at >= MAGIC.len() as u64 => footer_at + FOOTER_BYTES,
         _ => return Ok(false),

@@ -11,6 +11,7 @@
 #[macro_use]
 pub mod frame;
 pub mod export;
+mod fields;
 pub mod index;
 pub mod mcap_file;
 pub mod overview;

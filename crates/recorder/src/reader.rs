@@ -5,6 +5,7 @@
 //! here, following the MCAP specification, so every one of those cases is in our hands; the
 //! official `mcap` crate reads the same files in the tests.
 
+use crate::fields::Fields;
 use crate::frame::{Frame, Message, Telemetry, Truth};
 use crate::mcap_file::{op, MAGIC};
 use crate::overview::Overview;
@@ -159,10 +160,7 @@ pub fn stream(path: &Path, visit: &mut impl Visit) -> Result<ReadReport, ReadErr
         path: path.to_owned(),
         source,
     };
-    let file = std::fs::File::open(path).map_err(io)?;
-    if !file.metadata().map_err(io)?.is_file() {
-        return Err(io(std::io::Error::other("not a regular file")));
-    }
+    let (file, _) = daq_io::input_file::open_regular(path, u64::MAX).map_err(io)?;
     let mut input = BufReader::with_capacity(1 << 20, file);
     let mut magic = [0u8; 8];
     if read_full(&mut input, &mut magic).map_err(io)? < 8 || &magic != MAGIC {
@@ -261,48 +259,6 @@ fn read_full(input: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
         }
     }
     Ok(n)
-}
-
-/// Little-endian fields of a record body, each failing with what was missing.
-pub(crate) struct Fields<'a>(pub(crate) &'a [u8]);
-
-impl<'a> Fields<'a> {
-    pub(crate) fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-    pub(crate) fn u8(&mut self) -> Result<u8, String> {
-        Ok(self.bytes(1)?[0])
-    }
-    pub(crate) fn bytes(&mut self, n: usize) -> Result<&'a [u8], String> {
-        if self.0.len() < n {
-            return Err("record too short".into());
-        }
-        let (head, rest) = self.0.split_at(n);
-        self.0 = rest;
-        Ok(head)
-    }
-    pub(crate) fn u16(&mut self) -> Result<u16, String> {
-        Ok(u16::from_le_bytes(self.bytes(2)?.try_into().expect("2")))
-    }
-    pub(crate) fn u32(&mut self) -> Result<u32, String> {
-        Ok(u32::from_le_bytes(self.bytes(4)?.try_into().expect("4")))
-    }
-    pub(crate) fn u64(&mut self) -> Result<u64, String> {
-        Ok(u64::from_le_bytes(self.bytes(8)?.try_into().expect("8")))
-    }
-    pub(crate) fn str(&mut self) -> Result<String, String> {
-        let n = self.u32()? as usize;
-        String::from_utf8(self.bytes(n)?.to_vec()).map_err(|_| "string not UTF-8".into())
-    }
-    fn string_map(&mut self) -> Result<BTreeMap<String, String>, String> {
-        let n = self.u32()? as usize;
-        let mut m = Fields(self.bytes(n)?);
-        let mut map = BTreeMap::new();
-        while !m.0.is_empty() {
-            map.insert(m.str()?, m.str()?);
-        }
-        Ok(map)
-    }
 }
 
 /// Pairs the messages of a tick into frames.

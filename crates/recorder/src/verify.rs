@@ -10,8 +10,8 @@
 //!
 //! [`Streamer`]: crate::reader::Streamer
 
+use crate::fields::Fields;
 use crate::mcap_file::{op, LIBRARY};
-use crate::reader::Fields;
 use std::collections::BTreeMap;
 
 /// Log time and offset in the chunk's records of each message, per channel id: what the

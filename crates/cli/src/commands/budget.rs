@@ -37,7 +37,7 @@ pub struct BudgetCmd {
     #[arg(long, value_delimiter = ',')]
     bandwidths: Option<Vec<f64>>,
     /// Also simulate every sweep point for this many seconds and print both.
-    #[arg(long, requires = "sweep")]
+    #[arg(value_parser = crate::args::finite, long, requires = "sweep")]
     validate: Option<f64>,
     /// Noise seed of the --validate simulations.
     #[arg(long, requires = "validate")]

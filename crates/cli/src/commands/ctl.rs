@@ -28,7 +28,7 @@ pub struct CtlCmd {
     prefix: String,
     /// How long to wait for the acknowledgement, in s (0, 60] (the plant and controller read
     /// the control plane every 2048 ticks: 10 ms in real time).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 5.0)]
     timeout_s: f64,
     /// What to send.
     #[command(subcommand)]
@@ -119,6 +119,13 @@ impl CtlCmd {
                 .invalid("--timeout-s", self.timeout_s, "(0, 60] s")
                 .into());
         }
+        let id = daq_io::peers::random_id();
+        // A file to load is read (and checked: a regular file of bounded size) before the run
+        // is looked for, so bad input fails at once whatever the run does.
+        let load = match &self.action {
+            CtlAction::Load { file } => Some(read_load(file, id)?),
+            _ => None,
+        };
         let prefix = &self.prefix;
         let ep = Endpoint::open(prefix, &format!("ctl-{}", std::process::id()))
             .map_err(RunError::from)?;
@@ -141,7 +148,6 @@ impl CtlCmd {
             std::thread::sleep(Duration::from_millis(10));
         }
         let acks = ep.subscriber::<Ack>(leaf::ACK).map_err(RunError::from)?;
-        let id = daq_io::peers::random_id();
         // Sent once the run listens (a process that has just started may not yet: a message
         // before any subscriber is lost), by a publisher that lives until the answer came
         // (iceoryx2 takes a sample back from the subscribers when its publisher goes).
@@ -154,9 +160,8 @@ impl CtlCmd {
                 )))
             }
         };
-        let (_load, _control) = match self.action.message(id) {
-            Err(file) => {
-                let load = read_load(file, id)?;
+        let (_load, _control) = match (self.action.message(id), load) {
+            (Err(_), Some(load)) => {
                 listening(
                     ep.await_subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD, timeout),
                     leaf::CONTROLLER_LOAD,
@@ -171,7 +176,8 @@ impl CtlCmd {
                 }
                 (Some(publisher), None)
             }
-            Ok(message) => {
+            (Err(_), None) => unreachable!("a load's file is read above"),
+            (Ok(message), _) => {
                 listening(
                     ep.await_subscriber::<Control>(leaf::CONTROL, timeout),
                     leaf::CONTROL,

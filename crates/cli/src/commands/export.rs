@@ -28,10 +28,10 @@ pub struct ExportCmd {
     #[arg(long, value_delimiter = ',', default_value = "telemetry,truth")]
     topics: Vec<Topic>,
     /// Start of the time window in s from the run's start.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 0.0)]
     from: f64,
     /// End of the time window in s from the run's start (default: the end).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     to: Option<f64>,
     /// Keep every n-th tick of the window (1: all; 200 ≈ 1 kHz at 199.6 kHz).
     #[arg(long, default_value_t = 1)]

@@ -34,10 +34,10 @@ pub struct FrfCmd {
     #[arg(long = "loop", value_enum, default_value = "open")]
     which: FrfLoop,
     /// Lowest frequency in Hz.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 10.0)]
     from: f64,
     /// Highest frequency in Hz.
-    #[arg(long, default_value_t = 20000.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 20000.0)]
     to: f64,
     /// Frequencies (log-spaced; stepped sine), 2 to 10 000.
     #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u16).range(2..=10_000))]
@@ -45,7 +45,7 @@ pub struct FrfCmd {
     /// Excitation amplitude in V (stepped sine: below 150 Hz, rising as f² above, up to 5 V,
     /// default 2 mV open loop / 10 mV closed loop; chirp: constant, default 2 mV open loop /
     /// 0.2 V closed loop).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     amplitude: Option<f64>,
     /// Stepped sine (§5.5.1) or a repeated exponential chirp with a Welch H1 estimate.
     #[arg(long, value_enum, default_value = "stepped")]

@@ -27,10 +27,10 @@ pub struct IntermittentCmd {
     #[command(flatten)]
     accel: AccelArgs,
     /// Cutting force in N (0.08 N: Table 7-3's 8 µm/rev × 2 µm cut in copper).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     force: Option<f64>,
     /// Spindle speed in rpm (250, Table 7-3).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     rpm: Option<f64>,
     /// Keep the PID gains fixed as Ka rises (default without a configuration file: raised by
     /// Kg, as §7.6 did; with one, its `controller.kg_scaling` unless this flag is given).

@@ -17,16 +17,16 @@ use std::process::ExitCode;
 #[derive(Args, Debug)]
 pub struct LatencyCmd {
     /// Loop rate in Hz (100 – 2e6).
-    #[arg(long, default_value_t = 199_600.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 199_600.0)]
     rate_hz: f64,
     /// How long to measure, in s (0, 600].
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 5.0)]
     duration: f64,
     /// How each tick waits for its deadline.
     #[arg(long, value_enum, default_value_t = WaitKind::Spin)]
     wait: WaitKind,
     /// With --wait sleep-spin: spin this long before each deadline, in µs (0 – 10 000).
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 50.0)]
     spin_margin_us: f64,
     /// Pin the loop to this CPU (default: wherever the scheduler puts it).
     #[arg(long)]

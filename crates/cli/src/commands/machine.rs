@@ -38,13 +38,13 @@ pub struct MachineCmd {
     #[arg(long)]
     image: Option<PathBuf>,
     /// Pixel edge of the height map in m.
-    #[arg(long, default_value_t = 20e-6)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 20e-6)]
     pixel_m: f64,
     /// Height of a white pixel in m (Table 8-6: 5 µm).
-    #[arg(long, default_value_t = 5e-6)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 5e-6)]
     depth_range_m: f64,
     /// Spindle speed in rpm (default: the surface's thesis speed).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     rpm: Option<f64>,
     /// The band to cut, `inner:outer` radius in m (the tool moves inward from `outer`; default:
     /// from the configured start radius, the grid part's 31.8 mm edge, ten revolutions in —
@@ -53,7 +53,7 @@ pub struct MachineCmd {
     radius_range: Option<String>,
     /// Radial feed per revolution in m (default: the surface's thesis feed, 2e-6 for the flat
     /// face of Table 8-2, 5e-6 for Tables 8-3..8-6).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     feed: Option<f64>,
     /// Cut from a flat blank in one pass (the depth of cut and the force follow the
     /// surface) instead of a finishing pass of constant depth over a pre-shaped part.

@@ -156,14 +156,21 @@ pub fn run(
             }
         }
         // A stop (a terminal's Ctrl-C reaches the whole group; a supervisor signals only this
-        // process) is forwarded as SIGTERM to every child still running: each ends at a tick
-        // boundary and the recorder finishes the file. One that hangs is killed after 10 s.
+        // process) is forwarded, as the same signal, to every child still running: each ends
+        // at a tick boundary, the recorder finishes the file naming that signal, and the exit
+        // code is 128 + it. One that hangs is killed after 10 s.
         if stop.is_set() && stopped_at.is_none() {
             stopped_at = Some(Instant::now());
+            let signal = match stop.reason() {
+                runner::stop::EndReason::Signal(s) => {
+                    nix::sys::signal::Signal::try_from(s).unwrap_or(nix::sys::signal::SIGTERM)
+                }
+                _ => nix::sys::signal::SIGTERM,
+            };
             for (name, child) in children.iter() {
                 if !codes.iter().any(|(n, _)| n == name) {
                     let pid = nix::unistd::Pid::from_raw(child.id() as i32);
-                    let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM);
+                    let _ = nix::sys::signal::kill(pid, signal);
                 }
             }
         }

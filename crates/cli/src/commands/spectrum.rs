@@ -23,15 +23,15 @@ pub struct SpectrumCmd {
     file: PathBuf,
     /// Frequency resolution (bin spacing) in Hz, 0.1 – 1000 (the segment is fs / resolution
     /// samples; finer bins average fewer segments).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 10.0)]
     resolution_hz: f64,
     /// Analysis start in s of run time (default: the run's settle time, counted from the last
     /// controller swap if there was one). The prediction is for the controller in the loop
     /// at this time.
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     from_s: Option<f64>,
     /// Analysis end in s of run time (default: the end of the run).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     to_s: Option<f64>,
     /// Predict with the [controller] table of this config file (e.g. a candidate's pid.toml)
     /// instead of the controller in the loop at the window's start.

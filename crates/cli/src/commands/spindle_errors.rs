@@ -24,16 +24,16 @@ pub struct SpindleErrorsCmd {
     #[arg(long, default_value_t = 100)]
     max_harmonic: usize,
     /// RMS of the simulated artefact form in m.
-    #[arg(long, default_value_t = 20e-9)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 20e-9)]
     artefact_rms_m: f64,
     /// RMS of the simulated synchronous spindle motion per axis in m.
-    #[arg(long, default_value_t = 30e-9)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 30e-9)]
     motion_rms_m: f64,
     /// RMS of the asynchronous motion in m.
-    #[arg(long, default_value_t = 5e-9)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 5e-9)]
     asynchronous_rms_m: f64,
     /// RMS of the probe noise in m.
-    #[arg(long, default_value_t = 0.3e-9)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 0.3e-9)]
     probe_noise_m: f64,
     /// Seed.
     #[arg(long, default_value_t = 1)]

@@ -25,7 +25,7 @@ pub struct StiffnessCmd {
     #[arg(long, value_delimiter = ',')]
     kas: Option<Vec<f64>>,
     /// Frequencies from 10 Hz to this (Hz), log-spaced.
-    #[arg(long, default_value_t = 10000.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 10000.0)]
     to: f64,
     /// Output directory for CSV, JSON, PNG and SVG.
     #[arg(long, default_value = "stiffness")]

@@ -25,12 +25,12 @@ pub struct SynthCmd {
     /// Weight of 1 V of command against 1 nm of tool error (ρ, nm/V): larger = gentler.
     /// Default 1 (exact); with `--weights thesis` it weighs a volt above the Wu corner,
     /// default 1000 (loop-gain crossover ≈ 1 kHz on the heavy stage; thesis: 870 Hz).
-    #[arg(long)]
+    #[arg(value_parser = crate::args::finite, long)]
     effort_weight: Option<f64>,
     /// Scale of the sensor noise the exact design assumes (RMS; 1 = the plant's, H2-optimal):
     /// below 1 the design trusts the sensor more and closes a faster loop. `servo study`'s
     /// `h2-bandwidth` family records the scale that met its bandwidth (column design_value).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 1.0)]
     sensor_noise_scale: f64,
     /// Reduce the controller to this many states by balanced truncation (thesis Table 6-1:
     /// 8, 13; default: full order).

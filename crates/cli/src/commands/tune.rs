@@ -18,13 +18,13 @@ pub struct TuneCmd {
     #[command(flatten)]
     plant: PlantArgs,
     /// Closed-loop bandwidth to reach (|T| ≥ −3 dB there), Hz.
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 1000.0)]
     bandwidth_hz: f64,
     /// Sensitivity peak bound Ms (1 < Ms < 10).
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 1.5)]
     ms: f64,
     /// Complementary sensitivity peak bound Mt (1 < Mt < 10).
-    #[arg(long, default_value_t = 1.3)]
+    #[arg(value_parser = crate::args::finite, long, default_value_t = 1.3)]
     mt: f64,
     /// Run-config fragment with the tuned gains (`servo run -c FILE`).
     #[arg(short, long, default_value = "pid.toml")]

@@ -321,7 +321,9 @@ fn refusal(status: u16, why: &str) -> ErrorResponse {
         .expect("a static response")
 }
 
-/// The handshake's check: the token (if required) and a subprotocol we serve.
+/// The handshake's check: the token (if required) and a subprotocol we serve. (The error
+/// type is tungstenite's handshake callback's: its size is not ours to choose.)
+#[allow(clippy::result_large_err)]
 fn check_handshake(
     options: &FrontOptions,
     req: &HttpRequest,
@@ -412,11 +414,9 @@ fn serve_client(shared: &Shared, stream: TcpStream) {
     let config = WebSocketConfig::default()
         .max_message_size(Some(1 << 20))
         .max_frame_size(Some(1 << 20));
-    let accepted = tungstenite::accept_hdr_with_config(
-        stream,
-        |req: &HttpRequest, res: Response| check_handshake(options, req, res),
-        Some(config),
-    );
+    #[allow(clippy::result_large_err)]
+    let check = |req: &HttpRequest, res: Response| check_handshake(options, req, res);
+    let accepted = tungstenite::accept_hdr_with_config(stream, check, Some(config));
     let Ok(mut ws) = accepted else {
         return;
     };
@@ -456,14 +456,9 @@ fn client_loop(
 ) {
     loop {
         // What is queued goes out first, so a closing view still delivers it.
-        loop {
-            match rx.try_recv() {
-                Ok(m) => {
-                    if ws.write(m).is_err() {
-                        return;
-                    }
-                }
-                Err(_) => break,
+        while let Ok(m) = rx.try_recv() {
+            if ws.write(m).is_err() {
+                return;
             }
         }
         if matches!(ws.flush(), Err(e) if !would_block(&e)) {

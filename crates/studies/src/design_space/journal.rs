@@ -15,6 +15,10 @@ use std::path::{Path, PathBuf};
 /// Name of the study's description in its folder.
 pub const DESCRIPTION: &str = "study.toml";
 
+/// Largest journal read back, bytes (a line per point of a few hundred bytes: millions of
+/// points).
+pub const MAX_JOURNAL_BYTES: u64 = 1 << 30;
+
 /// One deterministic slice of a study: points `i` with `i mod count = index − 1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Shard {
@@ -106,7 +110,7 @@ pub(super) fn foreign(path: &Path, what: String) -> StudyError {
 pub fn claim(study: &Study, dir: &Path) -> Result<(), StudyError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let path = dir.join(DESCRIPTION);
-    match std::fs::read(&path) {
+    match daq_io::input_file::read_regular(&path, runner::config::input_file::MAX_TEXT_BYTES) {
         Ok(held) if sha256_hex(&held) == study.sha256 => Ok(()),
         Ok(held) => Err(foreign(
             &path,
@@ -154,8 +158,8 @@ impl Journal {
     ) -> Result<(Journal, Vec<Point>), StudyError> {
         let path = dir.join(shard.file_name());
         let head = header(study);
-        let (done, keep) = match std::fs::read_to_string(&path) {
-            Ok(text) => read_journal(study, &path, &text, shard)?,
+        let (done, keep) = match daq_io::input_file::read_regular(&path, MAX_JOURNAL_BYTES) {
+            Ok(bytes) => read_journal(study, &path, &bytes, shard)?,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => (Vec::new(), 0),
             Err(e) => return Err(io(&path)(e)),
         };
@@ -189,20 +193,32 @@ impl Journal {
     }
 }
 
-/// The points of a journal's `text` and the length of its complete lines in bytes.
+/// The points of a journal's `bytes` and the length of its complete lines in bytes. A torn
+/// last line (what a crash mid-write leaves: no newline, perhaps a character cut in two) is
+/// dropped, so its point is computed again; a complete line that is not a point of this shard
+/// is refused.
 pub fn read_journal(
     study: &Study,
     path: &Path,
-    text: &str,
+    bytes: &[u8],
     shard: Shard,
 ) -> Result<(Vec<Point>, u64), StudyError> {
     let head = header(study);
     let mut done = Vec::new();
     let mut keep = 0u64;
-    let complete = match text.rfind('\n') {
-        Some(end) => &text[..=end],
-        None => "",
+    let complete = match bytes.iter().rposition(|&b| b == b'\n') {
+        Some(end) => &bytes[..=end],
+        None => &[],
     };
+    let complete = std::str::from_utf8(complete).map_err(|e| StudyError::DataFile {
+        path: path.to_owned(),
+        line: complete[..e.valid_up_to()]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            + 1,
+        what: "not UTF-8 text".into(),
+    })?;
     for (n, line) in complete.lines().enumerate() {
         if n == 0 {
             if line != head {

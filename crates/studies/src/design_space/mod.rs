@@ -116,8 +116,9 @@ pub fn gather(dirs: &[PathBuf]) -> Result<(Study, Vec<Point>), StudyError> {
         let s = study.as_ref().expect("set above");
         for (path, shard) in journals(dir)? {
             shard_count = shard.count;
-            let text = std::fs::read_to_string(&path).map_err(io(&path))?;
-            for p in read_journal(s, &path, &text, shard)?.0 {
+            let bytes = daq_io::input_file::read_regular(&path, journal::MAX_JOURNAL_BYTES)
+                .map_err(io(&path))?;
+            for p in read_journal(s, &path, &bytes, shard)?.0 {
                 let slot = &mut points[p.index as usize];
                 match slot {
                     Some(held) if *held != p => {

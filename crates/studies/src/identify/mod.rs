@@ -136,7 +136,8 @@ pub const MIN_CREDIBLE_FIT_PERCENT: f64 = 70.0;
 /// How an identified model names the FRF file it was fitted to: its path and the SHA-256 of
 /// its bytes (the model file quotes it).
 pub fn frf_source(path: &Path) -> String {
-    let bytes = std::fs::read(path).unwrap_or_default();
+    let bytes = daq_io::input_file::read_regular(path, runner::config::input_file::MAX_TEXT_BYTES)
+        .unwrap_or_default();
     format!(
         "{} (SHA-256 {})",
         path.display(),
