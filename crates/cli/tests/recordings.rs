@@ -293,7 +293,16 @@ fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
         .map(|e| e.unwrap().path())
         .find(|p| p.to_string_lossy().ends_with(".partial"))
         .expect("the unfinished recording is kept");
-    let read = inspect_json(&partial);
+    // Unfinished is not a whole run: refused as one, read with --salvage.
+    let plain = servo().arg("inspect").arg(&partial).output().unwrap();
+    assert_eq!(plain.status.code(), Some(1));
+    let read = json(
+        &servo()
+            .args(["inspect", "--json", "--salvage"])
+            .arg(&partial)
+            .output()
+            .unwrap(),
+    );
     let file = read["file"].as_str().unwrap();
     assert!(file.starts_with("unfinished"), "{file}");
     assert!(
