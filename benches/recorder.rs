@@ -3,7 +3,8 @@
 //! second repeated, time-shifted) pushed through the ring, encoded and written as whole-chunk
 //! zstd MCAP with message indexes and the overview, finished and synced; the baseline in the
 //! same run writes the same CDR payloads back to back to a plain buffered file; a third case
-//! records every 10th tick (`--record-every 10`). Several seconds per iteration so the
+//! records every 10th tick (`--record-every 10`); a fourth hashes a finished recording's bytes
+//! with CRC-32, the work the data section's CRC adds to the writer. Several seconds per iteration so the
 //! one-off costs of a recording (its final drain and `fdatasync`) weigh as in a long run; divide the time by [`SECONDS`] for the time per
 //! simulated second. Prints the bytes per simulated second of each.
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
@@ -82,6 +83,13 @@ fn throughput(c: &mut Criterion) {
             }
             w.flush().unwrap();
         })
+    });
+    // The data section's CRC (every byte a recording writes before its Data End record is
+    // hashed once as it is written): the same work over a finished recording's bytes, so its
+    // cost is read against `mcap_zstd` in the same run.
+    let written = std::fs::read(path_of(1)).unwrap();
+    group.bench_function("data_section_crc", |b| {
+        b.iter(|| crc32fast::hash(std::hint::black_box(&written)))
     });
     group.finish();
     for (what, file) in [
