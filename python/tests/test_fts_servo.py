@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import struct
 import subprocess
 import tomllib
 from pathlib import Path
@@ -161,7 +162,15 @@ def test_a_damaged_recording_raises_unless_salvaged(tmp_path: Path) -> None:
     rec = tmp_path / "run.mcap"
     servo("run", "-q", "--duration", "0.05", "--out", str(rec))
     data = bytearray(rec.read_bytes())
-    data[len(data) // 3] ^= 0x01  # inside a chunk of messages
+    # The second chunk of messages (records: opcode, uint64 length, body; chunks are 0x06).
+    at, chunks = 8, []
+    while at + 9 <= len(data) and data[at] != 0x02:  # up to the footer
+        length = struct.unpack_from("<Q", data, at + 1)[0]
+        if data[at] == 0x06:
+            chunks.append((at, 9 + length))
+        at += 9 + length
+    start, length = chunks[1]
+    data[start + length // 2] ^= 0x01
     hit = tmp_path / "hit.mcap"
     hit.write_bytes(bytes(data))
     with pytest.raises(fs.ServoError, match="hit.mcap.*damaged.*salvage"):
@@ -264,7 +273,6 @@ def test_identification_recovers_a_known_stage_from_its_frequency_response() -> 
 def test_a_python_loop_of_servo_and_plant_is_servo_runs_loop(tmp_path: Path) -> None:
     """Servo and Plant tick by tick close the loop `servo run --digest` closes: the same
     samples and commands, bit for bit (the FNV-1a digest, written again here)."""
-    import struct
 
     run = tmp_path / "run.toml"
     run.write_text("[run]\nduration_s = 0.02\n")
