@@ -2,7 +2,7 @@
 //! time — a flipped bit in every region (header, schema and channel records, metadata, each
 //! chunk, message indexes, data end, each kind of summary record, summary offsets, footer, the
 //! closing magic), a cut at the start and the last byte of each, message payloads cut short, a
-//! non-finite embedded configuration — is refused with a non-zero exit by `servo inspect`,
+//! non-finite embedded configuration, fewer ticks than its end record counts — is refused with a non-zero exit by `servo inspect`,
 //! `replay`, `spectrum` and `export`; `--salvage` reads what is intact of a damaged chunk.
 
 mod common;
@@ -58,6 +58,7 @@ fn base(dir: &Path) -> PathBuf {
 /// Each command that reads a recording, on `file`: whether it exited 0.
 fn exits_ok(file: &Path) -> Vec<(&'static str, bool, String)> {
     let dir = file.with_extension("out");
+    std::fs::create_dir_all(&dir).unwrap();
     let runs: [(&str, Vec<std::ffi::OsString>); 4] = [
         ("inspect", vec![file.into()]),
         ("replay", vec![file.into(), "--no-record".into()]),
@@ -202,9 +203,15 @@ fn salvage_reads_what_is_intact_of_a_damaged_chunk() {
 }
 
 /// A recording written with every CRC right whose content the reader must still refuse: its
-/// `run` record (with `config` replaced by `config`) and its frames, each payload cut to
-/// `payload_bytes` (None: whole).
-fn rewritten(base: &Path, out: &Path, config: Option<String>, payload_bytes: Option<usize>) {
+/// `run` record (with `config` replaced by `config`) and its first `frames` frames (None: all),
+/// each payload cut to `payload_bytes` (None: whole).
+fn rewritten(
+    base: &Path,
+    out: &Path,
+    config: Option<String>,
+    payload_bytes: Option<usize>,
+    frames: Option<usize>,
+) {
     let rec = recorder::read(base).unwrap();
     let mut run = rec.metadata.clone();
     if let Some(c) = config {
@@ -233,7 +240,12 @@ fn rewritten(base: &Path, out: &Path, config: Option<String>, payload_bytes: Opt
             buf.truncate(from + n);
         }
     };
-    for (seq, f) in rec.frames.iter().enumerate() {
+    for (seq, f) in rec
+        .frames
+        .iter()
+        .take(frames.unwrap_or(usize::MAX))
+        .enumerate()
+    {
         let t = epoch + f.time_ns;
         m.message(0, 1, seq as u32, t, |b| {
             let from = b.len();
@@ -256,10 +268,10 @@ fn short_payloads_and_a_non_finite_configuration_are_refused() {
     let base = base(&dir);
     // The rewrite itself is a good recording.
     let good = dir.join("good.mcap");
-    rewritten(&base, &good, None, None);
+    rewritten(&base, &good, None, None, None);
     succeeded(&servo().arg("inspect").arg(&good).output().unwrap());
     let short = dir.join("short.mcap");
-    rewritten(&base, &short, None, Some(8));
+    rewritten(&base, &short, None, Some(8), None);
     refused_by_all(&short, "payloads cut to 8 bytes");
     let err = servo().arg("inspect").arg(&short).output().unwrap().stderr;
     assert!(
@@ -271,7 +283,7 @@ fn short_payloads_and_a_non_finite_configuration_are_refused() {
     let nan = config.replacen("duration_s = 0.1", "duration_s = nan", 1);
     assert_ne!(nan, config);
     let bad = dir.join("nan.mcap");
-    rewritten(&base, &bad, Some(nan), None);
+    rewritten(&base, &bad, Some(nan), None, None);
     refused_by_all(&bad, "duration_s = nan");
     let out = servo().arg("inspect").arg(&bad).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
@@ -279,5 +291,19 @@ fn short_payloads_and_a_non_finite_configuration_are_refused() {
     assert!(
         err.contains("nan.mcap (its configuration)") && err.contains("run.duration_s"),
         "{err}"
+    );
+    // A file that holds fewer ticks than its end record counts (every CRC right).
+    let fewer = dir.join("fewer.mcap");
+    rewritten(&base, &fewer, None, None, Some(1000));
+    for (command, ok, text) in exits_ok(&fewer) {
+        // export copies what the file holds; the commands that read it as a run refuse it.
+        assert_eq!(ok, command == "export", "servo {command}: {text}");
+    }
+    let err = servo().arg("replay").arg(&fewer).output().unwrap().stderr;
+    assert!(
+        String::from_utf8_lossy(&err)
+            .contains("its end record counts 19960 ticks, the file holds 1000"),
+        "{}",
+        String::from_utf8_lossy(&err)
     );
 }

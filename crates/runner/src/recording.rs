@@ -211,13 +211,31 @@ impl Inspected {
     /// what was intact of it; a [`RunError::Damaged`] naming the file and the damage
     /// otherwise.
     pub fn intact(self, path: &Path, salvage: bool) -> Result<Self, RunError> {
-        if salvage || self.read.is_intact() {
-            Ok(self)
-        } else {
-            Err(RunError::Damaged {
+        match self.damage() {
+            Some(report) if !salvage => Err(RunError::Damaged {
                 path: path.to_owned(),
-                report: self.read.to_string(),
-            })
+                report,
+            }),
+            _ => Ok(self),
+        }
+    }
+
+    /// What keeps the file from being a whole run, if anything: damage or an early end the
+    /// read found, or an `end` record counting other ticks than the file holds (when every
+    /// tick was recorded).
+    pub fn damage(&self) -> Option<String> {
+        if !self.read.is_intact() {
+            return Some(self.read.to_string());
+        }
+        let claimed = self.end.get("ticks").and_then(|t| t.parse::<u64>().ok());
+        match claimed {
+            Some(n) if self.summary.meta.recorded_every.is_none() && n != self.read.frames => {
+                Some(format!(
+                    "its end record counts {n} ticks, the file holds {}",
+                    self.read.frames
+                ))
+            }
+            _ => None,
         }
     }
 }
@@ -272,6 +290,41 @@ pub fn inspect(path: &Path) -> Result<Inspected, RunError> {
     inspect_with(path, &mut ())
 }
 
+/// The configuration a recording embeds, parsed and checked as strictly as a configuration
+/// file: every value in its range before anything uses it (errors name the recording and the
+/// key).
+fn embedded_config(path: &Path, text: &str) -> Result<RunConfig, RunError> {
+    let config: RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+        path: path.to_owned(),
+        message: e.to_string(),
+    })?;
+    config.validate(&Origin {
+        path: Some(format!("{} (its configuration)", path.display()).into()),
+        text: Some(text.to_owned()),
+    })?;
+    Ok(config)
+}
+
+/// Checks the configuration a finished recording embeds (found through its summary, without
+/// streaming the file); a file whose summary cannot be read, or without a `run` record, is
+/// left to the read that follows (which reports the damage).
+pub fn check_embedded_config(path: &Path) -> Result<(), RunError> {
+    #[derive(Default)]
+    struct Run(Option<String>);
+    impl Visit for Run {
+        fn metadata(&mut self, name: &str, values: &BTreeMap<String, String>) {
+            if name == "run" {
+                self.0 = values.get("config").cloned();
+            }
+        }
+    }
+    let mut run = Run::default();
+    if let (Ok(true), Some(text)) = (recorder::visit_indexed(path, &mut run), &run.0) {
+        embedded_config(path, text)?;
+    }
+    Ok(())
+}
+
 /// The [`Visit`]or behind [`inspect_with`].
 struct RunReader<'a, S: FrameSink> {
     path: &'a Path,
@@ -290,16 +343,7 @@ impl<S: FrameSink> RunReader<'_, S> {
         let not_a_run = || RunError::NotARun(self.path.to_owned());
         let run = self.run.as_ref().ok_or_else(not_a_run)?;
         let text = run.get("config").ok_or_else(not_a_run)?;
-        let config: RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
-            path: self.path.to_owned(),
-            message: e.to_string(),
-        })?;
-        // As strictly as a configuration file: every value in its range before anything uses
-        // it (errors name the recording and the key).
-        config.validate(&Origin {
-            path: Some(format!("{} (its configuration)", self.path.display()).into()),
-            text: Some(text.clone()),
-        })?;
+        let config = embedded_config(self.path, text)?;
         for (name, data) in &self.attachments {
             if run.get(&input_key(name)) != Some(&sha256_hex(data)) {
                 return Err(RunError::InputMismatch {

@@ -86,6 +86,7 @@ impl ExportCmd {
             to_s: self.to.unwrap_or(f64::INFINITY),
             every: self.every,
         };
+        runner::recording::check_embedded_config(&self.file)?;
         let overwrite = Overwrite::from_flag(self.overwrite);
         let done = export(&self.file, &out, format, &selection, overwrite)?;
         if self.json {

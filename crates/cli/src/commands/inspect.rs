@@ -33,15 +33,15 @@ impl InspectCmd {
         let mut form = FormSink::default();
         let i = runner::recording::inspect_with(&self.file, &mut form)?;
         let report = form.analysis.map(|a| a.report());
-        let code = if self.salvage || i.read.is_intact() {
-            ExitCode::SUCCESS
-        } else {
-            eprintln!(
-                "error: {}: {}; not trusted as a whole run (--salvage reads what is intact)",
-                self.file.display(),
-                i.read
-            );
-            ExitCode::FAILURE
+        let code = match i.damage() {
+            Some(damage) if !self.salvage => {
+                eprintln!(
+                    "error: {}: {damage}; not trusted as a whole run (--salvage reads what is intact)",
+                    self.file.display(),
+                );
+                ExitCode::FAILURE
+            }
+            _ => ExitCode::SUCCESS,
         };
         if self.json {
             print_json(&serde_json::json!({
