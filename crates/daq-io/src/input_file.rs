@@ -91,10 +91,9 @@ mod tests {
     /// a regular file over the limit too.
     #[test]
     fn only_bounded_regular_files_open() {
-        let dir = std::env::temp_dir().join(format!("fts-input-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path().to_owned();
         let fifo = dir.join("fifo");
-        let _ = std::fs::remove_file(&fifo);
         nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::S_IRWXU).unwrap();
         for (path, what) in [
             (fifo.as_path(), "a FIFO"),
@@ -108,6 +107,5 @@ mod tests {
         std::fs::write(&file, b"12345").unwrap();
         assert_eq!(read_regular(&file, 5).unwrap(), b"12345");
         assert!(read_regular(&file, 4).is_err());
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

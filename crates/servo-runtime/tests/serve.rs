@@ -11,9 +11,11 @@ use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Sensor};
 use servo_runtime::{
     controller_toml, deployment_toml, ControllerSpec, Deployment, MadeFor, Servo, Stability,
 };
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-const TIMEOUT: Duration = Duration::from_secs(30);
+/// The bound `await_subscriber` asks for: an hour, so a busy machine never meets it (a test
+/// that hung would be stopped by the harness, not by a clock here).
+const LISTEN_BOUND: Duration = Duration::from_secs(3600);
 
 fn made_for(plant: &str) -> MadeFor {
     MadeFor {
@@ -56,10 +58,10 @@ impl Peer {
         let control = ControlSender::new(&ep).unwrap();
         let loads = ep.publisher(leaf::CONTROLLER_LOAD).unwrap();
         for ready in [
-            ep.await_subscriber::<Control>(leaf::CONTROL, TIMEOUT),
-            ep.await_subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD, TIMEOUT),
+            ep.await_subscriber::<Control>(leaf::CONTROL, LISTEN_BOUND),
+            ep.await_subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD, LISTEN_BOUND),
         ] {
-            assert!(ready.unwrap(), "the loop did not listen within {TIMEOUT:?}");
+            assert!(ready.unwrap(), "the loop did not listen");
         }
         Peer {
             _ep: ep,
@@ -78,14 +80,13 @@ impl Peer {
         }
     }
 
+    /// The acknowledgement of request `id` (no clock: the loop answers every request).
     fn ack(&mut self, id: u64) -> Ack {
-        let sent = Instant::now();
         loop {
             self.drain();
             if let Some(a) = take(&self.tap.ack).filter(|a| a.id == id) {
                 return a;
             }
-            assert!(sent.elapsed() < TIMEOUT, "no acknowledgement of {id}");
             std::thread::sleep(Duration::from_millis(1));
         }
     }
@@ -134,15 +135,13 @@ fn a_served_loop_answers_the_control_plane() {
                 p.control(8, command::STOP, 0.0),
             ];
             // Every telemetry block through to the end of the run (the loop lingers for us).
-            let waited = Instant::now();
-            while !p.end_seen && waited.elapsed() < TIMEOUT {
+            while !p.end_seen {
                 p.drain();
                 std::thread::sleep(Duration::from_millis(1));
             }
             (p.blocks, p.end_seen, acks)
         })
     };
-    let started = Instant::now();
     let mut sample = Sensor {
         run_id: 42,
         ..Default::default()
@@ -152,7 +151,6 @@ fn a_served_loop_answers_the_control_plane() {
         sample.seq = k;
         servo.tick(&sample);
         k += 1;
-        assert!(started.elapsed() < 2 * TIMEOUT, "no STOP arrived");
     }
     let status = servo.status();
     servo.close(0);
