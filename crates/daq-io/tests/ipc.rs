@@ -281,25 +281,31 @@ fn late_reporting_recorder(ep: &Endpoint, reports: bool) -> Vec<daq_io::Truth> {
     let (tap, progress) = recorder_tap(ep);
     let mut truth: Vec<daq_io::Truth> = Vec::new();
     let mut held = false;
+    let mut reported = None;
     loop {
         while let Some(h) = daq_io::ipc::take(&tap.health) {
             held |= h.role == role::PLANT && h.state == state::HELD_FOR_RECORDER;
         }
-        let Some(b) = daq_io::ipc::take(&tap.truth) else {
-            std::thread::sleep(Duration::from_micros(200));
-            continue;
-        };
-        truth.extend_from_slice(&b.ticks[..b.count as usize]);
-        if reports && held {
+        let block = daq_io::ipc::take(&tap.truth);
+        if let Some(b) = &block {
+            truth.extend_from_slice(&b.ticks[..b.count as usize]);
+        }
+        // Reports what it has taken once the plant holds, even when it had already taken
+        // every block before it saw the hold (no new block comes while the plant holds).
+        let taken = truth.last().map_or(0, |t| t.seq + 1);
+        if reports && held && reported != Some(taken) {
             let h = daq_io::Health {
                 role: role::RECORDER,
-                ticks: truth.last().map_or(0, |t| t.seq + 1),
+                ticks: taken,
                 ..Default::default()
             };
             daq_io::ipc::send(&progress, h);
+            reported = Some(taken);
         }
-        if b.flags & flags::END != 0 {
-            return truth;
+        match block {
+            Some(b) if b.flags & flags::END != 0 => return truth,
+            Some(_) => {}
+            None => std::thread::sleep(Duration::from_micros(200)),
         }
     }
 }
