@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates the README gallery (docs/gallery/*.png) with the release binary: the plots as
+# Regenerates the book gallery (docs/src/gallery/*.png) with the release binary: the plots as
 # the commands write them, downscaled to 760 px and a 256-colour palette. Needs Pillow (pip install pillow).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -13,8 +13,8 @@ $S machine --no-record --out-dir machine -q > /dev/null
 $S study $ROOT/examples/studies/moving_mass.toml --out-dir moving_mass > /dev/null
 $S study $ROOT/examples/studies/flexure.toml --out-dir flexure > /dev/null
 $S study $ROOT/examples/studies/motor_constant.toml --out-dir motor_constant > /dev/null
-mkdir -p $ROOT/docs/gallery
-python3 - "$W" "$ROOT/docs/gallery" <<'PY'
+mkdir -p $ROOT/docs/src/gallery
+python3 - "$W" "$ROOT/docs/src/gallery" <<'PY'
 import sys
 from PIL import Image
 src, dst = sys.argv[1], sys.argv[2]
@@ -26,4 +26,4 @@ for f, name in [("frf/bode.png","bode.png"),("budget/budget_psd.png","budget_psd
     im.save(f"{dst}/{name}", optimize=True)
 PY
 rm -rf $W
-ls -la $ROOT/docs/gallery
+ls -la $ROOT/docs/src/gallery

@@ -97,8 +97,10 @@ int main(int argc, char **argv) {
     fts_servo_state state;
     fts_servo_get_state(servo, &state);
     printf("digest %016" PRIx64 "\n", digest);
-    printf("%" PRIu64 " ticks, %" PRIu64 " saturated, trip cause %" PRIu32 ", execution p99.99 %.2f us\n",
-           state.ticks, state.saturated_ticks, state.trip_cause, state.execution.p9999_ns * 1e-3);
+    printf("%" PRIu64 " ticks, %" PRIu64 " saturated, %s, execution p99.99 %.2f us\n",
+           state.ticks, state.saturated_ticks,
+           state.trip_cause ? "tripped (the cause and tick above)" : "not tripped",
+           state.execution.p9999_ns * 1e-3);
     fts_servo_close(servo); /* ends the service: the last telemetry, a final health report */
     fts_plant_close(stage);
     return 0;

@@ -9,6 +9,8 @@ mod args;
 mod commands;
 mod interrupt;
 mod output;
+#[cfg(test)]
+mod reference_page;
 
 use commands::*;
 
@@ -102,6 +104,44 @@ mod tests {
     #[test]
     fn command_line_is_consistent() {
         Cli::command().debug_assert();
+    }
+
+    /// `servo --help` lists each command on one short line; the long text is in the
+    /// command's own help.
+    #[test]
+    fn every_command_has_a_one_line_summary() {
+        fn check(c: &clap::Command, path: &str, long: &mut Vec<String>) {
+            for sub in c.get_subcommands() {
+                let about = sub.get_about().map(|a| a.to_string()).unwrap_or_default();
+                let path = format!("{path} {}", sub.get_name());
+                let n = about.chars().count();
+                if about.is_empty() || about.contains('\n') || n > 90 {
+                    long.push(format!("{path}: {about:?} ({n} characters)"));
+                }
+                check(sub, &path, long);
+            }
+        }
+        let mut long = Vec::new();
+        check(&Cli::command(), "servo", &mut long);
+        assert!(long.is_empty(), "{}", long.join("\n"));
+    }
+
+    /// The book's command-line reference is what the parser says
+    /// (`UPDATE_REFERENCE=1 cargo test -p servo-cli reference_page` rewrites it).
+    #[test]
+    fn reference_page_is_current() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../docs/src/reference/cli.md");
+        let page = super::reference_page::page(&Cli::command());
+        if std::env::var_os("UPDATE_REFERENCE").is_some() {
+            std::fs::write(&path, &page).unwrap();
+        }
+        let committed = std::fs::read_to_string(&path).unwrap_or_default();
+        assert!(
+            committed == page,
+            "{} is stale: UPDATE_REFERENCE=1 cargo test -p servo-cli reference_page",
+            path.display()
+        );
     }
 
     /// The completion scripts name every command and each command's flags.

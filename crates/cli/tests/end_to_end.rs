@@ -408,10 +408,10 @@ fn flags_a_command_does_not_use_are_rejected() {
     }
 }
 
-/// The README's thesis comparison is what `servo thesis` computes now (regenerate it with
+/// The book's thesis map holds what `servo thesis` computes now (regenerate it with
 /// `servo thesis` and paste `thesis/thesis.md` when the model changes).
 #[test]
-fn readme_thesis_table_is_the_commands_output() {
+fn thesis_map_table_is_the_commands_output() {
     let dir = tmp("thesis");
     let out = servo()
         .args(["thesis", "--out-dir"])
@@ -424,10 +424,13 @@ fn readme_thesis_table_is_the_commands_output() {
         String::from_utf8_lossy(&out.stderr)
     );
     let table = std::fs::read_to_string(dir.join("thesis.md")).unwrap();
-    let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../README.md")).unwrap();
+    let page = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../docs/src/thesis-map.md"
+    ))
+    .unwrap();
     assert!(
-        readme.contains(&table),
-        "README.md's thesis table differs from `servo thesis`:\n{table}"
+        page.contains(&table),
+        "docs/src/thesis-map.md's thesis table differs from `servo thesis`:\n{table}"
     );
 }

@@ -13,8 +13,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-/// HIL control plane: start a waiting plant, stop a run, scale the controller's gains, or load
-/// another controller into the running loop; prints the run's acknowledgement.
+/// HIL control plane: start, stop, scale gains or load a controller in a running loop
+///
+/// Starts a waiting plant, stops a run, scales the controller's gains, or loads another
+/// controller into the running loop; prints the run's acknowledgement.
 ///
 /// Exit 0 when the run applied the command; 1 when it refused it (a gain outside the loop's
 /// stable range less a 6 dB margin, or not a number; a controller made for another plant or
@@ -42,13 +44,17 @@ enum CtlAction {
     Start,
     /// End the run at the next tick boundary (the recording is finished normally).
     Stop,
-    /// Multiply the controller output (all gains) by SCALE; refused unless the loop keeps a
-    /// 6 dB gain margin at it (the reply names the allowed range).
+    /// Multiply the controller output (all gains) by SCALE, keeping a 6 dB gain margin
+    ///
+    /// Refused unless the loop keeps a 6 dB gain margin at SCALE (the reply names the allowed
+    /// range).
     Gain {
         /// Scale factor (dimensionless).
         scale: f64,
     },
-    /// Swap the controller at a tick boundary, bumplessly: a state-space file (`servo synth`)
+    /// Swap the controller at a tick boundary, bumplessly
+    ///
+    /// The file is a state-space file (`servo synth`)
     /// or a config fragment with a [controller] table (`servo tune`'s pid.toml), at most
     /// 64 KiB; refused when made for another plant or rate, or unstable on the run's model.
     Load {

@@ -8,7 +8,9 @@ use recorder::Overwrite;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Export a recording to CSV or NumPy .npz. Example: servo export run.mcap --topics telemetry --every 20
+/// Export a recording to CSV or NumPy .npz
+///
+/// Example: servo export run.mcap --topics telemetry --every 20
 ///
 /// `.npz` holds one array per column (`numpy.load("run.npz")["telemetry.following_error_m"]`);
 /// names carry their SI unit. Exit 1 if the recording is damaged or unfinished (what is intact

@@ -9,7 +9,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::form::FormSink;
 
-/// Recompute and print the summary of a recording, finished or not. Example: servo inspect run.mcap
+/// Check a recording byte by byte and print its summary
+///
+/// Recomputes the summary of a recording, finished or not. Example: servo inspect run.mcap
 ///
 /// Every byte is checked (CRCs, indexes, summary, message sizes). Exit 0 for a complete,
 /// intact file; 1 for a damaged or unfinished one (what is intact is still printed, and where

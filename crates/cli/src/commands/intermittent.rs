@@ -12,7 +12,9 @@ use std::process::ExitCode;
 use studies::intermittent::{self, DEFAULT_DURATION_S, THESIS_KAS};
 use studies::StudyError;
 
-/// The intermittent cut of §7.6 for a list of acceleration gains: peak following error
+/// The intermittent cut of §7.6 for a list of acceleration gains Ka
+///
+/// Peak following error
 /// and the form-error height at the step edge per Ka (thesis: 75 → 25 nm and 106 → 27 nm
 /// for Ka 0 → 4). Without a configuration file it runs §7.6's settings: the PID gains raised
 /// with Ka by Kg (§7.4.1; --fixed-pid keeps them) on the 0.174 kg stage (--mass light: Ka = 4

@@ -8,7 +8,9 @@ use daq_io::qualify::{measure, readiness, Check, WallClock};
 use runner::config::{Origin, RealtimeConfig, Role, WaitKind};
 use std::process::ExitCode;
 
-/// Qualify this host for real time: runs the servo loop's pacing alone at --rate-hz for
+/// Qualify this host for real time: tick lateness, overruns and kernel settings
+///
+/// Runs the servo loop's pacing alone at --rate-hz for
 /// --duration and prints its start lateness (p50, p99, p99.9, p99.99, max), the overruns (a
 /// tick started a whole period late), a peer timeout no observed stall reaches, and a readiness
 /// report of the kernel settings with what to change.

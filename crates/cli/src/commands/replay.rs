@@ -172,7 +172,11 @@ fn print_report(r: &Report, every: u32, rate_hz: f64) {
         };
         println!(
             "  {:<26} {:>12.4} {:>12.4} {change:>9}",
-            format!("{name} ({unit})"),
+            if unit.is_empty() {
+                name.to_owned()
+            } else {
+                format!("{name} ({unit})")
+            },
             a * k,
             b * k
         );

@@ -7,8 +7,9 @@ use std::process::ExitCode;
 use studies::spindle::{self, Recovery, SpindleStudy};
 use studies::StudyError;
 
-/// Separate spindle error motion from artefact form (thesis Appendix D) on simulated
-/// three-probe data: a known artefact and spindle motion measured with the three angle
+/// Separate spindle error motion from artefact form (thesis Appendix D)
+///
+/// On simulated three-probe data: a known artefact and spindle motion measured with the three angle
 /// sets of Table D-1; reports how well each set, the thesis's frequency-domain
 /// modification and the least-squares synthesis recover both.
 /// Example: servo spindle-errors --probe-noise-m 0.3e-9

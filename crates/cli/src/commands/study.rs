@@ -46,8 +46,10 @@ pub struct StudyCmd {
 
 #[derive(Subcommand, Debug)]
 enum StudySub {
-    /// Join the shards of a study (their folders, or one folder holding them all) into the
-    /// table, summary and plots a single run gives.
+    /// Join the shards of a study into the table a single run gives
+    ///
+    /// The shards are their folders, or one folder holding them all; the result is the table,
+    /// summary and plots a single run gives, byte for byte.
     Merge(MergeCmd),
 }
 

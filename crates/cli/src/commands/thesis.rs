@@ -7,10 +7,11 @@ use std::process::ExitCode;
 use studies::thesis;
 use studies::StudyError;
 
-/// Every headline number of thesis Chapters 5–8 beside the value this model computes for the
-/// same experiment (budgets, re-tuned sweeps, an H2 synthesis, intermittent and machining
+/// Every headline number of thesis Chapters 5–8 beside this model's value
+///
+/// For the same experiment as the thesis (budgets, re-tuned sweeps, an H2 synthesis, intermittent and machining
 /// simulations; ≈ 7 s), with the section and the reason for any difference. Writes
-/// `thesis.md` (the README's table) and `thesis.json`.
+/// `thesis.md` (the thesis map's table in the book) and `thesis.json`.
 /// Example: servo thesis
 #[derive(Args, Debug)]
 pub struct ThesisCmd {

@@ -1,7 +1,8 @@
 //! `[realtime]`: how the HIL processes run when paced in real time — scheduling, cores, memory,
 //! the wait for each tick, and the three separate fault settings (peer-loss timeout, overrun
 //! budget, startup grace window). Defaults need no privilege and suit a shared machine; see
-//! the README's real-time section and `servo latency` for what a host allows.
+//! the book's real-time host page (`docs/src/how-to/realtime-host.md`) and `servo latency`
+//! for what a host allows.
 
 use super::Origin;
 use crate::config::ConfigError;

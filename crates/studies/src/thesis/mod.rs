@@ -1,8 +1,8 @@
 //! `servo thesis`: every headline number of thesis Chapters 5–8 beside the value this model
 //! computes for the same experiment, each computed afresh (budgets, sweeps, syntheses and
 //! simulations), with the reason for any difference, and the variants tried on the one gap
-//! the model does not close (the Ka 0 → 4 improvement of §7.6.2). The README's tables are this
-//! output.
+//! the model does not close (the Ka 0 → 4 improvement of §7.6.2). The book's thesis map
+//! (`docs/src/thesis-map.md`) shows this output.
 
 mod ka_gap;
 

@@ -1,0 +1,285 @@
+#!/usr/bin/env python3
+"""The README and the book as tested documents: every ```sh and ```python block runs, in
+order, and what a block is shown to print is compared with what it prints.
+
+    python3 scripts/check_docs.py                 # README.md and every page of docs/src/SUMMARY.md
+    python3 scripts/check_docs.py PAGE.md ...     # these pages only
+    python3 scripts/check_docs.py --list [PAGE]   # what would run, and what is not run and why
+    python3 scripts/check_docs.py --self-test     # a copy of the README with one shown number
+                                                  # changed must fail the check
+
+Each page runs in a fresh folder of its own (blocks of one page follow each other there), with
+`examples/` of the checkout linked into it and this checkout's release binaries first on PATH
+(`servo`; `cargo run --release -p servo-cli --` and `cargo run … --example X --` are rewritten
+to them). Lines that build or install (`cargo build`, `cargo test`, `pip install`, `make -C
+examples/c`) are what .ci/run itself does before this check, and are skipped. Real-time runs
+(`--realtime`) run in lockstep: CI machines are not tuned.
+
+Marks, as an HTML comment on the line before a block's fence:
+- `<!-- not run: REASON -->`: the block is not run; the reason is required.
+- `<!-- exit: N -->`: the block is expected to exit with code N (it shows a failure).
+- `<!-- file: NAME -->`: the block (any language) is written to NAME in the page's folder.
+- `<!-- tolerance: P% -->`: numbers in the next output block may differ by P % (default 2 %).
+
+Shown output: a ```text block after a runnable block (before the next runnable one) is what
+that block prints, stdout and stderr together. Lines are compared in order; a line `…` stands
+for any number of lines, and `…` inside a line for any text. Numbers compare within the
+tolerance, or within one unit of the last digit shown; numbers on lines about wall-clock time
+(`wall`, `real time`, `elapsed`, `took`) are not compared; the page's folder prints as `.`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from book_pages import ROOT, book_pages, read_page
+
+RELEASE = ROOT / "target" / "release"
+SERVO = RELEASE / "servo"
+TIMEOUT_S = 600
+DEFAULT_TOLERANCE = 0.02
+RUNNABLE = {"sh", "bash", "python"}
+WALL_CLOCK = re.compile(r"wall|real time|elapsed|took", re.I)
+NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+MARK = re.compile(r"<!--\s*(not run|exit|file|tolerance):\s*(.*?)\s*-->")
+FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```[ \t]*$", re.S | re.M)
+ELLIPSIS = "…"
+
+
+@dataclass
+class Block:
+    """One fenced block of a page and the marks before it."""
+
+    line: int
+    lang: str
+    text: str
+    marks: dict[str, str]
+    shown: Block | None = None  # the output block that follows a runnable block
+
+
+@dataclass
+class Page:
+    path: Path
+    blocks: list[Block] = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        try:
+            return str(self.path.resolve().relative_to(ROOT))
+        except ValueError:
+            return str(self.path)
+
+
+def parse(path: Path) -> Page:
+    """The page's blocks, each runnable one paired with the output block shown after it."""
+    text = read_page(path)
+    page = Page(path)
+    last_runnable: Block | None = None
+    for m in FENCE.finditer(text):
+        before = text[: m.start()].rstrip("\n").rsplit("\n", 1)[-1]
+        marks = {k: v for k, v in MARK.findall(before)}
+        lang = m.group(1)
+        if not lang:
+            sys.exit(f"{page.name}:{text[: m.start()].count(chr(10)) + 1}: a block without a "
+                     "language: say what it is (sh, python, text, toml, rust, c …)")
+        block = Block(text[: m.start()].count("\n") + 1, lang, m.group(2), marks)
+        if "not run" in marks and not marks["not run"]:
+            sys.exit(f"{page.name}:{block.line}: `not run` needs a reason")
+        if lang in RUNNABLE:
+            last_runnable = block if "not run" not in marks else None
+        elif lang == "text" and last_runnable is not None and last_runnable.shown is None:
+            last_runnable.shown = block
+        page.blocks.append(block)
+    return page
+
+
+def script_of(block: Block) -> str:
+    """The block as it runs here (build and install lines skipped, binaries rewritten)."""
+    if block.lang == "python":
+        return block.text
+    lines = []
+    for line in block.text.splitlines():
+        bare = line.split("#", 1)[0].strip()
+        if bare.startswith(("cargo test", "pip install", "cargo build", "make -C examples",
+                            "cargo install")):
+            continue
+        line = line.replace("--realtime", "--lockstep")
+        line = re.sub(r"cargo run --release -p servo-cli --", "servo", line)
+        line = re.sub(
+            r"cargo run --release -p [\w-]+ (?:--features [\w,-]+ )?--example (\w+) --",
+            lambda m: str(RELEASE / "examples" / m.group(1)),
+            line,
+        )
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def number_close(shown: str, got: str, tolerance: float) -> bool:
+    a, b = float(shown), float(got)
+    decimals = shown.lower().split("e")[0]
+    unit = 10.0 ** -(len(decimals.split(".")[1]) if "." in decimals else 0)
+    if "e" in shown.lower():
+        unit *= 10.0 ** int(shown.lower().split("e")[1])
+    return abs(a - b) <= max(tolerance * abs(a), unit)
+
+
+def line_matches(shown: str, got: str, tolerance: float) -> bool:
+    """Whether an actual line is the shown one (numbers within tolerance, `…` any text)."""
+    pattern = ""
+    numbers: list[str] = []
+    for i, part in enumerate(shown.strip().split(ELLIPSIS)):
+        if i:
+            pattern += ".*?"
+        pos = 0
+        for m in NUMBER.finditer(part):
+            pattern += literal(part[pos : m.start()])
+            pattern += r"([-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?)"
+            numbers.append(m.group())
+            pos = m.end()
+        pattern += literal(part[pos:])
+    m = re.fullmatch(pattern, got.strip())
+    if m is None:
+        return False
+    if WALL_CLOCK.search(shown):
+        return True
+    return all(number_close(s, g, tolerance) for s, g in zip(numbers, m.groups()))
+
+
+def literal(text: str) -> str:
+    return r"\s+".join(re.escape(w) for w in text.split(" ")) if text else ""
+
+
+def compare(shown: list[str], got: list[str], tolerance: float) -> str | None:
+    """None if the output is what is shown, else the first difference."""
+    while got and not got[-1].strip():
+        got.pop()
+    while shown and not shown[-1].strip():
+        shown.pop()
+    i = 0
+    skipping = False
+    for n, want in enumerate(shown):
+        if want.strip() == ELLIPSIS:
+            skipping = True
+            continue
+        while i < len(got) and not line_matches(want, got[i], tolerance):
+            if not skipping:
+                return f"shown line {n + 1}:\n  shown: {want}\n  got:   {got[i]}"
+            i += 1
+        if i == len(got):
+            return f"shown line {n + 1} never printed:\n  shown: {want}"
+        skipping = False
+        i += 1
+    if not skipping and i < len(got):
+        return f"printed more than shown, from:\n  got:   {got[i]}"
+    return None
+
+
+def run_page(page: Page, stop_after_first_output: bool = False) -> int:
+    """Runs the page's blocks in a fresh folder; exits on the first failure. Blocks run."""
+    work = Path(tempfile.mkdtemp(prefix="docs-"))
+    try:
+        (work / "bin").mkdir()
+        os.symlink(SERVO, work / "bin" / "servo")
+        os.symlink(ROOT / "examples", work / "examples")
+        env = dict(os.environ, PATH=f"{work / 'bin'}:{os.environ['PATH']}")
+        count = 0
+        for block in page.blocks:
+            if "file" in block.marks:
+                (work / block.marks["file"]).write_text(block.text)
+            if block.lang not in RUNNABLE or "not run" in block.marks:
+                continue
+            script = script_of(block)
+            if not script.strip():
+                continue
+            expect = int(block.marks.get("exit", "0"))
+            if block.lang == "python":
+                command = [sys.executable, "-c", script]
+            else:
+                strict = "set -euo pipefail\n" if expect == 0 else ""
+                command = ["bash", "-c", f"{strict}{script}\nstatus=$?\nwait\nexit $status\n"]
+            started = time.monotonic()
+            p = subprocess.run(command, cwd=work, env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True, timeout=TIMEOUT_S)
+            took = time.monotonic() - started
+            where = f"{page.name}:{block.line}"
+            out = p.stdout.replace(str(work) + "/", "").replace(str(work), ".")
+            if p.returncode != expect:
+                fail(where, f"exit {p.returncode}, expected {expect}", script, out)
+            if block.shown is not None:
+                tolerance = DEFAULT_TOLERANCE
+                if "tolerance" in block.shown.marks:
+                    tolerance = float(block.shown.marks["tolerance"].rstrip("%")) / 100
+                diff = compare(block.shown.text.splitlines(), out.splitlines(), tolerance)
+                if diff:
+                    fail(f"{page.name}:{block.shown.line}", "output differs from the page's",
+                         script, out, diff)
+            count += 1
+            first = script.splitlines()[0][:90]
+            print(f"ok  {where:<48} {took:6.1f} s  {first}", flush=True)
+            if stop_after_first_output and block.shown is not None:
+                break
+        return count
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def fail(where: str, why: str, script: str, out: str, diff: str = "") -> None:
+    print(f"FAILED {where}: {why}\n--- block\n{script}\n--- printed\n{out[-4000:]}")
+    if diff:
+        print(f"--- first difference, {diff}")
+    sys.exit(1)
+
+
+def self_test() -> None:
+    """A copy of the README whose first shown output has one number changed must fail."""
+    readme = ROOT / "README.md"
+    page = parse(readme)
+    shown = next(b.shown for b in page.blocks if b.shown is not None)
+    m = next(m for m in NUMBER.finditer(shown.text) if float(m.group()) > 0
+             and not WALL_CLOCK.search(shown.text[: m.start()].rsplit("\n", 1)[-1]))
+    changed = shown.text[: m.start()] + repr(float(m.group()) * 1.5) + shown.text[m.end():]
+    with tempfile.TemporaryDirectory() as d:
+        copy = Path(d) / "README.md"
+        copy.write_text(readme.read_text().replace(shown.text, changed, 1))
+        p = subprocess.run([sys.executable, __file__, "--first-output", str(copy)],
+                           capture_output=True, text=True)
+    if p.returncode == 0 or "output differs" not in p.stdout:
+        sys.exit(f"self-test: a changed number ({m.group()} → ×1.5) passed the check:\n{p.stdout}")
+    print(f"self-test: the README with {m.group()} shown as {float(m.group()) * 1.5!r} fails the "
+          "check, as it must")
+
+
+def main() -> None:
+    args = sys.argv[1:]
+    if "--self-test" in args:
+        return self_test()
+    listing = "--list" in args
+    first_output = "--first-output" in args
+    paths = [Path(a) for a in args if not a.startswith("--")] or [ROOT / "README.md", *book_pages()]
+    pages = [parse(p) for p in paths]
+    if listing:
+        for page in pages:
+            for b in page.blocks:
+                if b.lang in RUNNABLE:
+                    state = f"not run: {b.marks['not run']}" if "not run" in b.marks else (
+                        "runs, output checked" if b.shown else "runs")
+                    print(f"{page.name}:{b.line}: {b.lang}, {state}")
+        return
+    if not SERVO.exists():
+        sys.exit(f"{SERVO} is missing: cargo build --release -p servo-cli first")
+    total = 0
+    for page in pages:
+        total += run_page(page, first_output)
+    print(f"{len(pages)} pages: {total} blocks ran, their shown output as printed")
+
+
+if __name__ == "__main__":
+    main()
