@@ -126,22 +126,31 @@ mod tests {
         assert!(long.is_empty(), "{}", long.join("\n"));
     }
 
-    /// The book's command-line reference is what the parser says
-    /// (`UPDATE_REFERENCE=1 cargo test -p servo-cli reference_page` rewrites it).
+    /// The book's generated reference pages are what the code says: the command line from
+    /// the parser, the configuration from its types and checks
+    /// (`UPDATE_REFERENCE=1 cargo test -p servo-cli reference_page` rewrites them).
     #[test]
     fn reference_page_is_current() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../docs/src/reference/cli.md");
-        let page = super::reference_page::page(&Cli::command());
-        if std::env::var_os("UPDATE_REFERENCE").is_some() {
-            std::fs::write(&path, &page).unwrap();
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/src/reference");
+        let pages = [
+            ("cli.md", super::reference_page::page(&Cli::command())),
+            (
+                "configuration.md",
+                super::reference_page::configuration_page(&runner::schema::schema()),
+            ),
+        ];
+        for (name, page) in pages {
+            let path = dir.join(name);
+            if std::env::var_os("UPDATE_REFERENCE").is_some() {
+                std::fs::write(&path, &page).unwrap();
+            }
+            let committed = std::fs::read_to_string(&path).unwrap_or_default();
+            assert!(
+                committed == page,
+                "{} is stale: UPDATE_REFERENCE=1 cargo test -p servo-cli reference_page",
+                path.display()
+            );
         }
-        let committed = std::fs::read_to_string(&path).unwrap_or_default();
-        assert!(
-            committed == page,
-            "{} is stale: UPDATE_REFERENCE=1 cargo test -p servo-cli reference_page",
-            path.display()
-        );
     }
 
     /// The completion scripts name every command and each command's flags.

@@ -27,6 +27,47 @@ pub fn page(cli: &Command) -> String {
     out
 }
 
+/// The configuration reference (`docs/src/reference/configuration.md`) from the schema of
+/// `servo config --schema`.
+pub fn configuration_page(schema: &serde_json::Value) -> String {
+    let mut out = String::from(
+        "# Configuration reference\n\n\
+         <!-- Generated from the configuration types by `UPDATE_REFERENCE=1 cargo test -p \
+         servo-cli reference_page`; edit their doc comments (and checks), not this page. -->\n\n\
+         Every key of a run configuration (TOML; `servo config --dump` prints a whole one, \
+         `servo config --schema` this as a JSON Schema). Units are SI and in each key's name. \
+         *Allowed* is what a run accepts, as its refusal says it; defaults are the thesis \
+         prototype's. Keys of a tagged table apply to the `kind` named beside them.\n",
+    );
+    let mut section = String::new();
+    for k in runner::schema::key_docs(schema) {
+        let top = k.key.split('.').next().unwrap_or_default().to_owned();
+        if top != section {
+            let _ = write!(
+                out,
+                "\n## `[{top}]`\n\n| key | type | default | allowed | description |\n\
+                 |---|---|---|---|---|\n"
+            );
+            section = top;
+        }
+        let key = match &k.kind {
+            Some((table, kind)) => format!("`{}` ({table}.kind = `{kind}`)", k.key),
+            None => format!("`{}`", k.key),
+        };
+        let _ = writeln!(
+            out,
+            "| {key} | {} | {} | {} | {} |",
+            k.type_text,
+            k.default
+                .map(|d| format!("`{}`", cell(&d)))
+                .unwrap_or_default(),
+            k.allowed.map(|a| cell(&a)).unwrap_or_default(),
+            cell(&k.description)
+        );
+    }
+    out
+}
+
 /// Every visible command under `c` with its full name, depth first.
 fn collect<'a>(c: &'a Command, path: &str, out: &mut Vec<(String, &'a Command)>) {
     out.push((path.to_owned(), c));

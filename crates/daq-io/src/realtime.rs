@@ -5,6 +5,7 @@
 
 /// Linux scheduling policies a servo process may ask for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "kebab-case")]
 pub enum Policy {
     /// `SCHED_OTHER`: the normal time-sharing scheduler (needs no privilege).

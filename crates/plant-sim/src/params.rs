@@ -6,6 +6,7 @@ use std::f64::consts::PI;
 
 /// The four-mass flexure stage (thesis Fig 5-4, Appendix C; equations in DESIGN.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct StageParams {
     /// Tool-tip mass m1 in kg (★ 0.004; m1 + m2 = 0.074 kg, Table 5-2).
@@ -77,6 +78,7 @@ impl Default for StageParams {
 
 /// Which current-loop model drives the coil.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "kebab-case")]
 pub enum CurrentLoopModel {
     /// Linear second-order closed loop of eq 5-9 (exact discretisation).
@@ -90,6 +92,7 @@ pub enum CurrentLoopModel {
 /// The coil circuit and analog current controller of §4.6.3–4.6.4 (used by
 /// [`CurrentLoopModel::Coil`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct CoilParams {
     /// Coil resistance in Ω (0.55, §4.6.4).
@@ -125,6 +128,7 @@ impl Default for CoilParams {
 
 /// Flat voice-coil motor and its closed current loop (eq 5-9).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct ActuatorParams {
     /// Current-loop model (`ideal` eq 5-9, or `coil` R-L + PI with saturation).
@@ -156,6 +160,7 @@ impl Default for ActuatorParams {
 
 /// Capacitive displacement sensor (eq 5-8, printed with a `2ω` typo: a Butterworth has `√2ω`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct CapaSensorParams {
     /// −3 dB bandwidth in Hz (★ 15 kHz).
@@ -175,6 +180,7 @@ impl Default for CapaSensorParams {
 
 /// Accelerometer on m2 and its conditioning (Table 7-2).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct AccelerometerParams {
     /// Sensitivity in V/(m/s²) (1000 mV/g).
@@ -206,6 +212,7 @@ impl Default for AccelerometerParams {
 
 /// Analog-to-digital converter (§4.5.1, §4.4.3), shared by the gap and accelerometer channels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct AdcParams {
     /// Resolution in bits (16).
@@ -236,6 +243,7 @@ impl Default for AdcParams {
 
 /// Digital-to-analog converter (§4.4.1). Its 1 µs settling is part of the transport delay.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct DacParams {
     /// Resolution in bits (18).
@@ -255,6 +263,7 @@ impl Default for DacParams {
 
 /// Stochastic disturbances (thesis eq 6-6..6-8, DESIGN.md; gains calibrated, see README).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct NoiseParams {
     /// Sensor noise one-sided ASD in V/√Hz, flat at the sensor electronics and band-limited by
@@ -302,6 +311,7 @@ impl Default for NoiseParams {
 
 /// Servo timing (§4.4, §5.7.3).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct TimingParams {
     /// Servo rate in Hz (199.6 kHz).
@@ -321,6 +331,7 @@ impl Default for TimingParams {
 
 /// Everything the simulator needs.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
 pub struct PlantParams {
     /// Mechanics.

@@ -133,6 +133,11 @@ impl Controller {
                 value,
                 &format!("[{min}, {max}]"),
             ),
+            servo_core::Error::NotFinite { param } => at.invalid(
+                &format!("controller.pid.{param}"),
+                f64::NAN,
+                "a finite number",
+            ),
             other => invalid(at, "controller.pid", other),
         })?;
         let (pa, pb, pc, pd) = pid.coeffs().realization();

@@ -36,6 +36,7 @@ pub mod recording;
 pub mod remote_plant;
 pub mod replay;
 pub mod run;
+pub mod schema;
 pub mod servo_loop;
 pub mod sim_backend;
 pub mod stop;

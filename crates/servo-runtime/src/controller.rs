@@ -173,6 +173,12 @@ fn block_error(e: servo_core::Error, key: &'static str) -> Invalid {
             value,
             Allowed::between(min, max, ""),
         ),
+        servo_core::Error::NotFinite { param } => Invalid::new(
+            "controller",
+            pid_key(param).unwrap_or(key),
+            f64::NAN,
+            Allowed::Text("a finite number"),
+        ),
         _ => Invalid::new("controller", key, f64::NAN, Allowed::Text("a valid value")),
     }
 }

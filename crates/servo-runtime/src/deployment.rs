@@ -44,6 +44,7 @@ pub struct Deployment {
 /// The stage's numbers the tick uses, from the plant model the loop was made for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(feature = "std", serde(deny_unknown_fields))]
 pub struct Stage {
     /// Capacitive gap sensor sensitivity in V/m (0.16 V/µm on the thesis prototype).
@@ -68,6 +69,7 @@ pub struct Stage {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(feature = "std", serde(rename_all = "kebab-case"))]
 pub enum ControllerKind {
     /// Position PID (eq 7-8) on the capacitive sensor.
@@ -82,6 +84,7 @@ pub enum ControllerKind {
 /// PID gains on sensor volts (V/V), thesis §7.5.3 by default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(feature = "std", serde(deny_unknown_fields, default))]
 pub struct PidGains {
     /// Proportional gain (V/V).
@@ -183,6 +186,7 @@ impl Default for ControllerSpec {
 /// A gain change or a loaded controller keeps [`GAIN_MARGIN`] from both limits.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(feature = "std", serde(deny_unknown_fields))]
 pub struct Stability {
     /// Spectral radius of the sampled closed loop at scale 1 (< 1: stable).
@@ -217,6 +221,7 @@ impl Stability {
 /// The built-in reference generators (m, positive away from the workpiece).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(
     feature = "std",
     serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)

@@ -10,6 +10,7 @@ use daq_io::flags;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(feature = "std", serde(rename_all = "kebab-case"))]
 pub enum SafeState {
     /// 0 V: zero current, the flexure springs back to its rest position — which may be
@@ -43,6 +44,7 @@ impl SafeState {
 /// reading, lost spindle lock) always trips.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[cfg_attr(feature = "std", serde(deny_unknown_fields, default))]
 pub struct ProtectionConfig {
     /// Protection on (false: limits are not checked; faults still drive 0 V).

@@ -20,11 +20,19 @@ pub struct ConfigCmd {
     /// As JSON instead of TOML.
     #[arg(long)]
     json: bool,
+    /// Print the configuration's JSON Schema instead: every key with its type, default,
+    /// description and (numbers) the range a run allows, as `x-allowed`.
+    #[arg(long, conflicts_with_all = ["dump", "json"])]
+    schema: bool,
 }
 
 impl ConfigCmd {
     /// Resolves, checks and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
+        if self.schema {
+            print_json(&runner::schema::schema());
+            return Ok(ExitCode::SUCCESS);
+        }
         let plan = Plan::new(&self.run.load()?)?;
         if self.json {
             print_json(&plan.config);

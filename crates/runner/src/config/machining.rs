@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 /// A surface as configured (`[scenario.surface]`, `kind = …`). Heights in m, positive away
 /// from the workpiece (the tool follows the height).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum SurfaceConfig {
     /// A flat face (§8.5.1, Table 8-2: the roughness test, Ra 1.2 nm).
@@ -73,7 +73,7 @@ pub const GRID_EDGE_RADIUS_M: f64 = 200.0 * 1e-3 / TAU;
 
 /// The machining scenario (`[scenario] kind = "machine"`): a facing spiral over a freeform
 /// surface at constant spindle speed. Defaults: thesis Table 8-5 at the part's edge.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct Machining {
     /// The surface.

@@ -66,6 +66,16 @@ pub const INTERMITTENT_FORCE_N: f64 = plant_sim::cutting::TABLE_7_3_FORCE_N;
 pub const INTERMITTENT_RPM: f64 = 250.0;
 
 impl ScenarioKind {
+    /// Every kind.
+    pub const ALL: [ScenarioKind; 6] = [
+        ScenarioKind::Hold,
+        ScenarioKind::Sine,
+        ScenarioKind::Step,
+        ScenarioKind::Chirp,
+        ScenarioKind::IntermittentCut,
+        ScenarioKind::Machine,
+    ];
+
     /// The scenario of this kind over a run of `duration_s` seconds.
     pub fn scenario(self, v: &ScenarioValues, duration_s: f64) -> Scenario {
         let a = v.amplitude_m.unwrap_or(1e-6);
@@ -121,6 +131,15 @@ pub struct ImageMap {
 }
 
 impl SurfacePreset {
+    /// Every surface.
+    pub const ALL: [SurfacePreset; 5] = [
+        SurfacePreset::Flat,
+        SurfacePreset::SinusoidalGrid,
+        SurfacePreset::BeamIntegrator,
+        SurfacePreset::MicroLenslet,
+        SurfacePreset::Image,
+    ];
+
     /// The surface (`image` for [`SurfacePreset::Image`]).
     pub fn surface(self, image: ImageMap) -> SurfaceConfig {
         match self {

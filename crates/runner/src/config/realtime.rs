@@ -11,7 +11,9 @@ use daq_io::realtime::{online_cpus, Policy, RtSettings};
 use serde::{Deserialize, Serialize};
 
 /// How a servo process waits for its next tick.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
+)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum WaitKind {
@@ -25,7 +27,7 @@ pub enum WaitKind {
 
 /// Real-time settings of a HIL run (used with `--realtime`; the scheduling keys apply in
 /// lockstep too).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct RealtimeConfig {
     /// Scheduling policy of the plant and controller processes: `other` (default, no

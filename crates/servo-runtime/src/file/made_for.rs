@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 /// The plant, rate and tool a controller (or another result) was made for.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields)]
 pub struct MadeFor {
     /// The tool and its version (`fts-servo 0.1.0`).
