@@ -2,7 +2,7 @@
 //! process), record it, read it back, and run the thesis's studies. A thin shell over the
 //! `runner` (runtime) and `studies` (offline analyses) libraries: parsing, progress, printing.
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 mod args;
@@ -90,7 +90,11 @@ fn main() -> ExitCode {
     // `servo … | head` must end quietly, not panic on a closed pipe.
     sigpipe::reset();
     interrupt::follow_parent();
-    let cli = Cli::parse();
+    // The exit codes close `servo --help` (computed: they come from the code that sets them).
+    let matches = Cli::command()
+        .after_help(output::exit_codes_help())
+        .get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     cli.command.exec().unwrap_or_else(|e| output::fail_cli(&e))
 }
 
@@ -138,6 +142,7 @@ mod tests {
                 "configuration.md",
                 super::reference_page::configuration_page(&runner::schema::schema()),
             ),
+            ("exit-codes.md", super::reference_page::exit_codes_page()),
         ];
         for (name, page) in pages {
             let path = dir.join(name);

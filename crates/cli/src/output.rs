@@ -89,15 +89,77 @@ impl CliError {
             CliError::Run(r) | CliError::Study(StudyError::Run(r)) if write_failed(r) => {
                 runner::stop::EndReason::WriteFailed.exit_code()
             }
-            CliError::Config(_) => 2,
-            CliError::Run(r) | CliError::Study(StudyError::Run(r)) if input(r) => 2,
-            CliError::Study(StudyError::Config(_)) => 2,
-            CliError::Export(recorder::export::ExportError::Selection(_)) => 2,
+            CliError::Config(_) => BAD_INPUT,
+            CliError::Run(r) | CliError::Study(StudyError::Run(r)) if input(r) => BAD_INPUT,
+            CliError::Study(StudyError::Config(_)) => BAD_INPUT,
+            CliError::Export(recorder::export::ExportError::Selection(_)) => BAD_INPUT,
             CliError::Child { code, .. } => u8::try_from(*code).unwrap_or(1),
-            _ => 1,
+            _ => FAILED,
         }
     }
 }
+
+/// Exit code of a failure while running: an unwritable path, a damaged or unfinished
+/// recording refused (without `--salvage`), a `servo ctl` refused or unanswered, an
+/// identification below 70 % fit.
+pub const FAILED: u8 = 1;
+
+/// Exit code of bad input: a configuration problem (located by file, line, key and allowed
+/// range), a controller that would make the loop unstable, a selection that matches nothing.
+pub const BAD_INPUT: u8 = 2;
+
+/// Every exit code: (code, a run's end reason or empty for a command's own, meaning), in
+/// code order (`servo --help` and the book's exit-code reference list them).
+pub fn exit_codes() -> Vec<(String, String, String)> {
+    let mut rows: Vec<(u8, String, String)> = runner::stop::EndReason::EACH
+        .iter()
+        .map(|r| (r.exit_code(), r.name().to_owned(), r.meaning().to_owned()))
+        .chain(
+            COMMAND_CODES
+                .iter()
+                .map(|(code, meaning)| (*code, String::new(), (*meaning).to_owned())),
+        )
+        .collect();
+    rows.sort_by_key(|r| r.0);
+    rows.into_iter()
+        .map(|(code, reason, meaning)| {
+            let code = match reason.as_str() {
+                "interrupted" => "128 + signal".to_owned(),
+                _ => code.to_string(),
+            };
+            (code, reason, meaning)
+        })
+        .collect()
+}
+
+/// The exit codes as `servo --help` lists them.
+pub fn exit_codes_help() -> String {
+    let mut text = String::from("Exit codes:\n");
+    for (code, reason, meaning) in exit_codes() {
+        let reason = if reason.is_empty() {
+            String::new()
+        } else {
+            format!("{reason}: ")
+        };
+        text += &format!("  {code:<13} {reason}{meaning}\n");
+    }
+    text
+}
+
+/// The codes a command itself exits with, beside a run's end reasons.
+const COMMAND_CODES: [(u8, &str); 2] = [
+    (
+        FAILED,
+        "another failure: an unwritable path, a damaged or unfinished recording refused by \
+         `inspect`, `replay`, `spectrum` or `export` (without `--salvage`), `servo ctl` refused \
+         or unanswered, `servo identify` with a fit below 70 %",
+    ),
+    (
+        BAD_INPUT,
+        "bad input: a configuration problem, located by file, line, key and allowed range; a \
+         controller that would make the loop unstable; an export selection that matches nothing",
+    ),
+];
 
 impl CliError {
     /// The flag a library error's key stands for: the libraries name their options as keys

@@ -68,6 +68,33 @@ pub fn configuration_page(schema: &serde_json::Value) -> String {
     out
 }
 
+/// The exit-code reference (`docs/src/reference/exit-codes.md`): every way a run ends, and
+/// the codes a command itself exits with.
+pub fn exit_codes_page() -> String {
+    let mut out = String::from(
+        "# Exit codes\n\n\
+         <!-- Generated from the code by `UPDATE_REFERENCE=1 cargo test -p servo-cli \
+         reference_page`; edit runner::stop::EndReason and the CLI's output module, not this \
+         page. -->\n\n\
+         Every `servo` command ends with one of these codes (`servo --help` lists them too); a \
+         run's recording names its end reason in its `end` record \
+         ([recordings](recordings.md#what-a-recording-guarantees)).\n\n\
+         | code | end reason | meaning |\n|---|---|---|\n",
+    );
+    for (code, reason, meaning) in crate::output::exit_codes() {
+        let reason = if reason.is_empty() {
+            reason
+        } else {
+            format!("`{reason}`")
+        };
+        let _ = writeln!(out, "| {code} | {reason} | {} |", cell(&meaning));
+    }
+    out += "\nWhat the loop does in each case, and which events trip it: [machine \
+            protection](security.md#machine-protection) (the safe-state table); for HIL runs, \
+            [the modes](../how-to/hil.md#prefixes-and-modes).\n";
+    out
+}
+
 /// Every visible command under `c` with its full name, depth first.
 fn collect<'a>(c: &'a Command, path: &str, out: &mut Vec<(String, &'a Command)>) {
     out.push((path.to_owned(), c));

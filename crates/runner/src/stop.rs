@@ -114,6 +114,48 @@ impl EndReason {
         }
     }
 
+    /// One of each way a run ends (SIGINT stands for every signal).
+    pub const EACH: [EndReason; 7] = [
+        EndReason::Completed,
+        EndReason::Stopped,
+        EndReason::Signal(2),
+        EndReason::PeerLost,
+        EndReason::OverrunBudget,
+        EndReason::WriteFailed,
+        EndReason::Tripped,
+    ];
+
+    /// What it means for the run and its recording, in a sentence.
+    pub fn meaning(self) -> &'static str {
+        match self {
+            EndReason::Completed => "the run ran its whole duration",
+            EndReason::Stopped => {
+                "`servo ctl stop` (or a library caller) ended the run at a tick boundary; the \
+                 recording is finished"
+            }
+            EndReason::Signal(_) => {
+                "a signal interrupted the run, in process or sent to any HIL process: 128 + its \
+                 number (130 SIGINT, 143 SIGTERM, 129 SIGHUP); the run ends at a tick boundary \
+                 and the recording is finished (a second Ctrl-C ends the process at once)"
+            }
+            EndReason::PeerLost => {
+                "a HIL peer was silent for the peer timeout: the plant drove zero current and \
+                 ended the run"
+            }
+            EndReason::OverrunBudget => {
+                "the controller answered late more often than the overrun budget allows: the \
+                 plant drove zero current and ended the run"
+            }
+            EndReason::WriteFailed => {
+                "the recording could not be written (a full disk): the run was ended safely; \
+                 the `.partial` file holds every complete chunk"
+            }
+            EndReason::Tripped => {
+                "machine protection tripped the loop: it held the safe state, then the run ended"
+            }
+        }
+    }
+
     /// The process exit code that says it: 0 completed or stopped on request, 128 + the
     /// signal number when interrupted (130 SIGINT, 143 SIGTERM, 129 SIGHUP, as shells do),
     /// 3 a lost peer or an exceeded overrun budget (the plant faulted the run), 4 a failed recording, 5 a machine-protection trip.
