@@ -27,9 +27,6 @@ pub enum FeedforwardError {
     /// The design failed.
     #[error("ZPETC feedforward: {0}")]
     Design(#[from] ZpetcError),
-    /// The reference → sensor loop has no delay to advance by one tick.
-    #[error("ZPETC feedforward: the sensor loop has no delay to advance")]
-    NoSensorDelay,
     /// The design does not fit the loop's fixed-size filter or preview.
     #[error("ZPETC feedforward needs {sections} sections and {preview} ticks of preview (at most {ZPETC_SECTIONS} and {MAX_PREVIEW})")]
     TooLarge {
@@ -78,18 +75,12 @@ pub fn design_for(cl: &ClosedLoop, kind: FeedforwardKind) -> Result<ZpetcDesign,
     )
 }
 
-/// The ZPETC coefficients for the loop `cl`. The tool output of tick k is the tool at the
-/// tick's end; the measured output is the sample the tick *starts* with, so the sensor design
-/// is advanced by one tick (its preview shrinks by one) to make the sample closing tick k
-/// follow the trajectory at that time, as the telemetry pairs them.
+/// The ZPETC coefficients for the loop `cl`. The loop model's outputs at tick k are what the
+/// runtime pairs with the reference of tick k: the tool at the tick's end, and the measured
+/// sample the tick starts with (the sensor design needs no advance of its own: with one, the
+/// sensor trails the reference by a tick, 22 nm RMS on the grid's edge).
 pub fn zpetc(cl: &ClosedLoop, kind: FeedforwardKind) -> Result<ZpetcSpec, FeedforwardError> {
-    let mut d = design_for(cl, kind)?;
-    if kind == FeedforwardKind::ZpetcSensor {
-        d.preview = d
-            .preview
-            .checked_sub(1)
-            .ok_or(FeedforwardError::NoSensorDelay)?;
-    }
+    let d = design_for(cl, kind)?;
     if d.sections.len() > ZPETC_SECTIONS || d.preview > MAX_PREVIEW {
         return Err(FeedforwardError::TooLarge {
             sections: d.sections.len(),
