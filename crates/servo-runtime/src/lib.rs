@@ -16,12 +16,14 @@
 //! # fn adc() -> daq_io::Sensor { Default::default() }
 //! # fn dac(_: f64) {}
 //! let mut servo = Servo::from_file("deploy.toml")?; // written by `servo deploy`
-//! servo.serve("lab")?; // optional: servo record / ctl / view / the Python tap
+//! # #[cfg(feature = "serve")]
+//! servo.serve("lab")?; // optional (feature `serve`): servo record / ctl / view / the Python tap
 //! while servo.status().stop.is_none() {
 //!     let sample = adc(); // the gap and accelerometer readings, in V
 //!     let command = servo.tick(&sample); // no allocation, lock, log or panic
 //!     dac(command.dac_v);
 //! }
+//! # #[cfg(feature = "serve")]
 //! servo.close(0);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
