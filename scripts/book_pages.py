@@ -9,6 +9,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 BOOK = ROOT / "docs" / "src"
 INCLUDE = re.compile(r"\{\{#include ([^}\s]+)\}\}")
+# A fenced block: its language (group 1) and body (group 2).
+FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```[ \t]*$", re.S | re.M)
 
 
 def read_page(page: Path) -> str:

@@ -13,11 +13,10 @@ import re
 import sys
 from pathlib import Path
 
-from book_pages import BOOK, ROOT, book_pages, read_page
+from book_pages import BOOK, FENCE, ROOT, book_pages, read_page
 
 LINK = re.compile(r"(?<!!)\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)\)|!\[[^\]]*\]\(([^)\s]+)\)")
 HEADING = re.compile(r"^(#{1,6})\s+(.*?)\s*#*\s*$")
-FENCE = re.compile(r"^```.*?^```[ \t]*$", re.S | re.M)
 
 
 def mdbook_id(heading: str) -> str:

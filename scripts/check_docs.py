@@ -40,7 +40,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from book_pages import ROOT, book_pages, read_page
+from book_pages import FENCE, ROOT, book_pages, read_page
 
 RELEASE = ROOT / "target" / "release"
 SERVO = RELEASE / "servo"
@@ -50,7 +50,6 @@ RUNNABLE = {"sh", "bash", "python"}
 WALL_CLOCK = re.compile(r"wall|real time|elapsed|took", re.I)
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 MARK = re.compile(r"<!--\s*(not run|exit|file|tolerance):\s*(.*?)\s*-->")
-FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```[ \t]*$", re.S | re.M)
 ELLIPSIS = "…"
 
 

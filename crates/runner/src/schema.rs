@@ -20,10 +20,11 @@ pub fn schema() -> Value {
     let mut leaves = Vec::new();
     walk(&schema, "", "", None, &mut leaves);
     let bases = base_configs();
+    let image = probe_image();
     for leaf in leaves.iter().filter(|l| l.number) {
         let allowed = bases
             .iter()
-            .find_map(|base| probe(base, &leaf.doc))
+            .find_map(|base| probe(base, &leaf.doc, &image))
             .map_or(Value::Null, Value::String);
         if let Some(Value::Object(p)) = schema.pointer_mut(&leaf.pointer) {
             p.insert("x-allowed".into(), allowed);
@@ -310,9 +311,9 @@ fn probe_image() -> Vec<u8> {
     bytes
 }
 
-/// The range a run's checks name when `leaf` is NaN in `base` (None: `base` has no such key,
-/// or no check refused it).
-fn probe(base: &toml::Value, leaf: &KeyDoc) -> Option<String> {
+/// The range a run's checks name when `leaf` is NaN in `base`, machining `image` if it cuts
+/// the image surface (None: `base` has no such key, or no check refused it).
+fn probe(base: &toml::Value, leaf: &KeyDoc, image: &[u8]) -> Option<String> {
     let mut doc = base.clone();
     let (parent, name) = leaf.key.rsplit_once('.').unwrap_or(("", &leaf.key));
     let table = parent
@@ -334,7 +335,7 @@ fn probe(base: &toml::Value, leaf: &KeyDoc) -> Option<String> {
     let image = Input {
         name: SURFACE_INPUT.into(),
         media_type: "image/png".into(),
-        data: probe_image(),
+        data: image.to_vec(),
     };
     match Plan::with_inputs(&loaded, vec![image]) {
         Err(RunError::Config(ConfigError::Invalid { key, range, .. })) if key == leaf.key => {
