@@ -128,6 +128,16 @@ class Model(tuple):
         """Sampling period in s (0: continuous time)."""
         return self[4]
 
+    def ss(self, name: Optional[str] = None) -> Any:
+        """The model as a named ``control.StateSpace`` (python-control): its inputs and outputs
+        carry the signal names, so ``control.interconnect`` joins models by name."""
+        import control
+
+        return control.ss(
+            self.A, self.B, self.C, self.D, self.dt,
+            inputs=list(self.inputs), outputs=list(self.outputs), name=name,
+        )
+
     def __repr__(self) -> str:
         kind = f"dt = {self.dt:.6g} s" if self.dt else "continuous"
         return (
@@ -170,8 +180,12 @@ def read_recording(path: Union[str, "os.PathLike[str]"], salvage: bool = False) 
 
 def models(config: Config = None, **tables: Any) -> Dict[str, Model]:
     """The models of ``config``: ``mechanics`` and ``plant`` (continuous time), and at the servo
-    period ``plant_sampled`` (exact: hold, delay, averaging; no controller), ``controller`` and
-    ``closed_loop``. Each is a :class:`Model`: ``control.ss(*m)``."""
+    period ``plant_sampled`` (exact: hold, delay, averaging; no controller; the DAC
+    ``command_v`` in, the readings ``gap_v`` and ``accel_v`` out), ``controller`` (``gap_v``,
+    ``accel_v`` in, ``command_v`` out), ``loop_gain`` (L broken at the DAC command, for
+    ``control.margin``), ``sensitivity`` and ``complementary_sensitivity`` (reference to
+    following error and to measured position) and ``closed_loop``. Each is a :class:`Model`:
+    ``control.ss(*m)``, or named for ``control.interconnect`` with ``m.ss("plant")``."""
     return {k: Model(**v) for k, v in _native.models(*_args(config, tables)).items()}
 
 

@@ -7,7 +7,7 @@ use crate::servo_err;
 use lti::StateSpace;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use runner::closed_loop::{self, ClosedLoop};
+use runner::closed_loop::{self, input, output, ClosedLoop};
 
 /// One model as a dict: `abcd_dt` (the 5-tuple), `inputs`, `outputs`, `what`.
 pub fn model<'py>(
@@ -39,7 +39,7 @@ pub fn model<'py>(
 
 /// Every model of `config` with `overrides`: `mechanics` and `plant` (continuous), and at the
 /// servo period `plant_sampled` (DAC command to the loop's outputs, no controller),
-/// `controller` and `closed_loop`.
+/// `controller`, `loop_gain`, `sensitivity`, `complementary_sensitivity` and `closed_loop`.
 #[pyfunction]
 #[pyo3(signature = (config=None, overrides=None))]
 pub fn models<'py>(
@@ -75,27 +75,36 @@ pub fn models<'py>(
             "stage, current loop, sensor and accelerometer chains and noise filters, continuous time",
         )?,
     )?;
-    let sensitivity = p.capa.sensitivity_v_per_m;
-    let open = ClosedLoop::open(&plan.sim, sensitivity).ok_or_else(|| {
+    let s = p.capa.sensitivity_v_per_m;
+    let open = ClosedLoop::open(&plan.sim, s).ok_or_else(|| {
         servo_err("plant.actuator.model = \"coil\" has no exact sampled model: use \"ideal\" or \"second_order\"")
     })?;
-    let (ins, outs) = (&closed_loop::input::NAMES, &closed_loop::output::NAMES);
+    // The open loop's outputs the controller reads carry the contract's names (gap_v,
+    // accel_v) and its command input is command_v, so that control.interconnect joins the
+    // plant and the controller by name.
+    let mut plant_inputs = closed_loop::input::NAMES;
+    plant_inputs[input::CONTROL_DISTURBANCE_V] = "command_v";
+    let plant_outputs = [
+        (output::FOLLOWING_ERROR_M, 1.0, "following_error_m"),
+        (output::TRUE_ERROR_M, 1.0, "true_error_m"),
+        (output::MEASURED_M, 1.0, "measured_m"),
+        (output::TOOL_M, 1.0, "tool_m"),
+        (output::MEASURED_M, s, "gap_v"),
+        (output::ACCEL_READING_V, 1.0, "accel_v"),
+    ];
+    let rows: Vec<_> = plant_outputs.iter().map(|&(o, k, _)| (o, k)).collect();
+    let plant = open.outputs(&rows);
+    let names: Vec<&str> = plant_outputs.iter().map(|x| x.2).collect();
     out.set_item(
         "plant_sampled",
-        model(py, &open.sys, dt, ins, outs, "the sampled plant without a controller (exact: zero-order hold, delay, averaging); the DAC command enters as control_disturbance_v")?,
+        model(py, &plant, dt, &plant_inputs, &names, "the sampled plant without a controller (exact: zero-order hold, delay, averaging): the DAC command_v in, the readings gap_v and accel_v out (the controller's inputs)")?,
     )?;
-    let c = &plan.controller.linear;
-    let controller = StateSpace {
-        a: c.a.clone(),
-        b: c.b.clone(),
-        c: c.c.clone(),
-        d: c.d.clone(),
-    };
+    let controller = &plan.controller.linear;
     out.set_item(
         "controller",
         model(
             py,
-            &controller,
+            &controller.state_space(),
             dt,
             &["gap_v", "accel_v"],
             &["command_v"],
@@ -106,13 +115,41 @@ pub fn models<'py>(
         )?,
     )?;
     out.set_item(
+        "loop_gain",
+        model(
+            py,
+            &open.loop_gain(controller, s).map_err(servo_err)?,
+            dt,
+            &["command_v"],
+            &["returned_v"],
+            "the loop gain L = −K·P broken at the DAC command (negative feedback: the loop is 1 + L; control.margin takes it)",
+        )?,
+    )?;
+    let cl = &plan.closed_loop;
+    for (key, out_row, what) in [
+        (
+            "sensitivity",
+            output::FOLLOWING_ERROR_M,
+            "the sensitivity S: reference to following error (thesis eq 5-1)",
+        ),
+        (
+            "complementary_sensitivity",
+            output::MEASURED_M,
+            "the complementary sensitivity T: reference to measured position (thesis eq 5-2)",
+        ),
+    ] {
+        let sys = cl.subsystem(&[(out_row, 1.0)], input::REFERENCE_M);
+        let name = closed_loop::output::NAMES[out_row];
+        out.set_item(key, model(py, &sys, dt, &["reference_m"], &[name], what)?)?;
+    }
+    out.set_item(
         "closed_loop",
         model(
             py,
-            &plan.closed_loop.sys,
+            &cl.sys,
             dt,
-            ins,
-            outs,
+            &closed_loop::input::NAMES,
+            &closed_loop::output::NAMES,
             "the sampled closed loop",
         )?,
     )?;

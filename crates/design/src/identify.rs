@@ -54,7 +54,7 @@ fn residual(
     theta: &[f64],
     measured: &[Complex64],
 ) -> Result<DVector<f64>, IdentifyError> {
-    let p: Vec<f64> = theta.iter().map(|t| t.exp()).collect();
+    let p: Vec<f64> = theta.iter().map(|t| libm::exp(*t)).collect();
     let g = model(&p).map_err(|message| IdentifyError::Model {
         params: p.clone(),
         message,
@@ -151,10 +151,10 @@ pub fn fit(
         )));
     }
     let (ln_lo, ln_hi): (Vec<f64>, Vec<f64>) = (
-        lower.iter().map(|v| v.ln()).collect(),
-        upper.iter().map(|v| v.ln()).collect(),
+        lower.iter().map(|v| libm::log(*v)).collect(),
+        upper.iter().map(|v| libm::log(*v)).collect(),
     );
-    let mut theta: Vec<f64> = start.iter().map(|v| v.ln()).collect();
+    let mut theta: Vec<f64> = start.iter().map(|v| libm::log(*v)).collect();
     let mut r = residual(model, &theta, measured)?;
     let mut cost = r.norm_squared();
     let mut lambda = 1e-2;
@@ -186,7 +186,7 @@ pub fn fit(
             }
         }
     }
-    let params: Vec<f64> = theta.iter().map(|t| t.exp()).collect();
+    let params: Vec<f64> = theta.iter().map(|t| libm::exp(*t)).collect();
     // Uncertainty from the Gauss–Newton Hessian at the optimum.
     let m = r.len();
     let sigma2 = cost / (m.saturating_sub(n).max(1)) as f64;

@@ -49,7 +49,7 @@ pub struct Margins {
 /// All roots of `g` on a log grid between `f_lo` and `f_hi` (sign changes), refined by bisection.
 fn roots(g: &impl Fn(f64) -> f64, f_lo: f64, f_hi: f64) -> Vec<f64> {
     let n = 4000;
-    let ratio = (f_hi / f_lo).powf(1.0 / n as f64);
+    let ratio = libm::pow(f_hi / f_lo, 1.0 / n as f64);
     let mut out = Vec::new();
     let mut a = f_lo;
     let mut ga = g(a);
@@ -78,7 +78,7 @@ fn roots(g: &impl Fn(f64) -> f64, f_lo: f64, f_hi: f64) -> Vec<f64> {
 /// −180° crossing (`L` real and negative) is found, so resonances and conditionally stable
 /// loops are handled.
 pub fn margins(loop_gain: impl Fn(f64) -> C, f_lo: f64, f_hi: f64) -> Margins {
-    let db = |f: f64| -20.0 * loop_gain(f).norm().log10();
+    let db = |f: f64| -20.0 * libm::log10(loop_gain(f).norm());
     let pm = |f: f64| 180.0 + loop_gain(f).arg().to_degrees();
     let pm_wrapped = |f: f64| {
         let p = pm(f);
@@ -88,7 +88,7 @@ pub fn margins(loop_gain: impl Fn(f64) -> C, f_lo: f64, f_hi: f64) -> Margins {
             p
         }
     };
-    let gain_cross = roots(&|f| loop_gain(f).norm().ln(), f_lo, f_hi);
+    let gain_cross = roots(&|f| libm::log(loop_gain(f).norm()), f_lo, f_hi);
     let worst_pm = gain_cross
         .iter()
         .map(|&f| (f, pm_wrapped(f)))
@@ -133,7 +133,7 @@ mod tests {
         let m = margins(l, 1e-3, 100.0);
         let wpc = 2f64.sqrt();
         assert!((m.phase_crossover_hz.unwrap() - wpc / (2.0 * PI)).abs() < 1e-9);
-        assert!((m.gain_margin_db.unwrap() - 20.0 * 3f64.log10()).abs() < 1e-9);
+        assert!((m.gain_margin_db.unwrap() - 20.0 * libm::log10(3f64)).abs() < 1e-9);
         // ω² = x: x(x+1)(x+4) = 4 → solve by bisection independently.
         let (mut lo, mut hi) = (0.1f64, 1.0f64);
         for _ in 0..200 {
@@ -146,7 +146,7 @@ mod tests {
         }
         let wgc = lo.sqrt();
         assert!((m.gain_crossover_hz.unwrap() - wgc / (2.0 * PI)).abs() < 1e-9);
-        let pm = 90.0 - wgc.atan().to_degrees() - (wgc / 2.0).atan().to_degrees();
+        let pm = 90.0 - libm::atan(wgc).to_degrees() - libm::atan(wgc / 2.0).to_degrees();
         assert!(
             (m.phase_margin_deg.unwrap() - pm).abs() < 1e-6,
             "{:?} vs {pm}",

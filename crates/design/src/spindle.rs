@@ -46,8 +46,8 @@ const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// The weights `(a, b)` of eq D-5 and D-6.
 pub fn weights(p: &ProbeAngles) -> (f64, f64) {
-    let d = (p.beta_rad - p.alpha_rad).sin();
-    (-p.beta_rad.sin() / d, p.alpha_rad.sin() / d)
+    let d = libm::sin(p.beta_rad - p.alpha_rad);
+    (-libm::sin(p.beta_rad) / d, libm::sin(p.alpha_rad) / d)
 }
 
 /// `H(k) = 1 + a·e^{−jkα} + b·e^{−jkβ}` (eq D-7), k in undulations per revolution.
@@ -164,7 +164,7 @@ fn with_artefact(
         .zip(&artefact_spectrum)
         .map(|(s, a)| s - a)
         .collect();
-    let (ca, sa) = (angles.alpha_rad.cos(), angles.alpha_rad.sin());
+    let (ca, sa) = (libm::cos(angles.alpha_rad), libm::sin(angles.alpha_rad));
     let y_spec: Vec<Complex64> = (0..artefact_spectrum.len())
         .map(|k| {
             let shifted =

@@ -87,7 +87,7 @@ impl PidTuning {
 
     /// The grid index of the bandwidth frequency.
     fn bandwidth_index(&self) -> usize {
-        let d = |f: f64| (f / self.bandwidth_hz).ln().abs();
+        let d = |f: f64| libm::log(f / self.bandwidth_hz).abs();
         (0..self.freq_hz.len())
             .min_by(|&a, &b| d(self.freq_hz[a]).total_cmp(&d(self.freq_hz[b])))
             .unwrap_or(0)
@@ -167,7 +167,9 @@ impl PidTuning {
         }
         let (max_sensitivity, _, t_up_to_bandwidth) = self.evaluate(&k);
         if t_up_to_bandwidth < std::f64::consts::FRAC_1_SQRT_2 * (1.0 - 1e-6) {
-            return Err(TuneError::Unreachable(20.0 * t_up_to_bandwidth.log10()));
+            return Err(TuneError::Unreachable(
+                20.0 * libm::log10(t_up_to_bandwidth),
+            ));
         }
         Ok(PidTuned {
             gains: k,

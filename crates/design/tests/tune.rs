@@ -9,7 +9,7 @@ const TF: f64 = 0.05;
 
 fn problem(ms: f64, mt: f64, bandwidth_hz: f64) -> PidTuning {
     let freq_hz: Vec<f64> = (0..400)
-        .map(|i| 10f64.powf(-3.0 + 4.0 * i as f64 / 399.0))
+        .map(|i| libm::pow(10f64, -3.0 + 4.0 * i as f64 / 399.0))
         .collect();
     let s = |f: f64| Complex64::new(0.0, 2.0 * std::f64::consts::PI * f);
     PidTuning {
@@ -67,7 +67,7 @@ fn best_ki(p: &PidTuning, kp: f64, kd: f64) -> f64 {
         s <= p.ms && t <= p.mt && tb >= std::f64::consts::FRAC_1_SQRT_2 && stable(&[kp, ki, kd])
     };
     let grid: Vec<f64> = (0..=120)
-        .map(|i| 10f64.powf(-3.0 + 4.0 * i as f64 / 120.0))
+        .map(|i| libm::pow(10f64, -3.0 + 4.0 * i as f64 / 120.0))
         .collect();
     let Some(i) = (0..grid.len()).rev().find(|&i| ok(grid[i])) else {
         return 0.0;

@@ -113,7 +113,7 @@ mod tests {
         let blocks = [(0.95, 0.1), (0.6, 0.9), (0.2, 2.0)];
         let mut a = DMatrix::zeros(6, 6);
         for (k, &(r, th)) in blocks.iter().enumerate() {
-            let (c, s) = (r * f64::cos(th), r * f64::sin(th));
+            let (c, s) = (r * libm::cos(th), r * libm::sin(th));
             a[(2 * k, 2 * k)] = c;
             a[(2 * k, 2 * k + 1)] = -s;
             a[(2 * k + 1, 2 * k)] = s;

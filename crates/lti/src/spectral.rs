@@ -35,7 +35,7 @@ impl Window {
         match self {
             Window::Rectangular => vec![1.0; n],
             Window::Hann => (0..n)
-                .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos())
+                .map(|i| 0.5 - 0.5 * libm::cos(2.0 * std::f64::consts::PI * i as f64 / n as f64))
                 .collect(),
         }
     }
@@ -98,7 +98,7 @@ impl Psd {
 /// ```
 pub fn log_space(from_hz: f64, to_hz: f64, n: usize) -> Vec<f64> {
     (0..n)
-        .map(|i| from_hz * (to_hz / from_hz).powf(i as f64 / (n - 1).max(1) as f64))
+        .map(|i| from_hz * libm::pow(to_hz / from_hz, i as f64 / (n - 1).max(1) as f64))
         .collect()
 }
 
@@ -394,7 +394,7 @@ mod tests {
         let (n, fs) = (256, 1000.0);
         let x: Vec<f64> = (0..1000)
             .map(|i| {
-                (2.0 * std::f64::consts::PI * 10.5 * i as f64 / n as f64).sin() + 1e-3 * i as f64
+                libm::sin(2.0 * std::f64::consts::PI * 10.5 * i as f64 / n as f64) + 1e-3 * i as f64
             })
             .collect();
         let cfg = WelchConfig::hann(n);
@@ -417,7 +417,7 @@ mod tests {
     #[test]
     fn single_rectangular_segment_is_parseval_exact() {
         let x: Vec<f64> = (0..1000)
-            .map(|k| ((k * k) as f64 * 0.37).sin() + 0.2)
+            .map(|k| libm::sin((k * k) as f64 * 0.37) + 0.2)
             .collect();
         let cfg = WelchConfig {
             segment_len: 1000,
@@ -438,7 +438,7 @@ mod tests {
         let x: Vec<f64> = (0..8192)
             .map(|k| {
                 let z: f64 = StandardNormal.sample(&mut rng);
-                1e-9 * z + 1e-10 * (k as f64 * 0.01).sin()
+                1e-9 * z + 1e-10 * libm::sin(k as f64 * 0.01)
             })
             .collect();
         let cfg = WelchConfig {
@@ -487,14 +487,14 @@ mod tests {
         // The stepped-sine form at an exact bin: a pure sine through the same system.
         let (n, c) = (4096, 64);
         let w = 2.0 * std::f64::consts::PI * c as f64 / n as f64;
-        let us: Vec<f64> = (0..4 * n).map(|k| (w * k as f64).sin()).collect();
+        let us: Vec<f64> = (0..4 * n).map(|k| libm::sin(w * k as f64)).collect();
         let ys: Vec<f64> = (0..us.len())
             .map(|k| {
                 0.5 * us[k]
                     + if k > 0 {
                         0.25 * us[k - 1]
                     } else {
-                        0.25 * (-w).sin()
+                        0.25 * libm::sin(-w)
                     }
             })
             .collect();
@@ -508,9 +508,9 @@ mod tests {
         let (n, cycles, amp, phase) = (8192usize, 37usize, 1.7e-9, -0.83);
         let x: Vec<f64> = (0..n)
             .map(|k| {
-                amp * (2.0 * std::f64::consts::PI * cycles as f64 * k as f64 / n as f64 + phase)
-                    .cos()
-                    + 4e-9
+                amp * libm::cos(
+                    2.0 * std::f64::consts::PI * cycles as f64 * k as f64 / n as f64 + phase,
+                ) + 4e-9
             })
             .collect();
         let c = dft_bin(&x, cycles);

@@ -184,8 +184,8 @@ fn correlations(w: &[f64], shift: usize) -> Vec<f64> {
             let (mut re, mut im) = (0.0, 0.0);
             for (i, (a, b)) in w[shift..].iter().zip(w).enumerate() {
                 let phase = -2.0 * std::f64::consts::PI * (d * (i + shift)) as f64 / n;
-                re += a * b * phase.cos();
-                im += a * b * phase.sin();
+                re += a * b * libm::cos(phase);
+                im += a * b * libm::sin(phase);
             }
             (re * re + im * im) / (power * power)
         })
@@ -244,7 +244,7 @@ mod tests {
             );
         }
         let w = 2.0 * std::f64::consts::PI * 2.0 / n as f64;
-        let point = 2.0 / (1.0 + a * a - 2.0 * a * w.cos());
+        let point = 2.0 / (1.0 + a * a - 2.0 * a * libm::cos(w));
         assert!(
             (point / expected[2] - 1.0).abs() > 0.05,
             "{point} vs {}",

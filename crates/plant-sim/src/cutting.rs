@@ -161,7 +161,7 @@ impl CuttingForce {
                 frequency_hz,
             } => {
                 // Depth of cut = half the stroke: cutting while sin > ½, full depth at the peak.
-                let s = (2.0 * std::f64::consts::PI * frequency_hz * t_s).sin();
+                let s = libm::sin(2.0 * std::f64::consts::PI * frequency_hz * t_s);
                 peak_force_n * ((s - 0.5) / 0.5).max(0.0)
             }
             CuttingProfile::Csv { .. } => self.interpolate(t_s),

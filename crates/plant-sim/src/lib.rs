@@ -8,6 +8,7 @@
 mod coil_loop;
 pub mod convert;
 pub mod cutting;
+mod gaussian;
 pub mod impedance;
 pub mod metrology;
 pub mod model;

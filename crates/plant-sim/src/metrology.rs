@@ -3,8 +3,8 @@
 //! with asynchronous motion and probe noise. What each probe reads is eq D-1..D-3:
 //! `S(θ) = A(θ − φ) + X(θ)·cos φ + Y(θ)·sin φ` for a probe at angle φ, plus noise.
 
+use crate::gaussian::Gaussian;
 use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, StandardNormal};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::f64::consts::TAU;
 
@@ -48,7 +48,7 @@ impl Harmonics {
             .iter()
             .zip(&self.phase_rad)
             .enumerate()
-            .map(|(k, (a, p))| a * (k as f64 * theta_rad + p).cos())
+            .map(|(k, (a, p))| a * libm::cos(k as f64 * theta_rad + p))
             .sum()
     }
 }
@@ -80,8 +80,8 @@ impl ProbeRig {
         revolutions: usize,
         seed: u64,
     ) -> [Vec<f64>; 3] {
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
-        let mut normal = move || -> f64 { StandardNormal.sample(&mut rng) };
+        let mut gaussian = Gaussian::new(seed);
+        let mut normal = move || gaussian.sample();
         let n = self.per_rev * revolutions;
         let mut out = [
             Vec::with_capacity(n),
@@ -107,8 +107,9 @@ impl ProbeRig {
             let y = y + self.asynchronous_rms_m * normal();
             let noise = self.probe_noise_rms_m;
             out[0].push(a0 + x + noise * normal());
-            out[1].push(aa + x * alpha_rad.cos() + y * alpha_rad.sin() + noise * normal());
-            out[2].push(ab + x * beta_rad.cos() + y * beta_rad.sin() + noise * normal());
+            out[1]
+                .push(aa + x * libm::cos(alpha_rad) + y * libm::sin(alpha_rad) + noise * normal());
+            out[2].push(ab + x * libm::cos(beta_rad) + y * libm::sin(beta_rad) + noise * normal());
         }
         out
     }

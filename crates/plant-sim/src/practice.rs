@@ -52,7 +52,7 @@ impl PracticeTruth {
             ..*thesis
         };
         let (lo, hi) = MOUNT_HZ;
-        let mount_hz = lo * (hi / lo).powf(rng.random::<f64>());
+        let mount_hz = lo * libm::pow(hi / lo, rng.random::<f64>());
         PracticeTruth {
             seed,
             stage,
@@ -177,7 +177,8 @@ mod tests {
             let n = (fs * 0.2) as usize;
             let mut peak: f64 = 0.0;
             for k in 0..n {
-                let y = stage.through_mount((2.0 * std::f64::consts::PI * f * k as f64 / fs).sin());
+                let y =
+                    stage.through_mount(libm::sin(2.0 * std::f64::consts::PI * f * k as f64 / fs));
                 if k > n / 2 {
                     peak = peak.max(y.abs());
                 }

@@ -49,7 +49,7 @@ pub fn rounding_covariance(lsb: f64, difference_variance: f64) -> f64 {
     let mut sum = 0.0;
     let mut k = 1.0_f64;
     loop {
-        let term = (-a * k * k).exp() / (k * k);
+        let term = libm::exp(-a * k * k) / (k * k);
         sum += term;
         if a * k * k > 41.0 {
             break;
@@ -140,7 +140,7 @@ mod tests {
         let series: f64 = (1..200)
             .map(|k| {
                 let k = k as f64;
-                (-0.2 * k * k).exp() / (k * k)
+                libm::exp(-0.2 * k * k) / (k * k)
             })
             .sum::<f64>()
             / (2.0 * PI * PI);

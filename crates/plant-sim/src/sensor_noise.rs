@@ -248,7 +248,9 @@ mod tests {
         let w = 2.0 * PI * fc;
         let (zeta, wd) = (1.0 / SQRT_2, w / SQRT_2);
         let r0 = noise.conversion_variance();
-        let r = |tau: f64| r0 * (-zeta * w * tau).exp() * ((wd * tau).cos() + (wd * tau).sin());
+        let r = |tau: f64| {
+            r0 * libm::exp(-zeta * w * tau) * (libm::cos(wd * tau) + libm::sin(wd * tau))
+        };
         let mut want = 0.0;
         for i in 0..4 {
             for j in 0..4 {
@@ -267,7 +269,8 @@ mod tests {
         let (zeta, wd) = (1.0 / SQRT_2, w / SQRT_2);
         let r0 = noise.conversion_variance();
         for tau in [0.0, 1e-6, 3e-6, 2e-5, 1e-4] {
-            let want = r0 * (-zeta * w * tau).exp() * ((wd * tau).cos() + (wd * tau).sin());
+            let want =
+                r0 * libm::exp(-zeta * w * tau) * (libm::cos(wd * tau) + libm::sin(wd * tau));
             let got = noise.lag_covariance(tau);
             assert!((got - want).abs() < 1e-9 * r0, "τ {tau}: {got} vs {want}");
             assert_eq!(noise.lag_covariance(-tau), got);

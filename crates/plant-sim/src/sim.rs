@@ -12,6 +12,7 @@
 use crate::coil_loop::CoilLoop;
 use crate::convert::Quantizer;
 use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
+use crate::gaussian::Gaussian;
 use crate::model::{input, output, ModelError, PlantModel};
 use crate::params::{CurrentLoopModel, PlantParams};
 use crate::quantisation::{averaged_rounding_error, ConversionGrid};
@@ -21,9 +22,6 @@ use crate::tick_matrix::TickMatrix;
 use daq_io::flags;
 use lti::zoh;
 use nalgebra::DMatrix;
-use rand::SeedableRng;
-use rand_distr::{Distribution, StandardNormal};
-use rand_xoshiro::Xoshiro256PlusPlus;
 
 /// What the controller sees at the end of a tick: averaged ADC readings.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -294,7 +292,7 @@ pub struct Simulator {
     sensor_noise: Option<SensorNoise>,
     noise_on: [bool; 3],
     cutting: CuttingForce,
-    rng: Xoshiro256PlusPlus,
+    rng: Gaussian,
     tick: u64,
     period_s: f64,
 }
@@ -395,7 +393,7 @@ impl Simulator {
             }),
             noise_on: [noise.current, noise.base, noise.accel],
             cutting: CuttingForce::new(cutting)?,
-            rng: Xoshiro256PlusPlus::seed_from_u64(seed),
+            rng: Gaussian::new(seed),
             tick: 0,
             period_s: period,
         })
@@ -477,7 +475,7 @@ impl Simulator {
 
     #[inline]
     fn gauss(&mut self) -> f64 {
-        StandardNormal.sample(&mut self.rng)
+        self.rng.sample()
     }
 
     /// Runs one tick: `command_v` goes to the DAC now and reaches the coil τ later. Returns the
@@ -533,7 +531,7 @@ impl Simulator {
         let (mut gap_v, mut acc_v) = (0.0, 0.0);
         for j in 0..self.oversampling {
             let noise = match &mut self.sensor_noise {
-                Some(s) => s.next(j == 0, || StandardNormal.sample(&mut self.rng)),
+                Some(s) => s.next(j == 0, || self.rng.sample()),
                 None => 0.0,
             };
             noise_sum += noise;
@@ -594,6 +592,6 @@ impl Simulator {
         }
         self.u_prev = 0.0;
         self.tick = 0;
-        self.rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+        self.rng = Gaussian::new(seed);
     }
 }

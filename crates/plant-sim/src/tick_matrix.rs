@@ -1,9 +1,10 @@
 //! The simulator's whole tick as one affine map, laid out for the hot loop.
 
 use nalgebra::DMatrix;
+use servo_core::{mul_add, simd};
 
 /// Rows of the tick matrix handled together, kept in registers; columns are split by index
-/// modulo 4 into separate accumulators (independent FMA chains).
+/// modulo 4 into separate accumulators (independent multiply-add chains).
 const ROW_GROUP: usize = 8;
 
 /// The whole tick as one affine map of `z = [x_k, command per interval, f_cut, w_i, w_g, w_a]`:
@@ -36,9 +37,15 @@ impl TickMatrix {
         TickMatrix { rows, cols }
     }
 
-    /// `out = M z` (`out.len() == rows`).
+    /// `out = M z` (`out.len() == rows`), with the widest vector instructions this machine
+    /// has ([`simd`]; the same result on every CPU).
     #[inline]
     pub(crate) fn apply(&self, z: &[f64], out: &mut [f64]) {
+        simd::vectorised(|| self.product(z, out));
+    }
+
+    #[inline(always)]
+    fn product(&self, z: &[f64], out: &mut [f64]) {
         let column = |j: usize, r0: usize| -> &[f64; ROW_GROUP] {
             self.cols[j * self.rows + r0..][..ROW_GROUP]
                 .try_into()
@@ -52,14 +59,14 @@ impl TickMatrix {
                 for (k, a) in acc.iter_mut().enumerate() {
                     let c = column(4 * q + k, r0);
                     for l in 0..ROW_GROUP {
-                        a[l] = c[l].mul_add(zz[k], a[l]);
+                        a[l] = mul_add(c[l], zz[k], a[l]);
                     }
                 }
             }
             for (k, &zl) in rest.iter().enumerate() {
                 let c = column(4 * quads.len() + k, r0);
                 for l in 0..ROW_GROUP {
-                    acc[k][l] = c[l].mul_add(zl, acc[k][l]);
+                    acc[k][l] = mul_add(c[l], zl, acc[k][l]);
                 }
             }
             for (l, o) in block.iter_mut().enumerate() {

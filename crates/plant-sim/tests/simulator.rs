@@ -47,7 +47,7 @@ fn measured(
     let w = 2.0 * PI * f_cycles as f64 / n as f64;
     let (mut yu, mut uu) = (C::new(0.0, 0.0), C::new(0.0, 0.0));
     for k in 0..settle + n {
-        let u = (w * k as f64).sin();
+        let u = libm::sin(w * k as f64);
         let (s, _) = sim.step(u);
         if k >= settle {
             let e = C::from_polar(1.0, -w * k as f64);
@@ -69,7 +69,7 @@ fn running_simulator_matches_delayed_zoh_equivalent() {
         let f = cycles as f64 * fs / n as f64;
         let want = alias_sum(&p, &model, output::SENSOR_V, f);
         let got = measured(&p, cycles, n, 200_000, |s| s.gap_v);
-        let db = 20.0 * (got.norm() / want.norm()).log10();
+        let db = 20.0 * libm::log10(got.norm() / want.norm());
         let deg = (got / want).arg().to_degrees();
         assert!(
             db.abs() < 0.01 && deg.abs() < 0.1,
@@ -91,8 +91,9 @@ fn dac_step_reaches_the_coil_after_the_delay() {
         let (w, z) = (2.0 * PI * a.current_bandwidth_hz, a.current_damping);
         let wd = w * (1.0 - z * z).sqrt();
         let t = p.period_s() - delay;
-        let step =
-            1.0 - (-z * w * t).exp() * ((wd * t).cos() + z / (1.0 - z * z).sqrt() * (wd * t).sin());
+        let step = 1.0
+            - libm::exp(-z * w * t)
+                * (libm::cos(wd * t) + z / (1.0 - z * z).sqrt() * libm::sin(wd * t));
         let want = a.current_gain_a_per_v * step;
         assert!(
             (truth.coil_current_a - want).abs() < 1e-12,
@@ -150,7 +151,7 @@ fn same_seed_same_run_bit_for_bit() {
     let run = |seed| {
         let mut sim = Simulator::new(&p, seed, &cut).unwrap();
         (0..20_000)
-            .map(|k| sim.step((k as f64 * 1e-3).sin() * 0.01))
+            .map(|k| sim.step(libm::sin(k as f64 * 1e-3) * 0.01))
             .collect::<Vec<_>>()
     };
     let (a, b, c) = (run(42), run(42), run(43));
@@ -176,7 +177,7 @@ fn linear_tick_matches_the_simulator() {
     let mut x = nalgebra::DMatrix::<f64>::zeros(lin.phi.nrows(), 1);
     let mut u_prev = 0.0;
     for k in 0..2000 {
-        let u = ((k as f64) * 0.01).sin();
+        let u = libm::sin((k as f64) * 0.01);
         let f = force.at(k as f64 * p.period_s());
         let inputs = nalgebra::DMatrix::from_column_slice(6, 1, &[u_prev, u, f, 0.0, 0.0, 0.0]);
         let y = &lin.y_x * &x + &lin.y_in * &inputs;

@@ -243,22 +243,57 @@ impl ClosedLoop {
         Ok(self.sys.freq_response_discrete(f_hz, self.period_s)?[(output, input)])
     }
 
+    /// The loop with only `outputs`, each output row scaled by its factor (every input).
+    pub fn outputs(&self, outputs: &[(usize, f64)]) -> StateSpace {
+        let rows = |m: &DMatrix<f64>| {
+            DMatrix::from_fn(outputs.len(), m.ncols(), |i, j| {
+                m[(outputs[i].0, j)] * outputs[i].1
+            })
+        };
+        StateSpace {
+            a: self.sys.a.clone(),
+            b: self.sys.b.clone(),
+            c: rows(&self.sys.c),
+            d: rows(&self.sys.d),
+        }
+    }
+
+    /// The single-input part of the loop from `input` to `outputs` (scaled as in
+    /// [`ClosedLoop::outputs`]).
+    pub fn subsystem(&self, outputs: &[(usize, f64)], input: usize) -> StateSpace {
+        let mut sys = self.outputs(outputs);
+        sys.b = sys.b.columns(input, 1).into_owned();
+        sys.d = sys.d.columns(input, 1).into_owned();
+        sys
+    }
+
+    /// The loop gain broken at the DAC command of this open loop ([`ClosedLoop::open`]) with
+    /// controller `ctrl`: `L = −K·P`, `P` from the command (V) to the two readings the
+    /// controller takes, `[gap_v, accel_v]` (V), and `K` the controller. Negative-feedback
+    /// convention (the loop is `1 + L`); with acceleration feedback its inner loop is part of
+    /// the break. `sensitivity_v_per_m` converts the measured position to the gap reading.
+    pub fn loop_gain(
+        &self,
+        ctrl: &LinearController,
+        sensitivity_v_per_m: f64,
+    ) -> Result<StateSpace, LtiError> {
+        let readings = self.subsystem(
+            &[
+                (output::MEASURED_M, sensitivity_v_per_m),
+                (output::ACCEL_READING_V, 1.0),
+            ],
+            input::CONTROL_DISTURBANCE_V,
+        );
+        Ok(readings.series(&ctrl.state_space())?.scaled(-1.0))
+    }
+
     /// Closed-loop bandwidth in Hz: the first frequency at which |T| (reference → measured
     /// position) falls below 1/√2 of its low-frequency gain — the first −3 dB crossing, found
     /// exactly ([`lti::level_crossing::first_fall_below`]: however narrow a dip that reaches
     /// it, e.g. at the m4 mode near 422 Hz), or Nyquist if |T| never falls that far. One
     /// definition for the budget, the sweeps, tuning and the studies.
     pub fn bandwidth_hz(&self) -> Result<f64, LtiError> {
-        let siso = StateSpace {
-            a: self.sys.a.clone(),
-            b: self.sys.b.columns(input::REFERENCE_M, 1).into_owned(),
-            c: self.sys.c.rows(output::MEASURED_M, 1).into_owned(),
-            d: self
-                .sys
-                .d
-                .view((output::MEASURED_M, input::REFERENCE_M), (1, 1))
-                .into_owned(),
-        };
+        let siso = self.subsystem(&[(output::MEASURED_M, 1.0)], input::REFERENCE_M);
         let low = siso.freq_response_discrete(1e-3, self.period_s)?[(0, 0)].norm();
         Ok(
             lti::level_crossing::first_fall_below(&siso, self.period_s, low / 2f64.sqrt())?

@@ -45,6 +45,17 @@ impl LinearController {
             d: DMatrix::zeros(1, 2),
         }
     }
+
+    /// The realisation as an [`lti::StateSpace`] (inputs `[gap_v, accel_v]`, output the
+    /// command, all V).
+    pub fn state_space(&self) -> lti::StateSpace {
+        lti::StateSpace {
+            a: self.a.clone(),
+            b: self.b.clone(),
+            c: self.c.clone(),
+            d: self.d.clone(),
+        }
+    }
 }
 
 /// A fixed-size servo-core matrix as a dynamic one.
@@ -228,7 +239,7 @@ fn short(x: f64) -> String {
             None => text,
         }
     } else {
-        let decimals = (3 - x.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        let decimals = (3 - libm::log10(x.abs()).floor() as i32).clamp(0, 6) as usize;
         trim(format!("{x:.decimals$}"))
     }
 }

@@ -53,6 +53,10 @@ impl Target {
     }
 }
 
+/// Key of the `run` record naming how the run's dense products rounded
+/// ([`servo_core::ARITHMETIC`]); recordings made before it existed fused them.
+pub const ARITHMETIC_KEY: &str = "arithmetic";
+
 /// The `run` metadata record of a run of `plan`.
 pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
     let c = &plan.config;
@@ -68,6 +72,10 @@ pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
             c.plant.timing.servo_rate_hz.to_string(),
         ),
         ("settle_s".to_string(), c.run.settle().to_string()),
+        (
+            ARITHMETIC_KEY.to_string(),
+            servo_core::ARITHMETIC.to_string(),
+        ),
     ]);
     for input in &plan.inputs {
         m.insert(input_key(&input.name), sha256_hex(&input.data));
@@ -87,6 +95,10 @@ pub fn environment(run_id: u64) -> BTreeMap<String, String> {
         ("host".to_string(), host),
         ("pid".to_string(), std::process::id().to_string()),
         ("run_id".to_string(), format!("{run_id:016x}")),
+        (
+            "simd".to_string(),
+            servo_core::simd::detected().name().to_string(),
+        ),
         ("command".to_string(), command),
     ])
 }
@@ -156,6 +168,8 @@ pub struct RunHeader {
     /// (contract v6); false for older recordings, which paired it with the next reading (the
     /// noise statistics agree; a moving reference's error reads one tick's motion apart).
     pub reading_used: bool,
+    /// How its dense products rounded ([`servo_core::ARITHMETIC`]).
+    pub arithmetic: String,
 }
 
 impl RunHeader {
@@ -273,6 +287,7 @@ pub fn inspect_with(path: &Path, sink: &mut impl FrameSink) -> Result<Inspected,
         interrupted: !completed || builder.ticks() < cfg.ticks().div_ceil(u64::from(every)),
         recorded_every: (every > 1).then_some(every),
         recorded_messages: Some(read.messages),
+        arithmetic: header.arithmetic.clone(),
         end_reason: Some(match read.state {
             FileState::Finished => end
                 .get("reason")
@@ -364,6 +379,10 @@ impl<S: FrameSink> RunReader<'_, S> {
             every,
             reading_used: run.get(recorder::TELEMETRY_KEY).map(String::as_str)
                 == Some(recorder::TELEMETRY_READING_USED),
+            arithmetic: run
+                .get(ARITHMETIC_KEY)
+                .cloned()
+                .unwrap_or_else(|| "fused multiply-add".into()),
             controller: run
                 .get("controller")
                 .cloned()

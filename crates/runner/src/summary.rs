@@ -217,6 +217,10 @@ pub struct RunMeta {
     /// The loop's digest ([`daq_io::digest::LoopDigest`], hex), when asked for: equal for
     /// two loops that read the same samples and gave the same commands.
     pub loop_digest: Option<String>,
+    /// How the run's dense products rounded ([`servo_core::ARITHMETIC`]): two runs agree bit
+    /// for bit only with the same arithmetic.
+    #[serde(default)]
+    pub arithmetic: String,
 }
 
 /// The summary of a run.
@@ -474,6 +478,7 @@ impl RunMeta {
             end_reason: None,
             recorded_every: None,
             loop_digest: None,
+            arithmetic: servo_core::ARITHMETIC.into(),
         }
     }
 }

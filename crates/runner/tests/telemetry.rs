@@ -33,7 +33,10 @@ fn the_recorded_following_error_of_a_sine_is_the_closed_loops() {
     let fit = |error: &dyn Fn(usize) -> f64| {
         let (mut cc, mut ss, mut cs, mut ec, mut es) = (0.0, 0.0, 0.0, 0.0, 0.0);
         for k in frames.len() / 2..frames.len() - 1 {
-            let (c, s) = ((w * k as f64 * period).cos(), (w * k as f64 * period).sin());
+            let (c, s) = (
+                libm::cos(w * k as f64 * period),
+                libm::sin(w * k as f64 * period),
+            );
             let e = error(k);
             (cc, ss, cs, ec, es) = (cc + c * c, ss + s * s, cs + c * s, ec + e * c, es + e * s);
         }

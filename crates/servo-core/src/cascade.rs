@@ -158,8 +158,8 @@ mod tests {
             .unwrap();
         let mut pid = PidConfig::THESIS_CH7.try_build(5e-6).unwrap();
         for k in 0..100 {
-            let e = 1e-3 * (k as f64 * 0.1).sin();
-            let a = 0.02 * (k as f64 * 0.3).cos();
+            let e = 1e-3 * libm::sin(k as f64 * 0.1);
+            let a = 0.02 * libm::cos(k as f64 * 0.3);
             let u = c.update(CascadeInput { error: e, accel: a });
             assert!((u - (pid.update(e) - 4.0 * a)).abs() < 1e-15);
         }

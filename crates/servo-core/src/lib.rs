@@ -12,10 +12,12 @@
 //! never validates: it clamps to limits, and a non-finite input or state zeroes the output
 //! and latches a fault until [`Block::reset`].
 //!
-//! Cargo feature `fma` (off by default): fused multiply-add in the state-space and filter
-//! products, for hosts built with hardware FMA (`-C target-cpu=native`); roughly halves the
-//! 27-state tick. Without it the crate is plain `core` and builds for any target
-//! (CI builds `thumbv7em-none-eabihf`).
+//! Arithmetic is portable by default: a build gives the same bits on every processor (and on
+//! the microcontroller targets CI builds, `thumbv7em-none-eabihf`). The dense products run
+//! with the widest vector instructions the machine has, chosen at run time ([`simd`]), which
+//! changes their speed, not their result. Cargo feature `fma` (off by default, links `std`)
+//! fuses their multiply-adds ([`ARITHMETIC`] says which a build does): other rounding,
+//! recorded in the provenance of every run.
 //!
 //! ```
 //! use servo_core::{Block, PidConfig};
@@ -25,6 +27,7 @@
 //! # Ok::<(), servo_core::Error>(())
 //! ```
 #![no_std]
+extern crate std;
 
 #[cfg(feature = "fma")]
 extern crate std;
@@ -41,6 +44,7 @@ mod observer;
 mod oversample;
 mod pid;
 pub mod setpoint;
+pub mod simd;
 mod spindle;
 mod state_space;
 pub mod surface;
@@ -55,6 +59,7 @@ pub use error::{Error, ErrorKind};
 pub use feedforward::{Feedforward, FeedforwardConfig, Zpetc, ZpetcConfig};
 pub use iir::{Biquad, BiquadCascade, BiquadDesign, Iir, IirCoeffs};
 pub use limits::Limits;
+pub use math::{mul_add, ARITHMETIC};
 pub use observer::{DisturbanceObserver, ObserverInput};
 pub use oversample::Averager;
 pub use pid::{Pid, PidCoeffs, PidConfig, PidState, Realization};

@@ -1,15 +1,21 @@
-//! Scalar helpers for the tick: fused multiply-add where the target has it, and flushing of
+//! Scalar helpers for the tick: the multiply-add of the dense products, and flushing of
 //! subnormal state values.
 
-#[cfg(all(feature = "fma", target_arch = "x86_64", not(target_feature = "fma")))]
-compile_error!(
-    "servo-core feature `fma` needs hardware FMA: build with `-C target-cpu=native` (or \
-     `-C target-feature=+fma`); without it f64::mul_add is a slow software routine"
-);
+/// How this build rounds the multiply-adds of its dense products (state-space controllers,
+/// the simulator's tick), for provenance records: `separate multiply and add` (IEEE 754: two
+/// roundings, the same bits on every processor and target) or, with the `fma` feature,
+/// `fused multiply-add` (one rounding; other numbers than a default build's).
+pub const ARITHMETIC: &str = if cfg!(feature = "fma") {
+    "fused multiply-add"
+} else {
+    "separate multiply and add"
+};
 
-/// `a·b + c`, fused (one rounding) with the `fma` feature, plain otherwise.
+/// `a·b + c` as this build rounds it ([`ARITHMETIC`]): two roundings by default; one with the
+/// `fma` feature (exact on every processor: an FMA instruction where the dispatched code has
+/// one, the C library's `fma` otherwise).
 #[inline(always)]
-pub(crate) fn mul_add(a: f64, b: f64, c: f64) -> f64 {
+pub fn mul_add(a: f64, b: f64, c: f64) -> f64 {
     #[cfg(feature = "fma")]
     {
         a.mul_add(b, c)

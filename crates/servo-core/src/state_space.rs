@@ -4,12 +4,14 @@
 //! §6.4.1). The tick is two dense products laid out for the FMA units: `A` and `B` are stored by
 //! column so `A x` is a sum of column·scalar products (independent lanes, no horizontal sums),
 //! and even and odd columns go to separate accumulators to halve the dependency chain. `C` is
-//! stored by row and reduced with four partial sums.
+//! stored by row and reduced with four partial sums. The tick runs with the widest vector
+//! instructions the machine has ([`crate::simd`]), with the same result on every CPU.
 
 use crate::block::{Block, FaultLatch};
 use crate::error::{check_period, Error};
 use crate::limits::Limits;
 use crate::math::{flush, mul_add};
+use crate::simd::{self, Simd};
 use nalgebra::SMatrix;
 
 /// A discrete state-space realisation in nalgebra matrices (any unit; the thesis uses V/V).
@@ -129,12 +131,15 @@ fn dot<const N: usize>(a: &[f64; N], b: &[f64; N]) -> f64 {
     (part[0] + part[1]) + (part[2] + part[3])
 }
 
-impl<const NX: usize, const NU: usize, const NY: usize> Block for StateSpace<NX, NU, NY> {
-    type Input = [f64; NU];
-    type Output = [f64; NY];
+impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
+    /// [`Block::update`] with the vector instructions `simd` (or the baseline where this
+    /// machine lacks them): the result is the same bit for bit; only the speed differs.
+    pub fn update_with(&mut self, simd: Simd, e: [f64; NU]) -> [f64; NY] {
+        simd::with(simd, || self.tick(e))
+    }
 
-    #[inline]
-    fn update(&mut self, e: [f64; NU]) -> [f64; NY] {
+    #[inline(always)]
+    fn tick(&mut self, e: [f64; NU]) -> [f64; NY] {
         let mut y: [f64; NY] = core::array::from_fn(|i| dot(&self.c_rows[i], &self.x));
         for (col, &ej) in self.d_cols.iter().zip(&e) {
             axpy(&mut y, col, ej);
@@ -160,6 +165,17 @@ impl<const NX: usize, const NU: usize, const NY: usize> Block for StateSpace<NX,
             return [0.0; NY];
         }
         y.map(|v| self.limits.clamp(v))
+    }
+}
+
+impl<const NX: usize, const NU: usize, const NY: usize> Block for StateSpace<NX, NU, NY> {
+    type Input = [f64; NU];
+    type Output = [f64; NY];
+
+    /// One tick, run with the widest vector instructions this machine has ([`simd`]).
+    #[inline]
+    fn update(&mut self, e: [f64; NU]) -> [f64; NY] {
+        simd::vectorised(|| self.tick(e))
     }
 
     fn reset(&mut self) {

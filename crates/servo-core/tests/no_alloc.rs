@@ -53,7 +53,7 @@ fn every_block_ticks_without_allocating() {
     let mut sink = 0.0;
     let (bytes, count) = allocated_by(|| {
         for k in 0..TICKS {
-            let x = (k as f64 * 1e-3).sin();
+            let x = libm::sin(k as f64 * 1e-3);
             let r = sweep.update(()).position + chirp.update(()).position;
             sink += pid.update(x) + bq.update(x) + dl.update(x);
             sink += cas.update(CascadeInput { error: x, accel: r });

@@ -26,7 +26,7 @@ fn positions() -> impl Iterator<Item = (f64, f64)> {
 fn beam_integrator_matches_the_thesis_script() {
     for (r, theta) in positions() {
         // x = r*cos(theta); y = r*sin(theta); x_local = x - floor(x/L)*L - L/2; …
-        let (x, y) = (r * theta.cos(), r * theta.sin());
+        let (x, y) = (r * libm::cos(theta), r * libm::sin(theta));
         let (l, big_r) = (2e-3, 0.1);
         let xl = x - (x / l).floor() * l - l / 2.0;
         let yl = y - (y / l).floor() * l - l / 2.0;
@@ -41,8 +41,8 @@ fn beam_integrator_matches_the_thesis_script() {
 #[test]
 fn sinusoidal_grid_matches_the_thesis_script() {
     for (r, theta) in positions() {
-        let (x, y) = (r * theta.cos(), r * theta.sin());
-        let z = 5e-6 * (2.0 * PI * x / 1e-3).sin() + 5e-6 * (2.0 * PI * y / 1e-3).sin();
+        let (x, y) = (r * libm::cos(theta), r * libm::sin(theta));
+        let z = 5e-6 * libm::sin(2.0 * PI * x / 1e-3) + 5e-6 * libm::sin(2.0 * PI * y / 1e-3);
         assert!(
             (GRID.depth_m(r, theta) - z).abs() < 1e-17,
             "r {r} θ {theta}"
@@ -54,7 +54,7 @@ fn sinusoidal_grid_matches_the_thesis_script() {
 /// midpoints (the thesis measured 5.218 µm there against 5 µm nominal), 0 at the centres.
 #[test]
 fn beam_integrator_geometry() {
-    let at = |x: f64, y: f64| BEAM.depth_m(x.hypot(y), y.atan2(x));
+    let at = |x: f64, y: f64| BEAM.depth_m(libm::hypot(x, y), libm::atan2(y, x));
     let corner = 0.1 - (0.01f64 - 2e-6).sqrt();
     let edge = 0.1 - (0.01f64 - 1e-6).sqrt();
     for (cx, cy) in [(1e-3, 1e-3), (3e-3, -5e-3), (-7e-3, 9e-3)] {
@@ -73,7 +73,7 @@ fn sinusoidal_grid_geometry() {
     for i in 0..400 {
         for j in 0..400 {
             let (x, y) = (i as f64 * 2.5e-6, j as f64 * 2.5e-6);
-            let z = GRID.depth_m(x.hypot(y), y.atan2(x));
+            let z = GRID.depth_m(libm::hypot(x, y), libm::atan2(y, x));
             lo = lo.min(z);
             hi = hi.max(z);
         }
@@ -118,7 +118,7 @@ fn height_map_is_nearest_pixel_centred_and_y_up() {
         pixel_m: 1e-3,
         depth_range_m: 10e-6,
     };
-    let at = |x: f64, y: f64| map.depth_m(x.hypot(y), y.atan2(x));
+    let at = |x: f64, y: f64| map.depth_m(libm::hypot(x, y), libm::atan2(y, x));
     assert!((at(-1.5e-3, 1.5e-3) - 10e-6).abs() < 1e-18); // top-left pixel centre
     assert!((at(-1.01e-3, 1.99e-3) - 10e-6).abs() < 1e-18); // same pixel
     assert!((at(1.5e-3, -1.5e-3) - 2e-6).abs() < 1e-18); // bottom-right: 51/255

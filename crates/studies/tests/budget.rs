@@ -146,7 +146,7 @@ fn compliance_analytic_matches_sampled_loop() {
     use studies::stiffness::compliance;
     let cfg = Loaded::default();
     let freqs: Vec<f64> = (0..60)
-        .map(|i| 10f64 * 1000f64.powf(i as f64 / 59.0))
+        .map(|i| 10f64 * libm::pow(1000f64, i as f64 / 59.0))
         .collect(); // 10 Hz … 10 kHz
     for kg in [false, true] {
         let curves = compliance(&plan(&cfg), &[0.0, 0.5, 1.0, 4.0], kg, &freqs).unwrap();
@@ -155,7 +155,7 @@ fn compliance_analytic_matches_sampled_loop() {
                 .analytic_m_per_n
                 .iter()
                 .zip(&c.sampled_m_per_n)
-                .map(|(a, s)| (20.0 * (a / s).log10()).abs())
+                .map(|(a, s)| (20.0 * libm::log10(a / s)).abs())
                 .fold(0.0, f64::max);
             println!("Ka {} (PID ×{:.3}, spectral radius {:.6}): worst |analytic − sampled| {worst:.3} dB", c.ka, c.pid_scale, c.spectral_radius);
             assert!(worst < 1.0, "Ka {} kg {kg}: {worst} dB", c.ka);
@@ -329,7 +329,7 @@ fn gain_margin_predicts_the_stability_limit() {
         m.phase_crossover_hz.unwrap()
     );
     assert!(pm > 0.0 && gm > 0.0 && lower < 0.0);
-    let (up, down) = (10f64.powf(gm / 20.0), 10f64.powf(lower / 20.0));
+    let (up, down) = (libm::pow(10f64, gm / 20.0), libm::pow(10f64, lower / 20.0));
     for (k, stable) in [
         (0.98 * up, true),
         (1.02 * up, false),
@@ -357,8 +357,8 @@ fn the_ctl_gain_range_is_the_loops_gain_margins() {
     let p = plan(&cfg);
     let m = studies::margins::loop_margins(&p).unwrap();
     let (up, down) = (
-        10f64.powf(m.gain_margin_db.unwrap() / 20.0),
-        10f64.powf(m.lower_gain_margin_db.unwrap() / 20.0),
+        libm::pow(10f64, m.gain_margin_db.unwrap() / 20.0),
+        libm::pow(10f64, m.lower_gain_margin_db.unwrap() / 20.0),
     );
     let r = runner::gain_range::gain_range(&p).unwrap();
     assert!(
@@ -439,7 +439,7 @@ fn gain_margin_with_acceleration_feedback_predicts_the_stability_limit() {
         m.phase_margin_deg.unwrap_or(f64::NAN),
         m.phase_crossover_hz.unwrap_or(f64::NAN)
     );
-    let up = 10f64.powf(gm / 20.0);
+    let up = libm::pow(10f64, gm / 20.0);
     for (k, stable) in [(0.98 * up, true), (1.02 * up, false)] {
         let mut s = cfg.clone();
         let c = &mut s.config.controller;

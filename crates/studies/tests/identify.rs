@@ -13,7 +13,7 @@ use studies::identify::{identify, table_5_2, with_table_5_2};
 fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
     let truth_cfg = Loaded::default(); // thesis stage, all noise on
     let freqs: Vec<f64> = (0..80)
-        .map(|i| 20.0 * (500.0f64).powf(i as f64 / 79.0))
+        .map(|i| 20.0 * libm::pow(500.0f64, i as f64 / 79.0))
         .collect();
     let settings = FrfSettings::for_loop(FrfLoop::Open);
     let points = stepped_sine(
@@ -132,7 +132,7 @@ fn bad_frf_files_and_incredible_fits_are_refused() {
     let g: Vec<Complex64> = freqs
         .iter()
         .enumerate()
-        .map(|(i, _)| Complex64::from_polar(1e-6, (i as f64 * 2.3).sin() * 3.0))
+        .map(|(i, _)| Complex64::from_polar(1e-6, libm::sin(i as f64 * 2.3) * 3.0))
         .collect();
     let err = identify(&plan(&Loaded::default()), &freqs, &g).unwrap_err();
     assert!(

@@ -65,24 +65,30 @@ fn predicted_pv_x(cfg: &Loaded, r: f64) -> f64 {
     for i in 0..n {
         let theta = (i as f64 + 0.5) * TAU / n as f64;
         let (px, py) = (
-            TAU * r * theta.cos() / lambda,
-            TAU * r * theta.sin() / lambda,
+            TAU * r * libm::cos(theta) / lambda,
+            TAU * r * libm::sin(theta) / lambda,
         );
         let (fx, fy) = (
-            -r * omega * theta.sin() / lambda,
-            r * omega * theta.cos() / lambda,
+            -r * omega * libm::sin(theta) / lambda,
+            r * omega * libm::cos(theta) / lambda,
         );
         let term = |p: f64, f: f64| {
             let h = t(f);
-            a * h.norm() * (p + h.arg()).sin()
+            a * h.norm() * libm::sin(p + h.arg())
         };
         let tool = term(px, fx) + term(py, fy);
-        let b = nalgebra::SVector::<f64, 5>::from([px.sin(), px.cos(), py.sin(), py.cos(), 1.0]);
+        let b = nalgebra::SVector::<f64, 5>::from([
+            libm::sin(px),
+            libm::cos(px),
+            libm::sin(py),
+            libm::cos(py),
+            1.0,
+        ]);
         ata += b * b.transpose();
         atb += b * tool;
     }
     let c = ata.try_inverse().unwrap() * atb;
-    2.0 * c[0].hypot(c[1])
+    2.0 * libm::hypot(c[0], c[1])
 }
 
 #[test]

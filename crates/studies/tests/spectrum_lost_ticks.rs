@@ -22,6 +22,7 @@ fn spectrum_of(skipped: &[u64], no_telemetry: &[u64]) -> Result<(), String> {
         inputs: BTreeMap::new(),
         every: NonZeroU32::MIN,
         reading_used: true,
+        arithmetic: servo_core::ARITHMETIC.into(),
     };
     let mut sink = SpectrumSink::new(SpectrumOptions {
         resolution_hz: 20.0,

@@ -99,12 +99,12 @@ impl CtlAction {
                 a.low,
                 a.high,
                 a.unstable_at,
-                20.0 * a.unstable_at.log10()
+                20.0 * libm::log10(a.unstable_at)
             )),
             (CtlAction::Gain { scale }, ack_status::REFUSED_MARGIN) => Err(format!(
                 "gain ×{scale} refused: the loop goes unstable above ×{:.3} (gain margin {:.1} dB at ×1); changes keep a 6 dB margin: allowed ×{:.3}–×{:.3}",
                 a.unstable_at,
-                20.0 * a.unstable_at.log10(),
+                20.0 * libm::log10(a.unstable_at),
                 a.low,
                 a.high
             )),

@@ -78,7 +78,7 @@ fn print_table(curves: &[ComplianceCurve], kg_scaling: bool) {
             .analytic_m_per_n
             .iter()
             .zip(&c.sampled_m_per_n)
-            .map(|(a, b)| (20.0 * (a / b).log10()).abs())
+            .map(|(a, b)| (20.0 * libm::log10(a / b)).abs())
             .fold(0.0, f64::max);
         println!(
             "  {:>5} {:>8.3} {:>10.4} {:>10.4} {:>10.4} {:>10.4} {:>10.3}{}",

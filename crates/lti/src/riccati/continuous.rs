@@ -48,7 +48,7 @@ fn sign(h: &DMatrix<f64>) -> Result<(DMatrix<f64>, usize), usize> {
         let inv = z.clone().try_inverse().ok_or(step)?;
         let det = z.determinant().abs();
         let c = if det > 0.0 && det.is_finite() {
-            det.powf(-1.0 / n as f64)
+            libm::pow(det, -1.0 / n as f64)
         } else {
             1.0
         };

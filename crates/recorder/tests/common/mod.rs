@@ -12,7 +12,7 @@ pub fn frames(n: usize) -> Vec<Frame> {
             Frame {
                 time_ns: (t * 1e9).round() as u64,
                 telemetry: Telemetry {
-                    reference_m: (1e-9 * (t * 300.0).sin()) as f32,
+                    reference_m: (1e-9 * libm::sin(t * 300.0)) as f32,
                     measured_m: k as f32 * 1e-12,
                     following_error_m: -1e-10,
                     controller_error_m: -2e-10,

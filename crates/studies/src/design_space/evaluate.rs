@@ -208,8 +208,8 @@ fn h2_at_bandwidth(
     };
     // The loop at 10^x times the sensor noise, and its miss ln(bandwidth / target).
     let at = |x: f64| -> Result<(Plan, usize, f64), StudyError> {
-        let (p, n) = with_h2(plan, effort, 10f64.powf(x))?;
-        let miss = (p.closed_loop.bandwidth_hz()? / target_hz).ln();
+        let (p, n) = with_h2(plan, effort, libm::pow(10f64, x))?;
+        let miss = libm::log(p.closed_loop.bandwidth_hz()? / target_hz);
         Ok((p, n, miss))
     };
     let (mut lo, first) = (0.0, at(0.0)?);
@@ -232,7 +232,7 @@ fn h2_at_bandwidth(
     let Some((mut hi, mut f_hi)) = bracket else {
         return Err(unreachable(format!(
             "{:.0} Hz with the design's sensor noise scaled by 10^{lo:+}",
-            target_hz * f_lo.exp()
+            target_hz * libm::exp(f_lo)
         )));
     };
     // Regula falsi with the Illinois weights `w` (the true misses stay for the report).
@@ -245,7 +245,7 @@ fn h2_at_bandwidth(
         let x = hi - w_hi * (hi - lo) / (w_hi - w_lo);
         let (p, n, f) = at(x)?;
         if f.abs() <= BANDWIDTH_TOLERANCE {
-            return Ok((p, 10f64.powf(x), n));
+            return Ok((p, libm::pow(10f64, x), n));
         }
         if f.signum() == f_hi.signum() {
             (hi, f_hi, w_hi) = (x, f, f);
@@ -263,8 +263,8 @@ fn h2_at_bandwidth(
     }
     Err(unreachable(format!(
         "the bandwidth jumps (within 60 steps of the search) from {:.0} to {:.0} Hz at a sensor-noise scale of {:.4e} (|T| crosses −3 dB at a shoulder of its curve)",
-        target_hz * f_lo.exp().min(f_hi.exp()),
-        target_hz * f_lo.exp().max(f_hi.exp()),
-        10f64.powf(lo)
+        target_hz * libm::exp(f_lo).min(libm::exp(f_hi)),
+        target_hz * libm::exp(f_lo).max(libm::exp(f_hi)),
+        libm::pow(10f64, lo)
     )))
 }

@@ -49,7 +49,7 @@ fn place(p: &Parameter, u: f64) -> f64 {
     let (a, b) = (p.from.unwrap_or(0.0), p.to.unwrap_or(0.0));
     match p.spacing {
         Spacing::Linear => a + (b - a) * u,
-        Spacing::Log => (a.ln() + (b.ln() - a.ln()) * u).exp(),
+        Spacing::Log => libm::exp(libm::log(a) + (libm::log(b) - libm::log(a)) * u),
     }
 }
 
@@ -127,7 +127,7 @@ mod tests {
         let mut strata = [vec![0u32; 50], vec![0u32; 50]];
         for k in 0..50 {
             let v = values(&study, k);
-            let u0 = (v[0] / 1e4).ln() / 100f64.ln();
+            let u0 = libm::log(v[0] / 1e4) / libm::log(100f64);
             let u1 = v[1] / 100.0;
             strata[0][(u0 * 50.0) as usize] += 1;
             strata[1][(u1 * 50.0) as usize] += 1;

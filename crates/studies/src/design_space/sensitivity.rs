@@ -34,7 +34,7 @@ pub struct Sensitivity {
 }
 
 fn elasticity(up: f64, down: f64) -> f64 {
-    (up.ln() - down.ln()) / ((1.0 + STEP).ln() - (1.0 - STEP).ln())
+    (libm::log(up) - libm::log(down)) / (libm::log(1.0 + STEP) - libm::log(1.0 - STEP))
 }
 
 /// The loops [`sensitivities`] evaluates: two per parameter and family.

@@ -171,9 +171,15 @@ impl FormAnalysis {
         self.map_count[row * MAP_COLUMNS + col] += 1;
         if let Some(g) = &self.grid {
             let r = self.cut.radius_m(theta);
-            let (x, y) = (r * theta.cos(), r * theta.sin());
+            let (x, y) = (r * libm::cos(theta), r * libm::sin(theta));
             let (px, py) = (TAU * x / g.lambda_x_m, TAU * y / g.lambda_y_m);
-            let a = SVector::<f64, 5>::from([px.sin(), px.cos(), py.sin(), py.cos(), 1.0]);
+            let a = SVector::<f64, 5>::from([
+                libm::sin(px),
+                libm::cos(px),
+                libm::sin(py),
+                libm::cos(py),
+                1.0,
+            ]);
             self.fit_ata += a * a.transpose();
             self.fit_atb += a * tool;
         }
@@ -202,9 +208,9 @@ impl FormAnalysis {
                 let c = inv * self.fit_atb;
                 GridAmplitude {
                     nominal_pv_x_m: 2.0 * g.ax_m.abs(),
-                    machined_pv_x_m: 2.0 * c[0].hypot(c[1]),
+                    machined_pv_x_m: 2.0 * libm::hypot(c[0], c[1]),
                     nominal_pv_y_m: 2.0 * g.ay_m.abs(),
-                    machined_pv_y_m: 2.0 * c[2].hypot(c[3]),
+                    machined_pv_y_m: 2.0 * libm::hypot(c[2], c[3]),
                 }
             })
         });

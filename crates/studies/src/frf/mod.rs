@@ -77,7 +77,7 @@ pub struct FrfPoint {
 impl FrfPoint {
     /// Measured over model, in dB.
     pub fn error_db(&self) -> f64 {
-        20.0 * (self.magnitude / self.model_magnitude).log10()
+        20.0 * libm::log10(self.magnitude / self.model_magnitude)
     }
 
     /// Measured minus model phase, in degrees wrapped to (−180, 180].

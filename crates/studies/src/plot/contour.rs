@@ -59,7 +59,7 @@ fn viridis(t: f64) -> RGBColor {
 impl Contour {
     fn axis(&self, log: bool, v: f64) -> f64 {
         if log {
-            v.ln()
+            libm::log(v)
         } else {
             v
         }
@@ -88,11 +88,11 @@ impl Contour {
         let v = |r: usize, c: usize| {
             let r = r.min(self.y.len() - 1);
             let c = c.min(cols - 1);
-            self.values[r * cols + c].ln()
+            libm::log(self.values[r * cols + c])
         };
         let low = v(j, i) * (1.0 - fx) + v(j, i + 1) * fx;
         let high = v(j + 1, i) * (1.0 - fx) + v(j + 1, i + 1) * fx;
-        (low * (1.0 - fy) + high * fy).exp()
+        libm::exp(low * (1.0 - fy) + high * fy)
     }
 
     fn value_range(&self) -> (f64, f64) {
@@ -112,7 +112,7 @@ fn band(v: f64, (lo, hi): (f64, f64)) -> RGBColor {
     if !v.is_finite() {
         return RGBColor(190, 190, 190);
     }
-    let t = ((v / lo).ln() / (hi / lo).ln()).clamp(0.0, 0.999_999);
+    let t = (libm::log(v / lo) / libm::log(hi / lo)).clamp(0.0, 0.999_999);
     let k = (t * BANDS as f64).floor();
     viridis((k + 0.5) / BANDS as f64)
 }
@@ -151,7 +151,7 @@ impl Drawing for Contour {
                     .draw()
                     .map_err(|e| e.to_string())?;
                 // Raster in axis coordinates; runs of one band along a row are one rectangle.
-                let back = |log: bool, v: f64| if log { v.exp() } else { v };
+                let back = |log: bool, v: f64| if log { libm::exp(v) } else { v };
                 let (u0, u1) = (c.axis(c.log_x, xs.0), c.axis(c.log_x, xs.1));
                 let (w0, w1) = (c.axis(c.log_y, ys.0), c.axis(c.log_y, ys.1));
                 let (du, dw) = ((u1 - u0) / RASTER as f64, (w1 - w0) / RASTER as f64);
@@ -221,7 +221,7 @@ where
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let top = draw_wrapped(area, &c.value_label, 30, (20, 20))? + 20;
     let bottom = area.dim_in_pixel().1 as i32 - 170;
-    let edge = |t: f64| lo * (hi / lo).powf(t);
+    let edge = |t: f64| lo * libm::pow(hi / lo, t);
     let ticks: Vec<(f64, String)> = (0..=BANDS)
         .step_by(3)
         .map(|k| {

@@ -9,7 +9,7 @@ pub fn plain(v: f64) -> String {
     }
     let a = v.abs();
     let text = if (1e-3..1e6).contains(&a) {
-        let digits = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        let digits = (3 - libm::log10(a).floor() as i32).clamp(0, 6) as usize;
         let t = format!("{a:.digits$}");
         if t.contains('.') {
             t.trim_end_matches('0').trim_end_matches('.').to_owned()
@@ -35,7 +35,7 @@ pub fn plain(v: f64) -> String {
 
 /// Whether `v` is a power of ten (to rounding).
 fn is_decade(v: f64) -> bool {
-    v > 0.0 && (v.log10() - v.log10().round()).abs() < 1e-9
+    v > 0.0 && (libm::log10(v) - libm::log10(v).round()).abs() < 1e-9
 }
 
 /// The label of tick `v` on an axis over `(lo, hi)`: log axes spanning two decades or more
@@ -53,7 +53,8 @@ pub(super) fn tick_label(v: f64, log: bool, (lo, hi): (f64, f64)) -> String {
     if v == 0.0 || !(1e-3..1e6).contains(&a) {
         return plain(v);
     }
-    let decimals = (2 - (hi - lo).abs().max(1e-12).log10().floor() as i32).clamp(0, 12) as usize;
+    let decimals =
+        (2 - libm::log10((hi - lo).abs().max(1e-12)).floor() as i32).clamp(0, 12) as usize;
     let t = format!("{a:.decimals$}");
     let t = if t.contains('.') {
         t.trim_end_matches('0').trim_end_matches('.').to_owned()

@@ -451,7 +451,7 @@ impl SpectrumSink {
         // the steep rise below them, so the comparison starts at the fourth.
         let first = COMPARED_FROM_BIN as f64 * resolution_hz;
         let mut edges = vec![first];
-        let mut decade = 10f64.powf(first.log10().floor() + 1.0);
+        let mut decade = libm::pow(10f64, libm::log10(first).floor() + 1.0);
         while decade < nyquist {
             edges.push(decade);
             decade *= 10.0;

@@ -382,7 +382,7 @@ fn sig(v: f64) -> String {
     if v == 0.0 {
         return "0".into();
     }
-    let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+    let digits = (2 - libm::log10(v.abs()).floor() as i32).max(0) as usize;
     format!("{v:.digits$}")
 }
 
