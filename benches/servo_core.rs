@@ -1,5 +1,6 @@
 //! One servo tick of the servo-core controllers (thesis Table 6-1 sizes), with a plain
-//! nalgebra state-space product as the same-run baseline. `python3 benches/report.py` turns
+//! nalgebra state-space product and the tick forced to the baseline instruction set as the
+//! same-run baselines (`benches/fma_compare.sh` adds a native FMA build beside it). `python3 benches/report.py` turns
 //! the criterion estimates into the README's ratios.
 
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
@@ -34,7 +35,11 @@ fn state_space<const N: usize>(c: &mut Criterion) {
     let cfg = realisation::<N>();
     let mut group = c.benchmark_group(format!("state_space_{N}"));
     let mut ss = cfg.try_build(5e-5).unwrap();
+    // The tick as it runs (vector width chosen at run time), and forced to the baseline ISA.
     group.bench_function("servo_core", |b| b.iter(|| ss.update([black_box(1e-3)])));
+    group.bench_function("servo_core_baseline_isa", |b| {
+        b.iter(|| ss.update_with(simd::Simd::Baseline, [black_box(1e-3)]))
+    });
     // Baseline: the textbook nalgebra expression of the same update.
     let (a, bm, cm, d) = (cfg.a, cfg.b, cfg.c, cfg.d);
     let mut x = SVector::<f64, N>::zeros();

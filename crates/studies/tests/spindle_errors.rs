@@ -84,9 +84,14 @@ fn noisy_probes_recover_both_within_the_noise_and_the_synthesis_beats_every_set(
     }
     // The thesis's modification makes the three sets agree (D.4: largest difference 24.1 →
     // 7.3 nm), at the price of a bias (magnitudes clipped), so it is no substitute for the
-    // synthesis: it is worse than the synthesis for every set.
-    let [before, after] = r.spread_m;
-    assert!(after < 0.8 * before, "spread {before:e} → {after:e}");
+    // synthesis: it is worse than the synthesis for every set. How much the spread shrinks
+    // depends on the noise drawn (ratios 0.56–0.97 over seeds 1–12 at this noise), so it is
+    // judged over eight seeds' spreads together.
+    let [before, after] = (1..=8).fold([0.0, 0.0], |[b, a], seed| {
+        let [sb, sa] = study(&SpindleStudy { seed, ..s }).0.spread_m;
+        [b + sb, a + sa]
+    });
+    assert!(after < 0.8 * before, "spread {before:e} → {after:e} (8 seeds)");
     for set in &r.sets {
         assert!(
             set.modified.artefact_rms_error_m > synth.artefact_rms_error_m,

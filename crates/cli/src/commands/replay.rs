@@ -154,6 +154,13 @@ fn print_report(r: &Report, every: u32, rate_hz: f64) {
         ),
         (Some(false), None) => {}
     }
+    let (was, is) = (&r.recorded.meta.arithmetic, &r.replayed.meta.arithmetic);
+    if was != is {
+        println!(
+            "  arithmetic           recorded with {was}, replayed with {is}: the data channels \
+             agree only to rounding (a build with the other `fma` feature reproduces them)"
+        );
+    }
     if let Some(t) = r.compared_until_operator_tick {
         println!(
             "  steered              at tick {t} (servo ctl load / gain): the replay runs the \
