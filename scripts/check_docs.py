@@ -7,6 +7,10 @@ order, and what a block is shown to print is compared with what it prints.
     python3 scripts/check_docs.py --list [PAGE]   # what would run, and what is not run and why
     python3 scripts/check_docs.py --self-test     # a copy of the README with one shown number
                                                   # changed must fail the check
+    python3 scripts/check_docs.py --update [PAGE] # writes what each block printed into its
+                                                  # shown output where they differ (blocks
+                                                  # with `…` are reported, not rewritten);
+                                                  # read the diff before committing it
 
 Each page runs in a fresh folder of its own (blocks of one page follow each other there), with
 `examples/` of the checkout linked into it and this checkout's release binaries first on PATH
@@ -181,8 +185,17 @@ def compare(shown: list[str], got: list[str], tolerance: float) -> str | None:
     return None
 
 
-def run_page(page: Page, stop_after_first_output: bool = False) -> int:
-    """Runs the page's blocks in a fresh folder; exits on the first failure. Blocks run."""
+@dataclass
+class Update:
+    """`--update`: shown outputs to rewrite, and what could not be rewritten."""
+
+    rewrites: list[tuple[Block, str]] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+
+
+def run_page(page: Page, stop_after_first_output: bool = False, update: Update | None = None) -> int:
+    """Runs the page's blocks in a fresh folder; exits on the first failure (with `update`,
+    records the differing outputs instead). Blocks run."""
     work = Path(tempfile.mkdtemp(prefix="docs-"))
     try:
         (work / "bin").mkdir()
@@ -217,7 +230,14 @@ def run_page(page: Page, stop_after_first_output: bool = False) -> int:
                 if "tolerance" in block.shown.marks:
                     tolerance = float(block.shown.marks["tolerance"].rstrip("%")) / 100
                 diff = compare(block.shown.text.splitlines(), out.splitlines(), tolerance)
-                if diff:
+                if diff and update is not None:
+                    where = f"{page.name}:{block.shown.line}"
+                    if ELLIPSIS in block.shown.text:
+                        update.failed.append(f"{where}: differs and shows `…`: edit by hand ({diff})")
+                    else:
+                        update.rewrites.append((block.shown, out if out.endswith("\n") else out + "\n"))
+                        print(f"UPDATE {where}", flush=True)
+                elif diff:
                     fail(f"{page.name}:{block.shown.line}", "output differs from the page's",
                          script, out, diff)
             count += 1
@@ -228,6 +248,18 @@ def run_page(page: Page, stop_after_first_output: bool = False) -> int:
         return count
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def rewrite(page: Page, rewrites: list[tuple[Block, str]]) -> None:
+    """Writes each shown block's new text into the page at the block's place."""
+    text = page.path.read_text()
+    for shown, new in sorted(rewrites, key=lambda r: -r[0].line):
+        start = sum(len(line) for line in text.splitlines(keepends=True)[: shown.line])
+        at = text.find(shown.text, start)
+        if at < 0:
+            sys.exit(f"{page.name}:{shown.line}: shown output not found in the file (an include?)")
+        text = text[:at] + new + text[at + len(shown.text):]
+    page.path.write_text(text)
 
 
 def fail(where: str, why: str, script: str, out: str, diff: str = "") -> None:
@@ -262,6 +294,7 @@ def main() -> None:
         return self_test()
     listing = "--list" in args
     first_output = "--first-output" in args
+    update = Update() if "--update" in args else None
     paths = [Path(a) for a in args if not a.startswith("--")] or [ROOT / "README.md", *book_pages()]
     pages = [parse(p) for p in paths]
     if listing:
@@ -276,7 +309,13 @@ def main() -> None:
         sys.exit(f"{SERVO} is missing: cargo build --release -p servo-cli first")
     total = 0
     for page in pages:
-        total += run_page(page, first_output)
+        if update is not None:
+            update.rewrites = []
+        total += run_page(page, first_output, update)
+        if update is not None and update.rewrites:
+            rewrite(page, update.rewrites)
+    if update is not None and update.failed:
+        sys.exit("not rewritten:\n" + "\n".join(update.failed))
     print(f"{len(pages)} pages: {total} blocks ran, their shown output as printed")
 
 

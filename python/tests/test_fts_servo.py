@@ -89,7 +89,11 @@ def test_the_loop_gain_gives_the_budgets_margins_and_the_named_models_close_the_
     margins; the plant and controller joined by signal name are the recorded closed loop."""
     models = fs.models(**tables)
     loop = control.ss(*models["loop_gain"])
-    gm, pm, wcg, wcp = control.margin(loop)
+    # On the state space itself control.margin's polynomial method is ill-conditioned for this
+    # stiff loop (poles within 1e-3 of z = 1) and falls back to a coarse grid: give it the
+    # response on a dense grid over the range `servo budget` searches (1 Hz to Nyquist).
+    f = np.logspace(0, np.log10(0.499 / loop.dt), 20000)
+    gm, pm, wcg, wcp = control.margin(control.frd(loop, 2 * np.pi * f))
     config = tmp_path / "loop.toml"
     config.write_text("\n".join(f"[{t}]\n" + "\n".join(f'{k} = "{v}"' for k, v in kv.items()) for t, kv in tables.items()))
     cli = json.loads(servo("budget", "--json", "-c", str(config), "--out-dir", str(tmp_path / "b")).stdout)
@@ -108,11 +112,11 @@ def test_the_loop_gain_gives_the_budgets_margins_and_the_named_models_close_the_
     # loop's poles: the loop driven by the cutting force, seen at the tool.
     joined = control.interconnect(
         [models["plant_sampled"].ss("plant"), models["controller"].ss("controller")],
-        inplist=["cutting_force_n"], outlist=["tool_m"],
+        inplist=["cutting_force_n"], outlist=["tool_m"], check_unused=False,
     )
     closed = control.ss(*models["closed_loop"])
     i, o = models["closed_loop"].inputs.index("cutting_force_n"), models["closed_loop"].outputs.index("tool_m")
-    np.testing.assert_allclose([joined(zk)[0, 0] for zk in z], [closed(zk)[o, i] for zk in z], rtol=1e-8)
+    np.testing.assert_allclose([complex(joined(zk)) for zk in z], [closed(zk)[o, i] for zk in z], rtol=1e-8)
 
 
 def impedance_responses(p: dict, f_hz: np.ndarray) -> dict:

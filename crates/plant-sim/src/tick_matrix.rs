@@ -41,7 +41,10 @@ impl TickMatrix {
     /// has ([`simd`]; the same result on every CPU).
     #[inline]
     pub(crate) fn apply(&self, z: &[f64], out: &mut [f64]) {
-        simd::vectorised(|| self.product(z, out));
+        simd::vectorised(
+            #[inline(always)]
+            || self.product(z, out),
+        );
     }
 
     #[inline(always)]

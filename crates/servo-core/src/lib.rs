@@ -27,7 +27,6 @@
 //! # Ok::<(), servo_core::Error>(())
 //! ```
 #![no_std]
-extern crate std;
 
 #[cfg(feature = "fma")]
 extern crate std;

@@ -35,7 +35,7 @@ cpufeatures::new!(x86_64_v3, "avx", "avx2", "fma");
 /// The widest [`Simd`] this machine runs (detected once, then cached).
 pub fn detected() -> Simd {
     #[cfg(target_arch = "x86_64")]
-    if x86_64_v3::get() && std::env::var_os("HACK_BASE").is_none() {
+    if x86_64_v3::get() {
         return Simd::X86_64V3;
     }
     Simd::Baseline
@@ -43,8 +43,8 @@ pub fn detected() -> Simd {
 
 /// Runs `f` compiled for the widest vector instructions this machine has.
 ///
-/// `f` should be small and inlinable (a closure calling an `#[inline(always)]` kernel): the
-/// compiler inlines it into a function built for those instructions.
+/// Mark the closure `#[inline(always)]` (and the kernel it calls): only code inlined into the
+/// function built for those instructions runs with them.
 #[inline(always)]
 pub fn vectorised<R>(f: impl FnOnce() -> R) -> R {
     with(detected(), f)

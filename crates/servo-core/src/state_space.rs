@@ -135,7 +135,11 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     /// [`Block::update`] with the vector instructions `simd` (or the baseline where this
     /// machine lacks them): the result is the same bit for bit; only the speed differs.
     pub fn update_with(&mut self, simd: Simd, e: [f64; NU]) -> [f64; NY] {
-        simd::with(simd, || self.tick(e))
+        simd::with(
+            simd,
+            #[inline(always)]
+            || self.tick(e),
+        )
     }
 
     #[inline(always)]
@@ -175,7 +179,10 @@ impl<const NX: usize, const NU: usize, const NY: usize> Block for StateSpace<NX,
     /// One tick, run with the widest vector instructions this machine has ([`simd`]).
     #[inline]
     fn update(&mut self, e: [f64; NU]) -> [f64; NY] {
-        simd::vectorised(|| self.tick(e))
+        simd::vectorised(
+            #[inline(always)]
+            || self.tick(e),
+        )
     }
 
     fn reset(&mut self) {

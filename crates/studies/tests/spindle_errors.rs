@@ -91,7 +91,10 @@ fn noisy_probes_recover_both_within_the_noise_and_the_synthesis_beats_every_set(
         let [sb, sa] = study(&SpindleStudy { seed, ..s }).0.spread_m;
         [b + sb, a + sa]
     });
-    assert!(after < 0.8 * before, "spread {before:e} → {after:e} (8 seeds)");
+    assert!(
+        after < 0.8 * before,
+        "spread {before:e} → {after:e} (8 seeds)"
+    );
     for set in &r.sets {
         assert!(
             set.modified.artefact_rms_error_m > synth.artefact_rms_error_m,
