@@ -122,7 +122,7 @@ pub fn models<'py>(
             dt,
             &["command_v"],
             &["returned_v"],
-            "the loop gain L = −K·P broken at the DAC command (negative feedback: the loop is 1 + L; control.margin takes it)",
+            "the loop gain L = −K·P broken at the DAC command (negative feedback: the loop is 1 + L; control.margin takes its frequency response)",
         )?,
     )?;
     let cl = &plan.closed_loop;

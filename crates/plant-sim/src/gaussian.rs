@@ -111,7 +111,11 @@ mod tests {
     #[test]
     fn samples_follow_the_standard_normal() {
         let t = table();
-        assert!((t.x[LAYERS - 1] - 0.215_241_895_984_875).abs() < 1e-9, "{}", t.x[255]);
+        assert!(
+            (t.x[LAYERS - 1] - 0.215_241_895_984_875).abs() < 1e-9,
+            "{}",
+            t.x[255]
+        );
         let mut g = Gaussian::new(7);
         let n = 2_000_000;
         let (mut m1, mut m2, mut m4) = (0.0, 0.0, 0.0);
@@ -131,18 +135,33 @@ mod tests {
         let nf = n as f64;
         let (mean, var, kurt) = (m1 / nf, m2 / nf, m4 / nf);
         assert!(mean.abs() < 5.0 / nf.sqrt(), "mean {mean}");
-        assert!((var - 1.0).abs() < 5.0 * (2.0 / nf).sqrt(), "variance {var}");
-        assert!((kurt - 3.0).abs() < 5.0 * (96.0 / nf).sqrt(), "kurtosis {kurt}");
+        assert!(
+            (var - 1.0).abs() < 5.0 * (2.0 / nf).sqrt(),
+            "variance {var}"
+        );
+        assert!(
+            (kurt - 3.0).abs() < 5.0 * (96.0 / nf).sqrt(),
+            "kurtosis {kurt}"
+        );
         for (b, &count) in bins[..16].iter().enumerate() {
             let lo = b as f64 / 2.0 - 4.0;
-            let (lo, hi) = (if b == 0 { -R } else { lo }, if b == 15 { R } else { lo + 0.5 });
+            let (lo, hi) = (
+                if b == 0 { -R } else { lo },
+                if b == 15 { R } else { lo + 0.5 },
+            );
             let p = phi(hi) - phi(lo);
             let got = f64::from(count) / nf;
-            assert!((got - p).abs() < 5.0 * (p / nf).sqrt() + 1e-7, "bin {b}: {got} vs {p}");
+            assert!(
+                (got - p).abs() < 5.0 * (p / nf).sqrt() + 1e-7,
+                "bin {b}: {got} vs {p}"
+            );
         }
         let tail = 2.0 * phi(-R);
         let got = f64::from(bins[17]) / nf;
-        assert!((got - tail).abs() < 5.0 * (tail / nf).sqrt(), "beyond R: {got} vs {tail}");
+        assert!(
+            (got - tail).abs() < 5.0 * (tail / nf).sqrt(),
+            "beyond R: {got} vs {tail}"
+        );
     }
 
     #[test]

@@ -96,22 +96,46 @@ mod tests {
             seed ^= seed << 17;
             (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
-        let blocks = [DMatrix::from_fn(13, 23, |_, _| rnd()), DMatrix::from_fn(9, 23, |_, _| rnd())];
+        let blocks = [
+            DMatrix::from_fn(13, 23, |_, _| rnd()),
+            DMatrix::from_fn(9, 23, |_, _| rnd()),
+        ];
         let m = TickMatrix::new(&blocks);
         let z: Vec<f64> = (0..23).map(|_| rnd() * 1e3).collect();
         let run = |simd: Simd| {
             let mut out = vec![0.0; m.rows];
-            simd::with(simd, #[inline(always)] || m.product(&z, &mut out));
+            simd::with(
+                simd,
+                #[inline(always)]
+                || m.product(&z, &mut out),
+            );
             out
         };
         let base = run(Simd::Baseline);
         for simd in [Simd::X86_64V3, Simd::X86_64V4] {
             let got = run(simd);
-            assert!(got.iter().zip(&base).all(|(a, b)| a.to_bits() == b.to_bits()), "{simd:?}");
+            assert!(
+                got.iter()
+                    .zip(&base)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{simd:?}"
+            );
         }
         let stacked = [blocks[0].clone(), blocks[1].clone()];
-        for (r, want) in stacked.iter().flat_map(|b| b.row_iter().map(|row| row.iter().zip(&z).map(|(a, x)| a * x).sum::<f64>()).collect::<Vec<_>>()).enumerate() {
-            assert!((base[r] - want).abs() < 1e-9, "row {r}: {} vs {want}", base[r]);
+        for (r, want) in stacked
+            .iter()
+            .flat_map(|b| {
+                b.row_iter()
+                    .map(|row| row.iter().zip(&z).map(|(a, x)| a * x).sum::<f64>())
+                    .collect::<Vec<_>>()
+            })
+            .enumerate()
+        {
+            assert!(
+                (base[r] - want).abs() < 1e-9,
+                "row {r}: {} vs {want}",
+                base[r]
+            );
         }
     }
 }

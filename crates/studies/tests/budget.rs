@@ -178,17 +178,22 @@ fn compliance_analytic_matches_sampled_loop() {
 }
 
 /// The chirp + Welch H1 path: closed loop, the model within 0.5 dB and 3° wherever coherence
-/// exceeds 0.99 (most bins between 20 Hz and 5 kHz).
+/// exceeds 0.99 (most bins between 20 Hz and 5 kHz), or within five times the estimate's own
+/// random error where that is larger: an H1 estimate over n_d averages at coherence γ² scatters
+/// by ε = √(1 − γ²)/(|γ|·√(2 n_d)) in relative magnitude and in radians of phase (Bendat &
+/// Piersol, Random Data, §9.2.4) — at γ² = 0.99 and 16 sweeps 1.0° (1σ), so a fixed 3° failed
+/// by chance on some noise draws.
 #[test]
 fn chirp_frf_matches_the_model() {
     use studies::frf::{chirp, FrfLoop};
+    let sweeps = 16;
     let pts = chirp(
         &plan(&Loaded::default()),
         FrfLoop::Closed,
         (20.0, 5000.0),
         0.2,
         0.2,
-        16,
+        sweeps,
     )
     .unwrap();
     let good: Vec<_> = pts.iter().filter(|p| p.coherence > 0.99).collect();
@@ -199,12 +204,18 @@ fn chirp_frf_matches_the_model() {
         pts.len()
     );
     for p in good {
+        let eps = (1.0 - p.coherence).sqrt() / (p.coherence.sqrt() * (2.0 * sweeps as f64).sqrt());
+        let (db, deg) = (
+            0.5f64.max(5.0 * 20.0 * libm::log10(1.0 + eps)),
+            3.0f64.max(5.0 * eps.to_degrees()),
+        );
         assert!(
-            p.error_db().abs() < 0.5 && p.error_deg().abs() < 3.0,
-            "{} Hz: {:.3} dB {:.2}°",
+            p.error_db().abs() < db && p.error_deg().abs() < deg,
+            "{} Hz: {:.3} dB {:.2}° (coherence {:.4}: bounds {db:.2} dB {deg:.2}°)",
             p.freq_hz,
             p.error_db(),
-            p.error_deg()
+            p.error_deg(),
+            p.coherence
         );
     }
 }
