@@ -25,6 +25,7 @@ fn density(x: f64) -> f64 {
 
 /// Layer edges `x[0] > x[1] = R > … > x[256] = 0` (x[0] is the base's equivalent width) and
 /// the density at each.
+#[derive(Debug)]
 struct Table {
     x: [f64; LAYERS + 1],
     f: [f64; LAYERS + 1],
@@ -49,21 +50,22 @@ fn table() -> &'static Table {
 #[derive(Debug, Clone)]
 pub struct Gaussian {
     rng: Xoshiro256PlusPlus,
+    table: &'static Table,
 }
 
 impl Gaussian {
     /// The stream of `seed`.
     pub fn new(seed: u64) -> Self {
-        table();
         Gaussian {
             rng: Xoshiro256PlusPlus::seed_from_u64(seed),
+            table: table(),
         }
     }
 
     /// The next N(0, 1) number.
     #[inline]
     pub fn sample(&mut self) -> f64 {
-        let t = table();
+        let t = self.table;
         loop {
             let bits = self.rng.next_u64();
             let i = (bits & 0xff) as usize;

@@ -292,7 +292,7 @@ pub struct Simulator {
     sensor_noise: Option<SensorNoise>,
     noise_on: [bool; 3],
     cutting: CuttingForce,
-    rng: Gaussian,
+    gaussian: Gaussian,
     tick: u64,
     period_s: f64,
 }
@@ -393,7 +393,7 @@ impl Simulator {
             }),
             noise_on: [noise.current, noise.base, noise.accel],
             cutting: CuttingForce::new(cutting)?,
-            rng: Gaussian::new(seed),
+            gaussian: Gaussian::new(seed),
             tick: 0,
             period_s: period,
         })
@@ -475,7 +475,7 @@ impl Simulator {
 
     #[inline]
     fn gauss(&mut self) -> f64 {
-        self.rng.sample()
+        self.gaussian.sample()
     }
 
     /// Runs one tick: `command_v` goes to the DAC now and reaches the coil τ later. Returns the
@@ -531,7 +531,7 @@ impl Simulator {
         let (mut gap_v, mut acc_v) = (0.0, 0.0);
         for j in 0..self.oversampling {
             let noise = match &mut self.sensor_noise {
-                Some(s) => s.next(j == 0, || self.rng.sample()),
+                Some(s) => s.next(j == 0, || self.gaussian.sample()),
                 None => 0.0,
             };
             noise_sum += noise;
@@ -592,6 +592,6 @@ impl Simulator {
         }
         self.u_prev = 0.0;
         self.tick = 0;
-        self.rng = Gaussian::new(seed);
+        self.gaussian = Gaussian::new(seed);
     }
 }

@@ -82,6 +82,8 @@ impl TickMatrix {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_xoshiro::Xoshiro256PlusPlus;
     use servo_core::simd::Simd;
 
     /// The product gives the same bits with every instruction set (baseline, AVX2, AVX-512;
@@ -89,13 +91,8 @@ mod tests {
     /// to rounding.
     #[test]
     fn every_instruction_set_gives_the_same_bits() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(9);
+        let mut rnd = move || rng.random::<f64>() - 0.5;
         let blocks = [
             DMatrix::from_fn(13, 23, |_, _| rnd()),
             DMatrix::from_fn(9, 23, |_, _| rnd()),

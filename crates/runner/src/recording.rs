@@ -382,7 +382,7 @@ impl<S: FrameSink> RunReader<'_, S> {
             arithmetic: run
                 .get(ARITHMETIC_KEY)
                 .cloned()
-                .unwrap_or_else(|| "fused multiply-add".into()),
+                .unwrap_or_else(|| servo_core::FUSED_ARITHMETIC.into()),
             controller: run
                 .get("controller")
                 .cloned()

@@ -58,7 +58,7 @@ pub use error::{Error, ErrorKind};
 pub use feedforward::{Feedforward, FeedforwardConfig, Zpetc, ZpetcConfig};
 pub use iir::{Biquad, BiquadCascade, BiquadDesign, Iir, IirCoeffs};
 pub use limits::Limits;
-pub use math::{mul_add, ARITHMETIC};
+pub use math::{mul_add, ARITHMETIC, FUSED_ARITHMETIC};
 pub use observer::{DisturbanceObserver, ObserverInput};
 pub use oversample::Averager;
 pub use pid::{Pid, PidCoeffs, PidConfig, PidState, Realization};

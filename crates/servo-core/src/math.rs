@@ -6,10 +6,14 @@
 /// roundings, the same bits on every processor and target) or, with the `fma` feature,
 /// `fused multiply-add` (one rounding; other numbers than a default build's).
 pub const ARITHMETIC: &str = if cfg!(feature = "fma") {
-    "fused multiply-add"
+    FUSED_ARITHMETIC
 } else {
     "separate multiply and add"
 };
+
+/// [`ARITHMETIC`] of a build with the `fma` feature (and of recordings that name none: they
+/// were made before the choice existed, fused).
+pub const FUSED_ARITHMETIC: &str = "fused multiply-add";
 
 /// `a·b + c` as this build rounds it ([`ARITHMETIC`]): two roundings by default; one with the
 /// `fma` feature (exact on every processor: an FMA instruction where the dispatched code has

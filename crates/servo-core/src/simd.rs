@@ -58,24 +58,35 @@ pub fn detected() -> Simd {
 /// function built for those instructions runs with them.
 #[inline(always)]
 pub fn vectorised<R>(f: impl FnOnce() -> R) -> R {
-    with(detected(), f)
+    // SAFETY: the level is the one this machine was detected to have.
+    unsafe { run(detected(), f) }
 }
 
 /// Runs `f` compiled for `simd`, or for the baseline where this machine lacks `simd`. Results
 /// are the same either way (see the module documentation); tests and benches compare them.
 #[inline(always)]
 pub fn with<R>(simd: Simd, f: impl FnOnce() -> R) -> R {
-    match simd.min(detected()) {
+    // SAFETY: capped at the level this machine was detected to have.
+    unsafe { run(simd.min(detected()), f) }
+}
+
+/// Runs `f` compiled for `simd` (one detection per call of the two entry points above).
+///
+/// # Safety
+/// `simd` must not exceed [`detected()`].
+#[inline(always)]
+unsafe fn run<R>(simd: Simd, f: impl FnOnce() -> R) -> R {
+    match simd {
         #[cfg(target_arch = "x86_64")]
         Simd::X86_64V3 => {
-            // SAFETY: `detected()` found AVX, AVX2 and FMA on this processor, with the OS
-            // saving their registers (cpufeatures checks XSAVE/XCR0), so every instruction
-            // `x86_64_v3_call` may be compiled to exists and runs correctly.
+            // SAFETY: by the caller's promise `detected()` found AVX, AVX2 and FMA on this
+            // processor, with the OS saving their registers (cpufeatures checks XSAVE/XCR0),
+            // so every instruction `x86_64_v3_call` may be compiled to exists and runs.
             unsafe { x86_64_v3_call(f) }
         }
         #[cfg(target_arch = "x86_64")]
         Simd::X86_64V4 => {
-            // SAFETY: `detected()` found every x86-64-v4 feature (AVX-512 F, BW, CD, DQ, VL
+            // SAFETY: by the caller's promise `detected()` found every x86-64-v4 feature (AVX-512 F, BW, CD, DQ, VL
             // beside x86-64-v3's) on this processor, with the OS saving the AVX-512 state
             // (cpufeatures checks XCR0), so every instruction `x86_64_v4_call` may be compiled
             // to exists and runs correctly.
