@@ -49,6 +49,7 @@ mod check;
 mod controller;
 mod deployment;
 mod feedforward;
+pub mod link;
 mod preview;
 mod protection;
 mod reference;

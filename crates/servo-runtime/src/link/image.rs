@@ -1,0 +1,415 @@
+//! A [`Deployment`] as bytes: what a host sends a microcontroller once at start, so one
+//! firmware runs any loop `servo deploy` / `servo synth` made (up to [`MAX_SS_ORDER`]) without
+//! being rebuilt. Every field in a fixed order, little-endian, after a magic and a version; a
+//! state-space controller carries only its `(order + 1)²` used entries. Decoding checks the
+//! layout; [`crate::Servo::new`] then checks the values as it does for a TOML deployment.
+
+use super::{Reader, Writer};
+use crate::deployment::{
+    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ReferenceSpec,
+    SsMatrices, Stability, Stage, ZpetcSpec, MAX_SS_ORDER, ZPETC_SECTIONS,
+};
+use crate::protection::{ProtectionConfig, SafeState};
+
+/// First bytes of an image.
+pub const MAGIC: [u8; 4] = *b"FTSD";
+/// The layout version this build reads and writes.
+pub const VERSION: u16 = 1;
+/// The largest image in bytes (the largest state-space controller and ZPETC filter).
+pub const MAX_BYTES: usize = 6
+    + 8 * 9
+    + (3 + 8 * 7 + 1 + 8 * (MAX_SS_ORDER + 1) * (MAX_SS_ORDER + 1))
+    + 25
+    + 33
+    + (1 + 8 + 8 + 8 + 8 * 5 * ZPETC_SECTIONS)
+    + 8
+    + (3 + 8 * 6);
+
+/// Why bytes are not a deployment image: the field where decoding stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageError {
+    /// The field (the configuration key it carries), or `magic` / `version` / `length`.
+    pub field: &'static str,
+}
+
+impl core::fmt::Display for ImageError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "deployment image: `{}` is missing or out of range (image version {VERSION})",
+            self.field
+        )
+    }
+}
+
+/// Writes `d` into `out`; returns the bytes used (None if `out` is shorter than needed;
+/// [`MAX_BYTES`] always suffices).
+pub fn encode(d: &Deployment, out: &mut [u8]) -> Option<usize> {
+    let mut w = Writer::new(out);
+    w.bytes(&MAGIC)?;
+    w.bytes(&VERSION.to_le_bytes())?;
+    w.f64(d.servo_rate_hz)?;
+    let s = &d.stage;
+    for v in [
+        s.gap_sensitivity_v_per_m,
+        s.accel_sensitivity_v_per_m_s2,
+        s.suspended_mass_kg,
+        s.damping_n_s_per_m,
+        s.stiffness_n_per_m,
+        s.current_gain_a_per_v,
+        s.kt_n_per_a,
+        s.dc_gain_m_per_v,
+    ] {
+        w.f64(v)?;
+    }
+    let c = &d.controller;
+    w.u8(match c.kind {
+        ControllerKind::Pid => 0,
+        ControllerKind::Accel => 1,
+        ControllerKind::Ss => 2,
+    })?;
+    for v in [c.pid.kp, c.pid.ki, c.pid.kd, c.pid.tf_s, c.ka] {
+        w.f64(v)?;
+    }
+    w.u8(u8::from(c.kg_scaling))?;
+    w.f64(c.accel_filter_hz)?;
+    w.u8(c.accel_filter_order)?;
+    w.f64(c.limit_v)?;
+    match &c.ss {
+        None => w.u8(0)?,
+        Some(m) => {
+            w.u8(m.order() as u8)?;
+            for i in 0..=m.order() {
+                for j in 0..=m.order() {
+                    w.f64(m.entry(i, j))?;
+                }
+            }
+        }
+    }
+    match &d.stability {
+        None => w.u8(0)?,
+        Some(st) => {
+            w.u8(1)?;
+            w.f64(st.spectral_radius)?;
+            w.f64(st.unstable_below)?;
+            w.f64(st.unstable_above)?;
+        }
+    }
+    let (tag, fields) = match d.reference {
+        ReferenceSpec::Hold => (0, [0.0; 4]),
+        ReferenceSpec::Sine {
+            amplitude_m,
+            frequency_hz,
+        } => (1, [amplitude_m, frequency_hz, 0.0, 0.0]),
+        ReferenceSpec::Step { amplitude_m, at_s } => (2, [amplitude_m, at_s, 0.0, 0.0]),
+        ReferenceSpec::Chirp {
+            amplitude_m,
+            f_start_hz,
+            f_end_hz,
+            duration_s,
+        } => (3, [amplitude_m, f_start_hz, f_end_hz, duration_s]),
+    };
+    w.u8(tag)?;
+    for v in fields {
+        w.f64(v)?;
+    }
+    match &d.feedforward {
+        FeedforwardSpec::None => w.u8(0)?,
+        FeedforwardSpec::Model => w.u8(1)?,
+        FeedforwardSpec::Zpetc(z) => {
+            w.u8(2)?;
+            w.f64(z.gain)?;
+            w.u64(z.preview as u64)?;
+            w.u64(z.sections_used as u64)?;
+            for s in &z.sections[..z.sections_used.min(ZPETC_SECTIONS)] {
+                for &v in s {
+                    w.f64(v)?;
+                }
+            }
+        }
+    }
+    w.f64(d.smoothing_hz)?;
+    let p = &d.protection;
+    w.u8(u8::from(p.enabled))?;
+    w.f64(p.following_error_m)?;
+    w.u8(u8::from(p.position_limit_m.is_some()))?;
+    w.f64(p.position_limit_m.unwrap_or(0.0))?;
+    w.f64(p.saturation_s)?;
+    w.u8(match p.safe_state {
+        SafeState::Zero => 0,
+        SafeState::Hold => 1,
+        SafeState::Retract => 2,
+    })?;
+    for v in [p.retract_m, p.retract_speed_m_per_s, p.after_trip_s] {
+        w.f64(v)?;
+    }
+    Some(w.len())
+}
+
+/// Reads `$r`'s next field of type `$t`, naming `$key` when it is missing.
+macro_rules! field {
+    ($r:expr, $t:ident, $key:expr) => {
+        $r.$t().ok_or(ImageError { field: $key })?
+    };
+}
+
+fn flag(v: u8, key: &'static str) -> Result<bool, ImageError> {
+    match v {
+        0 => Ok(false),
+        1 => Ok(true),
+        _ => Err(ImageError { field: key }),
+    }
+}
+
+/// The deployment an image holds (its values still to be checked by [`crate::Servo::new`]).
+pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
+    let mut r = Reader::new(bytes);
+    if r.take::<4>() != Some(MAGIC) {
+        return Err(ImageError { field: "magic" });
+    }
+    if r.take::<2>().map(u16::from_le_bytes) != Some(VERSION) {
+        return Err(ImageError { field: "version" });
+    }
+    let servo_rate_hz = field!(r, f64, "servo_rate_hz");
+    let stage = Stage {
+        gap_sensitivity_v_per_m: field!(r, f64, "stage.gap_sensitivity_v_per_m"),
+        accel_sensitivity_v_per_m_s2: field!(r, f64, "stage.accel_sensitivity_v_per_m_s2"),
+        suspended_mass_kg: field!(r, f64, "stage.suspended_mass_kg"),
+        damping_n_s_per_m: field!(r, f64, "stage.damping_n_s_per_m"),
+        stiffness_n_per_m: field!(r, f64, "stage.stiffness_n_per_m"),
+        current_gain_a_per_v: field!(r, f64, "stage.current_gain_a_per_v"),
+        kt_n_per_a: field!(r, f64, "stage.kt_n_per_a"),
+        dc_gain_m_per_v: field!(r, f64, "stage.dc_gain_m_per_v"),
+    };
+    let kind = match field!(r, u8, "controller.kind") {
+        0 => ControllerKind::Pid,
+        1 => ControllerKind::Accel,
+        2 => ControllerKind::Ss,
+        _ => {
+            return Err(ImageError {
+                field: "controller.kind",
+            })
+        }
+    };
+    let pid = PidGains {
+        kp: field!(r, f64, "controller.kp"),
+        ki: field!(r, f64, "controller.ki"),
+        kd: field!(r, f64, "controller.kd"),
+        tf_s: field!(r, f64, "controller.tf_s"),
+    };
+    let ka = field!(r, f64, "controller.ka");
+    let kg_scaling = flag(
+        field!(r, u8, "controller.kg_scaling"),
+        "controller.kg_scaling",
+    )?;
+    let accel_filter_hz = field!(r, f64, "controller.accel_filter_hz");
+    let accel_filter_order = field!(r, u8, "controller.accel_filter_order");
+    let limit_v = field!(r, f64, "controller.limit_v");
+    let ss = match usize::from(field!(r, u8, "controller.ss")) {
+        0 => None,
+        n if n <= MAX_SS_ORDER => {
+            if r.rest() < 8 * (n + 1) * (n + 1) {
+                return Err(ImageError {
+                    field: "controller.ss",
+                });
+            }
+            SsMatrices::from_fn(n, |_, _| r.f64().unwrap_or(f64::NAN))
+        }
+        _ => {
+            return Err(ImageError {
+                field: "controller.ss",
+            })
+        }
+    };
+    let controller = ControllerSpec {
+        kind,
+        pid,
+        ka,
+        kg_scaling,
+        accel_filter_hz,
+        accel_filter_order,
+        ss,
+        limit_v,
+    };
+    let stability = match field!(r, u8, "stability") {
+        0 => None,
+        1 => Some(Stability {
+            spectral_radius: field!(r, f64, "stability.spectral_radius"),
+            unstable_below: field!(r, f64, "stability.unstable_below"),
+            unstable_above: field!(r, f64, "stability.unstable_above"),
+        }),
+        _ => return Err(ImageError { field: "stability" }),
+    };
+    let tag = field!(r, u8, "reference.kind");
+    let mut f = [0.0; 4];
+    for v in &mut f {
+        *v = field!(r, f64, "reference");
+    }
+    let reference = match tag {
+        0 => ReferenceSpec::Hold,
+        1 => ReferenceSpec::Sine {
+            amplitude_m: f[0],
+            frequency_hz: f[1],
+        },
+        2 => ReferenceSpec::Step {
+            amplitude_m: f[0],
+            at_s: f[1],
+        },
+        3 => ReferenceSpec::Chirp {
+            amplitude_m: f[0],
+            f_start_hz: f[1],
+            f_end_hz: f[2],
+            duration_s: f[3],
+        },
+        _ => {
+            return Err(ImageError {
+                field: "reference.kind",
+            })
+        }
+    };
+    let feedforward = match field!(r, u8, "feedforward") {
+        0 => FeedforwardSpec::None,
+        1 => FeedforwardSpec::Model,
+        2 => {
+            let gain = field!(r, f64, "feedforward.gain");
+            let preview = field!(r, u64, "feedforward.preview");
+            let used = field!(r, u64, "feedforward.sections");
+            if used > ZPETC_SECTIONS as u64 {
+                return Err(ImageError {
+                    field: "feedforward.sections",
+                });
+            }
+            let mut sections = [[0.0; 5]; ZPETC_SECTIONS];
+            for s in &mut sections[..used as usize] {
+                for v in s {
+                    *v = field!(r, f64, "feedforward.sections");
+                }
+            }
+            FeedforwardSpec::Zpetc(ZpetcSpec {
+                gain,
+                preview: usize::try_from(preview).map_err(|_| ImageError {
+                    field: "feedforward.preview",
+                })?,
+                sections,
+                sections_used: used as usize,
+            })
+        }
+        _ => {
+            return Err(ImageError {
+                field: "feedforward",
+            })
+        }
+    };
+    let smoothing_hz = field!(r, f64, "smoothing_hz");
+    let enabled = flag(field!(r, u8, "protection.enabled"), "protection.enabled")?;
+    let following_error_m = field!(r, f64, "protection.following_error_m");
+    let has_limit = flag(
+        field!(r, u8, "protection.position_limit_m"),
+        "protection.position_limit_m",
+    )?;
+    let limit = field!(r, f64, "protection.position_limit_m");
+    let saturation_s = field!(r, f64, "protection.saturation_s");
+    let safe_state = match field!(r, u8, "protection.safe_state") {
+        0 => SafeState::Zero,
+        1 => SafeState::Hold,
+        2 => SafeState::Retract,
+        _ => {
+            return Err(ImageError {
+                field: "protection.safe_state",
+            })
+        }
+    };
+    let protection = ProtectionConfig {
+        enabled,
+        following_error_m,
+        position_limit_m: has_limit.then_some(limit),
+        saturation_s,
+        safe_state,
+        retract_m: field!(r, f64, "protection.retract_m"),
+        retract_speed_m_per_s: field!(r, f64, "protection.retract_speed_m_per_s"),
+        after_trip_s: field!(r, f64, "protection.after_trip_s"),
+    };
+    if r.rest() != 0 {
+        return Err(ImageError { field: "length" });
+    }
+    Ok(Deployment {
+        servo_rate_hz,
+        stage,
+        controller,
+        stability,
+        reference,
+        feedforward,
+        smoothing_hz,
+        protection,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rich() -> Deployment {
+        let mut d = Deployment::thesis_prototype();
+        d.controller.kind = ControllerKind::Ss;
+        d.controller.ss = SsMatrices::from_fn(MAX_SS_ORDER, |i, j| {
+            (i as f64 + 1.0) / (j as f64 + 3.0) - 0.1
+        });
+        d.reference = ReferenceSpec::Chirp {
+            amplitude_m: 1e-6,
+            f_start_hz: 10.0,
+            f_end_hz: 2e3,
+            duration_s: 0.5,
+        };
+        let mut sections = [[0.0; 5]; ZPETC_SECTIONS];
+        for (k, s) in sections.iter_mut().enumerate() {
+            *s = [1.0, -0.5, 0.25, -0.1 * k as f64, 0.01];
+        }
+        d.feedforward = FeedforwardSpec::Zpetc(ZpetcSpec {
+            gain: 1.25,
+            preview: 7,
+            sections,
+            sections_used: ZPETC_SECTIONS,
+        });
+        d.smoothing_hz = 5e3;
+        d.protection.position_limit_m = Some(30e-6);
+        d.protection.safe_state = SafeState::Retract;
+        d
+    }
+
+    #[test]
+    fn deployments_round_trip_and_the_largest_fits() {
+        let mut buf = [0u8; MAX_BYTES];
+        for d in [Deployment::thesis_prototype(), rich()] {
+            let n = encode(&d, &mut buf).expect("MAX_BYTES suffices");
+            assert_eq!(decode(&buf[..n]), Ok(d));
+        }
+        // The largest deployment uses the whole bound, no more.
+        assert_eq!(encode(&rich(), &mut buf), Some(MAX_BYTES));
+        assert!(encode(&rich(), &mut buf[..MAX_BYTES - 1]).is_none());
+    }
+
+    #[test]
+    fn a_damaged_image_names_its_field() {
+        let mut buf = [0u8; MAX_BYTES];
+        let n = encode(&rich(), &mut buf).unwrap();
+        // Cut inside the matrices: the controller's state space is named.
+        assert_eq!(
+            decode(&buf[..200]),
+            Err(ImageError {
+                field: "controller.ss"
+            })
+        );
+        assert_eq!(
+            decode(&buf[..n - 3]),
+            Err(ImageError {
+                field: "protection.after_trip_s"
+            })
+        );
+        let mut long = [0u8; MAX_BYTES + 1];
+        long[..n].copy_from_slice(&buf[..n]);
+        assert_eq!(decode(&long), Err(ImageError { field: "length" }));
+        buf[4] = 9; // another version
+        assert_eq!(decode(&buf[..n]), Err(ImageError { field: "version" }));
+        assert_eq!(decode(b"ELF\x7f"), Err(ImageError { field: "magic" }));
+    }
+}
