@@ -133,7 +133,8 @@ pub struct ControllerArgs {
     /// Controller file for --controller ss (relative to the working directory).
     #[arg(long)]
     pub ss_file: Option<PathBuf>,
-    /// Run a controller (file or tuned gains) made for another plant or rate anyway.
+    /// Run a controller (file or tuned gains) made for another plant or rate anyway; with
+    /// --pil, also on a target that cannot hold the servo rate (to measure its cost).
     #[arg(long)]
     pub force: bool,
     #[command(flatten)]
@@ -340,6 +341,17 @@ pub fn finite(s: &str) -> Result<f64, String> {
         Ok(_) => Err(format!("{s}: not a finite number")),
         Err(e) => Err(format!("{s}: {e}")),
     }
+}
+
+/// A flag that must be a finite number above zero.
+pub fn positive(s: &str) -> Result<f64, String> {
+    finite(s).and_then(|v| {
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(format!("{s}: must be > 0"))
+        }
+    })
 }
 
 /// `--record-every`: 1 … 1 000 000.

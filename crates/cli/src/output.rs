@@ -76,7 +76,11 @@ impl CliError {
         let input = |r: &RunError| {
             matches!(
                 r,
-                RunError::Config(_) | RunError::Unstable { .. } | RunError::NoTruth(_)
+                RunError::Config(_)
+                    | RunError::Unstable { .. }
+                    | RunError::NoTruth(_)
+                    | RunError::Pil(runner::pil::PilError::Refused(_))
+                    | RunError::Pil(runner::pil::PilError::Firmware { .. })
             )
         };
         let write_failed = |r: &RunError| {

@@ -31,6 +31,7 @@ pub mod hot_swap;
 pub mod join;
 pub mod machining;
 pub mod operator_log;
+pub mod pil;
 pub mod plan;
 pub mod recording;
 pub mod remote_plant;

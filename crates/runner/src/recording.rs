@@ -106,6 +106,19 @@ pub fn environment(run_id: u64) -> BTreeMap<String, String> {
 /// Starts the recording of run `run_id` of `plan` at `to`: its `run` metadata, its
 /// environment, its inputs as attachments.
 pub fn create(plan: &Plan, to: &Target, run_id: u64) -> Result<Recorder, RunError> {
+    create_with(plan, to, run_id, Vec::new())
+}
+
+/// [`create`], with `more` facts about where the run ran in its `environment` record (a PIL
+/// run's target).
+pub fn create_with(
+    plan: &Plan,
+    to: &Target,
+    run_id: u64,
+    more: Vec<(String, String)>,
+) -> Result<Recorder, RunError> {
+    let mut environment = environment(run_id);
+    environment.extend(more);
     Ok(Recorder::create(
         &to.path,
         metadata(plan),
@@ -114,7 +127,7 @@ pub fn create(plan: &Plan, to: &Target, run_id: u64) -> Result<Recorder, RunErro
             inputs: plan.inputs.clone(),
             epoch_ns: to.epoch_ns,
             every: to.every,
-            environment: environment(run_id),
+            environment,
             ..Default::default()
         },
     )?)

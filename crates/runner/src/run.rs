@@ -3,6 +3,7 @@
 //! summarised.
 
 use crate::error::RunError;
+use crate::pil::{PilError, PilOptions, TargetLoop};
 use crate::plan::Plan;
 use crate::recording;
 use crate::servo_loop::ServoLoop;
@@ -36,15 +37,76 @@ pub fn run(plan: &Plan, opts: RunOptions<'_>) -> Result<Summary, RunError> {
 pub fn run_with(
     plan: &Plan,
     opts: RunOptions<'_>,
+    on_frame: impl FnMut(&Frame),
+) -> Result<Summary, RunError> {
+    let radius = plan.check_stable()?;
+    run_side(plan, opts, radius, Side::Host(ServoLoop::new(plan)?), on_frame)
+}
+
+/// [`run`] with the controller on a target processor (processor in the loop, [`crate::pil`]):
+/// the plan's deployment runs in the firmware under QEMU, the stage here. Machining runs are
+/// refused (their surface reference is read on the host).
+pub fn run_on_target(
+    plan: &Plan,
+    opts: RunOptions<'_>,
+    pil: &PilOptions,
+) -> Result<Summary, RunError> {
+    let radius = plan.check_stable()?;
+    if plan.surface.is_some() {
+        return Err(PilError::Refused(
+            "a machining run reads its surface on the host; on the target run the deployment's own references (scenario hold, sine, step, chirp)".into(),
+        )
+        .into());
+    }
+    let target = TargetLoop::start(&plan.deployment, pil)?;
+    run_side(plan, opts, radius, Side::Target(Box::new(target)), |_| {})
+}
+
+/// Where the controller runs.
+enum Side {
+    /// In this process.
+    Host(ServoLoop),
+    /// On a target processor.
+    Target(Box<TargetLoop>),
+}
+
+impl Side {
+    fn trip(&self) -> Option<(servo_runtime::TripCause, u64)> {
+        match self {
+            Side::Host(s) => s.trip(),
+            Side::Target(t) => t.trip(),
+        }
+    }
+
+    fn run_over(&self) -> bool {
+        match self {
+            Side::Host(s) => s.run_over(),
+            Side::Target(t) => t.run_over(),
+        }
+    }
+}
+
+fn run_side(
+    plan: &Plan,
+    opts: RunOptions<'_>,
+    radius: f64,
+    mut servo: Side,
     mut on_frame: impl FnMut(&Frame),
 ) -> Result<Summary, RunError> {
     let c = &plan.config;
-    let radius = plan.check_stable()?;
     let backend = SimBackend::for_run(plan);
-    let mut servo = ServoLoop::new(plan)?;
     let description = plan.controller.description.clone();
+    let on_target = match &servo {
+        Side::Target(t) => t.describe(),
+        Side::Host(_) => Vec::new(),
+    };
     let mut recorder = match &opts.out {
-        Some(to) => Some(recording::create(plan, to, daq_io::peers::random_id())?),
+        Some(to) => Some(recording::create_with(
+            plan,
+            to,
+            daq_io::peers::random_id(),
+            on_target,
+        )?),
         None => None,
     };
     let total = c.ticks();
@@ -63,7 +125,18 @@ pub fn run_with(
                 continue;
             }
         }
-        let (command, telemetry) = servo.tick(&s);
+        let (command, telemetry) = match &mut servo {
+            Side::Host(l) => l.tick(&s),
+            Side::Target(t) => match t.tick(&s) {
+                Ok(answer) => answer,
+                Err(e) => {
+                    // No command came: the run ends here, the plant left at its last one.
+                    t.lose(&e);
+                    reason = EndReason::PeerLost;
+                    break;
+                }
+            },
+        };
         let Some(command) = command else { break };
         if let Some(d) = &mut digest {
             d.add(&s, &command);
@@ -93,8 +166,18 @@ pub fn run_with(
     (opts.progress)(summary.ticks(), total);
     let reason = reason.after_trip(servo.trip().is_some());
     let wall = start.elapsed().as_secs_f64();
+    let target = match servo {
+        Side::Target(t) => Some(t.finish()),
+        Side::Host(_) => None,
+    };
     let stats = match recorder {
-        Some(r) => Some(r.finish(recording::end_record(plan, reason, &summary))?),
+        Some(r) => {
+            let mut end = recording::end_record(plan, reason, &summary);
+            if let Some(t) = &target {
+                end.extend(crate::pil::end_facts(t));
+            }
+            Some(r.finish(end)?)
+        }
         None => None,
     };
     Ok(summary.finish(RunMeta {
@@ -105,6 +188,7 @@ pub fn run_with(
         dropped_frames: stats.map(|s| s.dropped_frames),
         spectral_radius: Some(radius),
         loop_digest: digest.map(|d| format!("{:016x}", d.value())),
+        target,
         ..RunMeta::of(c, description)
     }))
 }

@@ -221,6 +221,10 @@ pub struct RunMeta {
     /// for bit only with the same arithmetic.
     #[serde(default)]
     pub arithmetic: String,
+    /// Where the controller ran when not in this process: a PIL run's target and what it
+    /// measured there (`servo run --pil`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target: Option<crate::pil::TargetMeta>,
 }
 
 /// The summary of a run.
@@ -325,6 +329,24 @@ impl fmt::Display for Summary {
         }
         if let Some(d) = &m.loop_digest {
             writeln!(f, "  loop digest               {d}")?;
+        }
+        if let Some(t) = &m.target {
+            writeln!(f, "  controller ran on         {}", t.machine)?;
+            writeln!(f, "  target build              {}", t.build)?;
+            writeln!(
+                f,
+                "  target cost               {:.0} instructions per tick (mean), {:.0} max: {:.2} µs at {:.0} MHz ({} cycle/instruction assumed); {} ticks over budget; stack {} bytes",
+                t.instructions_per_tick_mean,
+                t.instructions_per_tick_max,
+                t.tick_max_s * 1e6,
+                t.clock_hz / 1e6,
+                t.cycles_per_instruction,
+                t.over_budget_ticks,
+                t.stack_used_bytes
+            )?;
+            if let Some(why) = &t.lost {
+                writeln!(f, "  TARGET LOST               {why}")?;
+            }
         }
         if let Some(r) = m.spectral_radius {
             writeln!(
@@ -479,6 +501,7 @@ impl RunMeta {
             recorded_every: None,
             loop_digest: None,
             arithmetic: servo_core::ARITHMETIC.into(),
+            target: None,
         }
     }
 }

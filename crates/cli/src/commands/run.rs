@@ -4,9 +4,11 @@ use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs, RunArgs, DEFAULT_RECO
 use crate::interrupt::stop_on_signals;
 use crate::output::{print_summary, tick_bar, CliError};
 use clap::Args;
-use runner::run::{run, RunOptions};
-use runner::stop::StopRequest;
+use runner::pil::PilOptions;
+use runner::run::{run, run_on_target, RunOptions};
+use runner::stop::{EndReason, StopRequest};
 use runner::{Plan, RunError};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Run the closed loop against the simulated stage and record it to MCAP.
@@ -32,6 +34,15 @@ pub struct Run {
     /// command): what a C, C++ or Python loop of the same deployment and stage prints.
     #[arg(long, conflicts_with = "hil")]
     digest: bool,
+    /// Processor in the loop: the controller runs in this firmware (the ARM ELF built in
+    /// firmware/) on a Cortex-M7 under qemu-system-arm, the stage here, one sample and one
+    /// command per tick over the board's UART. The summary gives its cost on the target.
+    #[arg(long, value_name = "FIRMWARE_ELF", conflicts_with = "hil")]
+    pil: Option<PathBuf>,
+    /// With --pil: the processor clock the target's cost is converted for, in Hz (default
+    /// 480e6: an STM32H7).
+    #[arg(long, value_name = "HZ", requires = "pil", value_parser = crate::args::positive)]
+    target_clock_hz: Option<f64>,
 }
 
 impl Run {
@@ -43,6 +54,30 @@ impl Run {
         let out = rec.out(DEFAULT_RECORDING.as_ref());
         let (summary, code) = if self.hil {
             super::run_hil::run(&plan, &self.hil_args, &self.timeout, rec, out.clone())?
+        } else if let Some(firmware) = &self.pil {
+            let mut pil = PilOptions::new(firmware);
+            pil.force = self.run.controller.force;
+            if let Some(hz) = self.target_clock_hz {
+                pil.model.clock_hz = hz;
+            }
+            let stop = stop_on_signals();
+            let summary = with_progress(rec, out.clone(), &stop, "on the target", |opts| {
+                run_on_target(
+                    &plan,
+                    RunOptions {
+                        digest: self.digest,
+                        ..opts
+                    },
+                    &pil,
+                )
+            })?;
+            let lost = summary.meta.target.as_ref().is_some_and(|t| t.lost.is_some());
+            let code = if lost {
+                ExitCode::from(EndReason::PeerLost.exit_code())
+            } else {
+                crate::interrupt::exit_code(&stop, summary.trip.is_some())
+            };
+            (summary, code)
         } else {
             let stop = stop_on_signals();
             let summary = with_progress(rec, out.clone(), &stop, "simulating", |opts| {

@@ -1,0 +1,283 @@
+//! fts-servo on a Cortex-M7: the runtime's per-tick core ([`servo_runtime::Servo`], `no_std`,
+//! no allocator) ticked in the TIMER0 interrupt, closed against the host's simulated stage over
+//! UART0 — processor in the loop (`servo run --pil`).
+//!
+//! At reset the firmware sends a BOOT frame (what it is), then waits for the deployment image
+//! the host sends (the same deployment `servo run` builds from the configuration; see
+//! `servo_runtime::link::image`). It builds the loop, measures a probe of quiet ticks, builds
+//! the loop again from scratch and answers READY (or REFUSED with the reason). From then on each
+//! SAMPLE frame is the tick's "ADC conversion": it pends TIMER0, whose handler runs the tick and
+//! times it with SysTick; the main loop sends the TICK reply. On a board the same handler is
+//! entered by the timer itself at the servo rate (README.md).
+#![no_std]
+#![no_main]
+
+mod stack;
+mod uart;
+
+use core::cell::RefCell;
+use core::fmt::Write as _;
+use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
+use cortex_m_rt::entry;
+use critical_section::Mutex;
+use daq_io::Sensor;
+use servo_runtime::link::{self, image, kind, Boot, FrameReader, Report, TickReply};
+use servo_runtime::{Deployment, Servo, MAX_SS_ORDER};
+use uart::Uart;
+
+/// The MPS2 board's processor clock in Hz (SysTick counts it; 25 MHz on the FPGA image QEMU
+/// models).
+const SYSTICK_HZ: u32 = 25_000_000;
+/// Quiet ticks the probe times before READY.
+const PROBE_TICKS: u64 = 64;
+
+/// The interrupt lines this firmware uses.
+#[derive(Clone, Copy)]
+enum Irq {
+    /// CMSDK timer 0: the servo tick.
+    Timer0 = 8,
+}
+
+// SAFETY: 8 is TIMER0's line on the mps2-an500 (Arm AN500); the vector table below has it.
+unsafe impl cortex_m::interrupt::InterruptNumber for Irq {
+    fn number(self) -> u16 {
+        self as u16
+    }
+}
+
+/// One entry of the device interrupt table.
+#[repr(C)]
+pub union Vector {
+    handler: unsafe extern "C" fn(),
+    reserved: usize,
+}
+
+extern "C" {
+    fn TIMER0();
+}
+
+/// The board's 32 interrupt lines; only TIMER0 is used (the rest reach `DefaultHandler`).
+#[link_section = ".vector_table.interrupts"]
+#[no_mangle]
+pub static __INTERRUPTS: [Vector; 32] = {
+    let mut v = [Vector { reserved: 0 }; 32];
+    v[Irq::Timer0 as usize] = Vector { handler: TIMER0 };
+    v
+};
+
+impl Clone for Vector {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl Copy for Vector {}
+
+/// The loop and the tick's mailbox, shared by the main loop and the tick interrupt.
+struct Loop {
+    servo: Servo,
+    sample: Sensor,
+    reply: Option<TickReply>,
+    report: Report,
+}
+
+static LOOP: Mutex<RefCell<Option<Loop>>> = Mutex::new(RefCell::new(None));
+
+/// SysTick counts between two readings of its 24-bit down-counter.
+fn elapsed(start: u32, end: u32) -> u32 {
+    start.wrapping_sub(end) & 0x00FF_FFFF
+}
+
+/// The servo tick: the sample in the mailbox through the loop, timed, the reply left in it.
+#[export_name = "TIMER0"]
+extern "C" fn servo_tick() {
+    critical_section::with(|cs| {
+        if let Some(l) = LOOP.borrow_ref_mut(cs).as_mut() {
+            let start = SYST::get_current();
+            let command = l.servo.tick(&l.sample);
+            let cost = elapsed(start, SYST::get_current());
+            let status = l.servo.status();
+            l.reply = Some(TickReply {
+                command,
+                telemetry: l.servo.telemetry().copied(),
+                trip: status.trip,
+                trip_settled: status.trip_settled,
+                cost_counts: cost,
+            });
+            let r = &mut l.report;
+            r.ticks += 1;
+            r.counts_total += u64::from(cost);
+            r.counts_max = r.counts_max.max(cost);
+        }
+    });
+}
+
+fn send(uart: &mut Uart, kind: u8, payload: &[u8]) {
+    link::write_frame(kind, payload, |b| uart.put(b));
+}
+
+/// A message in fixed storage (a refusal's text).
+struct Text {
+    buf: [u8; 256],
+    len: usize,
+}
+
+impl Text {
+    fn new() -> Self {
+        Text {
+            buf: [0; 256],
+            len: 0,
+        }
+    }
+
+    fn bytes(&self) -> &[u8] {
+        &self.buf[..self.len]
+    }
+}
+
+impl core::fmt::Write for Text {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        let n = s.len().min(self.buf.len() - self.len);
+        self.buf[self.len..self.len + n].copy_from_slice(&s.as_bytes()[..n]);
+        self.len += n;
+        Ok(())
+    }
+}
+
+/// The worst SysTick counts of [`PROBE_TICKS`] quiet ticks of a fresh loop of `d`.
+fn probe(d: &Deployment) -> u32 {
+    let Ok(mut servo) = Servo::new(d) else {
+        return 0;
+    };
+    let mut s = Sensor::default();
+    let mut worst = 0;
+    for k in 0..PROBE_TICKS {
+        s.seq = k;
+        s.time_s = k as f64 * servo.period_s();
+        let start = SYST::get_current();
+        let _ = servo.tick(&s);
+        worst = worst.max(elapsed(start, SYST::get_current()));
+    }
+    worst
+}
+
+/// Builds the loop of a deployment image; the READY or REFUSED frame to answer.
+fn load(payload: &[u8], uart: &mut Uart) {
+    let mut why = Text::new();
+    let deployment = match image::decode(payload) {
+        Ok(d) => d,
+        Err(e) => {
+            let _ = write!(why, "{e}");
+            return send(uart, kind::REFUSED, why.bytes());
+        }
+    };
+    if let Err(e) = Servo::new(&deployment) {
+        let _ = write!(why, "{e}");
+        return send(uart, kind::REFUSED, why.bytes());
+    }
+    let probe = probe(&deployment);
+    critical_section::with(|cs| {
+        *LOOP.borrow_ref_mut(cs) = Servo::new(&deployment).ok().map(|servo| Loop {
+            servo,
+            sample: Sensor::default(),
+            reply: None,
+            report: Report::default(),
+        });
+    });
+    send(uart, kind::READY, &probe.to_le_bytes());
+}
+
+/// Runs one tick in the timer interrupt; the TICK frame to answer.
+fn tick(payload: &[u8], uart: &mut Uart) {
+    let Some(sample) = link::decode_sensor(payload) else {
+        return send(uart, kind::REFUSED, b"sample frame of the wrong length");
+    };
+    let loaded = critical_section::with(|cs| {
+        let mut l = LOOP.borrow_ref_mut(cs);
+        let l = l.as_mut()?;
+        l.sample = sample;
+        l.reply = None;
+        Some(())
+    });
+    if loaded.is_none() {
+        return send(uart, kind::REFUSED, b"sample before a deployment was loaded");
+    }
+    NVIC::pend(Irq::Timer0);
+    // The interrupt is taken once the pend reaches the NVIC.
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+    let reply = critical_section::with(|cs| LOOP.borrow_ref_mut(cs).as_mut()?.reply.take());
+    match reply {
+        Some(r) => {
+            let mut out = [0; link::TICK_BYTES];
+            r.encode(&mut out);
+            send(uart, kind::TICK, &out);
+        }
+        None => send(uart, kind::REFUSED, b"the tick interrupt did not run"),
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let Some(mut core) = cortex_m::Peripherals::take() else {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+    stack::paint();
+    // SysTick free-running over its 24 bits at the processor clock: the tick's stopwatch.
+    core.SYST.set_clock_source(SystClkSource::Core);
+    core.SYST.set_reload(0x00FF_FFFF);
+    core.SYST.clear_current();
+    core.SYST.enable_counter();
+    // SAFETY: the TIMER0 handler shares state only through the critical-section mutex.
+    unsafe { NVIC::unmask(Irq::Timer0) };
+    let mut uart = Uart::take();
+    let boot = Boot {
+        image_version: image::VERSION,
+        max_order: MAX_SS_ORDER as u16,
+        f64_in_hardware: cfg!(f64_in_hardware),
+        stack_bytes: stack::size(),
+        systick_hz: SYSTICK_HZ,
+    };
+    send(&mut uart, kind::BOOT, &boot.encode());
+    let Some(reader) = cortex_m::singleton!(: FrameReader = FrameReader::default()) else {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+    loop {
+        let byte = uart.get();
+        match reader.push(byte) {
+            Ok(None) => {}
+            Ok(Some((kind::SAMPLE, p))) => tick(p, &mut uart),
+            Ok(Some((kind::LOAD, p))) => load(p, &mut uart),
+            Ok(Some((kind::REPORT_REQUEST, _))) => {
+                let mut report = critical_section::with(|cs| {
+                    LOOP.borrow_ref(cs).as_ref().map(|l| l.report).unwrap_or_default()
+                });
+                report.stack_used_bytes = stack::used();
+                send(&mut uart, kind::REPORT, &report.encode());
+            }
+            Ok(Some(_)) => send(&mut uart, kind::REFUSED, b"unknown frame kind"),
+            Err(e) => {
+                let mut why = Text::new();
+                let _ = write!(why, "{e}");
+                send(&mut uart, kind::REFUSED, why.bytes());
+            }
+        }
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    let mut why = Text::new();
+    let _ = write!(why, "firmware panicked: {}", info.message());
+    if let Some(at) = info.location() {
+        let _ = write!(why, " at {}:{}", at.file(), at.line());
+    }
+    let mut uart = Uart::take();
+    send(&mut uart, kind::REFUSED, why.bytes());
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
