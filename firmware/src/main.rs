@@ -160,19 +160,21 @@ fn probe(d: &Deployment) -> u32 {
     worst
 }
 
-/// Builds the loop of a deployment image; the READY or REFUSED frame to answer.
-fn load(payload: &[u8], uart: &mut Uart) {
+/// Builds the loop of a deployment image: the probe's worst tick in SysTick counts, or why the
+/// image was refused.
+#[inline(never)]
+fn load(payload: &[u8]) -> Result<u32, Text> {
     let mut why = Text::new();
     let deployment = match image::decode(payload) {
         Ok(d) => d,
         Err(e) => {
             let _ = write!(why, "{e}");
-            return send(uart, kind::REFUSED, why.bytes());
+            return Err(why);
         }
     };
     if let Err(e) = Servo::new(&deployment) {
         let _ = write!(why, "{e}");
-        return send(uart, kind::REFUSED, why.bytes());
+        return Err(why);
     }
     let probe = probe(&deployment);
     critical_section::with(|cs| {
@@ -183,7 +185,7 @@ fn load(payload: &[u8], uart: &mut Uart) {
             report: Report::default(),
         });
     });
-    send(uart, kind::READY, &probe.to_le_bytes());
+    Ok(probe)
 }
 
 /// Runs one tick in the timer interrupt; the TICK frame to answer.
@@ -250,7 +252,15 @@ fn main() -> ! {
         match reader.push(byte) {
             Ok(None) => {}
             Ok(Some((kind::SAMPLE, p))) => tick(p, &mut uart),
-            Ok(Some((kind::LOAD, p))) => load(p, &mut uart),
+            Ok(Some((kind::LOAD, p))) => match load(p) {
+                Ok(probe) => {
+                    // The high-water mark from here on is the running loop's (building it
+                    // took more).
+                    stack::paint();
+                    send(&mut uart, kind::READY, &probe.to_le_bytes());
+                }
+                Err(why) => send(&mut uart, kind::REFUSED, why.bytes()),
+            },
             Ok(Some((kind::REPORT_REQUEST, _))) => {
                 let mut report = critical_section::with(|cs| {
                     LOOP.borrow_ref(cs).as_ref().map(|l| l.report).unwrap_or_default()

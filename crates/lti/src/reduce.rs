@@ -68,10 +68,21 @@ impl<'a> Balancing<'a> {
         })
     }
 
-    /// The reduced model of `order` states (at most all of them).
+    /// States whose Hankel singular value exceeds `n·ε·σ_max`: the order of a minimal
+    /// realisation as far as double precision can tell (the rest are neither reached nor seen).
+    pub fn minimal_order(&self) -> usize {
+        let n = self.sys.nx();
+        let largest = self.s.iter().copied().fold(0.0, f64::max);
+        let floor = largest * n as f64 * f64::EPSILON;
+        self.s.iter().filter(|&&v| v > floor).count()
+    }
+
+    /// The reduced model of `order` states, at most [`Balancing::minimal_order`] of them (a
+    /// state of zero Hankel singular value has no balanced coordinate: keeping it would divide
+    /// by zero).
     pub fn truncate(&self, order: usize) -> Reduced {
         let (sys, n) = (self.sys, self.sys.nx());
-        let order = order.min(n);
+        let order = order.min(self.minimal_order());
         let (r, l, u, vt, s) = (&self.r, &self.l, &self.u, &self.vt, &self.s);
         let hankel: Vec<f64> = self.idx.iter().map(|&i| s[i]).collect();
         let keep = &self.idx[..order];
@@ -130,6 +141,7 @@ mod tests {
         let red = balanced_truncation(&sys, 2).unwrap();
         assert!(red.hankel.windows(2).all(|w| w[0] >= w[1]));
         let full = balanced_truncation(&sys, 6).unwrap();
+        assert_eq!(full.sys.nx(), 6);
         for i in 0..200 {
             let f = i as f64 / 400.0; // cycles per sample
             let g = sys.freq_response_discrete(f, 1.0).unwrap()[(0, 0)];
@@ -142,6 +154,34 @@ mod tests {
                 red.error_bound
             );
             assert!((g - gf).norm() < 1e-9 * g.norm());
+        }
+    }
+
+    /// A state neither reached nor seen (zero Hankel singular value) is dropped even when all
+    /// states are asked for: the result is the minimal realisation, finite, with the same
+    /// response — not NaN from dividing by √0.
+    #[test]
+    fn an_unreachable_state_is_dropped_not_divided_by_zero() {
+        let a = DMatrix::from_row_slice(3, 3, &[0.9, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.3]);
+        let b = DMatrix::from_column_slice(3, 1, &[1.0, 1.0, 0.0]);
+        let c = DMatrix::from_row_slice(1, 3, &[1.0, 0.0, 1.0]);
+        let sys = StateSpace {
+            a,
+            b,
+            c,
+            d: DMatrix::from_element(1, 1, 0.0),
+        };
+        let bal = Balancing::new(&sys).unwrap();
+        // Only the 0.9 mode is both reached and seen.
+        assert_eq!(bal.minimal_order(), 1);
+        let red = bal.truncate(3);
+        assert_eq!(red.sys.nx(), 1);
+        assert!(red.sys.a.iter().all(|v| v.is_finite()));
+        for f in [0.0, 0.1, 0.3] {
+            let g = sys.freq_response_discrete(f, 1.0).unwrap()[(0, 0)];
+            let gr = red.sys.freq_response_discrete(f, 1.0).unwrap()[(0, 0)];
+            // 1/(z − 0.9) exactly.
+            assert!((g - gr).norm() < 1e-12 * g.norm(), "f {f}");
         }
     }
 }

@@ -173,6 +173,50 @@ fn order_of(d: &Deployment) -> usize {
     }
 }
 
+/// Refuses what the firmware's build cannot run.
+fn check_boot(boot: &Boot, d: &Deployment) -> Result<(), PilError> {
+    if boot.image_version != image::VERSION {
+        return Err(PilError::Refused(format!(
+            "the firmware reads deployment images of version {}, this servo writes {}: rebuild the firmware from this checkout",
+            boot.image_version,
+            image::VERSION
+        )));
+    }
+    let order = order_of(d);
+    if order > usize::from(boot.max_order) {
+        return Err(PilError::Refused(format!(
+            "controller order {order} is above the firmware's build (at most {}): reduce it (servo synth --order) or build the firmware for it",
+            boot.max_order
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses a rate the modelled part cannot hold, judged by the probe's worst tick.
+fn check_rate(
+    m: &TargetModel,
+    period_s: f64,
+    probe_counts: u32,
+    force: bool,
+) -> Result<(), PilError> {
+    let instructions = f64::from(probe_counts) * INSTRUCTIONS_PER_COUNT;
+    let tick_s = m.seconds(instructions);
+    let allowed_s = m.budget * period_s;
+    if tick_s > allowed_s && !force {
+        let max_rate = m.budget / tick_s;
+        return Err(PilError::Refused(format!(
+            "a tick takes about {instructions:.0} instructions on the target: {:.2} µs at {:.0} MHz ({} cycle per instruction), over {:.0} % of the {:.2} µs period; the part holds at most {:.0} Hz (plant.timing.servo_rate_hz) — or run it anyway to measure it (--force)",
+            tick_s * 1e6,
+            m.clock_hz / 1e6,
+            m.cycles_per_instruction,
+            m.budget * 100.0,
+            period_s * 1e6,
+            max_rate,
+        )));
+    }
+    Ok(())
+}
+
 /// The loop running on the target.
 pub struct TargetLoop {
     child: Child,
@@ -248,7 +292,7 @@ impl TargetLoop {
         target.expect(kind::BOOT)?;
         target.boot = Boot::decode(&target.frame)
             .ok_or_else(|| PilError::Lost("a BOOT frame of the wrong length".into()))?;
-        target.check_boot(deployment)?;
+        check_boot(&target.boot, deployment)?;
         let mut bytes = vec![0u8; image::MAX_BYTES];
         let n = image::encode(deployment, &mut bytes)
             .ok_or_else(|| PilError::Refused("the deployment does not fit an image".into()))?;
@@ -257,48 +301,8 @@ impl TargetLoop {
         let probe = <[u8; 4]>::try_from(target.frame.as_slice())
             .map(u32::from_le_bytes)
             .map_err(|_| PilError::Lost("a READY frame of the wrong length".into()))?;
-        target.check_rate(probe)?;
+        check_rate(&opts.model, deployment.period_s(), probe, opts.force)?;
         Ok(target)
-    }
-
-    /// Refuses what the firmware's build cannot run.
-    fn check_boot(&self, d: &Deployment) -> Result<(), PilError> {
-        if self.boot.image_version != image::VERSION {
-            return Err(PilError::Refused(format!(
-                "the firmware reads deployment images of version {}, this servo writes {}: rebuild the firmware from this checkout",
-                self.boot.image_version,
-                image::VERSION
-            )));
-        }
-        let order = order_of(d);
-        if order > usize::from(self.boot.max_order) {
-            return Err(PilError::Refused(format!(
-                "controller order {order} is above the firmware's build (at most {}): reduce it (servo synth --order) or build the firmware for it",
-                self.boot.max_order
-            )));
-        }
-        Ok(())
-    }
-
-    /// Refuses a rate the modelled part cannot hold, judged by the probe's worst tick.
-    fn check_rate(&self, probe_counts: u32) -> Result<(), PilError> {
-        let m = &self.opts.model;
-        let instructions = f64::from(probe_counts) * INSTRUCTIONS_PER_COUNT;
-        let tick_s = m.seconds(instructions);
-        let allowed_s = m.budget * self.period_s;
-        if tick_s > allowed_s && !self.opts.force {
-            let max_rate = m.budget / tick_s;
-            return Err(PilError::Refused(format!(
-                "a tick takes about {instructions:.0} instructions on the target: {:.2} µs at {:.0} MHz ({} cycle per instruction), over {:.0} % of the {:.2} µs period; the part holds at most {:.0} Hz (plant.timing.servo_rate_hz) — or run it anyway to measure it (--force)",
-                tick_s * 1e6,
-                m.clock_hz / 1e6,
-                m.cycles_per_instruction,
-                m.budget * 100.0,
-                self.period_s * 1e6,
-                max_rate,
-            )));
-        }
-        Ok(())
     }
 
     fn send(&mut self, kind: u8, payload: &[u8]) -> Result<(), PilError> {

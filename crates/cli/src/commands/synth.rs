@@ -102,6 +102,12 @@ impl SynthCmd {
                 "  kept {} states; H∞ error bound of the controller {bound:.3e}",
                 p.states
             );
+            if let Some(asked) = self.order.filter(|&o| o > p.states) {
+                println!(
+                    "  (asked for {asked}: only {} Hankel singular values are above n·ε·σ_max — the rest are states no input reaches or no output sees, so the controller's minimal realisation has {} states)",
+                    p.states, p.states
+                );
+            }
         }
         println!(
             "H2 controller: {} states at {:.0} Hz (thesis §6.4.1: 27)",
