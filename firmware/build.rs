@@ -13,9 +13,9 @@ fn main() {
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo::rustc-check-cfg=cfg(f64_in_hardware)");
     let flags = env::var("CARGO_ENCODED_RUSTFLAGS").unwrap_or_default();
-    let double_fpu = flags.split('\x1f').any(|f| {
-        f == "target-cpu=cortex-m7" || f.contains("+fp64") || f.contains("+fp-armv8d16")
-    });
+    let double_fpu = flags
+        .split('\x1f')
+        .any(|f| f == "target-cpu=cortex-m7" || f.contains("+fp64") || f.contains("+fp-armv8d16"));
     if double_fpu {
         println!("cargo:rustc-cfg=f64_in_hardware");
     }

@@ -201,7 +201,11 @@ fn tick(payload: &[u8], uart: &mut Uart) {
         Some(())
     });
     if loaded.is_none() {
-        return send(uart, kind::REFUSED, b"sample before a deployment was loaded");
+        return send(
+            uart,
+            kind::REFUSED,
+            b"sample before a deployment was loaded",
+        );
     }
     NVIC::pend(Irq::Timer0);
     // The interrupt is taken once the pend reaches the NVIC.
@@ -263,7 +267,10 @@ fn main() -> ! {
             },
             Ok(Some((kind::REPORT_REQUEST, _))) => {
                 let mut report = critical_section::with(|cs| {
-                    LOOP.borrow_ref(cs).as_ref().map(|l| l.report).unwrap_or_default()
+                    LOOP.borrow_ref(cs)
+                        .as_ref()
+                        .map(|l| l.report)
+                        .unwrap_or_default()
                 });
                 report.stack_used_bytes = stack::used();
                 send(&mut uart, kind::REPORT, &report.encode());

@@ -14,7 +14,10 @@ extern "C" {
 }
 
 fn bounds() -> (usize, usize) {
-    (addr_of!(_stack_end) as usize, addr_of!(_stack_start) as usize)
+    (
+        addr_of!(_stack_end) as usize,
+        addr_of!(_stack_start) as usize,
+    )
 }
 
 /// Bytes reserved for the stack.

@@ -248,7 +248,12 @@ impl TargetLoop {
         let mut child = Command::new(&opts.qemu)
             .args(["-M", "mps2-an500", "-nodefaults", "-display", "none"])
             .args(["-icount", "shift=0", "-no-reboot"])
-            .args(["-chardev", "stdio,id=link,signal=off", "-serial", "chardev:link"])
+            .args([
+                "-chardev",
+                "stdio,id=link,signal=off",
+                "-serial",
+                "chardev:link",
+            ])
             .arg("-kernel")
             .arg(&opts.firmware)
             .stdin(Stdio::piped())
@@ -384,17 +389,20 @@ impl TargetLoop {
                 reply.command.seq, s.seq
             )));
         }
-        self.ticks += 1;
-        self.counts_total += u64::from(reply.cost_counts);
-        self.counts_max = self.counts_max.max(reply.cost_counts);
-        let m = &self.opts.model;
-        if m.seconds(f64::from(reply.cost_counts) * INSTRUCTIONS_PER_COUNT)
-            > m.budget * self.period_s
-        {
-            self.over_budget += 1;
-        }
         self.last = Some(reply);
         let command = (s.flags & daq_io::flags::END == 0).then_some(reply.command);
+        if command.is_some() {
+            // The closing sample's tick gives no command: it is not a tick of the run.
+            self.ticks += 1;
+            self.counts_total += u64::from(reply.cost_counts);
+            self.counts_max = self.counts_max.max(reply.cost_counts);
+            let m = &self.opts.model;
+            if m.seconds(f64::from(reply.cost_counts) * INSTRUCTIONS_PER_COUNT)
+                > m.budget * self.period_s
+            {
+                self.over_budget += 1;
+            }
+        }
         Ok((command, reply.telemetry))
     }
 
@@ -504,5 +512,82 @@ impl Drop for TargetLoop {
 impl From<PilError> for RunError {
     fn from(e: PilError) -> Self {
         RunError::Pil(e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use servo_runtime::SsMatrices;
+
+    fn boot(max_order: u16) -> Boot {
+        Boot {
+            image_version: image::VERSION,
+            max_order,
+            f64_in_hardware: true,
+            stack_bytes: 1 << 16,
+            systick_hz: 25_000_000,
+        }
+    }
+
+    #[test]
+    fn an_order_above_the_firmwares_build_is_refused_naming_both() {
+        let mut d = Deployment::thesis_prototype();
+        d.controller.kind = ControllerKind::Ss;
+        d.controller.ss = SsMatrices::from_fn(13, |i, j| if i == j { 0.5 } else { 0.0 });
+        assert!(check_boot(&boot(40), &d).is_ok());
+        let Err(PilError::Refused(why)) = check_boot(&boot(8), &d) else {
+            panic!("order 13 on an order-8 build must be refused");
+        };
+        assert!(
+            why.contains("order 13") && why.contains("at most 8"),
+            "{why}"
+        );
+        // PID has no order.
+        assert!(check_boot(&boot(8), &Deployment::thesis_prototype()).is_ok());
+        // Another image version: rebuild the firmware.
+        let old = Boot {
+            image_version: image::VERSION + 1,
+            ..boot(40)
+        };
+        assert!(matches!(check_boot(&old, &d), Err(PilError::Refused(w)) if w.contains("rebuild")));
+    }
+
+    #[test]
+    fn the_rate_check_converts_counts_to_time_on_the_part() {
+        let m = TargetModel::default();
+        let period = 1.0 / 199_600.0; // 5.01 µs; 80 % of it is 4.008 µs = 1924 cycles at 480 MHz
+                                      // 48 counts = 1920 instructions: fits; 49 counts = 1960: does not.
+        assert!(check_rate(&m, period, 48, false).is_ok());
+        let Err(PilError::Refused(why)) = check_rate(&m, period, 49, false) else {
+            panic!("1960 instructions exceed 80 % of 5.01 µs at 480 MHz");
+        };
+        // The rate it would hold: 0.8 / (1960 / 480 MHz) = 195 918 Hz.
+        assert!(why.contains("195918 Hz"), "{why}");
+        assert!(check_rate(&m, period, 49, true).is_ok(), "--force runs it");
+    }
+
+    #[test]
+    fn a_firmware_path_is_checked_before_qemu_sees_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let not_elf = dir.path().join("fw.bin");
+        std::fs::write(&not_elf, [0u8; 64]).unwrap();
+        let x86_elf = dir.path().join("host.elf");
+        let mut head = [0u8; 64];
+        head[..6].copy_from_slice(b"\x7fELF\x02\x01");
+        head[18] = 62; // x86-64
+        std::fs::write(&x86_elf, head).unwrap();
+        for (path, says) in [
+            (dir.path().to_owned(), "not a regular file"),
+            (not_elf, "not a 32-bit ARM ELF"),
+            (x86_elf, "not a 32-bit ARM ELF"),
+            (dir.path().join("missing"), "No such file"),
+        ] {
+            let e = check_firmware(&path).unwrap_err().to_string();
+            assert!(
+                e.contains(says) && e.contains(&*path.to_string_lossy()),
+                "{e}"
+            );
+        }
     }
 }

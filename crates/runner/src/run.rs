@@ -40,16 +40,23 @@ pub fn run_with(
     on_frame: impl FnMut(&Frame),
 ) -> Result<Summary, RunError> {
     let radius = plan.check_stable()?;
-    run_side(plan, opts, radius, Side::Host(ServoLoop::new(plan)?), on_frame)
+    run_side(
+        plan,
+        opts,
+        radius,
+        Side::Host(ServoLoop::new(plan)?),
+        on_frame,
+    )
 }
 
-/// [`run`] with the controller on a target processor (processor in the loop, [`crate::pil`]):
-/// the plan's deployment runs in the firmware under QEMU, the stage here. Machining runs are
-/// refused (their surface reference is read on the host).
+/// [`run_with`] with the controller on a target processor (processor in the loop,
+/// [`crate::pil`]): the plan's deployment runs in the firmware under QEMU, the stage here.
+/// Machining runs are refused (their surface reference is read on the host).
 pub fn run_on_target(
     plan: &Plan,
     opts: RunOptions<'_>,
     pil: &PilOptions,
+    on_frame: impl FnMut(&Frame),
 ) -> Result<Summary, RunError> {
     let radius = plan.check_stable()?;
     if plan.surface.is_some() {
@@ -59,7 +66,7 @@ pub fn run_on_target(
         .into());
     }
     let target = TargetLoop::start(&plan.deployment, pil)?;
-    run_side(plan, opts, radius, Side::Target(Box::new(target)), |_| {})
+    run_side(plan, opts, radius, Side::Target(Box::new(target)), on_frame)
 }
 
 /// Where the controller runs.

@@ -69,9 +69,14 @@ impl Run {
                         ..opts
                     },
                     &pil,
+                    |_| {},
                 )
             })?;
-            let lost = summary.meta.target.as_ref().is_some_and(|t| t.lost.is_some());
+            let lost = summary
+                .meta
+                .target
+                .as_ref()
+                .is_some_and(|t| t.lost.is_some());
             let code = if lost {
                 ExitCode::from(EndReason::PeerLost.exit_code())
             } else {
