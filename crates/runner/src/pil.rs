@@ -480,16 +480,25 @@ impl TargetLoop {
     }
 }
 
-/// A PIL run's facts for its recording's `end` record.
+/// A PIL run's facts for its recording's `end` record (what it measured on the target).
 pub fn end_facts(t: &TargetMeta) -> Vec<(String, String)> {
     let mut facts = vec![
         (
             "target_instructions_per_tick_mean".to_string(),
-            format!("{:.1}", t.instructions_per_tick_mean),
+            t.instructions_per_tick_mean.to_string(),
         ),
         (
             "target_instructions_per_tick_max".to_string(),
-            format!("{:.0}", t.instructions_per_tick_max),
+            t.instructions_per_tick_max.to_string(),
+        ),
+        ("target_clock_hz".to_string(), t.clock_hz.to_string()),
+        (
+            "target_cycles_per_instruction".to_string(),
+            t.cycles_per_instruction.to_string(),
+        ),
+        (
+            "target_over_budget_ticks".to_string(),
+            t.over_budget_ticks.to_string(),
         ),
         (
             "target_stack_used_bytes".to_string(),
@@ -500,6 +509,42 @@ pub fn end_facts(t: &TargetMeta) -> Vec<(String, String)> {
         facts.push(("target_lost".to_string(), why.clone()));
     }
     facts
+}
+
+impl TargetMeta {
+    /// What a recording's `environment` and `end` records say of a PIL run (None for a run
+    /// whose controller ran in process; numbers missing from an unfinished file read 0).
+    pub fn from_records(
+        environment: &std::collections::BTreeMap<String, String>,
+        end: &std::collections::BTreeMap<String, String>,
+    ) -> Option<Self> {
+        let machine = environment.get("controller_on")?.clone();
+        let text = |k: &str| environment.get(k).cloned().unwrap_or_default();
+        let number = |k: &str| end.get(k).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+        let max = number("target_instructions_per_tick_max");
+        let model = TargetModel {
+            clock_hz: number("target_clock_hz"),
+            cycles_per_instruction: number("target_cycles_per_instruction"),
+            ..TargetModel::default()
+        };
+        Some(TargetMeta {
+            machine,
+            build: text("target_build"),
+            firmware: text("target_firmware"),
+            instructions_per_tick_mean: number("target_instructions_per_tick_mean"),
+            instructions_per_tick_max: max,
+            tick_max_s: if model.clock_hz > 0.0 {
+                model.seconds(max)
+            } else {
+                0.0
+            },
+            clock_hz: model.clock_hz,
+            cycles_per_instruction: model.cycles_per_instruction,
+            over_budget_ticks: number("target_over_budget_ticks") as u64,
+            stack_used_bytes: number("target_stack_used_bytes") as u32,
+            lost: end.get("target_lost").cloned(),
+        })
+    }
 }
 
 impl Drop for TargetLoop {

@@ -275,6 +275,7 @@ pub fn inspect_with(path: &Path, sink: &mut impl FrameSink) -> Result<Inspected,
         sink,
         run: None,
         end: BTreeMap::new(),
+        environment: BTreeMap::new(),
         attachments: BTreeMap::new(),
         state: None,
         error: None,
@@ -294,6 +295,7 @@ pub fn inspect_with(path: &Path, sink: &mut impl FrameSink) -> Result<Inspected,
     };
     let cfg = &header.loaded.config;
     let end = reader.end;
+    let target = crate::pil::TargetMeta::from_records(&reader.environment, &end);
     let completed = end.get("reason").is_some_and(|r| r == "completed");
     let every = header.every.get();
     let summary = builder.finish(RunMeta {
@@ -308,6 +310,7 @@ pub fn inspect_with(path: &Path, sink: &mut impl FrameSink) -> Result<Inspected,
                 .unwrap_or_else(|| "unknown".into()),
             _ => "unfinished".into(),
         }),
+        target,
         ..RunMeta::of(cfg, header.controller.clone())
     });
     Ok(Inspected { summary, end, read })
@@ -359,6 +362,8 @@ struct RunReader<'a, S: FrameSink> {
     sink: &'a mut S,
     run: Option<BTreeMap<String, String>>,
     end: BTreeMap<String, String>,
+    /// The `environment` record (where the run ran).
+    environment: BTreeMap<String, String>,
     attachments: BTreeMap<String, Vec<u8>>,
     state: Option<(RunHeader, SummaryBuilder)>,
     error: Option<RunError>,
@@ -414,6 +419,7 @@ impl<S: FrameSink> Visit for RunReader<'_, S> {
         match name {
             "run" => self.run = Some(values.clone()),
             "end" => self.end = values.clone(),
+            "environment" => self.environment = values.clone(),
             _ => {}
         }
     }
