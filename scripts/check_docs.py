@@ -13,10 +13,11 @@ order, and what a block is shown to print is compared with what it prints.
                                                   # read the diff before committing it
 
 Each page runs in a fresh folder of its own (blocks of one page follow each other there), with
-`examples/` of the checkout linked into it and this checkout's release binaries first on PATH
+`examples/`, `firmware/` and `scripts/` of the checkout linked into it and this checkout's release binaries first on PATH
 (`servo`; `cargo run --release -p servo-cli --` and `cargo run … --example X --` are rewritten
 to them). Lines that build or install (`cargo build`, `cargo test`, `pip install`, `make -C
-examples/c`) are what .ci/run itself does before this check, and are skipped. Real-time runs
+examples/c`, `cd firmware && cargo build`, `rustup target add`, `apt-get install`) are what
+.ci/run itself does before this check, and are skipped. Real-time runs
 (`--realtime`) run in lockstep: CI machines are not tuned.
 
 Marks, as an HTML comment on the line before a block's fence:
@@ -112,7 +113,8 @@ def script_of(block: Block) -> str:
     for line in block.text.splitlines():
         bare = line.split("#", 1)[0].strip()
         if bare.startswith(("cargo test", "pip install", "cargo build", "make -C examples",
-                            "cargo install")):
+                            "cargo install", "cd firmware && cargo build",
+                            "rustup target add", "apt-get install")):
             continue
         line = line.replace("--realtime", "--lockstep")
         line = re.sub(r"cargo run --release -p servo-cli --", "servo", line)
@@ -201,6 +203,8 @@ def run_page(page: Page, stop_after_first_output: bool = False, update: Update |
         (work / "bin").mkdir()
         os.symlink(SERVO, work / "bin" / "servo")
         os.symlink(ROOT / "examples", work / "examples")
+        os.symlink(ROOT / "firmware", work / "firmware")
+        os.symlink(ROOT / "scripts", work / "scripts")
         env = dict(os.environ, PATH=f"{work / 'bin'}:{os.environ['PATH']}")
         count = 0
         for block in page.blocks:

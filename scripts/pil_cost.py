@@ -120,7 +120,7 @@ def main() -> None:
     for label, elf in (("FPv5-D16", HARD), ("soft f64", SOFT)):
         flash, ram, stack = footprint(elf)
         print(f"{label} build: flash {flash / 1024:.1f} KiB, static RAM {ram / 1024:.1f} KiB, "
-              f"stack {stack / 1024:.0f} KiB; no allocator linked")
+              f"stack region {stack / 1024:.0f} KiB; no allocator linked")
 
 
 if __name__ == "__main__":

@@ -87,12 +87,22 @@ fn elapsed(start: u32, end: u32) -> u32 {
     start.wrapping_sub(end) & 0x00FF_FFFF
 }
 
+/// Restarts SysTick's count and returns its first reading: each tick is timed from the same
+/// phase of the counter's clock, so the same instructions always read the same counts.
+#[inline(always)]
+fn restart_stopwatch() -> u32 {
+    // SAFETY: a write to SysTick's current-value register restarts the count from the reload
+    // value; only the tick and the probe use SysTick, one at a time.
+    unsafe { (*SYST::PTR).cvr.write(0) };
+    SYST::get_current()
+}
+
 /// The servo tick: the sample in the mailbox through the loop, timed, the reply left in it.
 #[export_name = "TIMER0"]
 extern "C" fn servo_tick() {
     critical_section::with(|cs| {
         if let Some(l) = LOOP.borrow_ref_mut(cs).as_mut() {
-            let start = SYST::get_current();
+            let start = restart_stopwatch();
             let command = l.servo.tick(&l.sample);
             let cost = elapsed(start, SYST::get_current());
             let status = l.servo.status();
@@ -153,28 +163,27 @@ fn probe(d: &Deployment) -> u32 {
     for k in 0..PROBE_TICKS {
         s.seq = k;
         s.time_s = k as f64 * servo.period_s();
-        let start = SYST::get_current();
+        let start = restart_stopwatch();
         let _ = servo.tick(&s);
         worst = worst.max(elapsed(start, SYST::get_current()));
     }
     worst
 }
 
-/// Builds the loop of a deployment image: the probe's worst tick in SysTick counts, or why the
-/// image was refused.
+/// Builds the loop of a deployment image: the probe's worst tick in SysTick counts, or None
+/// with the reason written to `why`.
 #[inline(never)]
-fn load(payload: &[u8]) -> Result<u32, Text> {
-    let mut why = Text::new();
+fn load(payload: &[u8], why: &mut Text) -> Option<u32> {
     let deployment = match image::decode(payload) {
         Ok(d) => d,
         Err(e) => {
             let _ = write!(why, "{e}");
-            return Err(why);
+            return None;
         }
     };
     if let Err(e) = Servo::new(&deployment) {
         let _ = write!(why, "{e}");
-        return Err(why);
+        return None;
     }
     let probe = probe(&deployment);
     critical_section::with(|cs| {
@@ -185,7 +194,7 @@ fn load(payload: &[u8]) -> Result<u32, Text> {
             report: Report::default(),
         });
     });
-    Ok(probe)
+    Some(probe)
 }
 
 /// Runs one tick in the timer interrupt; the TICK frame to answer.
@@ -256,15 +265,18 @@ fn main() -> ! {
         match reader.push(byte) {
             Ok(None) => {}
             Ok(Some((kind::SAMPLE, p))) => tick(p, &mut uart),
-            Ok(Some((kind::LOAD, p))) => match load(p) {
-                Ok(probe) => {
-                    // The high-water mark from here on is the running loop's (building it
-                    // took more).
-                    stack::paint();
-                    send(&mut uart, kind::READY, &probe.to_le_bytes());
+            Ok(Some((kind::LOAD, p))) => {
+                let mut why = Text::new();
+                match load(p, &mut why) {
+                    Some(probe) => {
+                        // The high-water mark from here on is the running loop's (building
+                        // it took more).
+                        stack::paint();
+                        send(&mut uart, kind::READY, &probe.to_le_bytes());
+                    }
+                    None => send(&mut uart, kind::REFUSED, why.bytes()),
                 }
-                Err(why) => send(&mut uart, kind::REFUSED, why.bytes()),
-            },
+            }
             Ok(Some((kind::REPORT_REQUEST, _))) => {
                 let mut report = critical_section::with(|cs| {
                     LOOP.borrow_ref(cs)

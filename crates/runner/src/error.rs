@@ -103,7 +103,7 @@ pub enum RunError {
     },
     /// A processor-in-the-loop run could not start or lost its target.
     #[error("processor in the loop: {0}")]
-    Pil(crate::pil::PilError),
+    Pil(#[from] crate::pil::PilError),
     /// A recording of a plant without simulator truth (a DAQ daemon, a real stage) asked to
     /// replay on the simulator's own stage.
     #[error("{}: recorded against a plant without simulator truth (a DAQ daemon or a real stage): its plant and noise cannot be re-run as they were; replay it on an identified plant model (a plant file, as `servo identify` writes it)", .0.display())]

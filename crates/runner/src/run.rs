@@ -70,6 +70,8 @@ pub fn run_on_target(
 }
 
 /// Where the controller runs.
+// One per run, made once: the in-process loop stays inline (no indirection on its tick).
+#[allow(clippy::large_enum_variant)]
 enum Side {
     /// In this process.
     Host(ServoLoop),

@@ -1,0 +1,282 @@
+//! The loop on the target: QEMU started, the firmware booted and loaded, one frame out and one
+//! back per tick.
+
+use super::{
+    check_boot, check_firmware, check_rate, PilError, PilOptions, TargetMeta, ANSWER_TIMEOUT_MS,
+    INSTRUCTIONS_PER_COUNT,
+};
+use servo_runtime::link::{self, image, kind, Boot, FrameReader, Report, TickReply};
+use servo_runtime::Deployment;
+use std::io::{Read, Write};
+use std::os::fd::AsFd;
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+
+/// The loop running on the target.
+pub struct TargetLoop {
+    child: Child,
+    input: ChildStdin,
+    output: ChildStdout,
+    reader: Box<FrameReader>,
+    frame: Vec<u8>,
+    outbox: Vec<u8>,
+    inbox: [u8; 512],
+    have: usize,
+    at: usize,
+    boot: Boot,
+    opts: PilOptions,
+    period_s: f64,
+    last: Option<TickReply>,
+    counts_total: u64,
+    counts_max: u32,
+    ticks: u64,
+    over_budget: u64,
+    lost: Option<String>,
+}
+
+impl TargetLoop {
+    /// Boots the firmware, sends it `deployment` and waits until its loop is built; refuses a
+    /// loop the firmware cannot run (an order above its build, a rate the modelled part cannot
+    /// hold unless forced).
+    pub fn start(deployment: &Deployment, opts: &PilOptions) -> Result<Self, PilError> {
+        check_firmware(&opts.firmware)?;
+        let mut child = Command::new(&opts.qemu)
+            .args(["-M", "mps2-an500", "-nodefaults", "-display", "none"])
+            .args(["-icount", "shift=0", "-no-reboot"])
+            .args([
+                "-chardev",
+                "stdio,id=link,signal=off",
+                "-serial",
+                "chardev:link",
+            ])
+            .arg("-kernel")
+            .arg(&opts.firmware)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .map_err(|e| PilError::Emulator {
+                qemu: opts.qemu.clone(),
+                why: e.to_string(),
+            })?;
+        let (Some(input), Some(output)) = (child.stdin.take(), child.stdout.take()) else {
+            let _ = child.kill();
+            return Err(PilError::Lost("no pipes to the emulator".into()));
+        };
+        let mut target = TargetLoop {
+            child,
+            input,
+            output,
+            reader: Box::default(),
+            frame: Vec::with_capacity(link::MAX_PAYLOAD),
+            outbox: Vec::with_capacity(link::MAX_PAYLOAD + 8),
+            inbox: [0; 512],
+            have: 0,
+            at: 0,
+            boot: Boot {
+                image_version: 0,
+                max_order: 0,
+                f64_in_hardware: false,
+                stack_bytes: 0,
+                systick_hz: 0,
+            },
+            opts: opts.clone(),
+            period_s: deployment.period_s(),
+            last: None,
+            counts_total: 0,
+            counts_max: 0,
+            ticks: 0,
+            over_budget: 0,
+            lost: None,
+        };
+        target.expect(kind::BOOT)?;
+        target.boot = Boot::decode(&target.frame)
+            .ok_or_else(|| PilError::Lost("a BOOT frame of the wrong length".into()))?;
+        check_boot(&target.boot, deployment)?;
+        let mut bytes = vec![0u8; image::MAX_BYTES];
+        let n = image::encode(deployment, &mut bytes)
+            .ok_or_else(|| PilError::Refused("the deployment does not fit an image".into()))?;
+        target.send(kind::LOAD, &bytes[..n])?;
+        target.expect(kind::READY)?;
+        let probe = <[u8; 4]>::try_from(target.frame.as_slice())
+            .map(u32::from_le_bytes)
+            .map_err(|_| PilError::Lost("a READY frame of the wrong length".into()))?;
+        check_rate(&opts.model, deployment.period_s(), probe, opts.force)?;
+        Ok(target)
+    }
+
+    fn send(&mut self, kind: u8, payload: &[u8]) -> Result<(), PilError> {
+        self.outbox.clear();
+        let out = &mut self.outbox;
+        link::write_frame(kind, payload, |b| out.push(b));
+        self.input
+            .write_all(&self.outbox)
+            .and_then(|()| self.input.flush())
+            .map_err(|e| PilError::Lost(format!("writing to the emulator: {e}")))
+    }
+
+    /// Waits for the next frame (bounded by [`ANSWER_TIMEOUT_MS`]); its payload is left in
+    /// `self.frame`. A REFUSED frame becomes [`PilError::Refused`].
+    fn expect(&mut self, want: u8) -> Result<(), PilError> {
+        loop {
+            if self.at == self.have {
+                self.fill()?;
+            }
+            let byte = self.inbox[self.at];
+            self.at += 1;
+            match self.reader.push(byte) {
+                Ok(None) => {}
+                Ok(Some((got, payload))) => {
+                    self.frame.clear();
+                    self.frame.extend_from_slice(payload);
+                    return match got {
+                        k if k == want => Ok(()),
+                        kind::REFUSED => Err(PilError::Refused(
+                            String::from_utf8_lossy(&self.frame).into_owned(),
+                        )),
+                        k => Err(PilError::Lost(format!(
+                            "frame kind {k} where {want} was due"
+                        ))),
+                    };
+                }
+                Err(e) => return Err(PilError::Lost(e.to_string())),
+            }
+        }
+    }
+
+    fn fill(&mut self) -> Result<(), PilError> {
+        use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
+        let mut fds = [PollFd::new(self.output.as_fd(), PollFlags::POLLIN)];
+        let ready = poll(&mut fds, PollTimeout::from(ANSWER_TIMEOUT_MS))
+            .map_err(|e| PilError::Lost(format!("waiting for the target: {e}")))?;
+        if ready == 0 {
+            return Err(PilError::Lost(format!(
+                "the target did not answer within {} s",
+                ANSWER_TIMEOUT_MS / 1000
+            )));
+        }
+        let n = self
+            .output
+            .read(&mut self.inbox)
+            .map_err(|e| PilError::Lost(format!("reading from the emulator: {e}")))?;
+        if n == 0 {
+            return Err(PilError::Lost("the emulator exited".into()));
+        }
+        (self.have, self.at) = (n, 0);
+        Ok(())
+    }
+
+    /// One tick on the target: the sample out, the command and telemetry back (both None
+    /// when `s` closes the run, as in process).
+    pub fn tick(
+        &mut self,
+        s: &daq_io::Sensor,
+    ) -> Result<(Option<daq_io::Command>, Option<daq_io::Telemetry>), PilError> {
+        let mut bytes = [0u8; link::SENSOR_BYTES];
+        link::encode_sensor(s, &mut bytes);
+        self.send(kind::SAMPLE, &bytes)?;
+        self.expect(kind::TICK)?;
+        let reply = TickReply::decode(&self.frame)
+            .ok_or_else(|| PilError::Lost("a TICK frame of the wrong length".into()))?;
+        if reply.command.seq != s.seq {
+            return Err(PilError::Lost(format!(
+                "the target answered tick {} to sample {}",
+                reply.command.seq, s.seq
+            )));
+        }
+        self.last = Some(reply);
+        let command = (s.flags & daq_io::flags::END == 0).then_some(reply.command);
+        if command.is_some() {
+            // The closing sample's tick gives no command: it is not a tick of the run.
+            self.ticks += 1;
+            self.counts_total += u64::from(reply.cost_counts);
+            self.counts_max = self.counts_max.max(reply.cost_counts);
+            let m = &self.opts.model;
+            if m.seconds(f64::from(reply.cost_counts) * INSTRUCTIONS_PER_COUNT)
+                > m.budget * self.period_s
+            {
+                self.over_budget += 1;
+            }
+        }
+        Ok((command, reply.telemetry))
+    }
+
+    /// The trip the target's loop is in: its cause and tick.
+    pub fn trip(&self) -> Option<(servo_runtime::TripCause, u64)> {
+        self.last?.trip.map(|t| (t.cause, t.tick))
+    }
+
+    /// Tripped and settled: the run may end.
+    pub fn run_over(&self) -> bool {
+        self.last.is_some_and(|r| r.trip_settled)
+    }
+
+    /// Records why the link was lost (the run ends with `peer-lost`).
+    pub fn lose(&mut self, e: &PilError) {
+        self.lost = Some(e.to_string());
+    }
+
+    /// What the target is, for the recording's environment.
+    pub fn describe(&self) -> Vec<(String, String)> {
+        vec![
+            ("controller_on".into(), self.machine()),
+            ("target_build".into(), self.build()),
+            (
+                "target_firmware".into(),
+                self.opts.firmware.display().to_string(),
+            ),
+        ]
+    }
+
+    fn machine(&self) -> String {
+        "target: Cortex-M7 under qemu-system-arm (mps2-an500), one sample and one command per tick over UART0".into()
+    }
+
+    fn build(&self) -> String {
+        if self.boot.f64_in_hardware {
+            "cortex-m7: f64 in hardware (FPv5-D16)".into()
+        } else {
+            "thumbv7em default (Cortex-M4 FPU): f64 in software".into()
+        }
+    }
+
+    /// Asks the target for its report, stops the emulator, and returns what was measured.
+    pub fn finish(mut self) -> TargetMeta {
+        let report = if self.lost.is_none() {
+            self.send(kind::REPORT_REQUEST, &[])
+                .and_then(|()| self.expect(kind::REPORT))
+                .ok()
+                .and_then(|()| Report::decode(&self.frame))
+        } else {
+            None
+        };
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let m = self.opts.model;
+        let mean = if self.ticks == 0 {
+            0.0
+        } else {
+            self.counts_total as f64 / self.ticks as f64 * INSTRUCTIONS_PER_COUNT
+        };
+        let max = f64::from(self.counts_max) * INSTRUCTIONS_PER_COUNT;
+        TargetMeta {
+            machine: self.machine(),
+            build: self.build(),
+            firmware: self.opts.firmware.display().to_string(),
+            instructions_per_tick_mean: mean,
+            instructions_per_tick_max: max,
+            tick_max_s: m.seconds(max),
+            clock_hz: m.clock_hz,
+            cycles_per_instruction: m.cycles_per_instruction,
+            over_budget_ticks: self.over_budget,
+            stack_used_bytes: report.map_or(0, |r| r.stack_used_bytes),
+            lost: self.lost.take(),
+        }
+    }
+}
+
+impl Drop for TargetLoop {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
