@@ -52,7 +52,7 @@ impl TargetLoop {
             .arg(&opts.firmware)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(Stdio::piped())
             .spawn()
             .map_err(|e| PilError::Emulator {
                 qemu: opts.qemu.clone(),
@@ -159,10 +159,24 @@ impl TargetLoop {
             .read(&mut self.inbox)
             .map_err(|e| PilError::Lost(format!("reading from the emulator: {e}")))?;
         if n == 0 {
-            return Err(PilError::Lost("the emulator exited".into()));
+            return Err(PilError::Lost(self.exited()));
         }
         (self.have, self.at) = (n, 0);
         Ok(())
+    }
+
+    /// How the emulator ended, with the start of what it printed (QEMU names a missing
+    /// machine, a firmware it cannot load).
+    fn exited(&mut self) -> String {
+        let status = self.child.wait().map_or("unknown".into(), |s| s.to_string());
+        let mut said = String::new();
+        if let Some(err) = self.child.stderr.take() {
+            let _ = err.take(2048).read_to_string(&mut said);
+        }
+        match said.trim() {
+            "" => format!("the emulator exited ({status})"),
+            said => format!("the emulator exited ({status}): {said}"),
+        }
     }
 
     /// One tick on the target: the sample out, the command and telemetry back (both None
