@@ -168,7 +168,10 @@ impl TargetLoop {
     /// How the emulator ended, with the start of what it printed (QEMU names a missing
     /// machine, a firmware it cannot load).
     fn exited(&mut self) -> String {
-        let status = self.child.wait().map_or("unknown".into(), |s| s.to_string());
+        let status = self
+            .child
+            .wait()
+            .map_or("unknown".into(), |s| s.to_string());
         let mut said = String::new();
         if let Some(err) = self.child.stderr.take() {
             let _ = err.take(2048).read_to_string(&mut said);
