@@ -21,7 +21,7 @@ use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
 use cortex_m_rt::entry;
 use critical_section::Mutex;
 use daq_io::Sensor;
-use servo_runtime::link::{self, image, kind, Boot, FrameReader, Report, TickReply};
+use servo_runtime::link::{self, image, kind, Boot, FrameReader, Ready, Report, TickReply};
 use servo_runtime::{Deployment, Servo, MAX_SS_ORDER};
 use uart::Uart;
 
@@ -54,13 +54,17 @@ pub union Vector {
 
 extern "C" {
     fn TIMER0();
+    fn DefaultHandler();
 }
 
-/// The board's 32 interrupt lines; only TIMER0 is used (the rest reach `DefaultHandler`).
+/// The board's 32 interrupt lines: TIMER0 is the tick, every other line reaches
+/// cortex-m-rt's `DefaultHandler`.
 #[link_section = ".vector_table.interrupts"]
 #[no_mangle]
 pub static __INTERRUPTS: [Vector; 32] = {
-    let mut v = [Vector { reserved: 0 }; 32];
+    let mut v = [Vector {
+        handler: DefaultHandler,
+    }; 32];
     v[Irq::Timer0 as usize] = Vector { handler: TIMER0 };
     v
 };
@@ -97,7 +101,10 @@ fn restart_stopwatch() -> u32 {
     SYST::get_current()
 }
 
-/// The servo tick: the sample in the mailbox through the loop, timed, the reply left in it.
+/// The servo tick: the sample in the mailbox through the loop, timed (`servo.tick` alone, not
+/// the interrupt's entry or the reply's copy), the reply left in it. It holds the critical
+/// section the main loop shares the loop with; on a board give the tick interrupt the loop to
+/// itself (README: porting) so that interrupts above it still preempt.
 #[export_name = "TIMER0"]
 extern "C" fn servo_tick() {
     critical_section::with(|cs| {
@@ -113,16 +120,58 @@ extern "C" fn servo_tick() {
                 trip_settled: status.trip_settled,
                 cost_counts: cost,
             });
-            let r = &mut l.report;
-            r.ticks += 1;
-            r.counts_total += u64::from(cost);
-            r.counts_max = r.counts_max.max(cost);
+            l.report.ticks += 1;
         }
     });
 }
 
 fn send(uart: &mut Uart, kind: u8, payload: &[u8]) {
-    link::write_frame(kind, payload, |b| uart.put(b));
+    // Every payload here is a fixed-size record or a short text: far below the frame limit.
+    let _ = link::write_frame(kind, payload, |b| uart.put(b));
+}
+
+/// SysTick wraps (0.67 s each at 25 MHz) of a silent link after which the firmware ends the
+/// emulator: about a minute of the emulated clock.
+#[cfg(feature = "qemu")]
+const SILENT_WRAPS: u32 = 90;
+
+/// Ends QEMU through semihosting (SYS_EXIT, "application exit").
+#[cfg(feature = "qemu")]
+fn exit_emulator() -> ! {
+    // SAFETY: under QEMU with semihosting on, BKPT 0xAB with r0 = SYS_EXIT (0x18) and r1 =
+    // ADP_Stopped_ApplicationExit ends the emulator; it touches no memory of ours.
+    unsafe {
+        core::arch::asm!("bkpt 0xAB", in("r0") 0x18u32, in("r1") 0x20026u32, options(nostack));
+    }
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+/// Waits for the link's next byte; under QEMU, a link silent for [`SILENT_WRAPS`] SysTick
+/// wraps ends the emulator (the host is gone).
+fn next_byte(uart: &mut Uart) -> u8 {
+    #[cfg(feature = "qemu")]
+    {
+        let mut wraps = 0;
+        let got = uart.get(|| {
+            // SAFETY: a read of SysTick's control register; its COUNTFLAG bit clears on read.
+            if unsafe { (*SYST::PTR).csr.read() } & (1 << 16) != 0 {
+                wraps += 1;
+            }
+            wraps < SILENT_WRAPS
+        });
+        match got {
+            Some(b) => b,
+            None => exit_emulator(),
+        }
+    }
+    #[cfg(not(feature = "qemu"))]
+    loop {
+        if let Some(b) = uart.get(|| true) {
+            return b;
+        }
+    }
 }
 
 /// A message in fixed storage (a refusal's text).
@@ -153,11 +202,10 @@ impl core::fmt::Write for Text {
     }
 }
 
-/// The worst SysTick counts of [`PROBE_TICKS`] quiet ticks of a fresh loop of `d`.
-fn probe(d: &Deployment) -> u32 {
-    let Ok(mut servo) = Servo::new(d) else {
-        return 0;
-    };
+/// The worst SysTick counts of [`PROBE_TICKS`] quiet ticks of a fresh loop of `d` (built
+/// and checked as `Servo::new` does; its refusal names the key).
+fn probe(d: &Deployment) -> Result<u32, servo_runtime::Invalid> {
+    let mut servo = Servo::new(d)?;
     let mut s = Sensor::default();
     let mut worst = 0;
     for k in 0..PROBE_TICKS {
@@ -167,7 +215,7 @@ fn probe(d: &Deployment) -> u32 {
         let _ = servo.tick(&s);
         worst = worst.max(elapsed(start, SYST::get_current()));
     }
-    worst
+    Ok(worst)
 }
 
 /// Builds the loop of a deployment image: the probe's worst tick in SysTick counts, or None
@@ -181,11 +229,13 @@ fn load(payload: &[u8], why: &mut Text) -> Option<u32> {
             return None;
         }
     };
-    if let Err(e) = Servo::new(&deployment) {
-        let _ = write!(why, "{e}");
-        return None;
-    }
-    let probe = probe(&deployment);
+    let probe = match probe(&deployment) {
+        Ok(worst) => worst,
+        Err(e) => {
+            let _ = write!(why, "{e}");
+            return None;
+        }
+    };
     critical_section::with(|cs| {
         *LOOP.borrow_ref_mut(cs) = Servo::new(&deployment).ok().map(|servo| Loop {
             servo,
@@ -261,18 +311,21 @@ fn main() -> ! {
         }
     };
     loop {
-        let byte = uart.get();
+        let byte = next_byte(&mut uart);
         match reader.push(byte) {
             Ok(None) => {}
             Ok(Some((kind::SAMPLE, p))) => tick(p, &mut uart),
             Ok(Some((kind::LOAD, p))) => {
                 let mut why = Text::new();
                 match load(p, &mut why) {
-                    Some(probe) => {
-                        // The high-water mark from here on is the running loop's (building
-                        // it took more).
+                    Some(probe_counts) => {
+                        let ready = Ready {
+                            probe_counts,
+                            load_stack_bytes: stack::used(),
+                        };
+                        // The high-water mark from here on is the running loop's.
                         stack::paint();
-                        send(&mut uart, kind::READY, &probe.to_le_bytes());
+                        send(&mut uart, kind::READY, &ready.encode());
                     }
                     None => send(&mut uart, kind::REFUSED, why.bytes()),
                 }

@@ -133,8 +133,8 @@ pub struct ControllerArgs {
     /// Controller file for --controller ss (relative to the working directory).
     #[arg(long)]
     pub ss_file: Option<PathBuf>,
-    /// Run a controller (file or tuned gains) made for another plant or rate anyway; with
-    /// --pil, also on a target that cannot hold the servo rate (to measure its cost).
+    /// Run anyway: a controller (file or tuned gains) made for another plant or rate, or (servo
+    /// run --pil) a target that cannot hold the servo rate, to measure its cost.
     #[arg(long)]
     pub force: bool,
     #[command(flatten)]

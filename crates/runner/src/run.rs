@@ -109,6 +109,12 @@ fn run_side(
         Side::Target(t) => t.describe(),
         Side::Host(_) => Vec::new(),
     };
+    // Progress and stop requests: every 8192 ticks in process (~40 ms), every 64 on a target
+    // (a tick there is a round trip through the emulator).
+    let check_every = match &servo {
+        Side::Target(_) => 64,
+        Side::Host(_) => 8192,
+    };
     let mut recorder = match &opts.out {
         Some(to) => Some(recording::create_with(
             plan,
@@ -126,7 +132,7 @@ fn run_side(
     let mut digest = opts.digest.then(daq_io::digest::LoopDigest::default);
     loop {
         let s = daq.read().expect("in-process reads cannot fail");
-        if s.seq.is_multiple_of(8192) {
+        if s.seq.is_multiple_of(check_every) {
             (opts.progress)(s.seq, total);
             if opts.stop.is_set() && s.flags & daq_io::flags::END == 0 {
                 reason = opts.stop.reason();

@@ -335,14 +335,18 @@ impl fmt::Display for Summary {
             writeln!(f, "  target build              {}", t.build)?;
             writeln!(
                 f,
-                "  target cost               {:.0} instructions per tick (mean), {:.0} max: {:.2} µs at {:.0} MHz ({} cycle/instruction assumed); {} ticks over budget; stack {} bytes",
+                "  target cost               {:.0} instructions per tick (mean), {:.0} max: at least {:.2} µs at {:.0} MHz ({} cycle/instruction); {} ticks over budget",
                 t.instructions_per_tick_mean,
                 t.instructions_per_tick_max,
                 t.tick_max_s * 1e6,
                 t.clock_hz / 1e6,
                 t.cycles_per_instruction,
                 t.over_budget_ticks,
-                t.stack_used_bytes
+            )?;
+            writeln!(
+                f,
+                "  target stack              {} bytes running, {} building the loop, of {} reserved",
+                t.stack_used_bytes, t.load_stack_bytes, t.stack_bytes
             )?;
             if let Some(why) = &t.lost {
                 writeln!(f, "  TARGET LOST               {why}")?;

@@ -27,8 +27,10 @@ macro_rules! state_space_orders {
 
         impl AnyStateSpace {
             fn build(m: &SsMatrices, period_s: f64, limits: Limits) -> Result<Self, servo_core::Error> {
+                // Each order in a frame of its own (`built`): one match arm's temporaries on the
+                // stack at a time, not forty (a microcontroller builds this on its stack).
                 match m.order() {
-                    $($n => Ok(AnyStateSpace::$v(config::<$n>(m, limits).try_build(period_s)?)),)+
+                    $($n => built::<$n>(m, period_s, limits).map(AnyStateSpace::$v),)+
                     _ => Err(servo_core::Error::OutOfRange {
                         param: "order",
                         value: m.order() as f64,
@@ -69,6 +71,16 @@ state_space_orders! {
 }
 
 const _: () = assert!(MAX_SS_ORDER == 40, "the orders above list 1..=MAX_SS_ORDER");
+
+/// The state space of order `N` of `m`, built in a stack frame of its own.
+#[inline(never)]
+fn built<const N: usize>(
+    m: &SsMatrices,
+    period_s: f64,
+    limits: Limits,
+) -> Result<StateSpace<N, 1, 1>, servo_core::Error> {
+    config::<N>(m, limits).try_build(period_s)
+}
 
 /// The servo-core configuration of `m` (order `N`).
 fn config<const N: usize>(m: &SsMatrices, limits: Limits) -> StateSpaceConfig<N, 1, 1> {

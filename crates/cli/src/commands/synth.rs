@@ -104,8 +104,8 @@ impl SynthCmd {
             );
             if let Some(asked) = self.order.filter(|&o| o > p.states) {
                 println!(
-                    "  (asked for {asked}: only {} Hankel singular values are above n·ε·σ_max — the rest are states no input reaches or no output sees, so the controller's minimal realisation has {} states)",
-                    p.states, p.states
+                    "  (asked for {asked}: the controller's minimal realisation has {} states — the other Hankel singular values are below n·ε·σ_max: states no input reaches or no output sees)",
+                    p.states
                 );
             }
         }

@@ -8,24 +8,34 @@ use std::collections::BTreeMap;
 pub struct TargetMeta {
     /// Where the controller ran.
     pub machine: String,
-    /// The firmware's build: `cortex-m7 (f64 in hardware, FPv5-D16)` or `f64 in software`.
+    /// The firmware's build: `cortex-m7: f64 in hardware (FPv5-D16)` or the thumbv7em
+    /// default's `f64 in software`.
     pub build: String,
     /// The firmware file.
     pub firmware: String,
-    /// Guest instructions of a tick (the interrupt body), mean over the run.
+    /// Guest instructions of a tick (`Servo::tick` in the interrupt, not its entry or the
+    /// reply's copy), mean over the run.
     pub instructions_per_tick_mean: f64,
     /// The most guest instructions one tick took.
     pub instructions_per_tick_max: f64,
-    /// The worst tick as time on the modelled part, s.
+    /// The worst tick as time on the modelled part, s (at the assumed cycles per instruction:
+    /// a floor for the state-space tick).
     pub tick_max_s: f64,
-    /// The modelled part's clock, Hz, and the cycles per instruction assumed.
+    /// The modelled part's clock, Hz.
     pub clock_hz: f64,
     /// Cycles per instruction assumed.
     pub cycles_per_instruction: f64,
     /// Ticks whose time on the part exceeded the budget share of the period.
     pub over_budget_ticks: u64,
-    /// Deepest stack use on the target, bytes.
+    /// Deepest stack use on the target while the loop ran, bytes (the painted stack's
+    /// high-water mark).
     pub stack_used_bytes: u32,
+    /// Deepest stack use while the target built the loop from the image, bytes.
+    #[serde(default)]
+    pub load_stack_bytes: u32,
+    /// The stack the firmware reserves, bytes.
+    #[serde(default)]
+    pub stack_bytes: u32,
     /// Why the link to the target was lost, if it was.
     pub lost: Option<String>,
 }
@@ -54,6 +64,11 @@ pub fn end_facts(t: &TargetMeta) -> Vec<(String, String)> {
             "target_stack_used_bytes".to_string(),
             t.stack_used_bytes.to_string(),
         ),
+        (
+            "target_load_stack_bytes".to_string(),
+            t.load_stack_bytes.to_string(),
+        ),
+        ("target_stack_bytes".to_string(), t.stack_bytes.to_string()),
     ];
     if let Some(why) = &t.lost {
         facts.push(("target_lost".to_string(), why.clone()));
@@ -96,6 +111,8 @@ impl TargetMeta {
             cycles_per_instruction: model.cycles_per_instruction,
             over_budget_ticks: number("target_over_budget_ticks") as u64,
             stack_used_bytes: number("target_stack_used_bytes") as u32,
+            load_stack_bytes: number("target_load_stack_bytes") as u32,
+            stack_bytes: number("target_stack_bytes") as u32,
             lost: end.get("target_lost").cloned(),
         })
     }

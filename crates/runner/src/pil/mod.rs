@@ -4,10 +4,10 @@
 //!
 //! The plan's [`servo_runtime::Deployment`] goes to the target as an image at start (one
 //! firmware runs every loop up to its order; nothing is rebuilt per controller). QEMU runs
-//! with `-icount shift=0`: one guest instruction is one nanosecond of virtual time, so the
-//! firmware's SysTick (25 MHz) counts one per [`INSTRUCTIONS_PER_COUNT`] instructions. Time on
-//! a real part is estimated from those counts by [`TargetModel`], whose assumptions are stated:
-//! QEMU models no pipeline, cache or FPU latency.
+//! with `-icount` ([`ICOUNT_SHIFT`]): every guest instruction takes the same time of the
+//! emulated clock, so the firmware's SysTick counts instructions ([`instructions_per_count`]).
+//! Time on a real part is estimated from those counts by [`TargetModel`], whose assumptions
+//! are stated: QEMU models no pipeline, cache or FPU latency.
 
 use servo_runtime::link::{image, Boot};
 use servo_runtime::{ControllerKind, Deployment};
@@ -20,23 +20,29 @@ mod target;
 pub use meta::{end_facts, TargetMeta};
 pub use target::TargetLoop;
 
-/// Guest instructions per SysTick count under `-icount shift=0` (1 ns per instruction, SysTick
-/// at the MPS2's 25 MHz processor clock).
-pub const INSTRUCTIONS_PER_COUNT: f64 = 40.0;
+/// QEMU's `-icount` shift: one guest instruction takes 2^5 = 32 ns of the emulated clock, so
+/// the MPS2's 25 MHz SysTick counts one per 1.25 instructions.
+pub const ICOUNT_SHIFT: u32 = 5;
+
+/// Guest instructions per SysTick count of a target whose SysTick runs at `systick_hz` (Hz).
+pub fn instructions_per_count(systick_hz: u32) -> f64 {
+    1e9 / (f64::from(1u32 << ICOUNT_SHIFT) * f64::from(systick_hz.max(1)))
+}
 
 /// The most bytes a firmware file may have.
 const MAX_FIRMWARE_BYTES: u64 = 64 << 20;
 
 /// How long the target may take to answer one frame (emulation on a busy host included).
-const ANSWER_TIMEOUT_MS: u16 = 20_000;
+const ANSWER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(20);
 
 /// How a tick's instruction count becomes time on a real part.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TargetModel {
     /// The part's processor clock in Hz (480 MHz: an STM32H743/H753).
     pub clock_hz: f64,
-    /// Cycles per instruction assumed: 1. The M7 dual-issues some pairs (< 1) and stalls on
-    /// f64 divides, square roots and memory outside the TCMs (> 1); QEMU models none of it.
+    /// Cycles per instruction assumed: 1. The M7 dual-issues some pairs (< 1) but stalls on
+    /// chains of dependent f64 operations, divides, square roots and memory outside the TCMs
+    /// (> 1): for the state-space tick, a floor; QEMU models none of it.
     pub cycles_per_instruction: f64,
     /// Share of the period the tick may take; the rest is interrupt entry, the converters'
     /// I/O and headroom.
@@ -132,8 +138,9 @@ fn check_firmware(path: &Path) -> Result<(), PilError> {
     std::fs::File::open(path)
         .and_then(|mut f| f.read_exact(&mut head))
         .map_err(|e| bad(e.to_string()))?;
-    // ELF, 32-bit, little-endian, machine 40 (ARM).
-    if head[..4] != *b"\x7fELF" || head[4] != 1 || head[5] != 1 || head[18] != 40 {
+    // ELF, 32-bit, little-endian, an executable (type 2) for machine 40 (ARM).
+    let half = |at: usize| u16::from_le_bytes([head[at], head[at + 1]]);
+    if head[..4] != *b"\x7fELF" || head[4] != 1 || head[5] != 1 || half(16) != 2 || half(18) != 40 {
         return Err(bad(
             "not a 32-bit ARM ELF (build it: cd firmware && cargo build --release)".into(),
         ));
@@ -172,16 +179,15 @@ fn check_boot(boot: &Boot, d: &Deployment) -> Result<(), PilError> {
 fn check_rate(
     m: &TargetModel,
     period_s: f64,
-    probe_counts: u32,
+    instructions: f64,
     force: bool,
 ) -> Result<(), PilError> {
-    let instructions = f64::from(probe_counts) * INSTRUCTIONS_PER_COUNT;
     let tick_s = m.seconds(instructions);
     let allowed_s = m.budget * period_s;
     if tick_s > allowed_s && !force {
         let max_rate = m.budget / tick_s;
         return Err(PilError::Refused(format!(
-            "a tick takes about {instructions:.0} instructions on the target: {:.2} µs at {:.0} MHz ({} cycle per instruction), over {:.0} % of the {:.2} µs period; the part holds at most {:.0} Hz (plant.timing.servo_rate_hz) — or run it anyway to measure it (--force)",
+            "a tick takes {instructions:.0} instructions on the target: at least {:.2} µs at {:.0} MHz ({} cycle per instruction), over {:.0} % of the {:.2} µs period; the part holds at most {:.0} Hz (plant.timing.servo_rate_hz) — or run it anyway to measure it (--force)",
             tick_s * 1e6,
             m.clock_hz / 1e6,
             m.cycles_per_instruction,
@@ -235,14 +241,54 @@ mod tests {
     fn the_rate_check_converts_counts_to_time_on_the_part() {
         let m = TargetModel::default();
         let period = 1.0 / 199_600.0; // 5.01 µs; 80 % of it is 4.008 µs = 1924 cycles at 480 MHz
-                                      // 48 counts = 1920 instructions: fits; 49 counts = 1960: does not.
-        assert!(check_rate(&m, period, 48, false).is_ok());
-        let Err(PilError::Refused(why)) = check_rate(&m, period, 49, false) else {
+        assert!(check_rate(&m, period, 1920.0, false).is_ok());
+        let Err(PilError::Refused(why)) = check_rate(&m, period, 1960.0, false) else {
             panic!("1960 instructions exceed 80 % of 5.01 µs at 480 MHz");
         };
         // The rate it would hold: 0.8 / (1960 / 480 MHz) = 195 918 Hz.
         assert!(why.contains("195918 Hz"), "{why}");
-        assert!(check_rate(&m, period, 49, true).is_ok(), "--force runs it");
+        assert!(
+            check_rate(&m, period, 1960.0, true).is_ok(),
+            "--force runs it"
+        );
+        // QEMU's clock at shift 5 (32 ns an instruction) against the MPS2's 25 MHz SysTick.
+        assert_eq!(instructions_per_count(25_000_000), 1.25);
+    }
+
+    /// An ELF header QEMU would be given: 32-bit, little-endian, executable, ARM.
+    fn arm_elf_header() -> [u8; 64] {
+        let mut head = [0u8; 64];
+        head[..6].copy_from_slice(b"\x7fELF\x01\x01");
+        head[16] = 2;
+        head[18] = 40;
+        head
+    }
+
+    #[test]
+    fn an_emulator_that_ends_is_reported_with_what_it_said() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fw = dir.path().join("fw.elf");
+        std::fs::write(&fw, arm_elf_header()).unwrap();
+        let qemu = dir.path().join("qemu");
+        std::fs::write(
+            &qemu,
+            "#!/bin/sh\necho 'no such machine: mps2-an500' >&2\nexit 3\n",
+        )
+        .unwrap();
+        std::fs::set_permissions(&qemu, std::fs::Permissions::from_mode(0o700)).unwrap();
+        let opts = PilOptions {
+            qemu,
+            ..PilOptions::new(&fw)
+        };
+        let Err(PilError::Lost(why)) = TargetLoop::start(&Deployment::thesis_prototype(), &opts)
+        else {
+            panic!("an emulator that exits at once loses the link");
+        };
+        assert!(
+            why.contains("exit status: 3") && why.contains("no such machine"),
+            "{why}"
+        );
     }
 
     #[test]
@@ -252,7 +298,8 @@ mod tests {
         std::fs::write(&not_elf, [0u8; 64]).unwrap();
         let x86_elf = dir.path().join("host.elf");
         let mut head = [0u8; 64];
-        head[..6].copy_from_slice(b"\x7fELF\x02\x01");
+        head[..6].copy_from_slice(b"\x7fELF\x01\x01");
+        head[16] = 2;
         head[18] = 62; // x86-64
         std::fs::write(&x86_elf, head).unwrap();
         for (path, says) in [

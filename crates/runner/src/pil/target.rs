@@ -2,14 +2,21 @@
 //! back per tick.
 
 use super::{
-    check_boot, check_firmware, check_rate, PilError, PilOptions, TargetMeta, ANSWER_TIMEOUT_MS,
-    INSTRUCTIONS_PER_COUNT,
+    check_boot, check_firmware, check_rate, instructions_per_count, PilError, PilOptions,
+    TargetMeta, ANSWER_TIMEOUT, ICOUNT_SHIFT,
 };
-use servo_runtime::link::{self, image, kind, Boot, FrameReader, Report, TickReply};
+use servo_runtime::link::TickReply;
+use servo_runtime::link::{self, image, kind, Boot, BootError, FrameReader, Ready, Report};
 use servo_runtime::Deployment;
 use std::io::{Read, Write};
 use std::os::fd::AsFd;
+use std::os::unix::process::CommandExt;
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// The most of QEMU's own messages kept (it names a missing machine, an unloadable file).
+const STDERR_BYTES: u64 = 4096;
 
 /// The loop running on the target.
 pub struct TargetLoop {
@@ -23,12 +30,16 @@ pub struct TargetLoop {
     have: usize,
     at: usize,
     boot: Boot,
+    per_count: f64,
+    load_stack_bytes: u32,
+    stderr: Arc<Mutex<String>>,
     opts: PilOptions,
     period_s: f64,
     last: Option<TickReply>,
     counts_total: u64,
     counts_max: u32,
     ticks: u64,
+    samples: u64,
     over_budget: u64,
     lost: Option<String>,
 }
@@ -39,9 +50,13 @@ impl TargetLoop {
     /// hold unless forced).
     pub fn start(deployment: &Deployment, opts: &PilOptions) -> Result<Self, PilError> {
         check_firmware(&opts.firmware)?;
+        let icount = format!("shift={ICOUNT_SHIFT}");
         let mut child = Command::new(&opts.qemu)
             .args(["-M", "mps2-an500", "-nodefaults", "-display", "none"])
-            .args(["-icount", "shift=0", "-no-reboot"])
+            .args(["-icount", &icount, "-no-reboot"])
+            // The firmware ends the emulator through semihosting when the link falls silent
+            // (this process gone).
+            .args(["-semihosting-config", "enable=on,target=native"])
             .args([
                 "-chardev",
                 "stdio,id=link,signal=off",
@@ -53,15 +68,32 @@ impl TargetLoop {
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
+            // Its own process group: a Ctrl-C at the terminal stops the run, not the target.
+            .process_group(0)
             .spawn()
             .map_err(|e| PilError::Emulator {
                 qemu: opts.qemu.clone(),
                 why: e.to_string(),
             })?;
-        let (Some(input), Some(output)) = (child.stdin.take(), child.stdout.take()) else {
+        let (Some(input), Some(output), Some(err)) =
+            (child.stdin.take(), child.stdout.take(), child.stderr.take())
+        else {
             let _ = child.kill();
+            let _ = child.wait();
             return Err(PilError::Lost("no pipes to the emulator".into()));
         };
+        // Drained as it comes (a full pipe would stall QEMU), the first few KiB kept.
+        let stderr = Arc::new(Mutex::new(String::new()));
+        let kept = Arc::clone(&stderr);
+        std::thread::spawn(move || {
+            let mut err = err;
+            let mut head = String::new();
+            let _ = (&mut err).take(STDERR_BYTES).read_to_string(&mut head);
+            if let Ok(mut k) = kept.lock() {
+                *k = head;
+            }
+            let _ = std::io::copy(&mut err, &mut std::io::sink());
+        });
         let mut target = TargetLoop {
             child,
             input,
@@ -79,27 +111,38 @@ impl TargetLoop {
                 stack_bytes: 0,
                 systick_hz: 0,
             },
+            per_count: 0.0,
+            load_stack_bytes: 0,
+            stderr,
             opts: opts.clone(),
             period_s: deployment.period_s(),
             last: None,
             counts_total: 0,
             counts_max: 0,
             ticks: 0,
+            samples: 0,
             over_budget: 0,
             lost: None,
         };
         target.expect(kind::BOOT)?;
-        target.boot = Boot::decode(&target.frame)
-            .ok_or_else(|| PilError::Lost("a BOOT frame of the wrong length".into()))?;
+        target.boot = Boot::decode(&target.frame).map_err(|e| match e {
+            BootError::Version(v) => PilError::Refused(format!(
+                "the firmware speaks link version {v}, this servo {}: rebuild the firmware from this checkout",
+                link::LINK_VERSION
+            )),
+            BootError::Length => PilError::Lost("a BOOT frame of the wrong length".into()),
+        })?;
         check_boot(&target.boot, deployment)?;
+        target.per_count = instructions_per_count(target.boot.systick_hz);
         let mut bytes = vec![0u8; image::MAX_BYTES];
         let n = image::encode(deployment, &mut bytes)
             .ok_or_else(|| PilError::Refused("the deployment does not fit an image".into()))?;
         target.send(kind::LOAD, &bytes[..n])?;
         target.expect(kind::READY)?;
-        let probe = <[u8; 4]>::try_from(target.frame.as_slice())
-            .map(u32::from_le_bytes)
-            .map_err(|_| PilError::Lost("a READY frame of the wrong length".into()))?;
+        let ready = Ready::decode(&target.frame)
+            .ok_or_else(|| PilError::Lost("a READY frame of the wrong length".into()))?;
+        target.load_stack_bytes = ready.load_stack_bytes;
+        let probe = f64::from(ready.probe_counts) * target.per_count;
         check_rate(&opts.model, deployment.period_s(), probe, opts.force)?;
         Ok(target)
     }
@@ -107,19 +150,26 @@ impl TargetLoop {
     fn send(&mut self, kind: u8, payload: &[u8]) -> Result<(), PilError> {
         self.outbox.clear();
         let out = &mut self.outbox;
-        link::write_frame(kind, payload, |b| out.push(b));
+        if !link::write_frame(kind, payload, |b| out.push(b)) {
+            return Err(PilError::Lost(format!(
+                "a frame of {} bytes (at most {})",
+                payload.len(),
+                link::MAX_PAYLOAD
+            )));
+        }
         self.input
             .write_all(&self.outbox)
             .and_then(|()| self.input.flush())
             .map_err(|e| PilError::Lost(format!("writing to the emulator: {e}")))
     }
 
-    /// Waits for the next frame (bounded by [`ANSWER_TIMEOUT_MS`]); its payload is left in
+    /// Waits for the next frame, whole within [`ANSWER_TIMEOUT`]; its payload is left in
     /// `self.frame`. A REFUSED frame becomes [`PilError::Refused`].
     fn expect(&mut self, want: u8) -> Result<(), PilError> {
+        let deadline = Instant::now() + ANSWER_TIMEOUT;
         loop {
             if self.at == self.have {
-                self.fill()?;
+                self.fill(deadline)?;
             }
             let byte = self.inbox[self.at];
             self.at += 1;
@@ -143,16 +193,25 @@ impl TargetLoop {
         }
     }
 
-    fn fill(&mut self) -> Result<(), PilError> {
+    fn fill(&mut self, deadline: Instant) -> Result<(), PilError> {
         use nix::poll::{poll, PollFd, PollFlags, PollTimeout};
-        let mut fds = [PollFd::new(self.output.as_fd(), PollFlags::POLLIN)];
-        let ready = poll(&mut fds, PollTimeout::from(ANSWER_TIMEOUT_MS))
-            .map_err(|e| PilError::Lost(format!("waiting for the target: {e}")))?;
-        if ready == 0 {
-            return Err(PilError::Lost(format!(
-                "the target did not answer within {} s",
-                ANSWER_TIMEOUT_MS / 1000
-            )));
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            let ms = u16::try_from(left.as_millis()).unwrap_or(u16::MAX);
+            let mut fds = [PollFd::new(self.output.as_fd(), PollFlags::POLLIN)];
+            match poll(&mut fds, PollTimeout::from(ms)) {
+                Ok(0) if left.is_zero() => {
+                    return Err(PilError::Lost(format!(
+                        "the target did not answer within {} s",
+                        ANSWER_TIMEOUT.as_secs()
+                    )))
+                }
+                Ok(0) => continue,
+                Ok(_) => break,
+                // A signal (Ctrl-C: the run's stop request) interrupts the wait, not the run.
+                Err(nix::errno::Errno::EINTR) => continue,
+                Err(e) => return Err(PilError::Lost(format!("waiting for the target: {e}"))),
+            }
         }
         let n = self
             .output
@@ -168,14 +227,15 @@ impl TargetLoop {
     /// How the emulator ended, with the start of what it printed (QEMU names a missing
     /// machine, a firmware it cannot load).
     fn exited(&mut self) -> String {
+        // Its stdout is closed: it is ending; make sure, then collect it.
+        let _ = self.child.kill();
         let status = self
             .child
             .wait()
             .map_or("unknown".into(), |s| s.to_string());
-        let mut said = String::new();
-        if let Some(err) = self.child.stderr.take() {
-            let _ = err.take(2048).read_to_string(&mut said);
-        }
+        // The drain thread ends with the pipe; give it a moment to hand over the text.
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        let said = self.stderr.lock().map(|s| s.clone()).unwrap_or_default();
         match said.trim() {
             "" => format!("the emulator exited ({status})"),
             said => format!("the emulator exited ({status}): {said}"),
@@ -192,6 +252,7 @@ impl TargetLoop {
         link::encode_sensor(s, &mut bytes);
         self.send(kind::SAMPLE, &bytes)?;
         self.expect(kind::TICK)?;
+        self.samples += 1;
         let reply = TickReply::decode(&self.frame)
             .ok_or_else(|| PilError::Lost("a TICK frame of the wrong length".into()))?;
         if reply.command.seq != s.seq {
@@ -208,9 +269,7 @@ impl TargetLoop {
             self.counts_total += u64::from(reply.cost_counts);
             self.counts_max = self.counts_max.max(reply.cost_counts);
             let m = &self.opts.model;
-            if m.seconds(f64::from(reply.cost_counts) * INSTRUCTIONS_PER_COUNT)
-                > m.budget * self.period_s
-            {
+            if m.seconds(f64::from(reply.cost_counts) * self.per_count) > m.budget * self.period_s {
                 self.over_budget += 1;
             }
         }
@@ -258,23 +317,33 @@ impl TargetLoop {
 
     /// Asks the target for its report, stops the emulator, and returns what was measured.
     pub fn finish(mut self) -> TargetMeta {
-        let report = if self.lost.is_none() {
-            self.send(kind::REPORT_REQUEST, &[])
-                .and_then(|()| self.expect(kind::REPORT))
-                .ok()
-                .and_then(|()| Report::decode(&self.frame))
-        } else {
-            None
-        };
+        let mut stack_used_bytes = 0;
+        if self.lost.is_none() {
+            let asked = self
+                .send(kind::REPORT_REQUEST, &[])
+                .and_then(|()| self.expect(kind::REPORT));
+            match asked.map(|()| Report::decode(&self.frame)) {
+                // The target counts the closing sample's tick too.
+                Ok(Some(r)) if r.ticks == self.samples => stack_used_bytes = r.stack_used_bytes,
+                Ok(Some(r)) => {
+                    self.lost = Some(format!(
+                        "the target ticked {} times for {} samples",
+                        r.ticks, self.samples
+                    ))
+                }
+                Ok(None) => self.lost = Some("a REPORT frame of the wrong length".into()),
+                Err(e) => self.lost = Some(format!("no report at the end: {e}")),
+            }
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
         let m = self.opts.model;
         let mean = if self.ticks == 0 {
             0.0
         } else {
-            self.counts_total as f64 / self.ticks as f64 * INSTRUCTIONS_PER_COUNT
+            self.counts_total as f64 / self.ticks as f64 * self.per_count
         };
-        let max = f64::from(self.counts_max) * INSTRUCTIONS_PER_COUNT;
+        let max = f64::from(self.counts_max) * self.per_count;
         TargetMeta {
             machine: self.machine(),
             build: self.build(),
@@ -285,7 +354,9 @@ impl TargetLoop {
             clock_hz: m.clock_hz,
             cycles_per_instruction: m.cycles_per_instruction,
             over_budget_ticks: self.over_budget,
-            stack_used_bytes: report.map_or(0, |r| r.stack_used_bytes),
+            stack_used_bytes,
+            load_stack_bytes: self.load_stack_bytes,
+            stack_bytes: self.boot.stack_bytes,
             lost: self.lost.take(),
         }
     }

@@ -7,7 +7,7 @@
 use super::{Reader, Writer};
 use crate::deployment::{
     ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ReferenceSpec,
-    SsMatrices, Stability, Stage, ZpetcSpec, MAX_SS_ORDER, ZPETC_SECTIONS,
+    SsMatrices, Stability, Stage, ZpetcSpec, MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
 };
 use crate::protection::{ProtectionConfig, SafeState};
 
@@ -273,6 +273,11 @@ pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
         2 => {
             let gain = field!(r, f64, "feedforward.gain");
             let preview = field!(r, u64, "feedforward.preview");
+            if preview > MAX_PREVIEW as u64 {
+                return Err(ImageError {
+                    field: "feedforward.preview",
+                });
+            }
             let used = field!(r, u64, "feedforward.sections");
             if used > ZPETC_SECTIONS as u64 {
                 return Err(ImageError {
@@ -411,5 +416,38 @@ mod tests {
         buf[4] = 9; // another version
         assert_eq!(decode(&buf[..n]), Err(ImageError { field: "version" }));
         assert_eq!(decode(b"ELF\x7f"), Err(ImageError { field: "magic" }));
+    }
+
+    #[test]
+    fn hostile_values_are_refused_at_their_field() {
+        let mut buf = [0u8; MAX_BYTES];
+        let n = encode(&rich(), &mut buf).unwrap();
+        // The ZPETC preview sits after the tags and the gain: find it by encoding 7 and 8.
+        let mut other = rich();
+        if let FeedforwardSpec::Zpetc(z) = &mut other.feedforward {
+            z.preview = 8;
+        }
+        let mut buf2 = [0u8; MAX_BYTES];
+        encode(&other, &mut buf2).unwrap();
+        let at = (0..n).find(|&i| buf[i] != buf2[i]).unwrap();
+        buf[at..at + 8].copy_from_slice(&u64::MAX.to_le_bytes());
+        assert_eq!(
+            decode(&buf[..n]),
+            Err(ImageError {
+                field: "feedforward.preview"
+            })
+        );
+        // A flag byte of 2 (kg_scaling is the byte after kp, ki, kd, tf_s and ka).
+        let mut buf = [0u8; MAX_BYTES];
+        let n = encode(&Deployment::thesis_prototype(), &mut buf).unwrap();
+        let kg = 6 + 8 * 9 + 1 + 8 * 5;
+        assert_eq!(buf[kg], 0);
+        buf[kg] = 2;
+        assert_eq!(
+            decode(&buf[..n]),
+            Err(ImageError {
+                field: "controller.kg_scaling"
+            })
+        );
     }
 }

@@ -1,5 +1,5 @@
 //! The serial link between a host and a [`crate::Servo`] on a microcontroller: framed messages
-//! (sync byte, kind, length, payload, CRC-16) and the byte layouts of what they carry — the
+//! (sync byte, kind, length, payload, CRC-32) and the byte layouts of what they carry — the
 //! [`crate::Deployment`] sent once at start ([`image`]), one [`daq_io::Sensor`] per tick in and
 //! one [`TickReply`] per tick out. `no_std`, no allocation: the firmware (`firmware/`) and the
 //! host's processor-in-the-loop driver (`servo run --pil`) share this module, so both ends
@@ -9,8 +9,8 @@ pub mod image;
 mod payload;
 
 pub use payload::{
-    decode_sensor, encode_sensor, Boot, Report, TickReply, BOOT_BYTES, REPORT_BYTES, SENSOR_BYTES,
-    TICK_BYTES,
+    decode_sensor, encode_sensor, Boot, BootError, Ready, Report, TickReply, BOOT_BYTES,
+    LINK_VERSION, READY_BYTES, REPORT_BYTES, SENSOR_BYTES, TICK_BYTES,
 };
 
 /// First byte of every frame.
@@ -20,14 +20,19 @@ pub const SYNC: u8 = 0xA5;
 /// controller fits).
 pub const MAX_PAYLOAD: usize = 16_384;
 
+const _: () = assert!(
+    image::MAX_BYTES <= MAX_PAYLOAD,
+    "the largest image fits one frame"
+);
+
 /// Frame kinds.
 pub mod kind {
     /// Target → host at reset: what the firmware is ([`super::Boot`]).
     pub const BOOT: u8 = 1;
     /// Host → target: a deployment image ([`super::image`]) to build the loop from.
     pub const LOAD: u8 = 2;
-    /// Target → host: the loop is built; payload: the probe's cost of a tick in SysTick counts
-    /// (u32).
+    /// Target → host: the loop is built ([`super::Ready`]: the probe's cost of a tick, the
+    /// stack the building used).
     pub const READY: u8 = 3;
     /// Target → host: the deployment was refused; payload: the reason, UTF-8.
     pub const REFUSED: u8 = 4;
@@ -41,31 +46,45 @@ pub mod kind {
     pub const REPORT: u8 = 8;
 }
 
-/// CRC-16/CCITT-FALSE (poly 0x1021, initial 0xFFFF) of `bytes`, continuing from `crc`.
-pub fn crc16(mut crc: u16, bytes: &[u8]) -> u16 {
-    for &b in bytes {
-        crc ^= u16::from(b) << 8;
-        for _ in 0..8 {
-            crc = if crc & 0x8000 != 0 {
-                (crc << 1) ^ 0x1021
-            } else {
-                crc << 1
-            };
-        }
+/// CRC-32 (IEEE 802.3: reflected polynomial 0xEDB88320) of one more byte, from the running
+/// value `crc` (start with `!0`, finish with `!crc`). Byte by byte, so a receiver keeps up
+/// with its UART: it detects every error of up to three bits in any frame this link carries.
+pub fn crc32_byte(mut crc: u32, byte: u8) -> u32 {
+    crc ^= u32::from(byte);
+    for _ in 0..8 {
+        crc = if crc & 1 != 0 {
+            (crc >> 1) ^ 0xEDB8_8320
+        } else {
+            crc >> 1
+        };
     }
     crc
 }
 
-/// Writes one frame of `kind` carrying `payload` (at most [`MAX_PAYLOAD`] bytes) byte by byte
-/// through `put`.
-pub fn write_frame(kind: u8, payload: &[u8], mut put: impl FnMut(u8)) {
-    let len = (payload.len().min(MAX_PAYLOAD) as u16).to_le_bytes();
-    let head = [kind, len[0], len[1]];
-    let payload = &payload[..payload.len().min(MAX_PAYLOAD)];
-    let crc = crc16(crc16(0xFFFF, &head), payload);
+/// CRC-32 (IEEE) of `bytes`.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    !bytes.iter().fold(!0, |crc, &b| crc32_byte(crc, b))
+}
+
+/// Writes one frame of `kind` carrying `payload` byte by byte through `put`; false (nothing
+/// written) when the payload exceeds [`MAX_PAYLOAD`].
+#[must_use]
+pub fn write_frame(kind: u8, payload: &[u8], mut put: impl FnMut(u8)) -> bool {
+    let Ok(len) = u16::try_from(payload.len()) else {
+        return false;
+    };
+    if payload.len() > MAX_PAYLOAD {
+        return false;
+    }
+    let head = [kind, len.to_le_bytes()[0], len.to_le_bytes()[1]];
+    let crc = !head
+        .iter()
+        .chain(payload)
+        .fold(!0, |c, &b| crc32_byte(c, b));
     put(SYNC);
     head.iter().chain(payload).for_each(|&b| put(b));
     crc.to_le_bytes().iter().for_each(|&b| put(b));
+    true
 }
 
 /// What [`FrameReader::push`] found wrong in the byte stream.
@@ -73,7 +92,7 @@ pub fn write_frame(kind: u8, payload: &[u8], mut put: impl FnMut(u8)) {
 pub enum FrameError {
     /// A frame's length field exceeds [`MAX_PAYLOAD`].
     TooLong(u16),
-    /// A frame's CRC did not match its bytes (a corrupted or desynchronised link).
+    /// A frame's CRC-32 did not match its bytes (a corrupted or desynchronised link).
     Crc,
 }
 
@@ -84,7 +103,7 @@ impl core::fmt::Display for FrameError {
                 f,
                 "link frame of {n} bytes (at most {MAX_PAYLOAD}): the link is desynchronised"
             ),
-            FrameError::Crc => f.write_str("link frame failed its CRC: the link is corrupted"),
+            FrameError::Crc => f.write_str("link frame failed its CRC-32: the link is corrupted"),
         }
     }
 }
@@ -96,18 +115,19 @@ enum State {
     Len0,
     Len1,
     Payload,
-    Crc0,
-    Crc1,
+    /// The CRC's bytes, 0..4.
+    Crc(u8),
 }
 
 /// Reassembles frames from a byte stream, one byte at a time, in fixed storage (bytes before a
-/// [`SYNC`] are skipped).
+/// [`SYNC`] are skipped). The CRC runs with the bytes, so no byte costs more than another.
 pub struct FrameReader {
     state: State,
     kind: u8,
     len: usize,
     at: usize,
-    crc: u16,
+    crc: u32,
+    got: u32,
     buf: [u8; MAX_PAYLOAD],
 }
 
@@ -118,7 +138,8 @@ impl Default for FrameReader {
             kind: 0,
             len: 0,
             at: 0,
-            crc: 0,
+            crc: !0,
+            got: 0,
             buf: [0; MAX_PAYLOAD],
         }
     }
@@ -130,9 +151,27 @@ impl FrameReader {
         match self.state {
             State::Sync => {
                 if byte == SYNC {
+                    self.crc = !0;
                     self.state = State::Kind;
                 }
+                return Ok(None);
             }
+            State::Crc(i) => {
+                self.got |= u32::from(byte) << (8 * i);
+                if i < 3 {
+                    self.state = State::Crc(i + 1);
+                    return Ok(None);
+                }
+                self.state = State::Sync;
+                if self.got != !self.crc {
+                    return Err(FrameError::Crc);
+                }
+                return Ok(Some((self.kind, &self.buf[..self.len])));
+            }
+            _ => {}
+        }
+        self.crc = crc32_byte(self.crc, byte);
+        match self.state {
             State::Kind => {
                 self.kind = byte;
                 self.state = State::Len0;
@@ -143,18 +182,13 @@ impl FrameReader {
             }
             State::Len1 => {
                 self.len |= usize::from(byte) << 8;
-                let len = self.len as u16;
                 if self.len > MAX_PAYLOAD {
                     self.state = State::Sync;
-                    return Err(FrameError::TooLong(len));
+                    return Err(FrameError::TooLong(self.len as u16));
                 }
-                self.crc = crc16(
-                    0xFFFF,
-                    &[self.kind, len.to_le_bytes()[0], len.to_le_bytes()[1]],
-                );
-                self.at = 0;
+                (self.at, self.got) = (0, 0);
                 self.state = if self.len == 0 {
-                    State::Crc0
+                    State::Crc(0)
                 } else {
                     State::Payload
                 };
@@ -163,22 +197,10 @@ impl FrameReader {
                 self.buf[self.at] = byte;
                 self.at += 1;
                 if self.at == self.len {
-                    self.crc = crc16(self.crc, &self.buf[..self.len]);
-                    self.state = State::Crc0;
+                    self.state = State::Crc(0);
                 }
             }
-            State::Crc0 => {
-                self.at = usize::from(byte);
-                self.state = State::Crc1;
-            }
-            State::Crc1 => {
-                self.state = State::Sync;
-                let got = (self.at as u16) | (u16::from(byte) << 8);
-                if got != self.crc {
-                    return Err(FrameError::Crc);
-                }
-                return Ok(Some((self.kind, &self.buf[..self.len])));
-            }
+            State::Sync | State::Crc(_) => {}
         }
         Ok(None)
     }
@@ -267,9 +289,9 @@ mod tests {
     use super::*;
 
     #[test]
-    fn crc16_ccitt_false_check_value() {
-        // The catalogue's check value: CRC-16/CCITT-FALSE("123456789") = 0x29B1.
-        assert_eq!(crc16(0xFFFF, b"123456789"), 0x29B1);
+    fn crc32_check_value() {
+        // The catalogue's check value: CRC-32/ISO-HDLC("123456789") = 0xCBF43926.
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
     }
 
     fn frames_of(stream: &[u8]) -> ([(u8, usize, u8); 4], usize, usize) {
@@ -298,16 +320,47 @@ mod tests {
             n += 1;
         };
         put(0x00); // line noise before the first sync
-        write_frame(kind::SAMPLE, &[7, 8, 9], &mut put);
-        write_frame(kind::REPORT_REQUEST, &[], &mut put);
+        assert!(write_frame(kind::SAMPLE, &[7, 8, 9], &mut put));
+        assert!(write_frame(kind::REPORT_REQUEST, &[], &mut put));
         let (got, count, errors) = frames_of(&stream[..n]);
         assert_eq!((count, errors), (2, 0));
         assert_eq!(got[0], (kind::SAMPLE, 3, 7));
         assert_eq!(got[1], (kind::REPORT_REQUEST, 0, 0));
-        // One flipped payload bit: the CRC refuses the frame.
+        // One flipped payload bit: the CRC refuses the frame; the next one still arrives.
         stream[5] ^= 0x10;
-        let (_, count, errors) = frames_of(&stream[..n]);
+        let (got, count, errors) = frames_of(&stream[..n]);
         assert_eq!((count, errors), (1, 1));
+        assert_eq!(got[0], (kind::REPORT_REQUEST, 0, 0));
+    }
+
+    #[test]
+    fn a_stray_sync_in_noise_costs_one_frame_at_most() {
+        // Noise holding a sync byte and a short length: the reader takes it for a frame, its
+        // CRC fails, and the frames after it arrive whole.
+        let mut stream = [0u8; 64];
+        let mut n = 0;
+        let mut put = |b| {
+            stream[n] = b;
+            n += 1;
+        };
+        for b in [SYNC, kind::TICK, 1, 0, 0x55, 1, 2, 3, 4] {
+            put(b);
+        }
+        assert!(write_frame(kind::SAMPLE, &[7, 8, 9], &mut put));
+        assert!(write_frame(kind::SAMPLE, &[6], &mut put));
+        let (got, count, errors) = frames_of(&stream[..n]);
+        assert_eq!(errors, 1);
+        assert_eq!(got[count - 1], (kind::SAMPLE, 1, 6));
+    }
+
+    #[test]
+    fn an_oversized_payload_is_not_sent_cut_short() {
+        let big = [0u8; MAX_PAYLOAD + 1];
+        let mut written = 0;
+        assert!(!write_frame(kind::LOAD, &big, |_| written += 1));
+        assert_eq!(written, 0);
+        assert!(write_frame(kind::LOAD, &big[..MAX_PAYLOAD], |_| written += 1));
+        assert_eq!(written, MAX_PAYLOAD + 8);
     }
 
     #[test]

@@ -10,9 +10,15 @@ pub const SENSOR_BYTES: usize = 64;
 /// Bytes of an encoded [`TickReply`].
 pub const TICK_BYTES: usize = 24 + 1 + 72 + 1 + 8 + 1 + 4;
 /// Bytes of an encoded [`Boot`].
-pub const BOOT_BYTES: usize = 2 + 2 + 1 + 4 + 4;
+pub const BOOT_BYTES: usize = 2 + 2 + 2 + 1 + 4 + 4;
+/// Bytes of an encoded [`Ready`].
+pub const READY_BYTES: usize = 4 + 4;
 /// Bytes of an encoded [`Report`].
-pub const REPORT_BYTES: usize = 8 + 8 + 4 + 4;
+pub const REPORT_BYTES: usize = 8 + 4;
+
+/// The version of the link's frames and payloads (the first field of [`Boot`]): a host and a
+/// firmware of different versions refuse each other before anything else is read.
+pub const LINK_VERSION: u16 = 1;
 
 /// Writes `s`'s fields in declaration order.
 pub fn encode_sensor(s: &Sensor, out: &mut [u8; SENSOR_BYTES]) {
@@ -62,11 +68,34 @@ pub struct TickReply {
     pub cost_counts: u32,
 }
 
+/// A byte that must be 0 or 1.
+fn flag(b: u8) -> Option<bool> {
+    match b {
+        0 => Some(false),
+        1 => Some(true),
+        _ => None,
+    }
+}
+
+/// The wire codes of the trip causes (0: no trip), fixed here rather than taken from the
+/// order of [`TripCause::ALL`].
+const CAUSES: [(TripCause, u8); 5] = [
+    (TripCause::FollowingError, 1),
+    (TripCause::SensorRange, 2),
+    (TripCause::Saturation, 3),
+    (TripCause::NotFinite, 4),
+    (TripCause::ReferenceFault, 5),
+];
+
 fn cause_code(cause: TripCause) -> u8 {
-    TripCause::ALL
+    CAUSES
         .iter()
-        .position(|&c| c == cause)
-        .map_or(0, |i| i as u8 + 1)
+        .find(|(c, _)| *c == cause)
+        .map_or(0, |&(_, code)| code)
+}
+
+fn cause_of(code: u8) -> Option<TripCause> {
+    CAUSES.iter().find(|&&(_, k)| k == code).map(|&(c, _)| c)
 }
 
 impl TickReply {
@@ -111,7 +140,7 @@ impl TickReply {
             flags: r.u32()?,
             reserved: r.u32()?,
         };
-        let present = r.u8()? != 0;
+        let present = flag(r.u8()?)?;
         let t = Telemetry {
             seq: r.u64()?,
             time_s: r.f64()?,
@@ -129,7 +158,7 @@ impl TickReply {
         let trip = match cause {
             0 => None,
             c => Some(Trip {
-                cause: *TripCause::ALL.get(usize::from(c) - 1)?,
+                cause: cause_of(c)?,
                 tick,
             }),
         };
@@ -137,7 +166,7 @@ impl TickReply {
             command,
             telemetry: present.then_some(t),
             trip,
-            trip_settled: r.u8()? != 0,
+            trip_settled: flag(r.u8()?)?,
             cost_counts: r.u32()?,
         };
         (r.rest() == 0).then_some(reply)
@@ -160,12 +189,22 @@ pub struct Boot {
     pub systick_hz: u32,
 }
 
+/// Why a BOOT frame is not one this host reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BootError {
+    /// Another link version (the firmware was built from another checkout).
+    Version(u16),
+    /// The right version but the wrong length.
+    Length,
+}
+
 impl Boot {
-    /// The boot report's bytes.
+    /// The boot report's bytes, [`LINK_VERSION`] first.
     pub fn encode(&self) -> [u8; BOOT_BYTES] {
         let mut out = [0; BOOT_BYTES];
         let mut w = Writer::new(&mut out);
         let _ = (|| {
+            w.bytes(&LINK_VERSION.to_le_bytes())?;
             w.bytes(&self.image_version.to_le_bytes())?;
             w.bytes(&self.max_order.to_le_bytes())?;
             w.u8(u8::from(self.f64_in_hardware))?;
@@ -175,30 +214,65 @@ impl Boot {
         out
     }
 
-    /// The report [`Boot::encode`] wrote; None unless `bytes` is one.
-    pub fn decode(bytes: &[u8]) -> Option<Self> {
+    /// The report [`Boot::encode`] wrote; the link version is checked before anything else.
+    pub fn decode(bytes: &[u8]) -> Result<Self, BootError> {
         let mut r = Reader::new(bytes);
-        let b = Boot {
-            image_version: u16::from_le_bytes(r.take()?),
-            max_order: u16::from_le_bytes(r.take()?),
-            f64_in_hardware: r.u8()? != 0,
-            stack_bytes: r.u32()?,
-            systick_hz: r.u32()?,
-        };
-        (r.rest() == 0).then_some(b)
+        let version = r.take().map(u16::from_le_bytes).ok_or(BootError::Length)?;
+        if version != LINK_VERSION {
+            return Err(BootError::Version(version));
+        }
+        let b = (|| {
+            Some(Boot {
+                image_version: u16::from_le_bytes(r.take()?),
+                max_order: u16::from_le_bytes(r.take()?),
+                f64_in_hardware: flag(r.u8()?)?,
+                stack_bytes: r.u32()?,
+                systick_hz: r.u32()?,
+            })
+        })();
+        match b {
+            Some(b) if r.rest() == 0 => Ok(b),
+            _ => Err(BootError::Length),
+        }
     }
 }
 
-/// What the target measured over the run.
+/// The target's answer to a deployment it built: what its probe and the building cost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Ready {
+    /// The worst of the probe's quiet ticks in SysTick counts.
+    pub probe_counts: u32,
+    /// Stack the building of the loop used at its deepest, bytes (more than a tick: the
+    /// deployment and the loop pass through it).
+    pub load_stack_bytes: u32,
+}
+
+impl Ready {
+    /// Its bytes.
+    pub fn encode(&self) -> [u8; READY_BYTES] {
+        let mut out = [0; READY_BYTES];
+        out[..4].copy_from_slice(&self.probe_counts.to_le_bytes());
+        out[4..].copy_from_slice(&self.load_stack_bytes.to_le_bytes());
+        out
+    }
+
+    /// What [`Ready::encode`] wrote; None unless `bytes` is one.
+    pub fn decode(bytes: &[u8]) -> Option<Self> {
+        let mut r = Reader::new(bytes);
+        let ready = Ready {
+            probe_counts: r.u32()?,
+            load_stack_bytes: r.u32()?,
+        };
+        (r.rest() == 0).then_some(ready)
+    }
+}
+
+/// What the target counted over the run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Report {
-    /// Ticks run.
+    /// Tick interrupts run (every sample's, the closing one's included).
     pub ticks: u64,
-    /// SysTick counts summed over the ticks' interrupt bodies.
-    pub counts_total: u64,
-    /// The most SysTick counts one tick took.
-    pub counts_max: u32,
-    /// Deepest stack use since reset in bytes (the painted stack's high-water mark).
+    /// Deepest stack use while the loop ran, bytes (the painted stack's high-water mark).
     pub stack_used_bytes: u32,
 }
 
@@ -206,13 +280,8 @@ impl Report {
     /// The report's bytes.
     pub fn encode(&self) -> [u8; REPORT_BYTES] {
         let mut out = [0; REPORT_BYTES];
-        let mut w = Writer::new(&mut out);
-        let _ = (|| {
-            w.u64(self.ticks)?;
-            w.u64(self.counts_total)?;
-            w.u32(self.counts_max)?;
-            w.u32(self.stack_used_bytes)
-        })();
+        out[..8].copy_from_slice(&self.ticks.to_le_bytes());
+        out[8..].copy_from_slice(&self.stack_used_bytes.to_le_bytes());
         out
     }
 
@@ -221,8 +290,6 @@ impl Report {
         let mut r = Reader::new(bytes);
         let rep = Report {
             ticks: r.u64()?,
-            counts_total: r.u64()?,
-            counts_max: r.u32()?,
             stack_used_bytes: r.u32()?,
         };
         (r.rest() == 0).then_some(rep)
@@ -291,6 +358,12 @@ mod tests {
         };
         closing.encode(&mut b);
         assert_eq!(TickReply::decode(&b), Some(closing));
+        // Every cause has its own code, and a flag byte other than 0 or 1 is refused.
+        for cause in TripCause::ALL {
+            assert_eq!(cause_of(cause_code(cause)), Some(cause));
+        }
+        b[24] = 2;
+        assert_eq!(TickReply::decode(&b), None);
     }
 
     #[test]
@@ -302,11 +375,22 @@ mod tests {
             stack_bytes: 65_536,
             systick_hz: 25_000_000,
         };
-        assert_eq!(Boot::decode(&boot.encode()), Some(boot));
+        assert_eq!(Boot::decode(&boot.encode()), Ok(boot));
+        let mut other = boot.encode();
+        other[0] = 9; // a firmware of another link version: refused before its fields are read
+        assert_eq!(Boot::decode(&other), Err(BootError::Version(9)));
+        assert_eq!(Boot::decode(&other[..3]), Err(BootError::Version(9)));
+        assert_eq!(
+            Boot::decode(&boot.encode()[..BOOT_BYTES - 1]),
+            Err(BootError::Length)
+        );
+        let ready = Ready {
+            probe_counts: 17,
+            load_stack_bytes: 70_000,
+        };
+        assert_eq!(Ready::decode(&ready.encode()), Some(ready));
         let rep = Report {
             ticks: 2000,
-            counts_total: 123_456,
-            counts_max: 99,
             stack_used_bytes: 4321,
         };
         assert_eq!(Report::decode(&rep.encode()), Some(rep));
