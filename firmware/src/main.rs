@@ -130,50 +130,6 @@ fn send(uart: &mut Uart, kind: u8, payload: &[u8]) {
     let _ = link::write_frame(kind, payload, |b| uart.put(b));
 }
 
-/// SysTick wraps (0.67 s each at 25 MHz) of a silent link after which the firmware ends the
-/// emulator: about a minute of the emulated clock.
-#[cfg(feature = "qemu")]
-const SILENT_WRAPS: u32 = 90;
-
-/// Ends QEMU through semihosting (SYS_EXIT, "application exit").
-#[cfg(feature = "qemu")]
-fn exit_emulator() -> ! {
-    // SAFETY: under QEMU with semihosting on, BKPT 0xAB with r0 = SYS_EXIT (0x18) and r1 =
-    // ADP_Stopped_ApplicationExit ends the emulator; it touches no memory of ours.
-    unsafe {
-        core::arch::asm!("bkpt 0xAB", in("r0") 0x18u32, in("r1") 0x20026u32, options(nostack));
-    }
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-/// Waits for the link's next byte; under QEMU, a link silent for [`SILENT_WRAPS`] SysTick
-/// wraps ends the emulator (the host is gone).
-fn next_byte(uart: &mut Uart) -> u8 {
-    #[cfg(feature = "qemu")]
-    {
-        let mut wraps = 0;
-        let got = uart.get(|| {
-            // SAFETY: a read of SysTick's control register; its COUNTFLAG bit clears on read.
-            if unsafe { (*SYST::PTR).csr.read() } & (1 << 16) != 0 {
-                wraps += 1;
-            }
-            wraps < SILENT_WRAPS
-        });
-        match got {
-            Some(b) => b,
-            None => exit_emulator(),
-        }
-    }
-    #[cfg(not(feature = "qemu"))]
-    loop {
-        if let Some(b) = uart.get(|| true) {
-            return b;
-        }
-    }
-}
-
 /// A message in fixed storage (a refusal's text).
 struct Text {
     buf: [u8; 256],
@@ -311,7 +267,7 @@ fn main() -> ! {
         }
     };
     loop {
-        let byte = next_byte(&mut uart);
+        let byte = uart.get();
         match reader.push(byte) {
             Ok(None) => {}
             Ok(Some((kind::SAMPLE, p))) => tick(p, &mut uart),

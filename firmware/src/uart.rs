@@ -39,16 +39,12 @@ impl Uart {
         }
     }
 
-    /// The next received byte, waiting for it while `idle()` says to go on.
-    pub fn get(&mut self, mut idle: impl FnMut() -> bool) -> Option<u8> {
+    /// The next received byte, waiting for it.
+    pub fn get(&mut self) -> u8 {
         // SAFETY: STATE and DATA are the UART's registers; reading DATA takes the byte.
         unsafe {
-            while read_volatile(STATE) & RX_FULL == 0 {
-                if !idle() {
-                    return None;
-                }
-            }
-            Some(read_volatile(DATA) as u8)
+            while read_volatile(STATE) & RX_FULL == 0 {}
+            read_volatile(DATA) as u8
         }
     }
 }

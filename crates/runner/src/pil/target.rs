@@ -18,6 +18,25 @@ use std::time::Instant;
 /// The most of QEMU's own messages kept (it names a missing machine, an unloadable file).
 const STDERR_BYTES: u64 = 4096;
 
+/// The command that starts `qemu`: through util-linux's `setpriv --pdeathsig KILL` when it is
+/// on `PATH`, so the emulator dies with this process even when it is killed outright (it
+/// would otherwise spin on its UART forever).
+fn emulator(qemu: &std::path::Path) -> Command {
+    let setpriv = std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths)
+            .map(|dir| dir.join("setpriv"))
+            .find(|p| p.is_file())
+    });
+    match setpriv {
+        Some(setpriv) => {
+            let mut c = Command::new(setpriv);
+            c.args(["--pdeathsig", "KILL", "--"]).arg(qemu);
+            c
+        }
+        None => Command::new(qemu),
+    }
+}
+
 /// The loop running on the target.
 pub struct TargetLoop {
     child: Child,
@@ -51,12 +70,9 @@ impl TargetLoop {
     pub fn start(deployment: &Deployment, opts: &PilOptions) -> Result<Self, PilError> {
         check_firmware(&opts.firmware)?;
         let icount = format!("shift={ICOUNT_SHIFT}");
-        let mut child = Command::new(&opts.qemu)
+        let mut child = emulator(&opts.qemu)
             .args(["-M", "mps2-an500", "-nodefaults", "-display", "none"])
             .args(["-icount", &icount, "-no-reboot"])
-            // The firmware ends the emulator through semihosting when the link falls silent
-            // (this process gone).
-            .args(["-semihosting-config", "enable=on,target=native"])
             .args([
                 "-chardev",
                 "stdio,id=link,signal=off",
