@@ -194,7 +194,7 @@ pub struct ScenarioArgs {
     pub f_end: Option<f64>,
     /// Cutting force in N (intermittent-cut).
     #[arg(value_parser = crate::args::finite, long)]
-    pub force: Option<f64>,
+    pub cut_force: Option<f64>,
     /// Spindle speed in rpm (intermittent-cut, machine).
     #[arg(value_parser = crate::args::finite, long)]
     pub rpm: Option<f64>,
@@ -209,7 +209,7 @@ impl ScenarioArgs {
                 amplitude_m: self.amplitude,
                 frequency_hz: self.frequency,
                 f_end_hz: self.f_end,
-                force_n: self.force,
+                force_n: self.cut_force,
                 spindle_rpm: self.rpm,
             };
             c.scenario = kind.scenario(&values, c.run.duration_s);
