@@ -54,47 +54,36 @@ impl Run {
         let out = rec.out(DEFAULT_RECORDING.as_ref());
         let (summary, code) = if self.hil {
             super::run_hil::run(&plan, &self.hil_args, &self.timeout, rec, out.clone())?
-        } else if let Some(firmware) = &self.pil {
-            let mut pil = PilOptions::new(firmware);
-            pil.force = self.run.controller.force;
-            if let Some(hz) = self.target_clock_hz {
-                pil.model.clock_hz = hz;
-            }
-            let stop = stop_on_signals();
-            let summary = with_progress(rec, out.clone(), &stop, "on the target", |opts| {
-                run_on_target(
-                    &plan,
-                    RunOptions {
-                        digest: self.digest,
-                        ..opts
-                    },
-                    &pil,
-                    |_| {},
-                )
-            })?;
-            let lost = summary
-                .meta
-                .target
-                .as_ref()
-                .is_some_and(|t| t.lost.is_some());
-            let code = if lost {
-                ExitCode::from(EndReason::PeerLost.exit_code())
-            } else {
-                crate::interrupt::exit_code(&stop, summary.trip.is_some())
-            };
-            (summary, code)
         } else {
+            let pil = self.pil.as_ref().map(|firmware| {
+                let mut pil = PilOptions::new(firmware);
+                pil.force = self.run.controller.force;
+                if let Some(hz) = self.target_clock_hz {
+                    pil.model.clock_hz = hz;
+                }
+                pil
+            });
+            let what = if pil.is_some() {
+                "on the target"
+            } else {
+                "simulating"
+            };
             let stop = stop_on_signals();
-            let summary = with_progress(rec, out.clone(), &stop, "simulating", |opts| {
-                run(
-                    &plan,
-                    RunOptions {
-                        digest: self.digest,
-                        ..opts
-                    },
-                )
+            let summary = with_progress(rec, out.clone(), &stop, what, |opts| {
+                let opts = RunOptions {
+                    digest: self.digest,
+                    ..opts
+                };
+                match &pil {
+                    Some(pil) => run_on_target(&plan, opts, pil, |_| {}),
+                    None => run(&plan, opts),
+                }
             })?;
-            let code = crate::interrupt::exit_code(&stop, summary.trip.is_some());
+            // A target lost mid-run ended the run as `peer-lost`.
+            let code = match summary.meta.target.as_ref().and_then(|t| t.lost.as_ref()) {
+                Some(_) => ExitCode::from(EndReason::PeerLost.exit_code()),
+                None => crate::interrupt::exit_code(&stop, summary.trip.is_some()),
+            };
             (summary, code)
         };
         print_summary(&summary, rec.json);

@@ -118,25 +118,16 @@ pub enum PilError {
     Lost(String),
 }
 
-/// Checks that `path` is a regular file of at most 64 MiB starting with the ELF magic.
+/// Checks that `path` is a regular file of at most 64 MiB (opened as every user-named file is,
+/// [`daq_io::input_file::open_regular`]) holding a 32-bit ARM executable ELF.
 fn check_firmware(path: &Path) -> Result<(), PilError> {
     let bad = |why: String| PilError::Firmware {
         path: path.to_owned(),
         why,
     };
-    let meta = std::fs::metadata(path).map_err(|e| bad(e.to_string()))?;
-    if !meta.is_file() {
-        return Err(bad("not a regular file".into()));
-    }
-    if meta.len() > MAX_FIRMWARE_BYTES {
-        return Err(bad(format!(
-            "{} bytes, more than a firmware's {MAX_FIRMWARE_BYTES}",
-            meta.len()
-        )));
-    }
     let mut head = [0u8; 20];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut head))
+    daq_io::input_file::open_regular(path, MAX_FIRMWARE_BYTES)
+        .and_then(|(mut f, _)| f.read_exact(&mut head))
         .map_err(|e| bad(e.to_string()))?;
     // ELF, 32-bit, little-endian, an executable (type 2) for machine 40 (ARM).
     let half = |at: usize| u16::from_le_bytes([head[at], head[at + 1]]);

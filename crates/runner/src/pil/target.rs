@@ -12,7 +12,6 @@ use std::io::{Read, Write};
 use std::os::fd::AsFd;
 use std::os::unix::process::CommandExt;
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
-use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// The most of QEMU's own messages kept (it names a missing machine, an unloadable file).
@@ -51,7 +50,8 @@ pub struct TargetLoop {
     boot: Boot,
     per_count: f64,
     load_stack_bytes: u32,
-    stderr: Arc<Mutex<String>>,
+    /// The thread draining QEMU's stderr; it returns the first [`STDERR_BYTES`] of it.
+    stderr: Option<std::thread::JoinHandle<String>>,
     opts: PilOptions,
     period_s: f64,
     last: Option<TickReply>,
@@ -99,16 +99,12 @@ impl TargetLoop {
             return Err(PilError::Lost("no pipes to the emulator".into()));
         };
         // Drained as it comes (a full pipe would stall QEMU), the first few KiB kept.
-        let stderr = Arc::new(Mutex::new(String::new()));
-        let kept = Arc::clone(&stderr);
-        std::thread::spawn(move || {
+        let stderr = std::thread::spawn(move || {
             let mut err = err;
             let mut head = String::new();
             let _ = (&mut err).take(STDERR_BYTES).read_to_string(&mut head);
-            if let Ok(mut k) = kept.lock() {
-                *k = head;
-            }
             let _ = std::io::copy(&mut err, &mut std::io::sink());
+            head
         });
         let mut target = TargetLoop {
             child,
@@ -120,16 +116,10 @@ impl TargetLoop {
             inbox: [0; 512],
             have: 0,
             at: 0,
-            boot: Boot {
-                image_version: 0,
-                max_order: 0,
-                f64_in_hardware: false,
-                stack_bytes: 0,
-                systick_hz: 0,
-            },
+            boot: Boot::default(),
             per_count: 0.0,
             load_stack_bytes: 0,
-            stderr,
+            stderr: Some(stderr),
             opts: opts.clone(),
             period_s: deployment.period_s(),
             last: None,
@@ -159,7 +149,7 @@ impl TargetLoop {
             .ok_or_else(|| PilError::Lost("a READY frame of the wrong length".into()))?;
         target.load_stack_bytes = ready.load_stack_bytes;
         let probe = f64::from(ready.probe_counts) * target.per_count;
-        check_rate(&opts.model, deployment.period_s(), probe, opts.force)?;
+        check_rate(&opts.model, target.period_s, probe, opts.force)?;
         Ok(target)
     }
 
@@ -243,15 +233,18 @@ impl TargetLoop {
     /// How the emulator ended, with the start of what it printed (QEMU names a missing
     /// machine, a firmware it cannot load).
     fn exited(&mut self) -> String {
-        // Its stdout is closed: it is ending; make sure, then collect it.
+        // Its stdout is closed: it is ending; make sure, then collect it (its stderr closes
+        // with it, which ends the drain thread).
         let _ = self.child.kill();
         let status = self
             .child
             .wait()
             .map_or("unknown".into(), |s| s.to_string());
-        // The drain thread ends with the pipe; give it a moment to hand over the text.
-        std::thread::sleep(std::time::Duration::from_millis(50));
-        let said = self.stderr.lock().map(|s| s.clone()).unwrap_or_default();
+        let said = self
+            .stderr
+            .take()
+            .and_then(|t| t.join().ok())
+            .unwrap_or_default();
         match said.trim() {
             "" => format!("the emulator exited ({status})"),
             said => format!("the emulator exited ({status}): {said}"),
@@ -331,7 +324,8 @@ impl TargetLoop {
         }
     }
 
-    /// Asks the target for its report, stops the emulator, and returns what was measured.
+    /// Asks the target for its report and returns what was measured (the emulator stops when
+    /// `self` drops, at the end).
     pub fn finish(mut self) -> TargetMeta {
         let mut stack_used_bytes = 0;
         if self.lost.is_none() {
@@ -351,8 +345,6 @@ impl TargetLoop {
                 Err(e) => self.lost = Some(format!("no report at the end: {e}")),
             }
         }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
         let m = self.opts.model;
         let mean = if self.ticks == 0 {
             0.0

@@ -49,7 +49,7 @@ pub mod kind {
 /// CRC-32 (IEEE 802.3: reflected polynomial 0xEDB88320) of one more byte, from the running
 /// value `crc` (start with `!0`, finish with `!crc`). Byte by byte, so a receiver keeps up
 /// with its UART: it detects every error of up to three bits in any frame this link carries.
-pub fn crc32_byte(mut crc: u32, byte: u8) -> u32 {
+fn crc32_byte(mut crc: u32, byte: u8) -> u32 {
     crc ^= u32::from(byte);
     for _ in 0..8 {
         crc = if crc & 1 != 0 {
@@ -61,9 +61,12 @@ pub fn crc32_byte(mut crc: u32, byte: u8) -> u32 {
     crc
 }
 
-/// CRC-32 (IEEE) of `bytes`.
-pub fn crc32(bytes: &[u8]) -> u32 {
-    !bytes.iter().fold(!0, |crc, &b| crc32_byte(crc, b))
+/// CRC-32 (IEEE) of `parts`, one after the other.
+fn crc32<'a>(parts: impl IntoIterator<Item = &'a [u8]>) -> u32 {
+    !parts
+        .into_iter()
+        .flatten()
+        .fold(!0, |crc, &b| crc32_byte(crc, b))
 }
 
 /// Writes one frame of `kind` carrying `payload` byte by byte through `put`; false (nothing
@@ -77,10 +80,7 @@ pub fn write_frame(kind: u8, payload: &[u8], mut put: impl FnMut(u8)) -> bool {
         return false;
     }
     let head = [kind, len.to_le_bytes()[0], len.to_le_bytes()[1]];
-    let crc = !head
-        .iter()
-        .chain(payload)
-        .fold(!0, |c, &b| crc32_byte(c, b));
+    let crc = crc32([&head[..], payload]);
     put(SYNC);
     head.iter().chain(payload).for_each(|&b| put(b));
     crc.to_le_bytes().iter().for_each(|&b| put(b));
@@ -291,7 +291,7 @@ mod tests {
     #[test]
     fn crc32_check_value() {
         // The catalogue's check value: CRC-32/ISO-HDLC("123456789") = 0xCBF43926.
-        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+        assert_eq!(crc32([&b"123456789"[..]]), 0xCBF4_3926);
     }
 
     fn frames_of(stream: &[u8]) -> ([(u8, usize, u8); 4], usize, usize) {

@@ -174,7 +174,7 @@ impl TickReply {
 }
 
 /// What the firmware says of itself at reset.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Boot {
     /// The deployment image version it reads ([`super::image::VERSION`]).
     pub image_version: u16,
