@@ -81,6 +81,15 @@ impl Clock {
 
 macro_rules! generator_block {
     ($ty:ty, $self:ident, $t:ident => $body:expr) => {
+        impl $ty {
+            /// Moves the generator `ticks` ticks on without evaluating them, in constant time: a
+            /// loop that skipped samples stays on the plant's time.
+            #[inline]
+            pub fn skip(&mut $self, ticks: u64) {
+                $self.clock.k = $self.clock.k.saturating_add(ticks);
+            }
+        }
+
         impl Block for $ty {
             type Input = ();
             type Output = Setpoint;
@@ -506,6 +515,27 @@ mod tests {
             };
             check_derivatives(chirp.try_build(t).unwrap(), t, 40_000, 1e-3);
         }
+    }
+
+    /// Skipping n ticks lands on the value the (n+1)-th update would give: the sine of the
+    /// time, not of the updates made.
+    #[test]
+    fn a_skip_lands_where_ticking_would() {
+        let sine = SineConfig {
+            amplitude: 1.0,
+            frequency_hz: 200.0,
+            phase_rad: 0.3,
+            offset: 0.0,
+        };
+        let (mut ticked, mut skipped) = (sine.try_build(1e-5).unwrap(), sine.try_build(1e-5).unwrap());
+        for _ in 0..1234 {
+            ticked.update(());
+        }
+        skipped.skip(1234);
+        let t = 1234.0 * 1e-5;
+        let (a, b) = (skipped.update(()).position, ticked.update(()).position);
+        assert_eq!(a, b);
+        assert!((a - libm::sin(2.0 * PI * 200.0 * t + 0.3)).abs() < 1e-12);
     }
 
     #[test]

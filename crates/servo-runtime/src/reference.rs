@@ -23,9 +23,19 @@ pub trait Reference {
     }
 }
 
-/// The built-in generators: sequential, so reading `ahead` ticks early is running them early.
+/// A built-in generator on the samples' ticks: it is sequential (reading `ahead` ticks early is
+/// running it early), and a sample that skips ticks (a loop that fell behind takes the newest)
+/// moves it on by as many, so the trajectory stays on the plant's time.
 #[derive(Debug, Clone)]
-pub(crate) enum Generator {
+pub(crate) struct Generator {
+    kind: Kind,
+    /// The tick whose position the next evaluation gives.
+    next_tick: u64,
+}
+
+/// The generator's kind.
+#[derive(Debug, Clone)]
+enum Kind {
     Zero,
     Sine(Sine),
     Step(Step),
@@ -49,12 +59,12 @@ impl Generator {
                 Allowed::Text("finite values"),
             ),
         };
-        Ok(match *spec {
-            ReferenceSpec::Hold => Generator::Zero,
+        let kind = match *spec {
+            ReferenceSpec::Hold => Kind::Zero,
             ReferenceSpec::Sine {
                 amplitude_m,
                 frequency_hz,
-            } => Generator::Sine(
+            } => Kind::Sine(
                 SineConfig {
                     amplitude: amplitude_m,
                     frequency_hz,
@@ -64,7 +74,7 @@ impl Generator {
                 .try_build(period_s)
                 .map_err(invalid)?,
             ),
-            ReferenceSpec::Step { amplitude_m, at_s } => Generator::Step(
+            ReferenceSpec::Step { amplitude_m, at_s } => Kind::Step(
                 StepConfig {
                     amplitude: amplitude_m,
                     delay_s: at_s,
@@ -77,7 +87,7 @@ impl Generator {
                 f_start_hz,
                 f_end_hz,
                 duration_s,
-            } => Generator::Chirp(
+            } => Kind::Chirp(
                 ChirpConfig {
                     amplitude: amplitude_m,
                     f_start_hz,
@@ -88,36 +98,52 @@ impl Generator {
                 .try_build(period_s)
                 .map_err(invalid)?,
             ),
-        })
+        };
+        Ok(Generator { kind, next_tick: 0 })
     }
 
+    /// The position at tick `tick`: the generator moved on to it when it is ahead (constant
+    /// time), the next one in sequence otherwise (a host whose ticks do not advance `seq`).
     #[inline]
-    fn position(&mut self) -> f64 {
-        match self {
-            Generator::Zero => 0.0,
-            Generator::Sine(g) => g.update(()).position,
-            Generator::Step(g) => g.update(()).position,
-            Generator::Chirp(g) => g.update(()).position,
+    fn position_at(&mut self, tick: u64) -> f64 {
+        let skipped = tick.saturating_sub(self.next_tick);
+        self.next_tick = self.next_tick.max(tick).saturating_add(1);
+        match &mut self.kind {
+            Kind::Zero => 0.0,
+            Kind::Sine(g) => {
+                g.skip(skipped);
+                g.update(()).position
+            }
+            Kind::Step(g) => {
+                g.skip(skipped);
+                g.update(()).position
+            }
+            Kind::Chirp(g) => {
+                g.skip(skipped);
+                g.update(()).position
+            }
         }
     }
 }
 
 impl Reference for Generator {
-    fn prime(&mut self, _: &Sensor, out: &mut [f64]) {
-        out.iter_mut().for_each(|v| *v = self.position());
+    fn prime(&mut self, sample: &Sensor, out: &mut [f64]) {
+        for (j, v) in out.iter_mut().enumerate() {
+            *v = self.position_at(sample.seq.saturating_add(j as u64));
+        }
     }
 
     #[inline]
-    fn next(&mut self, _: &Sensor, _: usize) -> f64 {
-        self.position()
+    fn next(&mut self, sample: &Sensor, ahead: usize) -> f64 {
+        self.position_at(sample.seq.saturating_add(ahead as u64))
     }
 
     fn faulted(&self) -> bool {
-        match self {
-            Generator::Zero => false,
-            Generator::Sine(g) => g.faulted(),
-            Generator::Step(g) => g.faulted(),
-            Generator::Chirp(g) => g.faulted(),
+        match &self.kind {
+            Kind::Zero => false,
+            Kind::Sine(g) => g.faulted(),
+            Kind::Step(g) => g.faulted(),
+            Kind::Chirp(g) => g.faulted(),
         }
     }
 }

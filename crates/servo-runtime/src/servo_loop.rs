@@ -38,6 +38,8 @@ pub(crate) struct ServoLoop {
     feedforward: Feedforward,
     window: Window,
     primed: bool,
+    /// The sample tick expected next (`seq` of the last one + 1).
+    next_seq: u64,
     last_u: f64,
     /// The command came out non-finite once (latched like a block fault).
     output_fault: bool,
@@ -86,6 +88,7 @@ impl ServoLoop {
             feedforward,
             window,
             primed: false,
+            next_seq: 0,
             last_u: 0.0,
             output_fault: false,
             last_trip_flags: 0,
@@ -168,11 +171,15 @@ impl ServoLoop {
         }
     }
 
-    /// Reads this tick's reference into the window (the first tick fills it).
+    /// Reads this tick's reference into the window. The first tick fills it, and so does a
+    /// sample that skipped ticks (a loop that fell behind takes the newest sample): the
+    /// trajectory stays on the plant's time instead of lagging by the ticks skipped.
     #[inline]
     fn advance<R: Reference + ?Sized>(&mut self, s: &Sensor, source: &mut R) {
         let p = self.window.preview();
-        if !self.primed {
+        let skipped = s.seq > self.next_seq;
+        self.next_seq = s.seq.saturating_add(1);
+        if !self.primed || skipped {
             self.primed = true;
             let mut ahead = [0.0; MAX_PREVIEW + 1];
             source.prime(s, &mut ahead[..=p]);
