@@ -97,6 +97,30 @@ impl ClosedLoop {
         sensitivity_v_per_m: f64,
         period_s: f64,
     ) -> Self {
+        Self::assemble(plant, ctrl, sensitivity_v_per_m, period_s, false)
+    }
+
+    /// The same loop, same state, while its controller is stalled (a descheduled controller
+    /// process in a real-time run): the DAC holds the last command (`u = u[k−1]`, no DAC
+    /// disturbance), the controller's state is frozen and the reference does not reach it; the
+    /// stage, its readings and the noise go on. Ticking [`ClosedLoop::new`]'s matrices again
+    /// afterwards is the controller taking the newest sample.
+    pub fn held(
+        plant: &LinearTick,
+        ctrl: &LinearController,
+        sensitivity_v_per_m: f64,
+        period_s: f64,
+    ) -> Self {
+        Self::assemble(plant, ctrl, sensitivity_v_per_m, period_s, true)
+    }
+
+    fn assemble(
+        plant: &LinearTick,
+        ctrl: &LinearController,
+        sensitivity_v_per_m: f64,
+        period_s: f64,
+        stalled: bool,
+    ) -> Self {
         let s = sensitivity_v_per_m;
         let (n, nc) = (plant.phi.nrows(), ctrl.a.nrows());
         let (iu, ic, iy) = (n, n + 1, n + 1 + nc);
@@ -110,11 +134,15 @@ impl ClosedLoop {
         let m = input::COUNT;
         // u as rows over the state and over the inputs.
         let mut u_z = DMatrix::zeros(1, size);
-        u_z.view_mut((0, ic), (1, nc)).copy_from(&ctrl.c);
-        u_z.view_mut((0, iy), (1, 2)).copy_from(&ctrl.d);
         let mut u_in = DMatrix::zeros(1, m);
-        u_in[(0, input::REFERENCE_M)] = -ctrl.d[(0, 0)] * s;
-        u_in[(0, input::CONTROL_DISTURBANCE_V)] = 1.0;
+        if stalled {
+            u_z[(0, iu)] = 1.0;
+        } else {
+            u_z.view_mut((0, ic), (1, nc)).copy_from(&ctrl.c);
+            u_z.view_mut((0, iy), (1, 2)).copy_from(&ctrl.d);
+            u_in[(0, input::REFERENCE_M)] = -ctrl.d[(0, 0)] * s;
+            u_in[(0, input::CONTROL_DISTURBANCE_V)] = 1.0;
+        }
         // Plant inputs other than the command, mapped from the loop inputs (f_cut, w…).
         let held = |g: &DMatrix<f64>| {
             let mut out = DMatrix::zeros(g.nrows(), m);
@@ -143,11 +171,15 @@ impl ClosedLoop {
         // u_prev⁺ = u
         a.view_mut((iu, 0), (1, size)).copy_from(&u_z);
         b.view_mut((iu, 0), (1, m)).copy_from(&u_in);
-        // c⁺ = A c + B (y − [S r, 0])
-        a.view_mut((ic, ic), (nc, nc)).copy_from(&ctrl.a);
-        a.view_mut((ic, iy), (nc, 2)).copy_from(&ctrl.b);
-        b.view_mut((ic, input::REFERENCE_M), (nc, 1))
-            .copy_from(&(ctrl.b.column(0) * -s));
+        // c⁺ = A c + B (y − [S r, 0]); stalled: c⁺ = c
+        if stalled {
+            a.view_mut((ic, ic), (nc, nc)).fill_with_identity();
+        } else {
+            a.view_mut((ic, ic), (nc, nc)).copy_from(&ctrl.a);
+            a.view_mut((ic, iy), (nc, 2)).copy_from(&ctrl.b);
+            b.view_mut((ic, input::REFERENCE_M), (nc, 1))
+                .copy_from(&(ctrl.b.column(0) * -s));
+        }
         // y⁺ = y_x x + y0 u_prev + y1 u + y_held w + [n_s, 0]
         a.view_mut((iy, 0), (2, n)).copy_from(&plant.y_x);
         a.view_mut((iy, iu), (2, 1))

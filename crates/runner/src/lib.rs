@@ -40,6 +40,7 @@ pub mod run;
 pub mod schema;
 pub mod servo_loop;
 pub mod sim_backend;
+pub mod stall;
 pub mod stop;
 pub mod summary;
 pub mod surface;

@@ -83,12 +83,17 @@ pub fn metadata(plan: &Plan) -> BTreeMap<String, String> {
     m
 }
 
+/// This host's name (`unknown` when the kernel does not say).
+pub fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map_or_else(|_| "unknown".into(), |h| h.trim().to_owned())
+}
+
 /// The `environment` record of run `run_id` (its identity on the transport): what differs
 /// between two runs of the same seed (the recorder adds the start time). Comparisons of
 /// recordings leave it out.
 pub fn environment(run_id: u64) -> BTreeMap<String, String> {
-    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .map_or_else(|_| "unknown".into(), |h| h.trim().to_owned());
+    let host = host_name();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     BTreeMap::from([
         ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
