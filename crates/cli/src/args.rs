@@ -133,8 +133,9 @@ pub struct ControllerArgs {
     /// Controller file for --controller ss (relative to the working directory).
     #[arg(long)]
     pub ss_file: Option<PathBuf>,
-    /// Run anyway: a controller (file or tuned gains) made for another plant or rate, or (servo
-    /// run --pil) a target that cannot hold the servo rate, to measure its cost.
+    /// Run anyway: a controller (file or tuned gains) made for another plant or rate, (servo
+    /// run --pil) a target that cannot hold the servo rate, to measure its cost, or (servo run
+    /// --hil --realtime) a host that stalls longer than the loop survives.
     #[arg(long)]
     pub force: bool,
     #[command(flatten)]

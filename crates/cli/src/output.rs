@@ -79,6 +79,7 @@ impl CliError {
                 RunError::Config(_)
                     | RunError::Unstable { .. }
                     | RunError::NoTruth(_)
+                    | RunError::HostTooSlow(_)
                     | RunError::Pil(runner::pil::PilError::Refused(_))
                     | RunError::Pil(runner::pil::PilError::Firmware { .. })
             )
@@ -109,7 +110,8 @@ impl CliError {
 pub const FAILED: u8 = 1;
 
 /// Exit code of bad input: a configuration problem (located by file, line, key and allowed
-/// range), a controller that would make the loop unstable, a selection that matches nothing.
+/// range), a controller that would make the loop unstable, a host that stalls longer than the
+/// loop survives, a selection that matches nothing.
 pub const BAD_INPUT: u8 = 2;
 
 /// Every exit code: (code, a run's end reason or empty for a command's own, meaning), in
@@ -161,7 +163,8 @@ const COMMAND_CODES: [(u8, &str); 2] = [
     (
         BAD_INPUT,
         "bad input: a configuration problem, located by file, line, key and allowed range; a \
-         controller that would make the loop unstable; an export selection that matches nothing",
+         controller that would make the loop unstable; a host that stalls longer than the loop \
+         survives (servo run --hil --realtime); an export selection that matches nothing",
     ),
 ];
 
@@ -179,6 +182,12 @@ impl CliError {
                 return Some(format!("--rate {served_hz:.0}"))
             }
             CliError::Run(RunError::NoTruth(_)) => return Some("--plant model.toml".into()),
+            CliError::Run(RunError::HostTooSlow(r)) => {
+                return Some(match r.survivable.limit() {
+                    runner::stall::Limit::PeerTimeout => "--peer-timeout-ms".into(),
+                    _ => "--force".into(),
+                })
+            }
             CliError::Run(RunError::Damaged { .. }) => return Some("--salvage".into()),
             CliError::Study(StudyError::NoTuningStart { .. }) => return Some("--ms, --mt".into()),
             CliError::Study(StudyError::FrfAborted { .. }) => return Some("--amplitude".into()),

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{as_nobody, euid, json, servo};
+use common::{as_nobody, euid, json, servo, tmp};
 
 #[test]
 fn a_short_measurement_reports_consistent_statistics_and_the_readiness() {
@@ -200,4 +200,75 @@ fn spinning_real_time_hil_processes_that_would_starve_the_host_are_refused() {
         err.contains("realtime.policy") && err.contains("sleep-spin"),
         "{err}"
     );
+}
+
+/// `servo latency` judges the run's loop: the default PID holding position survives what its
+/// 0.5 ms peer timeout lets pass (99 ticks at 199.6 kHz), and the report says so beside the
+/// host's worst stall, on this host's name and time.
+#[test]
+fn latency_reports_the_stall_the_loop_survives_beside_the_hosts() {
+    let v = json(
+        &servo()
+            .args(["latency", "--json", "--duration", "0.05"])
+            .output()
+            .unwrap(),
+    );
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap();
+    assert_eq!(v["host"], host.trim());
+    assert_eq!(v["survivable"]["watchdog_ticks"], 99);
+    assert!(v["survivable"]["physics_ticks"].is_null(), "{v}");
+    let survivable = v["survivable_stall_s"].as_f64().unwrap();
+    assert!((survivable - 99.0 / 199_600.0).abs() < 1e-12, "{survivable}");
+    assert!(v["loop"].as_str().unwrap().starts_with("PID"), "{v}");
+    let worst = v["host_stalls"]["worst_s"].as_f64().unwrap();
+    assert_eq!((worst * 1e9).round(), v["lateness_ns"]["max"].as_f64().unwrap());
+    assert_eq!(v["holds"], 2.0 * worst <= survivable);
+}
+
+/// A real-time run checks the host before any process starts: with a `servo latency` result
+/// whose worst stall (injected: 3.8 ms) the loop does not survive, it is refused, naming both
+/// stalls and the flag that helps; a result of another host or rate is refused naming its key.
+#[test]
+fn a_real_time_run_on_a_host_that_stalls_too_long_is_refused_up_front() {
+    let dir = tmp("qualification");
+    std::fs::create_dir(&dir).unwrap();
+    let mut v = json(
+        &servo()
+            .args(["latency", "--json", "--duration", "0.01"])
+            .output()
+            .unwrap(),
+    );
+    v["host_stalls"]["worst_s"] = serde_json::json!(3.8e-3);
+    let file = dir.join("latency.json");
+    std::fs::write(&file, v.to_string()).unwrap();
+    let run = |extra: &[&str]| {
+        servo()
+            .current_dir(&dir)
+            .args(["run", "--hil", "--realtime", "--no-record", "--qualification"])
+            .arg(&file)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    for expected in [
+        "this host stalled 3800.0 µs",
+        "this loop survives stalls up to 496.0 µs",
+        "(flag --peer-timeout-ms)",
+    ] {
+        assert!(err.contains(expected), "{expected:?} in {err}");
+    }
+    assert!(!err.contains("servo plant"), "no process started: {err}");
+    let out = run(&["--rate", "100000"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("rate_hz") && err.contains("latency.json"), "{err}");
+    v["host"] = serde_json::json!("another-host");
+    std::fs::write(&file, v.to_string()).unwrap();
+    let out = run(&[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("host") && err.contains("another-host"), "{err}");
 }

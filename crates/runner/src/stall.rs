@@ -581,7 +581,7 @@ impl std::fmt::Display for Refusal {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "this host stalled {:.1} µs ({}); this loop survives stalls up to {:.1} µs ({}): a real-time run would fail. {}",
+            "this host stalled {:.1} µs ({}); this loop survives stalls up to {:.1} µs ({}), less than {STALL_MARGIN} × the host's worst: a real-time run would fail. {}",
             self.host.worst_s * 1e6,
             self.host.source,
             self.survivable.stall_s() * 1e6,
@@ -591,9 +591,14 @@ impl std::fmt::Display for Refusal {
     }
 }
 
-/// Refuses a real-time run whose host stalled longer than its loop survives.
+/// How much longer than the host's worst measured stall the survivable stall must be: a
+/// measurement of seconds sees the common stalls, not the rarest (a longer one sees longer).
+pub const STALL_MARGIN: f64 = 2.0;
+
+/// Refuses a real-time run whose loop does not survive [`STALL_MARGIN`] × the host's worst
+/// stall.
 pub fn check_host(survivable: &Survivable, host: &HostStalls) -> Result<(), RunError> {
-    if host.worst_s > survivable.stall_s() {
+    if host.worst_s * STALL_MARGIN > survivable.stall_s() {
         return Err(RunError::HostTooSlow(Box::new(Refusal {
             host: host.clone(),
             survivable: *survivable,
@@ -602,16 +607,18 @@ pub fn check_host(survivable: &Survivable, host: &HostStalls) -> Result<(), RunE
     Ok(())
 }
 
-/// What to change when a host stalls `host_s` (s) and the loop survives less.
+/// What to change when a host stalls `host_s` (s) and the loop survives less than
+/// [`STALL_MARGIN`] × it.
 pub fn advice(survivable: &Survivable, host_s: f64) -> String {
     let physics = survivable.physics_s();
-    if survivable.limit() == Limit::PeerTimeout && physics.is_none_or(|p| p > host_s) {
+    let enough = |p: f64| p >= STALL_MARGIN * host_s;
+    if survivable.limit() == Limit::PeerTimeout && physics.is_none_or(enough) {
         // The stage would ride the stall out; the watchdog ends the run first.
         let room = physics.map_or(String::from("beyond 100 ms"), |p| {
             format!("up to {:.1} µs", p * 1e6)
         });
         return format!(
-            "The stage rides out stalls {room}: a longer realtime.peer_timeout_s (above the host's stall, within what the stage survives) lets the run continue through them."
+            "The stage rides out stalls {room}: a realtime.peer_timeout_s of at least {STALL_MARGIN} × the host's worst stall, within what the stage survives, lets the run continue through them."
         );
     }
     "Make the host stall less — a real-time kernel (PREEMPT_RT), the servo CPUs isolated (isolcpus=, nohz_full=, realtime.plant_cpu / realtime.controller_cpu), no other load on them — or lower plant.timing.servo_rate_hz with a controller designed for that rate (a slower loop rides out longer stalls in ticks of its own)."

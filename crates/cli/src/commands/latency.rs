@@ -323,14 +323,16 @@ fn judge(judged: &Loaded) -> (String, Option<Survivable>, String) {
 }
 
 /// 4 × the worst stall `worst_ns` (at least 1 ms), in ms — unless the stage survives less
-/// (`physics_s`): then the longest it survives, if that is still above the worst stall; None
-/// when no timeout is both.
+/// (`physics_s`): then the longest it survives, if that is still [`STALL_MARGIN`] × the worst
+/// stall; None when no timeout is both.
+///
+/// [`STALL_MARGIN`]: runner::stall::STALL_MARGIN
 fn recommended_timeout_ms(worst_ns: u64, physics_s: Option<f64>) -> Option<u64> {
     let wanted = (4 * worst_ns).div_ceil(1_000_000).max(1);
     match physics_s {
         Some(p) if (wanted as f64) * 1e-3 > p => {
             let ms = (p * 1e3).floor() as u64;
-            (ms as f64 * 1e6 > worst_ns as f64).then_some(ms)
+            (ms as f64 * 1e6 >= runner::stall::STALL_MARGIN * worst_ns as f64).then_some(ms)
         }
         _ => Some(wanted),
     }
@@ -359,15 +361,14 @@ fn print_survivable(r: &Report) {
         r.judged,
         r.survivable_note
     );
+    let margin = runner::stall::STALL_MARGIN;
     if r.holds == Some(true) {
         println!(
-            "  verdict          holds: this host stalled {worst_us:.1} µs, within the {:.1} µs this loop survives",
-            s.stall_s() * 1e6
+            "  verdict          holds: this host stalled {worst_us:.1} µs; this loop survives {margin} × that or more"
         );
     } else {
         println!(
-            "  verdict          FAILS: this host stalled {worst_us:.1} µs, {:.1} × what this loop survives",
-            r.host_stalls.worst_s / s.stall_s().max(f64::MIN_POSITIVE)
+            "  verdict          FAILS: this host stalled {worst_us:.1} µs; this loop survives less than {margin} × that"
         );
         println!("         → {}", advice(s, r.host_stalls.worst_s));
     }

@@ -43,6 +43,11 @@ pub struct Run {
     /// 480e6: an STM32H7).
     #[arg(long, value_name = "HZ", requires = "pil", value_parser = crate::args::positive)]
     target_clock_hz: Option<f64>,
+    /// With --hil --realtime: this host's stalls from a `servo latency --json` result (this
+    /// host, the run's rate, the last day) instead of a 1 s qualification at the start. A run
+    /// whose loop does not survive the host's worst stall is refused (--force runs it).
+    #[arg(long, value_name = "LATENCY_JSON", requires = "realtime")]
+    qualification: Option<PathBuf>,
 }
 
 impl Run {
@@ -53,7 +58,11 @@ impl Run {
         let rec = &self.recording;
         let out = rec.out(DEFAULT_RECORDING.as_ref());
         let (summary, code) = if self.hil {
-            super::run_hil::run(&plan, &self.hil_args, &self.timeout, rec, out.clone())?
+            let host = super::run_hil::HostCheck {
+                qualification: self.qualification.clone(),
+                force: self.run.controller.force,
+            };
+            super::run_hil::run(&plan, &self.hil_args, &self.timeout, rec, out.clone(), &host)?
         } else {
             let pil = self.pil.as_ref().map(|firmware| {
                 let mut pil = PilOptions::new(firmware);

@@ -7,7 +7,8 @@ use crate::output::{tick_bar, CliError};
 use daq_io::contract::role;
 use daq_io::ipc::{leaf, take, Endpoint};
 use daq_io::Health;
-use runner::config::{Origin, Scenario, SurfaceConfig};
+use runner::config::{Origin, Role, Scenario, SurfaceConfig};
+use runner::stall::{check_host, survivable, HostStalls};
 use runner::summary::Summary;
 use runner::{Plan, RunError};
 use std::path::{Path, PathBuf};
@@ -60,10 +61,17 @@ pub fn run(
     timeout: &PeerTimeoutArgs,
     rec: &RecordingArgs,
     out: Option<runner::recording::Target>,
+    host: &HostCheck,
 ) -> Result<(Summary, ExitCode), CliError> {
     plan.check_stable()?;
-    timeout.timeout()?;
+    let peer_timeout = timeout.timeout()?;
     let (realtime, quiet) = (hil.realtime, rec.quiet);
+    if realtime {
+        let timeout_s = peer_timeout.map_or(plan.config.realtime.peer_timeout_s, |t| {
+            t.as_secs_f64()
+        });
+        preflight(plan, timeout_s, host)?;
+    }
     if let Some(o) = &out {
         // Checked before any process starts (the recorder process checks it again).
         o.check()?;
@@ -211,4 +219,141 @@ pub fn run(
         None => ExitCode::SUCCESS,
     };
     Ok((summary, code))
+}
+
+/// How long a real-time run qualifies its host before it starts, in s.
+pub const QUALIFY_S: f64 = 1.0;
+
+/// How old a `servo latency` result may be to stand for this host, in s (a day).
+const QUALIFICATION_MAX_AGE_S: u64 = 86_400;
+
+/// What a real-time run checks its host with before it starts.
+#[derive(Debug, Default)]
+pub struct HostCheck {
+    /// A `servo latency --json` result of this host at the run's rate (None: measure for
+    /// [`QUALIFY_S`] here).
+    pub qualification: Option<PathBuf>,
+    /// Start even when the host stalls longer than the loop survives.
+    pub force: bool,
+}
+
+/// Before a real-time run: the longest stall its loop survives (with peer timeout
+/// `timeout_s`, s) against the host's, from a `servo latency` result or a short qualification;
+/// refused when the host's is longer, unless forced.
+fn preflight(plan: &Plan, timeout_s: f64, check: &HostCheck) -> Result<(), CliError> {
+    let survivable = match survivable(plan, timeout_s) {
+        Ok(s) => s,
+        Err(RunError::StallAnalysis(why)) => {
+            eprintln!("note: the survivable stall is not checked: {why}");
+            return Ok(());
+        }
+        Err(e) => return Err(e.into()),
+    };
+    let host = match &check.qualification {
+        Some(path) => read_qualification(path, plan)?,
+        None => qualify(plan)?,
+    };
+    eprintln!(
+        "stall check: this loop survives stalls up to {:.1} µs; this host stalled {:.1} µs ({})",
+        survivable.stall_s() * 1e6,
+        host.worst_s * 1e6,
+        host.source
+    );
+    match check_host(&survivable, &host) {
+        Err(e) if check.force => {
+            eprintln!("warning: {e} Running anyway (--force).");
+            Ok(())
+        }
+        r => Ok(r?),
+    }
+}
+
+/// The host's worst stall: the plant's pacing alone at the run's rate with its real-time
+/// settings, for [`QUALIFY_S`], on a thread of its own (its scheduling ends with it).
+fn qualify(plan: &Plan) -> Result<HostStalls, CliError> {
+    use daq_io::qualify::{measure, WallClock};
+    let rt = &plan.config.realtime;
+    let rate = plan.config.plant.timing.servo_rate_hz;
+    let period_ns = (1e9 / rate).round() as u64;
+    let ticks = (QUALIFY_S * rate).round() as u64;
+    eprintln!("qualifying this host: {QUALIFY_S} s of the loop's pacing at {:.1} kHz", rate / 1e3);
+    let settings = rt.settings(Role::Plant);
+    let wait = rt.wait();
+    let measured = std::thread::scope(|s| {
+        s.spawn(|| -> Result<(u64, String), RunError> {
+            daq_io::realtime::apply(&settings)?;
+            let applied = daq_io::realtime::current();
+            let cpus = daq_io::realtime::list(&daq_io::realtime::current_cpus());
+            let run = measure(&mut WallClock::new(wait), period_ns, 0..ticks);
+            let how = format!("CPUs {cpus}, SCHED_{}", applied.0.name().to_uppercase());
+            Ok((run.lateness.summary().max_ns, how))
+        })
+        .join()
+        .expect("the qualification does not panic")
+    })?;
+    Ok(HostStalls {
+        worst_s: measured.0 as f64 * 1e-9,
+        measured_s: QUALIFY_S,
+        rate_hz: rate,
+        source: format!(
+            "a {QUALIFY_S} s qualification at the run's start, {}; a longer `servo latency` sees rarer stalls",
+            measured.1
+        ),
+    })
+}
+
+/// A `servo latency --json` result: its `host_stalls`, when it was measured on this host
+/// (`host`), at the run's rate (`rate_hz`), within the last day (`measured_at`).
+fn read_qualification(path: &Path, plan: &Plan) -> Result<HostStalls, CliError> {
+    use runner::config::input_file::read_text;
+    #[derive(serde::Deserialize)]
+    struct Latency {
+        host: String,
+        measured_at: String,
+        rate_hz: f64,
+        host_stalls: HostStalls,
+    }
+    let text = read_text(path)?;
+    let at = Origin {
+        path: Some(path.to_owned()),
+        text: Some(text.clone()),
+    };
+    let l: Latency = serde_json::from_str(&text).map_err(|e| {
+        at.invalid(
+            "host_stalls",
+            e.to_string(),
+            "a `servo latency --json` result",
+        )
+    })?;
+    let here = runner::recording::host_name();
+    if l.host != here {
+        return Err(at
+            .invalid("host", &l.host, &format!("this host ({here}): qualify it with servo latency here"))
+            .into());
+    }
+    let rate = plan.config.plant.timing.servo_rate_hz;
+    if (l.rate_hz - rate).abs() > 1e-9 * rate || l.host_stalls.rate_hz != l.rate_hz {
+        return Err(at
+            .invalid("rate_hz", l.rate_hz, &format!("the run's {rate} Hz"))
+            .into());
+    }
+    let age = humantime::parse_rfc3339(&l.measured_at)
+        .ok()
+        .and_then(|t| std::time::SystemTime::now().duration_since(t).ok());
+    match age {
+        Some(a) if a.as_secs() <= QUALIFICATION_MAX_AGE_S => {}
+        _ => {
+            return Err(at
+                .invalid(
+                    "measured_at",
+                    &l.measured_at,
+                    "within the last day (RFC 3339): qualify the host again",
+                )
+                .into())
+        }
+    }
+    Ok(HostStalls {
+        source: format!("{}, {}", l.host_stalls.source, path.display()),
+        ..l.host_stalls
+    })
 }
