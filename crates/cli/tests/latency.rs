@@ -218,10 +218,16 @@ fn latency_reports_the_stall_the_loop_survives_beside_the_hosts() {
     assert_eq!(v["survivable"]["watchdog_ticks"], 99);
     assert!(v["survivable"]["physics_ticks"].is_null(), "{v}");
     let survivable = v["survivable_stall_s"].as_f64().unwrap();
-    assert!((survivable - 99.0 / 199_600.0).abs() < 1e-12, "{survivable}");
+    assert!(
+        (survivable - 99.0 / 199_600.0).abs() < 1e-12,
+        "{survivable}"
+    );
     assert!(v["loop"].as_str().unwrap().starts_with("PID"), "{v}");
     let worst = v["host_stalls"]["worst_s"].as_f64().unwrap();
-    assert_eq!((worst * 1e9).round(), v["lateness_ns"]["max"].as_f64().unwrap());
+    assert_eq!(
+        (worst * 1e9).round(),
+        v["lateness_ns"]["max"].as_f64().unwrap()
+    );
     assert_eq!(v["holds"], 2.0 * worst <= survivable);
 }
 
@@ -244,7 +250,13 @@ fn a_real_time_run_on_a_host_that_stalls_too_long_is_refused_up_front() {
     let run = |extra: &[&str]| {
         servo()
             .current_dir(&dir)
-            .args(["run", "--hil", "--realtime", "--no-record", "--qualification"])
+            .args([
+                "run",
+                "--hil",
+                "--realtime",
+                "--no-record",
+                "--qualification",
+            ])
             .arg(&file)
             .args(extra)
             .output()
@@ -264,11 +276,17 @@ fn a_real_time_run_on_a_host_that_stalls_too_long_is_refused_up_front() {
     let out = run(&["--rate", "100000"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("rate_hz") && err.contains("latency.json"), "{err}");
+    assert!(
+        err.contains("rate_hz") && err.contains("latency.json"),
+        "{err}"
+    );
     v["host"] = serde_json::json!("another-host");
     std::fs::write(&file, v.to_string()).unwrap();
     let out = run(&[]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("host") && err.contains("another-host"), "{err}");
+    assert!(
+        err.contains("host") && err.contains("another-host"),
+        "{err}"
+    );
 }

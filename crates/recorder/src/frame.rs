@@ -180,7 +180,12 @@ impl Frame {
             },
             truth: Truth {
                 tool_m: known(truth, truth.tool_m),
-                true_error_m: known(truth, truth.tool_m - t.reference_m),
+                // Without the controller's telemetry the tick's reference is not known.
+                true_error_m: if t.flags & daq_io::flags::NO_TELEMETRY != 0 {
+                    f32::NAN
+                } else {
+                    known(truth, truth.tool_m - t.reference_m)
+                },
                 gap_m: truth.gap_m as f32,
                 motor_force_n: truth.motor_force_n as f32,
                 cutting_force_n: truth.cutting_force_n as f32,

@@ -117,6 +117,14 @@ impl SummaryBuilder {
         if f.time_ns < self.settle_ns {
             return;
         }
+        if flags & (daq_io::flags::GAP_CLIPPED | daq_io::flags::ACCEL_CLIPPED) != 0 {
+            self.adc_clipped += 1;
+        }
+        // A tick the controller did not act on (a stall skipped it, its telemetry was lost)
+        // has no reference, error or command to count.
+        if flags & daq_io::flags::NO_TELEMETRY != 0 {
+            return;
+        }
         self.following.add(f.telemetry.following_error_m as f64);
         if flags & daq_io::flags::NO_TRUTH == 0 {
             self.truth.add(f.truth.true_error_m as f64);
@@ -124,9 +132,6 @@ impl SummaryBuilder {
         self.control.add(f.telemetry.control_v as f64);
         if flags & daq_io::flags::SATURATED != 0 {
             self.saturated += 1;
-        }
-        if flags & (daq_io::flags::GAP_CLIPPED | daq_io::flags::ACCEL_CLIPPED) != 0 {
-            self.adc_clipped += 1;
         }
     }
 
@@ -507,5 +512,42 @@ impl RunMeta {
             arithmetic: servo_core::ARITHMETIC.into(),
             target: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use daq_io::{flags, Telemetry, Truth};
+
+    /// A tick the controller did not act on (a real-time stall skipped its sample) has no
+    /// known reference: it counts in no error or command statistic, and its recorded true
+    /// error is unknown (NaN) — not the tool's position minus a reference of 0.
+    #[test]
+    fn ticks_without_telemetry_count_in_no_error_statistic() {
+        let mut s = SummaryBuilder::new(0.0);
+        let acted = Telemetry {
+            reference_m: 10e-6,
+            following_error_m: 1e-9,
+            control_v: 0.1,
+            ..Default::default()
+        };
+        let truth = |tool_m: f64, time_s: f64| Truth {
+            tool_m,
+            time_s,
+            ..Default::default()
+        };
+        s.add(&Frame::join(&acted, &truth(10e-6 + 2e-9, 1e-5)));
+        let skipped = Telemetry {
+            flags: flags::NO_TELEMETRY,
+            ..Default::default()
+        };
+        let frame = Frame::join(&skipped, &truth(12e-6, 2e-5));
+        assert!(frame.truth.true_error_m.is_nan());
+        s.add(&frame);
+        assert_eq!(s.ticks(), 2);
+        assert_eq!((s.following.n, s.truth.n, s.control.n), (1, 1, 1));
+        assert!((s.truth.max - 2e-9).abs() < 1e-12, "{}", s.truth.max);
+        assert_eq!(s.following.max, f64::from(1e-9f32));
     }
 }

@@ -22,7 +22,12 @@ fn plan(scenario: Scenario, duration_s: f64) -> Plan {
 
 /// Stalls starting at 36 phases of one period of the reference, after the loop settled
 /// (0.1 s, past the watchdog's 50 ms grace window): how many the loop rode out.
-fn ridden_out(p: &Plan, period_ticks: u64, stall_ticks: u64, timeout_s: f64) -> (usize, Vec<String>) {
+fn ridden_out(
+    p: &Plan,
+    period_ticks: u64,
+    stall_ticks: u64,
+    timeout_s: f64,
+) -> (usize, Vec<String>) {
     let mut causes = Vec::new();
     let mut survived = 0;
     for i in 0..36 {
@@ -31,7 +36,10 @@ fn ridden_out(p: &Plan, period_ticks: u64, stall_ticks: u64, timeout_s: f64) -> 
         if run.survived() {
             survived += 1;
         } else {
-            causes.push(format!("start {start}: {:?} {:?}", run.trip, run.peer_lost_at));
+            causes.push(format!(
+                "start {start}: {:?} {:?}",
+                run.trip, run.peer_lost_at
+            ));
         }
     }
     (survived, causes)
@@ -72,7 +80,10 @@ fn a_sine_rides_out_its_predicted_stall_from_every_phase_and_not_one_half_as_lon
         }
         let period_ticks = (1.0 / (frequency_hz * period)).round() as u64;
         let (ok, causes) = ridden_out(&p, period_ticks, m, timeout_s);
-        assert_eq!(ok, 36, "{amplitude_m} m at {frequency_hz} Hz, {m} ticks: {causes:?}");
+        assert_eq!(
+            ok, 36,
+            "{amplitude_m} m at {frequency_hz} Hz, {m} ticks: {causes:?}"
+        );
         let longer = m * 3 / 2;
         let (ok, causes) = ridden_out(&p, period_ticks, longer, timeout_s);
         assert!(

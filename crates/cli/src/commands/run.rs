@@ -62,7 +62,14 @@ impl Run {
                 qualification: self.qualification.clone(),
                 force: self.run.controller.force,
             };
-            super::run_hil::run(&plan, &self.hil_args, &self.timeout, rec, out.clone(), &host)?
+            super::run_hil::run(
+                &plan,
+                &self.hil_args,
+                &self.timeout,
+                rec,
+                out.clone(),
+                &host,
+            )?
         } else {
             let pil = self.pil.as_ref().map(|firmware| {
                 let mut pil = PilOptions::new(firmware);

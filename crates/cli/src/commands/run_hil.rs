@@ -67,9 +67,8 @@ pub fn run(
     let peer_timeout = timeout.timeout()?;
     let (realtime, quiet) = (hil.realtime, rec.quiet);
     if realtime {
-        let timeout_s = peer_timeout.map_or(plan.config.realtime.peer_timeout_s, |t| {
-            t.as_secs_f64()
-        });
+        let timeout_s =
+            peer_timeout.map_or(plan.config.realtime.peer_timeout_s, |t| t.as_secs_f64());
         preflight(plan, timeout_s, host)?;
     }
     if let Some(o) = &out {
@@ -276,7 +275,10 @@ fn qualify(plan: &Plan) -> Result<HostStalls, CliError> {
     let rate = plan.config.plant.timing.servo_rate_hz;
     let period_ns = (1e9 / rate).round() as u64;
     let ticks = (QUALIFY_S * rate).round() as u64;
-    eprintln!("qualifying this host: {QUALIFY_S} s of the loop's pacing at {:.1} kHz", rate / 1e3);
+    eprintln!(
+        "qualifying this host: {QUALIFY_S} s of the loop's pacing at {:.1} kHz",
+        rate / 1e3
+    );
     let settings = rt.settings(Role::Plant);
     let wait = rt.wait();
     let measured = std::thread::scope(|s| {
@@ -328,7 +330,11 @@ fn read_qualification(path: &Path, plan: &Plan) -> Result<HostStalls, CliError> 
     let here = runner::recording::host_name();
     if l.host != here {
         return Err(at
-            .invalid("host", &l.host, &format!("this host ({here}): qualify it with servo latency here"))
+            .invalid(
+                "host",
+                &l.host,
+                &format!("this host ({here}): qualify it with servo latency here"),
+            )
             .into());
     }
     let rate = plan.config.plant.timing.servo_rate_hz;
