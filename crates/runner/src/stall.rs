@@ -229,7 +229,7 @@ impl Trajectory {
                 amplitude,
                 w_t,
                 phase,
-            } => amplitude * (w_t * j as f64 + phase).sin(),
+            } => amplitude * libm::sin(w_t * j as f64 + phase),
         }
     }
 }
@@ -300,7 +300,7 @@ impl Cases {
             } => {
                 let (lo, hi) = (f_start_hz.min(*f_end_hz), f_start_hz.max(*f_end_hz));
                 for i in 0..CHIRP_FREQUENCIES {
-                    let f = lo * (hi / lo).powf(i as f64 / (CHIRP_FREQUENCIES - 1) as f64);
+                    let f = lo * libm::pow(hi / lo, i as f64 / (CHIRP_FREQUENCIES - 1) as f64);
                     sines(*amplitude_m, f)?;
                 }
             }
@@ -402,7 +402,7 @@ impl Model {
             );
         }
         let radius = normal.spectral_radius();
-        let decay_ticks = (RECOVERY_DECAY.ln() / radius.ln()).ceil();
+        let decay_ticks = (libm::log(RECOVERY_DECAY) / libm::log(radius)).ceil();
         let recovery = decay_ticks.min(MAX_RECOVERY_S / plan.period_s()).max(1.0) as usize;
         Ok(Model {
             normal: normal_mode,
@@ -440,8 +440,8 @@ impl Model {
             for q in &self.protected {
                 let c = self.c.row(q.row);
                 let d_ref = self.d[(q.row, input::REFERENCE_M)];
-                let sigma = (&c * &p).dot(&c).max(0.0).sqrt();
-                let worst = (&c * &x + &r * d_ref)
+                let sigma = (c * &p).dot(&c).max(0.0).sqrt();
+                let worst = (c * &x + &r * d_ref)
                     .iter()
                     .fold(0.0f64, |w, v| w.max(v.abs()));
                 if worst + SIGMAS * sigma > q.limit {
@@ -453,7 +453,7 @@ impl Model {
                 // The command is clamped at the output limit: the excess comes off as a
                 // disturbance on it (the controller's state does not see it — a PID's
                 // conditional integration would wind up less: this errs on the safe side).
-                let u = &command * &x + &r * command_ref;
+                let u = command * &x + &r * command_ref;
                 for (i, u) in u.iter().enumerate() {
                     let clamped = u.clamp(-self.limit_v, self.limit_v);
                     saturated[i] = if clamped != *u { saturated[i] + 1 } else { 0 };

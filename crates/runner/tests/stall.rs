@@ -71,7 +71,7 @@ fn a_sine_rides_out_its_predicted_stall_from_every_phase_and_not_one_half_as_lon
         let period = p.period_s();
         if frequency_hz < 100.0 {
             let w = std::f64::consts::TAU * frequency_hz;
-            let from_trough = (1.0 - 20e-6 / amplitude_m).acos() / w;
+            let from_trough = libm::acos(1.0 - 20e-6 / amplitude_m) / w;
             let predicted = m as f64 * period;
             assert!(
                 (predicted / from_trough - 1.0).abs() < 0.15,
