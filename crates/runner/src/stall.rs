@@ -73,7 +73,7 @@ impl Limit {
                 "the command after it stays at controller.limit_v longer than protection.saturation_s"
             }
             Limit::PeerTimeout => {
-                "the peer timeout (realtime.peer_timeout_s) ends the run at 0 V"
+                "the peer timeout, realtime.peer_timeout_s, ends the run at 0 V"
             }
         }
     }
@@ -614,7 +614,7 @@ pub fn advice(survivable: &Survivable, host_s: f64) -> String {
     let enough = |p: f64| p >= STALL_MARGIN * host_s;
     if survivable.limit() == Limit::PeerTimeout && physics.is_none_or(enough) {
         // The stage would ride the stall out; the watchdog ends the run first.
-        let room = physics.map_or(String::from("beyond 100 ms"), |p| {
+        let room = physics.map_or(format!("of more than {:.0} ms", MAX_STALL_S * 1e3), |p| {
             format!("up to {:.1} µs", p * 1e6)
         });
         return format!(

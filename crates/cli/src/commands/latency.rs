@@ -26,7 +26,7 @@ use std::process::ExitCode;
 pub struct LatencyCmd {
     /// The run whose loop is judged (its controller, scenario, limits and
     /// [realtime] peer timeout; default: the thesis PID holding position).
-    #[arg(long)]
+    #[arg(long, short)]
     config: Option<PathBuf>,
     /// Loop rate in Hz (100 – 2e6; default: the loop's, plant.timing.servo_rate_hz).
     #[arg(value_parser = crate::args::finite, long)]
