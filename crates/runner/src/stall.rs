@@ -16,9 +16,16 @@
 //! three standard deviations of the loop's noise propagated through the same ticks (its
 //! stationary covariance at the start, the noise that enters during the stall and after). The
 //! protected quantities are the following error and the measured position (the
-//! `[protection]` limits and the gap sensor's range) and, after the stall, the command
-//! (within `controller.limit_v`, where the linear model holds). The longest `m` that keeps all
-//! of them within their limits is found by doubling, then bisection.
+//! `[protection]` limits and the gap sensor's range), every tick, and after the stall the time
+//! the command spends at `controller.limit_v` (`protection.saturation_s`). The recovery's
+//! command is clamped at that limit as the runtime does it; the controller's state does not see
+//! the clamp (a PID's conditional integration winds up less, so for it the prediction errs on
+//! the safe side). The longest `m` that keeps all of them within their limits is found by
+//! doubling, then bisection.
+//!
+//! Not modelled: the feedforward (the prediction is the feedback loop's), a controller that
+//! answers every sample but too late (the overrun budget's case, not a stall), and a machining
+//! run's surface reference (refused by name).
 
 use crate::closed_loop::{input, output, ClosedLoop, SOURCES};
 use crate::config::Scenario;

@@ -301,9 +301,13 @@ fn print_report(r: &Report) {
 /// note: what limits it, or why it was not predicted.
 fn judge(judged: &Loaded) -> (String, Option<Survivable>, String) {
     let c = &judged.config;
+    let feedforward = match c.controller.feedforward {
+        runner::config::FeedforwardKind::None => "",
+        _ => " (feedback only: the feedforward is not modelled)",
+    };
     let what = |controller: &str| {
         format!(
-            "{controller}, {}, {:.1} kHz",
+            "{controller}, {}, {:.1} kHz{feedforward}",
             c.scenario.name(),
             c.plant.timing.servo_rate_hz / 1e3
         )
