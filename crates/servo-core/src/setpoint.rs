@@ -82,11 +82,12 @@ impl Clock {
 macro_rules! generator_block {
     ($ty:ty, $self:ident, $t:ident => $body:expr) => {
         impl $ty {
-            /// Moves the generator `ticks` ticks on without evaluating them, in constant time: a
-            /// loop that skipped samples stays on the plant's time.
+            /// Makes the next update give the value of tick `tick` (forward or back, in
+            /// constant time: the value is a closed form of the tick's time), so a loop that
+            /// skipped samples stays on the plant's time.
             #[inline]
-            pub fn skip(&mut $self, ticks: u64) {
-                $self.clock.k = $self.clock.k.saturating_add(ticks);
+            pub fn seek(&mut $self, tick: u64) {
+                $self.clock.k = tick;
             }
         }
 
@@ -517,26 +518,28 @@ mod tests {
         }
     }
 
-    /// Skipping n ticks lands on the value the (n+1)-th update would give: the sine of the
-    /// time, not of the updates made.
+    /// A seek lands on the value ticking would give there, forward and back: the sine of the
+    /// tick's time, not of the updates made.
     #[test]
-    fn a_skip_lands_where_ticking_would() {
+    fn a_seek_lands_where_ticking_would() {
         let sine = SineConfig {
             amplitude: 1.0,
             frequency_hz: 200.0,
             phase_rad: 0.3,
             offset: 0.0,
         };
-        let (mut ticked, mut skipped) =
-            (sine.try_build(1e-5).unwrap(), sine.try_build(1e-5).unwrap());
+        let (mut ticked, mut sought) = (sine.try_build(1e-5).unwrap(), sine.try_build(1e-5).unwrap());
         for _ in 0..1234 {
             ticked.update(());
         }
-        skipped.skip(1234);
+        sought.seek(1234);
         let t = 1234.0 * 1e-5;
-        let (a, b) = (skipped.update(()).position, ticked.update(()).position);
+        let (a, b) = (sought.update(()).position, ticked.update(()).position);
         assert_eq!(a, b);
         assert!((a - libm::sin(2.0 * PI * 200.0 * t + 0.3)).abs() < 1e-12);
+        sought.seek(17);
+        let back = libm::sin(2.0 * PI * 200.0 * 17e-5 + 0.3);
+        assert!((sought.update(()).position - back).abs() < 1e-12);
     }
 
     #[test]

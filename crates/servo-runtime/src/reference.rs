@@ -11,8 +11,10 @@ use servo_core::{Block, Chirp, ChirpConfig, Sine, SineConfig, Step, StepConfig, 
 /// preview: what a host passes to [`crate::Servo::tick_with`]. Called on the ticking thread:
 /// no allocation, no lock, no panic.
 pub trait Reference {
-    /// At the first tick: `out[j]` = the desired position `j` ticks after the tick of
-    /// `sample`, for every `j < out.len()` (the preview plus one).
+    /// At the first tick, and at the first tick after samples were skipped (a loop that fell
+    /// behind takes the newest sample: its `seq` jumps): `out[j]` = the desired position `j`
+    /// ticks after the tick of `sample`, for every `j < out.len()` (the preview plus one). It
+    /// may be asked again for ticks it already gave.
     fn prime(&mut self, sample: &Sensor, out: &mut [f64]);
     /// At each later tick: the desired position `ahead` ticks after the tick of `sample`
     /// (`ahead` is the preview, the same every tick).
@@ -23,9 +25,11 @@ pub trait Reference {
     }
 }
 
-/// A built-in generator on the samples' ticks: it is sequential (reading `ahead` ticks early is
-/// running it early), and a sample that skips ticks (a loop that fell behind takes the newest)
-/// moves it on by as many, so the trajectory stays on the plant's time.
+/// A built-in generator on the samples' ticks: its value is a closed form of the tick's time
+/// (`seq · period`), primed at a sample's tick and then read in sequence `ahead` ticks early;
+/// a sample that skipped ticks (a loop that fell behind takes the newest) moves it to that
+/// tick, so the trajectory stays on the plant's time. A run whose first sample is not tick 0
+/// starts the trajectory at that tick's time.
 #[derive(Debug, Clone)]
 pub(crate) struct Generator {
     kind: Kind,
@@ -102,40 +106,45 @@ impl Generator {
         Ok(Generator { kind, next_tick: 0 })
     }
 
-    /// The position at tick `tick`: the generator moved on to it when it is ahead (constant
-    /// time), the next one in sequence otherwise (a host whose ticks do not advance `seq`).
+    /// Makes the next evaluation give tick `tick` (constant time).
+    fn seek(&mut self, tick: u64) {
+        self.next_tick = tick;
+        match &mut self.kind {
+            Kind::Zero => {}
+            Kind::Sine(g) => g.seek(tick),
+            Kind::Step(g) => g.seek(tick),
+            Kind::Chirp(g) => g.seek(tick),
+        }
+    }
+
+    /// The position of the next tick in sequence.
     #[inline]
-    fn position_at(&mut self, tick: u64) -> f64 {
-        let skipped = tick.saturating_sub(self.next_tick);
-        self.next_tick = self.next_tick.max(tick).saturating_add(1);
+    fn position(&mut self) -> f64 {
+        self.next_tick = self.next_tick.saturating_add(1);
         match &mut self.kind {
             Kind::Zero => 0.0,
-            Kind::Sine(g) => {
-                g.skip(skipped);
-                g.update(()).position
-            }
-            Kind::Step(g) => {
-                g.skip(skipped);
-                g.update(()).position
-            }
-            Kind::Chirp(g) => {
-                g.skip(skipped);
-                g.update(()).position
-            }
+            Kind::Sine(g) => g.update(()).position,
+            Kind::Step(g) => g.update(()).position,
+            Kind::Chirp(g) => g.update(()).position,
         }
     }
 }
 
 impl Reference for Generator {
     fn prime(&mut self, sample: &Sensor, out: &mut [f64]) {
-        for (j, v) in out.iter_mut().enumerate() {
-            *v = self.position_at(sample.seq.saturating_add(j as u64));
-        }
+        self.seek(sample.seq);
+        out.iter_mut().for_each(|v| *v = self.position());
     }
 
+    /// The tick `ahead` after the sample's; a generator behind it (samples were skipped) moves
+    /// on to it, one ahead of it (a host whose `seq` does not advance) goes on in sequence.
     #[inline]
     fn next(&mut self, sample: &Sensor, ahead: usize) -> f64 {
-        self.position_at(sample.seq.saturating_add(ahead as u64))
+        let tick = sample.seq.saturating_add(ahead as u64);
+        if tick > self.next_tick {
+            self.seek(tick);
+        }
+        self.position()
     }
 
     fn faulted(&self) -> bool {
