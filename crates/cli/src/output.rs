@@ -182,11 +182,10 @@ impl CliError {
                 return Some(format!("--rate {served_hz:.0}"))
             }
             CliError::Run(RunError::NoTruth(_)) => return Some("--plant model.toml".into()),
-            CliError::Run(RunError::HostTooSlow(r)) => {
-                return Some(match r.survivable.limit() {
-                    runner::stall::Limit::PeerTimeout => "--peer-timeout-ms".into(),
-                    _ => "--force".into(),
-                })
+            CliError::Run(RunError::HostTooSlow(r))
+                if r.survivable.limit() == runner::stall::Limit::PeerTimeout =>
+            {
+                return Some("--peer-timeout-ms".into())
             }
             CliError::Run(RunError::Damaged { .. }) => return Some("--salvage".into()),
             CliError::Study(StudyError::NoTuningStart { .. }) => return Some("--ms, --mt".into()),

@@ -45,7 +45,7 @@ fn a_short_measurement_reports_consistent_statistics_and_the_readiness() {
         overruns as f64 / 1000.0
     );
     // A stall of max ns: the recommended timeout is at least four of them.
-    assert!(v["recommended_peer_timeout_ms"].as_u64().unwrap() * 1_000_000 >= 4 * q[5]);
+    assert!(v["recommended_peer_timeout_ms"].as_f64().unwrap() * 1e6 >= 4.0 * q[5] as f64);
     // The recommended budget absorbs twice the worst stall and twice the overrun rate.
     assert!(v["recommended_overrun_burst_ms"].as_u64().unwrap() * 1_000_000 >= 2 * q[5]);
     let rate = v["recommended_overrun_rate"].as_f64().unwrap();
@@ -273,6 +273,13 @@ fn a_real_time_run_on_a_host_that_stalls_too_long_is_refused_up_front() {
         assert!(err.contains(expected), "{expected:?} in {err}");
     }
     assert!(!err.contains("servo plant"), "no process started: {err}");
+    let out = run(&["--controller-cpu", "0"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("cpus") && err.contains("realtime.controller_cpu"),
+        "{err}"
+    );
     let out = run(&["--rate", "100000"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");

@@ -23,9 +23,13 @@
 //! the safe side). The longest `m` that keeps all of them within their limits is found by
 //! doubling, then bisection.
 //!
-//! Not modelled: the feedforward (the prediction is the feedback loop's), a controller that
-//! answers every sample but too late (the overrun budget's case, not a stall), and a machining
-//! run's surface reference (refused by name).
+//! The limits are checked on every tick, the stalled ones too, though the runtime's protection
+//! only sees the samples the controller takes: the tool must not leave them while nobody looks
+//! either. A chirp is tried at 8 frequencies over its sweep, which can miss a narrow resonance
+//! between them. Not modelled (refused by name): a loop with feedforward and a machining run's
+//! surface reference. Nor is a controller that answers every sample but too late (the overrun
+//! budget's case, not a stall), or one descheduled between reading a sample and sending its
+//! command (its state is then a tick further on).
 
 use crate::closed_loop::{input, output, ClosedLoop, SOURCES};
 use crate::config::Scenario;
@@ -143,7 +147,7 @@ pub fn survivable(plan: &Plan, peer_timeout_s: f64) -> Result<Survivable, RunErr
     // Doubling, then bisection between the last stall survived and the first one not.
     let (mut ok, mut bad, mut limit) = (0u64, None, None);
     let mut m = 1u64;
-    while m <= max_ticks {
+    loop {
         match survives(m) {
             None => ok = m,
             Some(l) => {
@@ -152,7 +156,11 @@ pub fn survivable(plan: &Plan, peer_timeout_s: f64) -> Result<Survivable, RunErr
                 break;
             }
         }
-        m *= 2;
+        if m == max_ticks {
+            break;
+        }
+        // The last try is the longest stall searched itself.
+        m = (2 * m).min(max_ticks);
     }
     if let Some(mut hi) = bad {
         while hi - ok > 1 {
@@ -175,7 +183,9 @@ pub fn survivable(plan: &Plan, peer_timeout_s: f64) -> Result<Survivable, RunErr
 }
 
 /// The longest stall (ticks) the plant's watchdog lets pass with peer timeout `timeout_s`: the
-/// run's own fault policy judging a silent controller on an injected clock.
+/// run's own fault policy judging a silent controller on an injected clock, with the times
+/// `daq_io::serve` gives it — a silent tick k is published at k·T and judged when its command
+/// deadline, (k + 1)·T, passes.
 fn watchdog_ticks(plan: &Plan, timeout_s: f64) -> u64 {
     let period_ns = (plan.period_s() * 1e9).round() as u64;
     // After the grace window, a controller heard at tick 0 of the count, then silent.
@@ -244,6 +254,11 @@ impl Trajectory {
 impl Cases {
     /// The worst starts the scenario of `plan` offers.
     fn of(plan: &Plan) -> Result<Self, RunError> {
+        if plan.config.controller.feedforward != crate::config::FeedforwardKind::None {
+            return Err(RunError::StallAnalysis(
+                "a loop with feedforward (controller.feedforward) is not predicted: the model is the feedback loop's".into(),
+            ));
+        }
         let sys = &plan.closed_loop.sys;
         let n = sys.a.nrows();
         let period = plan.period_s();
@@ -348,6 +363,8 @@ struct Model {
     d: DMatrix<f64>,
     p0: DMatrix<f64>,
     protected: Vec<Protected>,
+    /// How a change of the running loop's command enters its state (the DAC disturbance).
+    b_command: DVector<f64>,
     recovery: usize,
     /// `controller.limit_v`, V.
     limit_v: f64,
@@ -362,8 +379,6 @@ struct Mode {
     q: DMatrix<f64>,
     b_ref: DVector<f64>,
     b_force: DVector<f64>,
-    /// How a change of the command enters (the DAC disturbance input).
-    b_command: DVector<f64>,
 }
 
 impl Mode {
@@ -376,7 +391,6 @@ impl Mode {
             q,
             b_ref: b.column(input::REFERENCE_M).into_owned(),
             b_force: b.column(input::CUTTING_FORCE_N).into_owned(),
-            b_command: b.column(input::CONTROL_DISTURBANCE_V).into_owned(),
         }
     }
 }
@@ -418,6 +432,11 @@ impl Model {
             d: normal.sys.d.clone(),
             p0,
             protected,
+            b_command: normal
+                .sys
+                .b
+                .column(input::CONTROL_DISTURBANCE_V)
+                .into_owned(),
             recovery,
             limit_v: c.controller.limit_v,
             saturation_ticks: if c.protection.saturation_s > 0.0 {
@@ -467,8 +486,7 @@ impl Model {
                     if saturated[i] > self.saturation_ticks {
                         return Some(Limit::Saturation);
                     }
-                    next.column_mut(i)
-                        .axpy(clamped - u, &self.normal.b_command, 1.0);
+                    next.column_mut(i).axpy(clamped - u, &self.b_command, 1.0);
                 }
             }
             x = next;
@@ -485,8 +503,6 @@ pub struct StallRun {
     pub trip: Option<(TripCause, u64)>,
     /// The tick at which the plant's watchdog declared the controller lost (0 V, run over).
     pub peer_lost_at: Option<u64>,
-    /// The largest |following error| the controller saw, m.
-    pub peak_following_error_m: f64,
     /// The largest |measured position| over every sample, stall included, m.
     pub peak_measured_m: f64,
 }
@@ -517,7 +533,6 @@ pub fn simulate(
     let mut out = StallRun {
         trip: None,
         peer_lost_at: None,
-        peak_following_error_m: 0.0,
         peak_measured_m: 0.0,
     };
     let mut sample = Sensor {
@@ -530,13 +545,8 @@ pub fn simulate(
         out.peak_measured_m = out.peak_measured_m.max((sample.gap_v / sensitivity).abs());
         let silent = stall.contains(&k);
         if !silent {
-            let (command, telemetry) = servo.tick(&sample);
-            if let Some(c) = command {
+            if let (Some(c), _) = servo.tick(&sample) {
                 dac_v = c.dac_v;
-            }
-            if let Some(t) = telemetry {
-                out.peak_following_error_m =
-                    out.peak_following_error_m.max(t.following_error_m.abs());
             }
             if servo.run_over() {
                 break;

@@ -406,6 +406,13 @@ impl fmt::Display for Summary {
                 100.0 * h.overruns as f64 / ticks,
                 us(&h.latency)
             )?;
+            if h.truth_only_ticks > 0 && h.faults & daq_io::flags::FAULT_PEER_LOST == 0 {
+                writeln!(
+                    f,
+                    "  {:<26}{} ticks the controller skipped (stalls) or whose telemetry was lost: in no error statistic",
+                    "not acted on", h.truth_only_ticks
+                )?;
+            }
             if h.realtime {
                 writeln!(f, "  {:<26}{}", "plant lateness", us(&h.plant_lateness))?;
             }

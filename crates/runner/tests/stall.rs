@@ -110,8 +110,9 @@ fn holding_position_the_watchdog_limits_the_stall_and_the_stage_outlasts_it() {
     let s = survivable(&p, timeout_s).unwrap();
     assert_eq!(s.physics_ticks, None, "{s:?}");
     assert_eq!(s.limit(), Limit::PeerTimeout);
-    // Silence counts from the sample after the last command until the next deadline: m ticks
-    // of it last (m + 1)·T, a loss at 0.5 ms: 99 ticks pass at 199.6 kHz, 100 do not.
+    // Silence counts from the sample after the last command until the next deadline (the
+    // plant's `serve` waits for a command until one period after the sample went out): m
+    // ticks of it last (m + 1)·T, a loss at 0.5 ms: 99 ticks pass at 199.6 kHz, 100 do not.
     let expected = (timeout_s / p.period_s()).ceil() as u64 - 1;
     assert_eq!(s.ticks(), expected);
     assert_eq!(expected, 99);

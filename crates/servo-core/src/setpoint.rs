@@ -528,7 +528,8 @@ mod tests {
             phase_rad: 0.3,
             offset: 0.0,
         };
-        let (mut ticked, mut sought) = (sine.try_build(1e-5).unwrap(), sine.try_build(1e-5).unwrap());
+        let (mut ticked, mut sought) =
+            (sine.try_build(1e-5).unwrap(), sine.try_build(1e-5).unwrap());
         for _ in 0..1234 {
             ticked.update(());
         }

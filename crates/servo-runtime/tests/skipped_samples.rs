@@ -23,10 +23,7 @@ fn the_reference_of_a_sample_after_a_skip_is_the_trajectory_at_its_tick() {
         let period = d.period_s();
         let mut servo = Servo::new(&d).unwrap();
         let mut sample = daq_io::Sensor::default();
-        let ticks = (0..100)
-            .chain(517..600)
-            .chain(601..640)
-            .chain(644..700);
+        let ticks = (0..100).chain(517..600).chain(601..640).chain(644..700);
         for k in ticks {
             sample.seq = k;
             servo.tick(&sample);

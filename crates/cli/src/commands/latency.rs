@@ -81,8 +81,9 @@ struct Report {
     overruns: u64,
     overrun_rate: f64,
     /// A controller-loss timeout no stall of this run reached (4 × the worst lateness, at
-    /// least 1 ms) and within what the stage survives, in ms; None when no timeout is both.
-    recommended_peer_timeout_ms: Option<u64>,
+    /// least 1 ms) and within what the stage survives (then at least twice the worst stall),
+    /// in ms; None when no timeout is both.
+    recommended_peer_timeout_ms: Option<f64>,
     /// An overrun budget this host keeps: burst 2 × the worst stall (at least 2 ms), in ms …
     recommended_overrun_burst_ms: u64,
     /// … and sustained rate 2 × the measured overrun rate (at least 1 %).
@@ -125,7 +126,15 @@ impl LatencyCmd {
             .rate_hz
             .unwrap_or(judged.config.plant.timing.servo_rate_hz);
         if !(1e2..=2e6).contains(&rate_hz) {
-            return Err(at.invalid("--rate-hz", rate_hz, "[100, 2e6] Hz").into());
+            let e = match self.rate_hz {
+                Some(_) => at.invalid("--rate-hz", rate_hz, "[100, 2e6] Hz"),
+                None => judged.origin.invalid(
+                    "plant.timing.servo_rate_hz",
+                    rate_hz,
+                    "[100, 2e6] Hz for servo latency",
+                ),
+            };
+            return Err(e.into());
         }
         judged.config.plant.timing.servo_rate_hz = rate_hz;
         if !(self.duration > 0.0 && self.duration <= 600.0) {
@@ -331,12 +340,13 @@ fn judge(judged: &Loaded) -> (String, Option<Survivable>, String) {
 /// stall; None when no timeout is both.
 ///
 /// [`STALL_MARGIN`]: runner::stall::STALL_MARGIN
-fn recommended_timeout_ms(worst_ns: u64, physics_s: Option<f64>) -> Option<u64> {
-    let wanted = (4 * worst_ns).div_ceil(1_000_000).max(1);
+fn recommended_timeout_ms(worst_ns: u64, physics_s: Option<f64>) -> Option<f64> {
+    let wanted = (4 * worst_ns).div_ceil(1_000_000).max(1) as f64;
     match physics_s {
-        Some(p) if (wanted as f64) * 1e-3 > p => {
-            let ms = (p * 1e3).floor() as u64;
-            (ms as f64 * 1e6 >= runner::stall::STALL_MARGIN * worst_ns as f64).then_some(ms)
+        Some(p) if wanted * 1e-3 > p => {
+            // The longest the stage survives, to 0.1 ms below.
+            let ms = (p * 1e4).floor() / 10.0;
+            (ms * 1e6 >= runner::stall::STALL_MARGIN * worst_ns as f64).then_some(ms)
         }
         _ => Some(wanted),
     }

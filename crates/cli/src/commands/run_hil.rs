@@ -7,7 +7,7 @@ use crate::output::{tick_bar, CliError};
 use daq_io::contract::role;
 use daq_io::ipc::{leaf, take, Endpoint};
 use daq_io::Health;
-use runner::config::{Origin, Role, Scenario, SurfaceConfig};
+use runner::config::{ConfigError, Origin, Role, Scenario, SurfaceConfig};
 use runner::stall::{check_host, survivable, HostStalls};
 use runner::summary::Summary;
 use runner::{Plan, RunError};
@@ -267,8 +267,9 @@ fn preflight(plan: &Plan, timeout_s: f64, check: &HostCheck) -> Result<(), CliEr
     }
 }
 
-/// The host's worst stall: the plant's pacing alone at the run's rate with its real-time
-/// settings, for [`QUALIFY_S`], on a thread of its own (its scheduling ends with it).
+/// The host's worst stall: the loop's pacing alone at the run's rate with the controller's
+/// real-time settings (a stall is the controller's: a plant stall only pauses the simulated
+/// stage), for [`QUALIFY_S`], on a thread of its own (its scheduling ends with it).
 fn qualify(plan: &Plan) -> Result<HostStalls, CliError> {
     use daq_io::qualify::{measure, WallClock};
     let rt = &plan.config.realtime;
@@ -279,7 +280,7 @@ fn qualify(plan: &Plan) -> Result<HostStalls, CliError> {
         "qualifying this host: {QUALIFY_S} s of the loop's pacing at {:.1} kHz",
         rate / 1e3
     );
-    let settings = rt.settings(Role::Plant);
+    let settings = rt.settings(Role::Controller);
     let wait = rt.wait();
     let measured = std::thread::scope(|s| {
         s.spawn(|| -> Result<(u64, String), RunError> {
@@ -305,7 +306,9 @@ fn qualify(plan: &Plan) -> Result<HostStalls, CliError> {
 }
 
 /// A `servo latency --json` result: its `host_stalls`, when it was measured on this host
-/// (`host`), at the run's rate (`rate_hz`), within the last day (`measured_at`).
+/// (`host`), at the run's rate (`rate_hz`) with the controller's settings (`wait`, `policy`,
+/// `priority`, `cpus` when the run pins the controller, `lock_memory`), within the last day
+/// (`measured_at`).
 fn read_qualification(path: &Path, plan: &Plan) -> Result<HostStalls, CliError> {
     use runner::config::input_file::read_text;
     #[derive(serde::Deserialize)]
@@ -313,20 +316,22 @@ fn read_qualification(path: &Path, plan: &Plan) -> Result<HostStalls, CliError> 
         host: String,
         measured_at: String,
         rate_hz: f64,
+        wait: String,
+        policy: String,
+        priority: Option<i32>,
+        cpus: Vec<usize>,
+        lock_memory: bool,
         host_stalls: HostStalls,
     }
     let text = read_text(path)?;
+    let l: Latency = serde_json::from_str(&text).map_err(|e| ConfigError::Parse {
+        path: path.to_owned(),
+        message: format!("{e} (a `servo latency --json` result)"),
+    })?;
     let at = Origin {
         path: Some(path.to_owned()),
-        text: Some(text.clone()),
+        text: Some(text),
     };
-    let l: Latency = serde_json::from_str(&text).map_err(|e| {
-        at.invalid(
-            "host_stalls",
-            e.to_string(),
-            "a `servo latency --json` result",
-        )
-    })?;
     let here = runner::recording::host_name();
     if l.host != here {
         return Err(at
@@ -343,6 +348,53 @@ fn read_qualification(path: &Path, plan: &Plan) -> Result<HostStalls, CliError> 
             .invalid("rate_hz", l.rate_hz, &format!("the run's {rate} Hz"))
             .into());
     }
+    if !(l.host_stalls.worst_s.is_finite() && l.host_stalls.worst_s >= 0.0) {
+        return Err(at
+            .invalid(
+                "host_stalls.worst_s",
+                l.host_stalls.worst_s,
+                "a stall ≥ 0 s",
+            )
+            .into());
+    }
+    let rt = &plan.config.realtime;
+    let settings = rt.settings(Role::Controller);
+    let same = |key: &str, got: String, run: String, run_key: &str| {
+        if got == run {
+            Ok(())
+        } else {
+            Err(at.invalid(key, got, &format!("{run}, the run's {run_key}")))
+        }
+    };
+    same("wait", l.wait, rt.wait().describe(), "realtime.wait")?;
+    same(
+        "policy",
+        l.policy,
+        settings.policy.name().into(),
+        "realtime.policy",
+    )?;
+    if settings.policy.is_realtime() {
+        same(
+            "priority",
+            format!("{:?}", l.priority),
+            format!("{:?}", Some(settings.priority)),
+            "realtime.priority",
+        )?;
+    }
+    if !settings.cpus.is_empty() {
+        same(
+            "cpus",
+            format!("{:?}", l.cpus),
+            format!("{:?}", settings.cpus),
+            "realtime.controller_cpu",
+        )?;
+    }
+    same(
+        "lock_memory",
+        l.lock_memory.to_string(),
+        settings.lock_memory.to_string(),
+        "realtime.lock_memory",
+    )?;
     let age = humantime::parse_rfc3339(&l.measured_at)
         .ok()
         .and_then(|t| std::time::SystemTime::now().duration_since(t).ok());
