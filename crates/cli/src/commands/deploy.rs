@@ -3,7 +3,8 @@
 use crate::args::RunArgs;
 use crate::output::{print_margins, CliError};
 use clap::Args;
-use runner::Plan;
+use runner::stall::{survivable, MAX_STALL_S};
+use runner::{Plan, RunError};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -45,6 +46,7 @@ impl DeployCmd {
             s.unstable_below,
             s.unstable_above
         );
+        print_survivable_stall(&plan)?;
         println!(
             "  wrote {} — embed it: Servo::from_file(\"{}\")",
             self.out.display(),
@@ -52,4 +54,21 @@ impl DeployCmd {
         );
         Ok(ExitCode::SUCCESS)
     }
+}
+
+/// The stall the stage rides out with the DAC held (a daemon's loop that stops: the DAC keeps
+/// its last value), for the daemon's host to be qualified against.
+fn print_survivable_stall(plan: &Plan) -> Result<(), CliError> {
+    let what = match survivable(plan, plan.config.realtime.peer_timeout_s) {
+        Ok(s) => match (s.physics_s(), s.physics_limit) {
+            (Some(p), Some(limit)) => format!("up to {:.1} µs ({})", p * 1e6, limit.describe()),
+            _ => format!("more than {:.0} ms", MAX_STALL_S * 1e3),
+        },
+        Err(RunError::StallAnalysis(why)) => format!("not predicted: {why}"),
+        Err(e) => return Err(e.into()),
+    };
+    println!(
+        "  a stalled loop (DAC held): the stage rides out {what}; qualify the daemon's host with servo latency"
+    );
+    Ok(())
 }
