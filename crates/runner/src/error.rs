@@ -113,7 +113,7 @@ pub enum RunError {
     StallAnalysis(String),
     /// The host stalls longer than the loop survives: a real-time run would fail.
     #[error("{0}")]
-    HostTooSlow(Box<crate::stall::Refusal>),
+    HostTooSlow(Box<crate::stall::verdict::Refusal>),
 }
 
 /// A spectral radius as a reader wants it: six decimals near 1, powers of ten when huge.

@@ -10,8 +10,10 @@ use runner::{Plan, RunError};
 
 /// The thesis prototype and PID at 199.6 kHz, noise on, `scenario` for `duration_s`.
 fn plan(scenario: Scenario, duration_s: f64) -> Plan {
-    let mut c = RunConfig::default();
-    c.scenario = scenario;
+    let mut c = RunConfig {
+        scenario,
+        ..Default::default()
+    };
     c.run.duration_s = duration_s;
     Plan::new(&Loaded {
         config: c,

@@ -357,8 +357,8 @@ fn print_survivable(r: &Report) {
     let worst_us = r.host_stalls.worst_s * 1e6;
     let Some(s) = &r.survivable else {
         println!(
-            "  survivable stall {} ({}): {}",
-            r.judged, "its loop", r.survivable_note
+            "  survivable stall for this loop ({}): {}",
+            r.judged, r.survivable_note
         );
         return;
     };
