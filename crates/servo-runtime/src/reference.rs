@@ -26,15 +26,13 @@ pub trait Reference {
 }
 
 /// A built-in generator on the samples' ticks: its value is a closed form of the tick's time
-/// (`seq · period`), primed at a sample's tick and then read in sequence `ahead` ticks early;
-/// a sample that skipped ticks (a loop that fell behind takes the newest) moves it to that
-/// tick, so the trajectory stays on the plant's time. A run whose first sample is not tick 0
-/// starts the trajectory at that tick's time.
+/// (`seq · period`), primed at a sample's tick and then read in sequence `ahead` ticks early.
+/// The loop primes it again after skipped ticks (a loop that fell behind takes the newest
+/// sample), which moves it to that sample's tick, so the trajectory stays on the plant's time.
+/// A run whose first sample is not tick 0 starts the trajectory at that tick's time.
 #[derive(Debug, Clone)]
 pub(crate) struct Generator {
     kind: Kind,
-    /// The tick whose position the next evaluation gives.
-    next_tick: u64,
 }
 
 /// The generator's kind.
@@ -103,12 +101,11 @@ impl Generator {
                 .map_err(invalid)?,
             ),
         };
-        Ok(Generator { kind, next_tick: 0 })
+        Ok(Generator { kind })
     }
 
     /// Makes the next evaluation give tick `tick` (constant time).
     fn seek(&mut self, tick: u64) {
-        self.next_tick = tick;
         match &mut self.kind {
             Kind::Zero => {}
             Kind::Sine(g) => g.seek(tick),
@@ -120,7 +117,6 @@ impl Generator {
     /// The position of the next tick in sequence.
     #[inline]
     fn position(&mut self) -> f64 {
-        self.next_tick = self.next_tick.saturating_add(1);
         match &mut self.kind {
             Kind::Zero => 0.0,
             Kind::Sine(g) => g.update(()).position,
@@ -136,14 +132,10 @@ impl Reference for Generator {
         out.iter_mut().for_each(|v| *v = self.position());
     }
 
-    /// The tick `ahead` after the sample's; a generator behind it (samples were skipped) moves
-    /// on to it, one ahead of it (a host whose `seq` does not advance) goes on in sequence.
+    /// The next tick in sequence: `ahead` after the sample's while no tick is skipped (the
+    /// loop primes the generator again when one is).
     #[inline]
-    fn next(&mut self, sample: &Sensor, ahead: usize) -> f64 {
-        let tick = sample.seq.saturating_add(ahead as u64);
-        if tick > self.next_tick {
-            self.seek(tick);
-        }
+    fn next(&mut self, _: &Sensor, _: usize) -> f64 {
         self.position()
     }
 
