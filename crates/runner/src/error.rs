@@ -108,8 +108,8 @@ pub enum RunError {
     /// replay on the simulator's own stage.
     #[error("{}: recorded against a plant without simulator truth (a DAQ daemon or a real stage): its plant and noise cannot be re-run as they were; replay it on an identified plant model (a plant file, as `servo identify` writes it)", .0.display())]
     NoTruth(PathBuf),
-    /// The stall the loop survives could not be predicted.
-    #[error("the survivable stall: {0}")]
+    /// The stall the loop survives could not be predicted (the reason).
+    #[error("the survivable stall is not predicted: {0}")]
     StallAnalysis(String),
     /// The host stalls longer than the loop survives: a real-time run would fail.
     #[error("{0}")]

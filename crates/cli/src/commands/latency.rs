@@ -8,7 +8,7 @@ use clap::Args;
 use daq_io::qualify::{measure, readiness, Check, WallClock};
 use runner::config::{Loaded, Origin, RealtimeConfig, Role, WaitKind};
 use runner::stall::{advice, check_host, survivable, HostStalls, Survivable};
-use runner::Plan;
+use runner::{Plan, RunError};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -310,13 +310,9 @@ fn print_report(r: &Report) {
 /// note: what limits it, or why it was not predicted.
 fn judge(judged: &Loaded) -> (String, Option<Survivable>, String) {
     let c = &judged.config;
-    let feedforward = match c.controller.feedforward {
-        runner::config::FeedforwardKind::None => "",
-        _ => " (feedback only: the feedforward is not modelled)",
-    };
     let what = |controller: &str| {
         format!(
-            "{controller}, {}, {:.1} kHz{feedforward}",
+            "{controller}, {}, {:.1} kHz",
             c.scenario.name(),
             c.plant.timing.servo_rate_hz / 1e3
         )
@@ -331,6 +327,7 @@ fn judge(judged: &Loaded) -> (String, Option<Survivable>, String) {
             let note = s.limit().describe().to_owned();
             (description, Some(s), note)
         }
+        Err(RunError::StallAnalysis(why)) => (description, None, format!("not predicted: {why}")),
         Err(e) => (description, None, format!("not predicted: {e}")),
     }
 }

@@ -186,7 +186,7 @@ impl Cases {
     fn of(plan: &Plan) -> Result<Self, RunError> {
         if plan.config.controller.feedforward != crate::config::FeedforwardKind::None {
             return Err(RunError::StallAnalysis(
-                "a loop with feedforward (controller.feedforward) is not predicted: the model is the feedback loop's".into(),
+                "a loop with feedforward (controller.feedforward): the model is the feedback loop's".into(),
             ));
         }
         let sys = &plan.closed_loop.sys;
@@ -270,7 +270,7 @@ impl Cases {
             }
             Scenario::Machine(_) => {
                 return Err(RunError::StallAnalysis(
-                    "the survivable stall of a machining run (scenario.kind = \"machine\") is not predicted: its reference is the surface under the tool".into(),
+                    "a machining run (scenario.kind = \"machine\"): its reference is the surface under the tool".into(),
                 ))
             }
         }
