@@ -117,10 +117,12 @@ pub fn survivable(plan: &Plan, peer_timeout_s: f64) -> Result<Survivable, RunErr
 /// `daq_io::serve` gives it — a silent tick k is published at k·T and judged when its command
 /// deadline, (k + 1)·T, passes.
 fn watchdog_ticks(plan: &Plan, timeout_s: f64) -> u64 {
-    let period_ns = (plan.period_s() * 1e9).round() as u64;
-    // After the grace window, a controller heard at tick 0 of the count, then silent.
-    let mut watchdog = Watchdog::new(policy(plan, timeout_s));
-    let start = watchdog_start(plan, timeout_s);
+    let period_ns = period_ns(plan);
+    let policy = policy(plan, timeout_s);
+    // After the grace window (where the timeout alone judges silence), a controller heard at
+    // tick 0 of the count, then silent.
+    let start = policy.grace_ns / period_ns + 1;
+    let mut watchdog = Watchdog::new(policy);
     let mut m = 0;
     while watchdog.tick((start + m + 1) * period_ns, start * period_ns, true, false) == Verdict::Ok
     {
@@ -140,10 +142,9 @@ fn policy(plan: &Plan, timeout_s: f64) -> daq_io::watchdog::FaultPolicy {
     serve_options(plan, &opts).fault_policy()
 }
 
-/// A tick after the grace window (where the timeout alone judges silence).
-fn watchdog_start(plan: &Plan, timeout_s: f64) -> u64 {
-    let p = policy(plan, timeout_s);
-    p.grace_ns / (plan.period_s() * 1e9).round() as u64 + 1
+/// The servo period in ns, as the plant counts it.
+fn period_ns(plan: &Plan) -> u64 {
+    (plan.period_s() * 1e9).round() as u64
 }
 
 /// The deterministic states a stall may start from, as columns: the loop's state at the
@@ -458,7 +459,7 @@ pub fn simulate(
     let mut backend = SimBackend::for_run(plan);
     let mut servo = ServoLoop::new(plan)?;
     let mut watchdog = Watchdog::new(policy(plan, peer_timeout_s));
-    let period_ns = (plan.period_s() * 1e9).round() as u64;
+    let period_ns = period_ns(plan);
     let sensitivity = plan.config.plant.capa.sensitivity_v_per_m;
     let mut out = StallRun {
         trip: None,
