@@ -51,8 +51,8 @@ pub fn study_open(text: &str, out_dir: PathBuf) -> PyResult<(PathBuf, Vec<u64>)>
     ))
 }
 
-/// Joins the journals in `dirs` and writes the finished study into `out_dir`; returns the
-/// written file paths.
+/// Joins the journals in `dirs` and writes the finished study into `out_dir` (the
+/// sensitivities on every core); returns the written file paths.
 #[pyfunction]
 pub fn study_finish(
     py: Python<'_>,
@@ -62,7 +62,9 @@ pub fn study_finish(
     py.detach(|| {
         let (s, points) = gather(&dirs).map_err(servo_err)?;
         claim(&s, &out_dir).map_err(servo_err)?;
-        let (_, written) = finish(&s, &points, &out_dir, &mut |_, _| {}).map_err(servo_err)?;
+        let jobs = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let (_, written) =
+            finish(&s, &points, &out_dir, jobs, &mut |_, _| {}).map_err(servo_err)?;
         Ok(written.files)
     })
 }

@@ -46,21 +46,35 @@ pub struct Margins {
     pub lower_gain_margin_db: Option<f64>,
 }
 
-/// All roots of `g` on a log grid between `f_lo` and `f_hi` (sign changes), refined by bisection.
-fn roots(g: &impl Fn(f64) -> f64, f_lo: f64, f_hi: f64) -> Vec<f64> {
-    let n = 4000;
-    let ratio = libm::pow(f_hi / f_lo, 1.0 / n as f64);
+/// Points of the log grid between `f_lo` and `f_hi` on which the margins look for crossings.
+const GRID_POINTS: usize = 4000;
+
+/// The log grid from `f_lo` to `f_hi` (both included) with `loop_gain` at each point, so
+/// that each crossing search reads the same evaluations.
+fn sampled(loop_gain: &impl Fn(f64) -> C, f_lo: f64, f_hi: f64) -> Vec<(f64, C)> {
+    let ratio = libm::pow(f_hi / f_lo, 1.0 / GRID_POINTS as f64);
+    let mut f = f_lo;
+    (0..=GRID_POINTS)
+        .map(|_| {
+            let at = (f, loop_gain(f));
+            f *= ratio;
+            at
+        })
+        .collect()
+}
+
+/// All roots of `g` (a function of `L`) between the points of `grid` where it changes sign,
+/// refined by bisection on `loop_gain`.
+fn roots(grid: &[(f64, C)], loop_gain: &impl Fn(f64) -> C, g: impl Fn(C) -> f64) -> Vec<f64> {
     let mut out = Vec::new();
-    let mut a = f_lo;
-    let mut ga = g(a);
-    for _ in 0..n {
-        let b = a * ratio;
-        let gb = g(b);
+    for pair in grid.windows(2) {
+        let ((a, la), (b, lb)) = (pair[0], pair[1]);
+        let (ga, gb) = (g(la), g(lb));
         if ga.signum() != gb.signum() && ga.is_finite() && gb.is_finite() {
             let (mut lo, mut hi, mut glo) = (a, b, ga);
             for _ in 0..80 {
                 let mid = (lo * hi).sqrt();
-                let gm = g(mid);
+                let gm = g(loop_gain(mid));
                 if gm.signum() == glo.signum() {
                     (lo, glo) = (mid, gm);
                 } else {
@@ -69,7 +83,6 @@ fn roots(g: &impl Fn(f64) -> f64, f_lo: f64, f_hi: f64) -> Vec<f64> {
             }
             out.push((lo * hi).sqrt());
         }
-        (a, ga) = (b, gb);
     }
     out
 }
@@ -88,12 +101,13 @@ pub fn margins(loop_gain: impl Fn(f64) -> C, f_lo: f64, f_hi: f64) -> Margins {
             p
         }
     };
-    let gain_cross = roots(&|f| libm::log(loop_gain(f).norm()), f_lo, f_hi);
+    let grid = sampled(&loop_gain, f_lo, f_hi);
+    let gain_cross = roots(&grid, &loop_gain, |l| libm::log(l.norm()));
     let worst_pm = gain_cross
         .iter()
         .map(|&f| (f, pm_wrapped(f)))
         .min_by(|a, b| a.1.total_cmp(&b.1));
-    let phase_cross: Vec<f64> = roots(&|f| loop_gain(f).im, f_lo, f_hi)
+    let phase_cross: Vec<f64> = roots(&grid, &loop_gain, |l| l.im)
         .into_iter()
         .filter(|&f| loop_gain(f).re < 0.0)
         .collect();

@@ -99,9 +99,10 @@ pub fn design(
         return Err(ZpetcError::NotSiso(sys.ny(), sys.nu()));
     }
     let grid = lti::spectral::log_space(1.0, f_check_hz, 200);
+    let response = lti::FrequencyResponse::new(sys);
     let full: Vec<Complex64> = grid
         .iter()
-        .map(|&f| Ok(sys.freq_response_discrete(f, period_s)?[(0, 0)]))
+        .map(|&f| Ok(response.discrete(f, period_s)?[(0, 0)]))
         .collect::<Result<_, LtiError>>()?;
     let dc_full = sys.freq_response_discrete(0.0, period_s)?[(0, 0)].re;
     let balancing = Balancing::new(sys)?;

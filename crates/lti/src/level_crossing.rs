@@ -9,6 +9,7 @@
 //! dip — and to full precision. A frequency grid is searched as well, so a crossing the
 //! eigenvalues were too ill-conditioned to show is still bracketed.
 
+use crate::frequency_response::FrequencyResponse;
 use crate::state_space::{eigenvalues, LtiError, StateSpace};
 use nalgebra::DMatrix;
 use std::f64::consts::PI;
@@ -22,9 +23,9 @@ pub fn first_fall_below(
     level: f64,
 ) -> Result<Option<f64>, LtiError> {
     let nyquist = 0.5 / period_s;
-    let gain = |f: f64| -> Result<f64, LtiError> {
-        Ok(sys.freq_response_discrete(f, period_s)?[(0, 0)].norm())
-    };
+    let response = FrequencyResponse::new(sys);
+    let gain =
+        |f: f64| -> Result<f64, LtiError> { Ok(response.discrete(f, period_s)?[(0, 0)].norm()) };
     // Candidates: the Hamiltonian's (each probed just above too: the crossing is at it), and
     // a 2 % log grid from 1 mHz, walked in order from the last point seen at or above the level.
     let exact = hamiltonian_frequencies(sys, period_s, level);

@@ -17,6 +17,7 @@
 //! | [`welch_statistics`] | what a Welch estimate of a modelled signal should read, and how far it strays by chance |
 
 pub mod discretise;
+pub mod frequency_response;
 pub mod interconnect;
 pub mod level_crossing;
 pub mod lyapunov;
@@ -28,6 +29,7 @@ pub mod state_space;
 pub mod welch_statistics;
 
 pub use discretise::{c2d_tustin, expm, zoh, DelayedZoh};
+pub use frequency_response::FrequencyResponse;
 pub use lyapunov::dlyap;
 pub use reduce::sqrt_factor;
 pub use state_space::{eigenvalues, LtiError, StateSpace};

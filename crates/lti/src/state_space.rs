@@ -1,6 +1,7 @@
 //! Continuous LTI models in state space: shapes, frequency responses, balancing, realisations
 //! of rational functions, and eigenvalues.
 
+use crate::frequency_response::FrequencyResponse;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
@@ -168,42 +169,21 @@ impl StateSpace {
         self.c.nrows()
     }
 
-    /// `G(jω) = C (jωI − A)⁻¹ B + D` at `w_rad_s` (p × m complex).
+    /// `G(jω) = C (jωI − A)⁻¹ B + D` at `w_rad_s` (p × m complex). For many frequencies,
+    /// prepare the system once with [`FrequencyResponse::new`].
     pub fn freq_response(&self, w_rad_s: f64) -> Result<DMatrix<Complex64>, LtiError> {
-        let n = self.nx();
-        let jw_a = DMatrix::from_fn(n, n, |i, j| {
-            let diag = if i == j {
-                Complex64::new(0.0, w_rad_s)
-            } else {
-                Complex64::new(0.0, 0.0)
-            };
-            diag - self.a[(i, j)]
-        });
-        let b = self.b.map(|x| Complex64::new(x, 0.0));
-        let x = jw_a.lu().solve(&b).ok_or(LtiError::Singular(w_rad_s))?;
-        let c = self.c.map(|x| Complex64::new(x, 0.0));
-        Ok(c * x + self.d.map(|x| Complex64::new(x, 0.0)))
+        FrequencyResponse::new(self).continuous(w_rad_s)
     }
 
     /// Discrete-time `G(z) = C (zI − A)⁻¹ B + D` at `z = e^{j2πf·T}` (matrices of a sampled
-    /// system with period `period_s`).
+    /// system with period `period_s`). For many frequencies, prepare the system once with
+    /// [`FrequencyResponse::new`].
     pub fn freq_response_discrete(
         &self,
         f_hz: f64,
         period_s: f64,
     ) -> Result<DMatrix<Complex64>, LtiError> {
-        let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * period_s);
-        let n = self.nx();
-        let za = DMatrix::from_fn(n, n, |i, j| {
-            if i == j {
-                z - self.a[(i, j)]
-            } else {
-                Complex64::new(-self.a[(i, j)], 0.0)
-            }
-        });
-        let b = self.b.map(|x| Complex64::new(x, 0.0));
-        let x = za.lu().solve(&b).ok_or(LtiError::Singular(f_hz))?;
-        Ok(self.c.map(|x| Complex64::new(x, 0.0)) * x + self.d.map(|x| Complex64::new(x, 0.0)))
+        FrequencyResponse::new(self).discrete(f_hz, period_s)
     }
 
     /// Poles: [`eigenvalues`] of `A` (s-plane for continuous, z-plane for discrete models).
@@ -224,37 +204,55 @@ impl StateSpace {
 
 /// The diagonal similarity `D⁻¹AD` (powers of 2, so exact) that makes the rows and columns of
 /// `a` comparable in norm (Parlett–Reinsch, as LAPACK `dgebal` without permutations), and `D`.
-pub fn balance(mut a: DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+pub fn balance(a: DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+    let n = a.nrows();
+    let (a, _, _, scale) = balance_system(a, DMatrix::zeros(n, 0), DMatrix::zeros(0, n));
+    (a, scale)
+}
+
+/// [`balance`] of the system matrix `[A B; C 0]` by a state scaling alone (as SLICOT `TB01ID`):
+/// each state's row of `[A B]` and column of `[A; C]` made comparable in norm. Returns
+/// `D⁻¹AD`, `D⁻¹B`, `CD` and `D`.
+pub fn balance_system(
+    mut a: DMatrix<f64>,
+    mut b: DMatrix<f64>,
+    mut c: DMatrix<f64>,
+) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, Vec<f64>) {
     const RADIX: f64 = 2.0;
     let n = a.nrows();
     let mut scale = vec![1.0; n];
+    let sum = |v: &mut dyn Iterator<Item = f64>| v.map(f64::abs).sum::<f64>();
     loop {
         let mut converged = true;
         for (i, scale_i) in scale.iter_mut().enumerate() {
-            let c: f64 = (0..n).filter(|&j| j != i).map(|j| a[(j, i)].abs()).sum();
-            let r: f64 = (0..n).filter(|&j| j != i).map(|j| a[(i, j)].abs()).sum();
-            if c == 0.0 || r == 0.0 {
+            let col = sum(&mut (0..n).filter(|&j| j != i).map(|j| a[(j, i)]))
+                + sum(&mut c.column(i).iter().copied());
+            let row = sum(&mut (0..n).filter(|&j| j != i).map(|j| a[(i, j)]))
+                + sum(&mut b.row(i).iter().copied());
+            if col == 0.0 || row == 0.0 {
                 continue;
             }
-            let total = c + r;
-            let (mut f, mut cs) = (1.0, c);
-            while cs < r / RADIX {
+            let total = col + row;
+            let (mut f, mut cs) = (1.0, col);
+            while cs < row / RADIX {
                 f *= RADIX;
                 cs *= RADIX * RADIX;
             }
-            while cs >= r * RADIX {
+            while cs >= row * RADIX {
                 f /= RADIX;
                 cs /= RADIX * RADIX;
             }
-            if (cs + r) / f < 0.95 * total {
+            if (cs + row) / f < 0.95 * total {
                 converged = false;
                 a.row_mut(i).scale_mut(1.0 / f);
+                b.row_mut(i).scale_mut(1.0 / f);
                 a.column_mut(i).scale_mut(f);
+                c.column_mut(i).scale_mut(f);
                 *scale_i *= f;
             }
         }
         if converged {
-            return (a, scale);
+            return (a, b, c, scale);
         }
     }
 }

@@ -265,6 +265,20 @@ impl ClosedLoop {
         self.response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f_hz)
     }
 
+    /// [`ClosedLoop::command_response`] at each of `freq_hz` (the loop reduced once), each
+    /// frequency's own result.
+    pub fn command_responses(
+        &self,
+        freq_hz: &[f64],
+    ) -> Vec<Result<num_complex::Complex64, LtiError>> {
+        let siso = self.subsystem(&[(output::MEASURED_M, 1.0)], input::CONTROL_DISTURBANCE_V);
+        let response = lti::FrequencyResponse::new(&siso);
+        freq_hz
+            .iter()
+            .map(|&f| Ok(response.discrete(f, self.period_s)?[(0, 0)]))
+            .collect()
+    }
+
     /// `H(e^{j2πfT})` from `input` to `output`.
     pub fn response(
         &self,

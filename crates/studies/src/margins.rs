@@ -13,9 +13,9 @@ pub fn loop_margins(plan: &Plan) -> Result<design::loops::Margins, StudyError> {
     let open = ClosedLoop::open(&plan.sim, s).ok_or(StudyError::NeedsLinearPlant {
         what: "the margins",
     })?;
-    let l = open.loop_gain(&plan.controller.linear, s)?;
+    let l = lti::FrequencyResponse::new(&open.loop_gain(&plan.controller.linear, s)?);
     let loop_gain = |f: f64| {
-        l.freq_response_discrete(f, period)
+        l.discrete(f, period)
             .map_or_else(|_| num_complex::Complex64::default(), |h| h[(0, 0)])
     };
     Ok(design::loops::margins(loop_gain, 1.0, 0.499 / period))

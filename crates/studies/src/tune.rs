@@ -109,9 +109,10 @@ pub(crate) fn plant_response(plan: &Plan, freq_hz: &[f64]) -> Result<Vec<Complex
     let s = plan.config.plant.capa.sensitivity_v_per_m;
     let open =
         ClosedLoop::open(&plan.sim, s).ok_or(StudyError::NeedsLinearPlant { what: "tuning" })?;
-    Ok(freq_hz
-        .iter()
-        .map(|&f| open.command_response(f).unwrap_or_default() * s)
+    Ok(open
+        .command_responses(freq_hz)
+        .into_iter()
+        .map(|r| r.unwrap_or_default() * s)
         .collect())
 }
 
@@ -144,13 +145,13 @@ pub(crate) fn pid_basis(
             d: DMatrix::from_element(1, 1, d),
         })
     };
-    let units = [unit(0)?, unit(1)?, unit(2)?];
+    let units = [unit(0)?, unit(1)?, unit(2)?].map(|u| lti::FrequencyResponse::new(&u));
     Ok(freq_hz
         .iter()
         .map(|&f| {
             let r = |j: usize| {
                 units[j]
-                    .freq_response_discrete(f, period)
+                    .discrete(f, period)
                     .map(|m| m[(0, 0)])
                     .unwrap_or_default()
             };

@@ -157,7 +157,7 @@ fn a_stronger_motor_raises_current_noise_and_transmits_less_base_vibration() {
     let s = study(
         "[study]\n[[study.parameter]]\nkey = \"plant.actuator.kt_n_per_a\"\nfrom = 1.0\nto = 12.0\npoints = 2\nspacing = \"log\"\n",
     );
-    let e = &sensitivities(&s, &mut |_, _| {})[0];
+    let e = &sensitivities(&s, 2, &mut |_, _| {})[0];
     assert!(e.failed.is_none());
     assert!(e.true_by_source[source("current")] > 0.1, "{e:?}");
     assert!(e.true_by_source[source("base")] < 0.0, "{e:?}");

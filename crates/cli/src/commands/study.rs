@@ -87,7 +87,7 @@ impl StudyCmd {
                     .into())
             }
             Some(n) => n,
-            None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            None => every_core(),
         };
         let stop = crate::interrupt::stop_on_signals();
         let total = shard.points(study.points()).count();
@@ -132,28 +132,34 @@ impl StudyCmd {
             }
             return Ok(ExitCode::SUCCESS);
         }
-        report_finished(&study, &run.points, &self.out_dir, self.json)
+        report_finished(&study, &run.points, &self.out_dir, jobs, self.json)
     }
+}
+
+/// The threads that use every core of this machine.
+fn every_core() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 impl MergeCmd {
     fn exec(&self) -> Result<ExitCode, CliError> {
         let (study, points) = gather(&self.dirs)?;
         claim(&study, &self.out_dir)?;
-        report_finished(&study, &points, &self.out_dir, self.json)
+        report_finished(&study, &points, &self.out_dir, every_core(), self.json)
     }
 }
 
-/// Sensitivities, files and the printed summary of a finished study.
+/// Sensitivities (on `jobs` threads), files and the printed summary of a finished study.
 fn report_finished(
     study: &Study,
     points: &[Point],
     dir: &Path,
+    jobs: usize,
     json: bool,
 ) -> Result<ExitCode, CliError> {
     let n = studies::design_space::sensitivity::loops(study);
     let bar = points_bar(n as usize, "sensitivities", "loops");
-    let done = finish(study, points, dir, &mut |d, _| bar.set_position(d));
+    let done = finish(study, points, dir, jobs, &mut |d, _| bar.set_position(d));
     bar.finish_and_clear();
     let (found, written) = done?;
     if json {

@@ -89,9 +89,10 @@ pub fn source_psds<const N: usize>(
     outputs: [usize; N],
 ) -> Result<[Vec<Vec<f64>>; N], LtiError> {
     let fs = 1.0 / cl.period_s;
+    let response = lti::FrequencyResponse::new(&cl.sys);
     let responses: Vec<DMatrix<num_complex::Complex64>> = freq_hz
         .iter()
-        .map(|&f| cl.sys.freq_response_discrete(f, cl.period_s))
+        .map(|&f| response.discrete(f, cl.period_s))
         .collect::<Result<_, _>>()?;
     Ok(outputs.map(|out| {
         SOURCES

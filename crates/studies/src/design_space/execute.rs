@@ -1,6 +1,7 @@
 //! Running a shard of a study on every local core: workers take the shard's remaining points
 //! one at a time, and each finished point goes to the journal at once (so an interruption
-//! loses at most the points being evaluated) and to the progress report.
+//! loses at most the points being evaluated) and to the progress report. The worker pool
+//! ([`in_parallel`]) also runs the sensitivities' loops.
 
 use super::evaluate::{evaluate, Point};
 use super::journal::{claim, pending, Journal, Shard};
@@ -44,43 +45,26 @@ pub fn run_shard(
     let total = shard.points(study.points()).count() as u64;
     let todo = pending(study, shard, &points);
     progress(points.len() as u64, total);
-    let next = AtomicUsize::new(0);
-    let failed = AtomicBool::new(false);
-    let (send, receive) = mpsc::channel::<Point>();
     let mut evaluated = 0u64;
     let mut failure = None;
-    std::thread::scope(|s| {
-        for _ in 0..jobs.max(1).min(todo.len().max(1)) {
-            let send = send.clone();
-            let (next, todo, failed) = (&next, &todo, &failed);
-            s.spawn(move || {
-                while !stop() && !failed.load(Ordering::Relaxed) {
-                    let Some(&i) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
-                        break;
-                    };
-                    if send.send(evaluate(study, i)).is_err() {
-                        break;
-                    }
-                }
-            });
-        }
-        drop(send);
-        for p in receive {
-            if failure.is_none() {
-                match journal.append(&p) {
-                    Ok(()) => {
-                        evaluated += 1;
-                        points.push(p);
-                        progress(points.len() as u64, total);
-                    }
-                    Err(e) => {
-                        failed.store(true, Ordering::Relaxed);
-                        failure = Some(e);
-                    }
-                }
+    in_parallel(
+        &todo,
+        jobs,
+        stop,
+        |&i| evaluate(study, i),
+        |p| match journal.append(&p) {
+            Ok(()) => {
+                evaluated += 1;
+                points.push(p);
+                progress(points.len() as u64, total);
+                true
             }
-        }
-    });
+            Err(e) => {
+                failure = Some(e);
+                false
+            }
+        },
+    );
     if let Some(e) = failure {
         return Err(e);
     }
@@ -91,4 +75,42 @@ pub fn run_shard(
         evaluated,
         total,
     })
+}
+
+/// `work` on each of `items` on `jobs` threads (each takes the next item as it becomes free);
+/// `done` gets each result on the calling thread as it comes, in finishing order, and returns
+/// whether to go on. Stops taking items once `stop()` is true or `done` said no (items being
+/// worked on finish, and their results are dropped after a no).
+pub(crate) fn in_parallel<T: Sync, R: Send>(
+    items: &[T],
+    jobs: usize,
+    stop: &(dyn Fn() -> bool + Sync),
+    work: impl Fn(&T) -> R + Sync,
+    mut done: impl FnMut(R) -> bool,
+) {
+    let next = AtomicUsize::new(0);
+    let cancelled = AtomicBool::new(false);
+    let (send, receive) = mpsc::channel::<R>();
+    std::thread::scope(|s| {
+        for _ in 0..jobs.max(1).min(items.len().max(1)) {
+            let send = send.clone();
+            let (next, cancelled, work) = (&next, &cancelled, &work);
+            s.spawn(move || {
+                while !stop() && !cancelled.load(Ordering::Relaxed) {
+                    let Some(item) = items.get(next.fetch_add(1, Ordering::Relaxed)) else {
+                        break;
+                    };
+                    if send.send(work(item)).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        drop(send);
+        for r in receive {
+            if !cancelled.load(Ordering::Relaxed) && !done(r) {
+                cancelled.store(true, Ordering::Relaxed);
+            }
+        }
+    });
 }

@@ -148,16 +148,17 @@ pub fn gather(dirs: &[PathBuf]) -> Result<(Study, Vec<Point>), StudyError> {
 }
 
 /// Finishes a study whose points are all in `points` (index order): computes the sensitivities
-/// at the operating point (`progress` gets their (done, total) loops) and the findings, and
-/// writes the table, summary and plots into `dir`.
+/// at the operating point on `jobs` threads (`progress` gets their (done, total) loops) and the
+/// findings, and writes the table, summary and plots into `dir`.
 pub fn finish(
     study: &Study,
     points: &[Point],
     dir: &Path,
+    jobs: usize,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<(report::Findings, crate::report::Written), StudyError> {
-    let findings =
-        report::Findings::new(study, points, sensitivity::sensitivities(study, progress));
+    let sensitivities = sensitivity::sensitivities(study, jobs, progress);
+    let findings = report::Findings::new(study, points, sensitivities);
     let written = report::write(study, points, &findings, dir)?;
     Ok((findings, written))
 }

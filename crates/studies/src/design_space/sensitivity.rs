@@ -42,37 +42,73 @@ pub fn loops(study: &Study) -> u64 {
     2 * (study.table.parameters.len() * study.table.controllers.len()) as u64
 }
 
-/// The sensitivities of every parameter under every family of `study` (2 loops each).
-/// `progress` gets (done, total) evaluations.
-pub fn sensitivities(study: &Study, progress: &mut dyn FnMut(u64, u64)) -> Vec<Sensitivity> {
+/// The sensitivities of every parameter under every family of `study` (2 loops each), the
+/// loops evaluated on `jobs` threads. `progress` gets (done, total) evaluations.
+pub fn sensitivities(
+    study: &Study,
+    jobs: usize,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Vec<Sensitivity> {
     let params = &study.table.parameters;
     let operating: Vec<f64> = params.iter().map(|p| study.operating_value(p)).collect();
     let total = loops(study);
-    let mut done = 0;
-    let mut out = Vec::new();
-    for &family in &study.table.controllers {
-        for (j, p) in params.iter().enumerate() {
-            let at = |factor: f64| -> Result<Metrics, String> {
-                let mut v = operating.clone();
-                v[j] *= factor;
-                outcome(study, family, &v)
-            };
-            let whole = matches!(study.base_value(&p.key), Some(toml::Value::Integer(_)));
-            let result = if whole || operating[j] == 0.0 || !operating[j].is_finite() {
-                Err(format!(
+    // Each (family, parameter) with a relative step, evaluated at both sides.
+    let cases: Vec<(Family, usize)> = study
+        .table
+        .controllers
+        .iter()
+        .flat_map(|&family| (0..params.len()).map(move |j| (family, j)))
+        .collect();
+    let steppable = |j: usize| {
+        let whole = matches!(
+            study.base_value(&params[j].key),
+            Some(toml::Value::Integer(_))
+        );
+        !whole && operating[j] != 0.0 && operating[j].is_finite()
+    };
+    let loops: Vec<(usize, f64)> = (0..cases.len())
+        .filter(|&c| steppable(cases[c].1))
+        .flat_map(|c| [(c, 1.0 + STEP), (c, 1.0 - STEP)])
+        .collect();
+    let mut results: Vec<[Option<Result<Metrics, String>>; 2]> =
+        cases.iter().map(|_| [None, None]).collect();
+    let mut done = 2 * (cases.len() - loops.len() / 2) as u64;
+    progress(done, total);
+    let never = || false;
+    super::execute::in_parallel(
+        &loops,
+        jobs,
+        &never,
+        |&(c, factor)| {
+            let (family, j) = cases[c];
+            let mut v = operating.clone();
+            v[j] *= factor;
+            (c, factor > 1.0, outcome(study, family, &v))
+        },
+        |(c, up, r)| {
+            results[c][usize::from(!up)] = Some(r);
+            done += 1;
+            progress(done, total);
+            true
+        },
+    );
+    cases
+        .iter()
+        .zip(results)
+        .map(|(&(family, j), [up, down])| {
+            let result = match (up, down) {
+                (Some(up), Some(down)) => up.and_then(|u| Ok((u, down?))),
+                _ => Err(format!(
                     "no relative step from {} (a zero or whole-number operating value)",
                     operating[j]
-                ))
-            } else {
-                at(1.0 + STEP).and_then(|up| Ok((up, at(1.0 - STEP)?)))
+                )),
             };
-            done += 2;
-            progress(done, total);
+            let key = params[j].key.clone();
             let nan = vec![f64::NAN; super::evaluate::SOURCE_COUNT];
-            out.push(match result {
+            match result {
                 Ok((up, down)) => Sensitivity {
                     controller: family,
-                    key: p.key.clone(),
+                    key,
                     operating_value: operating[j],
                     following: elasticity(up.following_rms_m, down.following_rms_m),
                     true_error: elasticity(up.true_rms_m, down.true_rms_m),
@@ -85,7 +121,7 @@ pub fn sensitivities(study: &Study, progress: &mut dyn FnMut(u64, u64)) -> Vec<S
                 },
                 Err(reason) => Sensitivity {
                     controller: family,
-                    key: p.key.clone(),
+                    key,
                     operating_value: operating[j],
                     following: f64::NAN,
                     true_error: f64::NAN,
@@ -93,10 +129,9 @@ pub fn sensitivities(study: &Study, progress: &mut dyn FnMut(u64, u64)) -> Vec<S
                     true_by_source: nan,
                     failed: Some(reason),
                 },
-            });
-        }
-    }
-    out
+            }
+        })
+        .collect()
 }
 
 fn zip(up: &[f64], down: &[f64]) -> Vec<f64> {

@@ -259,9 +259,9 @@ fn open_loop(plan: &Plan, stage: StageParams, freq_hz: &[f64]) -> Result<Vec<Com
     plant.actuator.model = plant_sim::params::CurrentLoopModel::Ideal;
     let sim = Simulator::new(&plant, 0, &Default::default()).map_err(|e| e.to_string())?;
     let open = ClosedLoop::open(&sim, plant.capa.sensitivity_v_per_m).ok_or("no linear model")?;
-    freq_hz
-        .iter()
-        .map(|&f| open.command_response(f).map_err(|e| e.to_string()))
+    open.command_responses(freq_hz)
+        .into_iter()
+        .map(|r| r.map_err(|e| e.to_string()))
         .collect()
 }
 
