@@ -10,6 +10,7 @@
 
 #[macro_use]
 pub mod frame;
+mod compressors;
 pub mod export;
 mod fields;
 pub mod index;

@@ -3,15 +3,19 @@
 //! The official `mcap` crate pushes every record of a chunk through a streaming compressor in
 //! several small writes; at 400 000 messages per simulated second that costs more than the
 //! compression itself. Here a chunk's records are encoded into one buffer, compressed in one
-//! call (zstd, reusing its context) and written, with their message indexes, in one write.
+//! call (zstd) by a pool of compressors while the next chunk fills
+//! ([`crate::compressors`]), and written, with their message indexes, in one write — in the
+//! order the chunks were closed, so the bytes are those of compressing each on the spot.
 //! The file carries everything an indexed reader (Foxglove's `McapIndexedReader`) needs:
 //! message indexes after every chunk, and a summary with schemas, channels, statistics, chunk,
 //! attachment and metadata indexes and summary offsets.
 //!
 //! Records follow the MCAP specification (<https://mcap.dev/spec>), little-endian throughout.
 
-use std::collections::BTreeMap;
+use crate::compressors::{gone, Compressors, Job};
+use std::collections::{BTreeMap, VecDeque};
 use std::io::{self, Write};
+use std::sync::mpsc::{Receiver, TryRecvError};
 
 /// MCAP magic bytes, at the start and end of a file.
 pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
@@ -183,10 +187,29 @@ pub struct McapFile<W: Sink> {
     channel_ids: Vec<u16>,
     counts: Counts,
     lanes: Vec<OpenChunk>,
-    zstd: zstd::bulk::Compressor<'static>,
-    compressed: Vec<u8>,
+    /// Bytes a chunk is expected to hold (the capacity of a fresh chunk buffer).
+    chunk_bytes: usize,
+    compressors: Compressors,
+    /// Closed chunks being compressed, in the order they were closed.
+    in_flight: VecDeque<InFlight>,
+    /// At most this many chunks in flight (the memory the pipeline holds).
+    max_in_flight: usize,
+    /// Buffers of written chunks (records, compressed), for the next ones.
+    spare: Vec<(Vec<u8>, Vec<u8>)>,
     /// CRC-32 of everything written so far (the data section's, until its end).
     data_crc: crc32fast::Hasher,
+}
+
+/// A closed chunk (its records gone to a compressor) waiting for its frame.
+struct InFlight {
+    chunk: OpenChunk,
+    done: Receiver<Job>,
+}
+
+/// Compressors in the pool: one per CPU, at most 4 (beyond, the writer's own encoding is the
+/// limit).
+fn compressor_count() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get().clamp(1, 4))
 }
 
 /// zstd level of the chunks: the fast end. Measured on the records of one simulated second of
@@ -206,6 +229,7 @@ impl<W: Sink> McapFile<W> {
         out.write_all(&head)?;
         let mut data_crc = crc32fast::Hasher::new();
         data_crc.update(&head);
+        let compressors = compressor_count();
         Ok(McapFile {
             out,
             position: head.len() as u64,
@@ -219,8 +243,11 @@ impl<W: Sink> McapFile<W> {
             channel_ids: Vec::new(),
             counts: Counts::default(),
             lanes: (0..lanes).map(|_| OpenChunk::new(chunk_bytes)).collect(),
-            zstd: zstd::bulk::Compressor::new(ZSTD_LEVEL)?,
-            compressed: Vec::with_capacity(chunk_bytes),
+            chunk_bytes,
+            compressors: Compressors::start(compressors, ZSTD_LEVEL)?,
+            in_flight: VecDeque::new(),
+            max_in_flight: compressors + 1,
+            spare: Vec::new(),
             data_crc,
         })
     }
@@ -255,6 +282,7 @@ impl<W: Sink> McapFile<W> {
 
     /// Writes a metadata record (and indexes it).
     pub fn metadata(&mut self, name: &str, values: &BTreeMap<String, String>) -> io::Result<()> {
+        self.drain()?;
         let offset = self.offset();
         record(&mut self.pending, op::METADATA, |b| {
             b.str(name).group32(|m| {
@@ -279,6 +307,7 @@ impl<W: Sink> McapFile<W> {
         time_ns: u64,
         data: &[u8],
     ) -> io::Result<()> {
+        self.drain()?;
         let offset = self.offset();
         record(&mut self.pending, op::ATTACHMENT, |b| {
             let at = b.len();
@@ -345,25 +374,78 @@ impl<W: Sink> McapFile<W> {
         (!chunk.is_empty()).then_some(chunk.start_ns)
     }
 
-    /// Compresses the open chunk of `lane` and writes it with its message indexes, in one
-    /// write (nothing if it is empty).
+    /// Hands the open chunk of `lane` to the compressors (nothing if it is empty) and writes
+    /// the chunks whose frames are done, in the order they were closed, each with its message
+    /// indexes in one write; waits for the oldest while too many are in flight.
     pub fn close_chunk(&mut self, lane: usize) -> io::Result<()> {
         if self.lanes[lane].is_empty() {
             return Ok(());
         }
-        let chunk = std::mem::replace(&mut self.lanes[lane], OpenChunk::new(0));
-        self.compressed.clear();
-        let bound = zstd::zstd_safe::compress_bound(chunk.records.len());
-        self.compressed.reserve(bound);
-        self.zstd
-            .compress_to_buffer(&chunk.records, &mut self.compressed)?;
+        let (records, compressed) = self
+            .spare
+            .pop()
+            .unwrap_or_else(|| (Vec::with_capacity(self.chunk_bytes), Vec::new()));
+        let fresh = OpenChunk {
+            records,
+            ..OpenChunk::new(0)
+        };
+        let mut chunk = std::mem::replace(&mut self.lanes[lane], fresh);
+        let records = std::mem::take(&mut chunk.records);
+        let done = self.compressors.submit(Job::new(records, compressed))?;
+        self.in_flight.push_back(InFlight { chunk, done });
+        self.write_done()?;
+        while self.in_flight.len() > self.max_in_flight {
+            self.write_oldest()?;
+        }
+        Ok(())
+    }
+
+    /// Writes the chunks at the front of the queue whose frames are done.
+    fn write_done(&mut self) -> io::Result<()> {
+        loop {
+            let job = match self.in_flight.front().map(|f| f.done.try_recv()) {
+                Some(Ok(job)) => job,
+                Some(Err(TryRecvError::Empty)) | None => return Ok(()),
+                Some(Err(TryRecvError::Disconnected)) => return Err(gone()),
+            };
+            let f = self.in_flight.pop_front().expect("it has a front");
+            self.write_chunk(f.chunk, job)?;
+        }
+    }
+
+    /// Waits for the oldest chunk in flight and writes it.
+    fn write_oldest(&mut self) -> io::Result<()> {
+        let f = self.in_flight.pop_front().expect("a chunk is in flight");
+        let job = f.done.recv().map_err(|_| gone())?;
+        self.write_chunk(f.chunk, job)
+    }
+
+    /// Writes every chunk in flight (before any other record, so the order is the closing
+    /// order).
+    fn drain(&mut self) -> io::Result<()> {
+        while !self.in_flight.is_empty() {
+            self.write_oldest()?;
+        }
+        Ok(())
+    }
+
+    /// Writes `chunk` with its compressed frame from `job`, and its message indexes, in one
+    /// write.
+    fn write_chunk(&mut self, chunk: OpenChunk, job: Job) -> io::Result<()> {
+        let Job {
+            mut records,
+            compressed,
+            crc,
+            result,
+        } = job;
+        result?;
         let start = self.offset();
         record(&mut self.pending, op::CHUNK, |b| {
             b.u64(chunk.start_ns).u64(chunk.end_ns);
-            b.u64(chunk.records.len() as u64);
-            b.u32(crc32fast::hash(&chunk.records));
-            b.str("zstd").u64(self.compressed.len() as u64);
-            b.extend_from_slice(&self.compressed);
+            b.u64(records.len() as u64);
+            b.u32(crc);
+            b.str("zstd").u64(compressed.len() as u64);
+            b.extend_from_slice(&compressed);
         });
         let chunk_length = self.offset() - start;
         let mut offsets = BTreeMap::new();
@@ -391,22 +473,18 @@ impl<W: Sink> McapFile<W> {
                 }
             });
             b.u64(index_length).str("zstd");
-            b.u64(self.compressed.len() as u64);
-            b.u64(chunk.records.len() as u64);
+            b.u64(compressed.len() as u64);
+            b.u64(records.len() as u64);
         });
         let c = &mut self.counts;
         c.chunks += 1;
         c.start_ns = Some(c.start_ns.map_or(chunk.start_ns, |s| s.min(chunk.start_ns)));
         c.end_ns = c.end_ns.max(chunk.end_ns);
-        // Keep the buffers for the next chunk of this lane.
-        let (mut records, mut index) = (chunk.records, chunk.index);
+        // Keep the buffers for the next chunks.
         records.clear();
-        index.iter_mut().for_each(Vec::clear);
-        self.lanes[lane] = OpenChunk {
-            records,
-            index,
-            ..OpenChunk::new(0)
-        };
+        if self.spare.len() <= self.max_in_flight {
+            self.spare.push((records, compressed));
+        }
         self.write_pending()
     }
 
@@ -425,6 +503,7 @@ impl<W: Sink> McapFile<W> {
         for lane in 0..self.lanes.len() {
             self.close_chunk(lane)?;
         }
+        self.drain()?;
         // The data section's CRC covers every byte before the Data End record, from the
         // opening magic on (records still pending included).
         let mut crc = self.data_crc.clone();

@@ -13,8 +13,9 @@
 //! renamed when finished; an existing target is kept unless [`Overwrite::Replace`] is asked
 //! for. Every closed chunk reaches the operating system in one write at once, and storage
 //! (`fdatasync`, on a thread of its own so the writer never waits for the disk) every
-//! [`SYNC_INTERVAL`]: a run killed with SIGKILL loses at most the chunk being filled
-//! ([`CHUNK_SPAN_NS`] of run) and what waits in the ring; a power loss at most
+//! [`SYNC_INTERVAL`]: a run killed with SIGKILL loses at most the chunk being filled and the
+//! ones still being compressed ([`CHUNK_SPAN_NS`] of run each, at most one more than the
+//! compressors: one per CPU, up to 4) and what waits in the ring; a power loss at most
 //! [`SYNC_INTERVAL`] and one sync's duration more. The reader recovers the rest.
 
 use crate::frame::{Frame, Message, Telemetry, Truth};
@@ -176,7 +177,7 @@ pub struct Recorder {
 pub const RING_FRAMES: usize = 1 << 15;
 
 /// Run time one full-rate chunk covers at most, ns (20 ms: ≈ 4 000 ticks, ≈ 0.5 MB before
-/// compression): what a killed run loses at most, besides the ring.
+/// compression): what a killed run loses per chunk not yet written, besides the ring.
 pub const CHUNK_SPAN_NS: u64 = 20_000_000;
 
 /// Run time one overview chunk covers at most, ns.
