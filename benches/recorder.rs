@@ -27,7 +27,7 @@ fn frames() -> Vec<Frame> {
 }
 
 /// Simulated seconds per iteration.
-const SECONDS: u64 = 4;
+const SECONDS: u64 = 16;
 
 /// The frames of [`SECONDS`] simulated seconds: one, repeated and time-shifted.
 fn run_of(second: &[Frame]) -> impl Iterator<Item = Frame> + '_ {

@@ -190,6 +190,10 @@ pub const CHUNK_BYTES: usize = 4 << 20;
 /// Wall-clock time between two `fdatasync` requests of the file.
 pub const SYNC_INTERVAL: Duration = Duration::from_secs(1);
 
+/// How long [`WhenFull::Wait`] naps before it looks at a full ring again (the ring's
+/// [`RING_FRAMES`] ticks take the writer milliseconds to empty).
+const FULL_RING_NAP: Duration = Duration::from_micros(200);
+
 /// How often an idle writer thread looks at the ring (the ring holds 0.16 s of a run).
 const IDLE_POLL: Duration = Duration::from_millis(1);
 
@@ -303,7 +307,9 @@ impl Recorder {
                             return Err(RecordError::WriterGone);
                         }
                         frame = f;
-                        std::thread::yield_now();
+                        // Sleep, not spin: the writer and its compressors need the cores, and
+                        // the ring holds far more than the writer empties in the nap.
+                        std::thread::sleep(FULL_RING_NAP);
                     }
                 },
             }
