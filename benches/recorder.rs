@@ -44,7 +44,7 @@ fn throughput(c: &mut Criterion) {
     let scratch = tempfile::tempdir().unwrap();
     let dir = scratch.path();
     let path_of = |every: u32| dir.join(format!("every-{every}.mcap"));
-    let mut group = c.benchmark_group("recorder_4s");
+    let mut group = c.benchmark_group("recorder_16s");
     group
         .sample_size(10)
         .throughput(Throughput::Elements(SECONDS * data.len() as u64));
@@ -99,7 +99,7 @@ fn throughput(c: &mut Criterion) {
     ] {
         let bytes = std::fs::metadata(file).map_or(0, |m| m.len());
         println!(
-            "recorder_4s/{what}: {:.1} MB per simulated second",
+            "recorder_16s/{what}: {:.1} MB per simulated second",
             bytes as f64 / 1e6 / SECONDS as f64
         );
     }

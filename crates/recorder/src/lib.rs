@@ -17,6 +17,7 @@ pub mod index;
 pub mod mcap_file;
 pub mod overview;
 pub mod reader;
+mod room;
 mod syncer;
 mod verify;
 pub mod writer;

@@ -21,6 +21,7 @@
 use crate::frame::{Frame, Message, Telemetry, Truth};
 use crate::mcap_file::McapFile;
 use crate::overview::{Overview, OverviewBin};
+use crate::room::Room;
 use crate::syncer::Syncer;
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -165,6 +166,8 @@ pub struct Recorder {
     when_full: WhenFull,
     dropped: u64,
     writer_alive: Arc<AtomicBool>,
+    /// Where a [`WhenFull::Wait`] producer waits for the writer to make room.
+    room: Arc<Room>,
     written: Arc<AtomicU64>,
     /// What follows the last frame, handed to the writer thread at [`Recorder::finish`].
     end: Arc<Mutex<Ending>>,
@@ -189,10 +192,6 @@ pub const CHUNK_BYTES: usize = 4 << 20;
 
 /// Wall-clock time between two `fdatasync` requests of the file.
 pub const SYNC_INTERVAL: Duration = Duration::from_secs(1);
-
-/// How long [`WhenFull::Wait`] naps before it looks at a full ring again (the ring's
-/// [`RING_FRAMES`] ticks take the writer milliseconds to empty).
-const FULL_RING_NAP: Duration = Duration::from_micros(200);
 
 /// How often an idle writer thread looks at the ring (the ring holds 0.16 s of a run).
 const IDLE_POLL: Duration = Duration::from_millis(1);
@@ -256,13 +255,15 @@ impl Recorder {
         let written = Arc::new(AtomicU64::new(0));
         let end = Arc::new(Mutex::new(Ending::default()));
         let (alive, count, end_record) = (writer_alive.clone(), written.clone(), end.clone());
+        let room = Arc::new(Room::default());
+        let made = room.clone();
         let (target, overwrite) = (path.to_owned(), options.overwrite);
         let (epoch_ns, every) = (options.epoch_ns, options.every);
         let thread = std::thread::Builder::new()
             .name("mcap-writer".into())
             .spawn(move || {
                 let result = Drain::new(w, syncer, epoch_ns, every)
-                    .run(consumer, &count, &end_record)
+                    .run(consumer, &count, &end_record, &made)
                     .map_err(|source| RecordError::WriteFailed {
                         path: target.clone(),
                         partial: partial.clone(),
@@ -270,6 +271,7 @@ impl Recorder {
                     })
                     .and_then(|n| publish(&partial, &target, overwrite).map(|()| n));
                 alive.store(false, Ordering::Release);
+                made.made();
                 result
             })
             .map_err(io)?;
@@ -278,6 +280,7 @@ impl Recorder {
             when_full: options.when_full,
             dropped: 0,
             writer_alive,
+            room,
             written,
             end,
             late: Vec::new(),
@@ -307,9 +310,8 @@ impl Recorder {
                             return Err(RecordError::WriterGone);
                         }
                         frame = f;
-                        // Sleep, not spin: the writer and its compressors need the cores, and
-                        // the ring holds far more than the writer empties in the nap.
-                        std::thread::sleep(FULL_RING_NAP);
+                        let ring = &self.ring;
+                        self.room.wait(|| ring.is_full());
                     }
                 },
             }
@@ -418,6 +420,7 @@ impl Drain {
         mut ring: rtrb::Consumer<Frame>,
         count: &AtomicU64,
         end: &Mutex<Ending>,
+        room: &Room,
     ) -> std::io::Result<u64> {
         loop {
             let available = ring.slots();
@@ -428,10 +431,14 @@ impl Drain {
                 std::thread::sleep(IDLE_POLL);
                 continue;
             }
-            let chunk = ring.read_chunk(available).expect("slots are available");
+            // In batches, so that a waiting producer gets room while the rest is encoded.
+            let chunk = ring
+                .read_chunk(available.min(RING_FRAMES / 8))
+                .expect("slots are available");
             for frame in chunk.into_iter() {
                 self.frame(&frame)?;
             }
+            room.made();
             count.store(self.written, Ordering::Relaxed);
             if self.synced.elapsed() >= SYNC_INTERVAL {
                 self.syncer.request()?;
