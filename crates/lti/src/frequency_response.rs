@@ -163,6 +163,21 @@ impl FrequencyResponse {
     }
 }
 
+impl StateSpace {
+    /// `G(jω) = C (jωI − A)⁻¹ B + D` at `w_rad_s` (p × m complex). For many frequencies,
+    /// prepare the system once with [`FrequencyResponse::new`].
+    pub fn freq_response(&self, w_rad_s: f64) -> Result<DMatrix<C>, LtiError> {
+        FrequencyResponse::new(self).continuous(w_rad_s)
+    }
+
+    /// Discrete-time `G(z) = C (zI − A)⁻¹ B + D` at `z = e^{j2πf·T}` (matrices of a sampled
+    /// system with period `period_s`). For many frequencies, prepare the system once with
+    /// [`FrequencyResponse::new`].
+    pub fn freq_response_discrete(&self, f_hz: f64, period_s: f64) -> Result<DMatrix<C>, LtiError> {
+        FrequencyResponse::new(self).discrete(f_hz, period_s)
+    }
+}
+
 /// `Σ a_k x_k` of a real and a complex vector.
 fn dot(a: &[f64], x: &[C]) -> C {
     let (mut re, mut im) = (0.0, 0.0);

@@ -1,7 +1,6 @@
 //! Continuous LTI models in state space: shapes, frequency responses, balancing, realisations
 //! of rational functions, and eigenvalues.
 
-use crate::frequency_response::FrequencyResponse;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
@@ -167,23 +166,6 @@ impl StateSpace {
     /// Number of outputs.
     pub fn ny(&self) -> usize {
         self.c.nrows()
-    }
-
-    /// `G(jω) = C (jωI − A)⁻¹ B + D` at `w_rad_s` (p × m complex). For many frequencies,
-    /// prepare the system once with [`FrequencyResponse::new`].
-    pub fn freq_response(&self, w_rad_s: f64) -> Result<DMatrix<Complex64>, LtiError> {
-        FrequencyResponse::new(self).continuous(w_rad_s)
-    }
-
-    /// Discrete-time `G(z) = C (zI − A)⁻¹ B + D` at `z = e^{j2πf·T}` (matrices of a sampled
-    /// system with period `period_s`). For many frequencies, prepare the system once with
-    /// [`FrequencyResponse::new`].
-    pub fn freq_response_discrete(
-        &self,
-        f_hz: f64,
-        period_s: f64,
-    ) -> Result<DMatrix<Complex64>, LtiError> {
-        FrequencyResponse::new(self).discrete(f_hz, period_s)
     }
 
     /// Poles: [`eigenvalues`] of `A` (s-plane for continuous, z-plane for discrete models).
