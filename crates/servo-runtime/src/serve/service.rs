@@ -213,7 +213,10 @@ impl Service {
                 }
             }
             if started {
-                while let Ok(t) = telemetry.pop() {
+                // What is there now, not until the ring is empty: a loop that fills it as fast
+                // as it is published would starve the control plane below.
+                for _ in 0..telemetry.slots() {
+                    let Ok(t) = telemetry.pop() else { break };
                     idle = false;
                     last_tick = t.seq;
                     self.publish(&mut p, t);
