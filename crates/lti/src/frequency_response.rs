@@ -25,6 +25,8 @@ pub struct FrequencyResponse {
     a: Vec<f64>,
     /// The balanced `B`, column by column (m columns of n).
     b: Vec<Vec<f64>>,
+    /// `QᵀB`, column by column: the first solve's right-hand sides, once per system.
+    qt_b: Vec<Vec<C>>,
     /// The balanced `C` (p × n, row-major).
     c: Vec<f64>,
     /// `D` (p × m).
@@ -54,8 +56,13 @@ impl FrequencyResponse {
                 h[i * n + j] = 0.0;
             }
         }
+        let qt_b = (q.transpose() * &b)
+            .column_iter()
+            .map(|col| col.iter().map(|&v| C::new(v, 0.0)).collect())
+            .collect();
         FrequencyResponse {
             n,
+            qt_b,
             a: row_major(&a),
             b: b.column_iter()
                 .map(|col| col.iter().copied().collect())
@@ -88,13 +95,15 @@ impl FrequencyResponse {
         let factors = self.factor(s)?;
         let mut g = self.d.map(|v| C::new(v, 0.0));
         let mut residual = vec![C::new(0.0, 0.0); n];
-        for (j, b) in self.b.iter().enumerate() {
-            let rhs: Vec<C> = b.iter().map(|&v| C::new(v, 0.0)).collect();
-            let mut x = self.solve(&factors, &rhs);
+        for (j, (b, qt_b)) in self.b.iter().zip(&self.qt_b).enumerate() {
+            let mut x = self.solve(&factors, qt_b.clone());
             for (i, r) in residual.iter_mut().enumerate() {
-                *r = rhs[i] - s * x[i] + dot(&self.a[i * n..(i + 1) * n], &x);
+                *r = b[i] - s * x[i] + dot(&self.a[i * n..(i + 1) * n], &x);
             }
-            for (xi, di) in x.iter_mut().zip(self.solve(&factors, &residual)) {
+            let qt_r = (0..n)
+                .map(|i| dot(&self.qt[i * n..(i + 1) * n], &residual))
+                .collect();
+            for (xi, di) in x.iter_mut().zip(self.solve(&factors, qt_r)) {
                 *xi += di;
             }
             for r in 0..p {
@@ -130,18 +139,16 @@ impl FrequencyResponse {
             }
             steps.push((swap, l));
         }
-        if (0..n).any(|i| u[i * n + i] == C::new(0.0, 0.0)) {
+        // The loop checked every pivot but the last.
+        if n > 0 && u[n * n - 1] == C::new(0.0, 0.0) {
             return None;
         }
         Some(Factors { u, steps })
     }
 
-    /// `(sI − A)⁻¹ r = Q (sI − H)⁻¹ Qᵀ r` with the factors of `sI − H`.
-    fn solve(&self, f: &Factors, r: &[C]) -> Vec<C> {
+    /// `(sI − A)⁻¹ r = Q (sI − H)⁻¹ y` for `y = Qᵀr`, with the factors of `sI − H`.
+    fn solve(&self, f: &Factors, mut y: Vec<C>) -> Vec<C> {
         let n = self.n;
-        let mut y: Vec<C> = (0..n)
-            .map(|i| dot(&self.qt[i * n..(i + 1) * n], r))
-            .collect();
         for (k, &(swap, l)) in f.steps.iter().enumerate() {
             if swap {
                 y.swap(k, k + 1);
