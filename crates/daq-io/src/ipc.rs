@@ -298,6 +298,16 @@ pub fn take<T: Debug + ZeroCopySend + Copy>(s: &Subscriber<T>) -> Option<T> {
     s.receive().ok().flatten().map(|sample| *sample)
 }
 
+/// The samples waiting now, at most `limit` of them: a reader that drains a publisher faster
+/// than itself would otherwise never leave the loop (pass a subscriber's buffer, e.g.
+/// [`settings`]`(leaf).buffer`, and come back on the next pass).
+pub fn take_waiting<T: Debug + ZeroCopySend + Copy>(
+    s: &Subscriber<T>,
+    limit: usize,
+) -> impl Iterator<Item = T> + '_ {
+    std::iter::from_fn(|| take(s)).take(limit)
+}
+
 /// A publisher that keeps its next sample loaned: [`Sender::send`] writes and publishes it,
 /// and [`Sender::prepare`] loans the next one when the caller is off the exchange's critical
 /// path (a loan walks the subscribers' returned samples and allocates its bookkeeping).

@@ -19,7 +19,7 @@ pub mod ws;
 
 pub use operator::{GAIN_SCALE, STOP_SERVICE};
 
-use daq_io::ipc::{take, Endpoint, IpcError, Tap};
+use daq_io::ipc::{take, take_waiting, Endpoint, IpcError, Tap};
 use operator::Operator;
 use recorder::OverviewBin;
 use runner::join::Joiner;
@@ -192,13 +192,15 @@ pub fn serve(
             report.overview_samples += 1;
         }
     };
+    // A pass takes what one subscriber buffer holds, then turns to the rest.
+    let blocks = daq_io::ipc::settings(daq_io::ipc::leaf::TELEMETRY).buffer;
     while !stop.load(Ordering::Relaxed) {
         let mut got = false;
-        while let Some(b) = take(&tap.telemetry) {
+        for b in take_waiting(&tap.telemetry, blocks) {
             got = true;
             join.telemetry(&b);
         }
-        while let Some(b) = take(&tap.truth) {
+        for b in take_waiting(&tap.truth, blocks) {
             got = true;
             if run_id.is_none() {
                 run_id = Some(b.run_id);

@@ -20,7 +20,7 @@ use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
 use daq_io::contract::{command, role};
-use daq_io::ipc::{leaf, take, ControlSender, ControllerLink, Endpoint, Tap};
+use daq_io::ipc::{leaf, take, take_waiting, ControlSender, ControllerLink, Endpoint, Tap};
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Daq, Health};
 use recorder::{Frame, Recorder};
@@ -234,14 +234,16 @@ pub fn record(
     let mut load_requests: VecDeque<(u64, Vec<u8>)> = VecDeque::new();
     let mut applied: VecDeque<Ack> = VecDeque::new();
     let mut swaps: Vec<(Swap, f64)> = Vec::new();
+    // A pass takes what one subscriber buffer holds, then turns to the rest.
+    let blocks = daq_io::ipc::settings(daq_io::ipc::leaf::TELEMETRY).buffer;
     loop {
         let mut got = false;
-        while let Some(b) = take(&tap.telemetry) {
+        for b in take_waiting(&tap.telemetry, blocks) {
             got = true;
             same_run(&mut run_id, b.run_id, "telemetry")?;
             join.telemetry(&b);
         }
-        while let Some(b) = take(&tap.truth) {
+        for b in take_waiting(&tap.truth, blocks) {
             got = true;
             same_run(&mut run_id, b.run_id, "truth")?;
             join.truth(&b);

@@ -6,7 +6,7 @@
 #![cfg(feature = "serve")]
 
 use daq_io::contract::command;
-use daq_io::ipc::{leaf, take, ControlSender, Endpoint, Tap};
+use daq_io::ipc::{leaf, take, take_waiting, ControlSender, Endpoint, Tap};
 use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Sensor};
 use servo_runtime::{
     controller_toml, deployment_toml, ControllerSpec, Deployment, MadeFor, Servo, Stability,
@@ -74,7 +74,11 @@ impl Peer {
     }
 
     fn drain(&mut self) {
-        while let Some(b) = take(&self.tap.telemetry) {
+        // What is there now: the loop publishes as fast as this takes.
+        for b in take_waiting(
+            &self.tap.telemetry,
+            daq_io::ipc::settings(leaf::TELEMETRY).buffer,
+        ) {
             self.blocks += 1;
             self.end_seen |= b.flags & flags::END != 0;
         }

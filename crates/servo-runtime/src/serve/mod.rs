@@ -104,8 +104,14 @@ pub(crate) struct TickView<'a> {
     pub(crate) host: &'a Host,
 }
 
+/// Event slots a health report leaves free: the events that answer a request (a gain change
+/// applied, a handover made) always find room, and a report is skipped instead — the next one
+/// follows [`SERVICE_TICKS`] later.
+const ANSWER_SLOTS: usize = 16;
+
 /// After each tick: telemetry out, requests in, handovers acknowledged, health every
-/// [`SERVICE_TICKS`].
+/// [`SERVICE_TICKS`]. An answer is never dropped: a request is taken, and a handover reported,
+/// only while the event ring has room for its answer (a stalled service thread delays them).
 #[inline]
 pub(crate) fn after_tick(link: &mut Link, sample: &Sensor, v: TickView<'_>) {
     if !link.started {
@@ -122,7 +128,7 @@ pub(crate) fn after_tick(link: &mut Link, sample: &Sensor, v: TickView<'_>) {
         }
     }
     if let Some((id, radius)) = link.pending {
-        if let Some(tick) = v.core.handed_over_at() {
+        if let (Some(tick), true) = (v.core.handed_over_at(), link.events.slots() > 0) {
             link.pending = None;
             let replaced = v.core.take_replaced();
             let _ = link.events.push(Event::Loaded {
@@ -133,7 +139,10 @@ pub(crate) fn after_tick(link: &mut Link, sample: &Sensor, v: TickView<'_>) {
             });
         }
     }
-    while let Ok(request) = link.requests.pop() {
+    while link.events.slots() > 0 {
+        let Ok(request) = link.requests.pop() else {
+            break;
+        };
         match request {
             Request::Gain { id, scale } => {
                 v.core.set_gain_scale(scale);
@@ -160,7 +169,7 @@ pub(crate) fn after_tick(link: &mut Link, sample: &Sensor, v: TickView<'_>) {
             }
         }
     }
-    if sample.seq.is_multiple_of(SERVICE_TICKS) {
+    if sample.seq.is_multiple_of(SERVICE_TICKS) && link.events.slots() > ANSWER_SLOTS {
         let _ = link.events.push(Event::Health {
             ticks: v.status.ticks,
             overruns: v.host.overruns(),
@@ -198,6 +207,7 @@ pub(crate) fn start(setup: Setup) -> Result<Link, ServeError> {
         stability: setup.stability,
         scale: setup.scale,
         tick_cpus: daq_io::realtime::current_cpus(),
+        stop: None,
     };
     let (ready_tx, ready) = mpsc::sync_channel(1);
     let thread = std::thread::Builder::new()
@@ -237,4 +247,93 @@ pub(crate) fn close(mut link: Link, end: End) -> u64 {
         let _ = t.join();
     }
     link.dropped
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Deployment;
+
+    /// A link with no service thread behind it: the test holds the far ends of its rings.
+    fn link() -> (Link, Consumer<Event>, Producer<Request>) {
+        let (telemetry, _) = RingBuffer::new(4);
+        let (events, events_rx) = RingBuffer::new(64);
+        let (requests_tx, requests) = RingBuffer::new(8);
+        let link = Link {
+            telemetry,
+            events,
+            requests,
+            pending: None,
+            started: false,
+            dropped: 0,
+            thread: None,
+        };
+        (link, events_rx, requests_tx)
+    }
+
+    #[test]
+    fn a_stalled_service_delays_answers_but_never_loses_them() {
+        let d = Deployment::thesis_prototype();
+        let mut core = ServoLoop::new(&d).unwrap();
+        let host = Host::new(&d);
+        let mut status = crate::Servo::new(&d).unwrap().status();
+        let mut stability = None;
+        let (mut link, mut events, mut requests) = link();
+        let mut tick = |link: &mut Link, seq: u64, core: &mut ServoLoop, status: &mut Status| {
+            let sample = Sensor {
+                seq,
+                ..Default::default()
+            };
+            let v = TickView {
+                core,
+                status,
+                stability: &mut stability,
+                telemetry: None,
+                host: &host,
+            };
+            after_tick(link, &sample, v);
+        };
+        // The service stalls for 200 health periods: reports stop short of the answer slots.
+        for seq in 0..200 * SERVICE_TICKS {
+            tick(&mut link, seq, &mut core, &mut status);
+        }
+        assert_eq!(events.slots(), 64 - ANSWER_SLOTS);
+        // Gain changes beyond the answer slots: each is applied only once its answer fits.
+        let scales: Vec<f64> = (0..20).map(|i| 0.5 + 0.01 * f64::from(i)).collect();
+        let mut answered = Vec::new();
+        let mut seq = 200 * SERVICE_TICKS;
+        for (id, &scale) in scales.iter().enumerate() {
+            while requests
+                .push(Request::Gain {
+                    id: id as u64,
+                    scale,
+                })
+                .is_err()
+            {
+                tick(&mut link, seq, &mut core, &mut status);
+                seq += 1;
+                if link.events.slots() == 0 {
+                    // The service wakes and takes one event.
+                    if let Ok(Event::Gain { id, scale, .. }) = events.pop() {
+                        answered.push((id, scale));
+                    }
+                }
+            }
+        }
+        // Still stalled: what waits in the request ring waits for room.
+        assert!(requests.slots() < 8);
+        // The service catches up, taking every event after each tick.
+        for _ in 0..4 {
+            tick(&mut link, seq, &mut core, &mut status);
+            seq += 1;
+            while let Ok(e) = events.pop() {
+                if let Event::Gain { id, scale, .. } = e {
+                    answered.push((id, scale));
+                }
+            }
+        }
+        let expected: Vec<(u64, f64)> = (0..).zip(scales.iter().copied()).collect();
+        assert_eq!(answered, expected);
+        assert_eq!(status.gain_scale, *scales.last().unwrap());
+    }
 }

@@ -32,6 +32,8 @@ pub(crate) struct Service {
     pub(crate) scale: f64,
     /// The CPUs the ticking thread may run on (the service steps aside from them).
     pub(crate) tick_cpus: Vec<usize>,
+    /// A STOP the request ring had no room for yet (handed over on a later pass).
+    pub(crate) stop: Option<u32>,
 }
 
 /// The iceoryx2 side of a service.
@@ -222,6 +224,11 @@ impl Service {
                     self.publish(&mut p, t);
                 }
             }
+            if let Some(cause) = self.stop {
+                if requests.push(Request::Stop { cause }).is_ok() {
+                    self.stop = None;
+                }
+            }
             while let Some(c) = take(&p.control) {
                 idle = false;
                 self.control(&mut p, &mut requests, &c, last_tick);
@@ -310,7 +317,7 @@ impl Service {
     }
 
     /// A control message `c` seen after tick `tick`.
-    fn control(&self, p: &mut Ports, requests: &mut Producer<Request>, c: &Control, tick: u64) {
+    fn control(&mut self, p: &mut Ports, requests: &mut Producer<Request>, c: &Control, tick: u64) {
         let ack = match c.command {
             command::SET_GAIN_SCALE => {
                 let status = match self.stability {
@@ -331,7 +338,9 @@ impl Service {
             }
             command::STOP if self.serves_plant => {
                 let cause = daq_io::stop_cause::of_value(c.value);
-                let _ = requests.push(Request::Stop { cause });
+                if requests.push(Request::Stop { cause }).is_err() {
+                    self.stop.get_or_insert(cause);
+                }
                 Ack::to(c, tick, ack_status::APPLIED, role::PLANT)
             }
             command::START if self.serves_plant => {
