@@ -1,16 +1,38 @@
-//! Lyapunov and Stein equations for many right-hand sides with one matrix, by the complex Schur
-//! form (Bartels–Stewart): `A = U T Uᴴ` is computed once (O(n³)), after which each equation is a
-//! column-by-column triangular substitution (O(n³), no iteration). What Newton's refinement of a
-//! Riccati solution and the Riccati condition estimate need: the closed loop stays the same while
-//! the right-hand side changes.
+//! Lyapunov and Stein equations for many right-hand sides with one matrix, by the real Schur
+//! form (Bartels–Stewart): `A = U R Uᵀ` (`U` orthogonal, `R` quasi-upper-triangular — 1×1
+//! diagonal blocks for real eigenvalues, 2×2 for complex pairs) is computed once (O(n³)), after
+//! which each equation is a block substitution in real arithmetic (O(n³), no iteration). What
+//! Newton's refinement of a Riccati solution and the Riccati condition estimate need: the
+//! closed loop stays the same while the right-hand side changes.
+//!
+//! The Schur form comes from faer's real QZ algorithm on the pair `(A, I)` (faer has no public
+//! real Schur): `QᵀAZ = S`, `QᵀZ = T` with `T` triangular and orthogonal, hence `±1` on its
+//! diagonal, so `ZᵀAZ` is quasi-triangular with `S`'s blocks; it is formed as `ZᵀAZ` and its
+//! entries below the blocks, rounding, are dropped (a backward error of `ε‖A‖`).
 
-use nalgebra::{DMatrix, DVector};
-use num_complex::Complex64;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::gevd::gen_hessenberg::{
+    generalized_hessenberg, generalized_hessenberg_scratch, GeneralizedHessenbergParams,
+};
+use faer::linalg::gevd::qz_real::{hessenberg_to_qz, hessenberg_to_qz_scratch};
+use faer::linalg::gevd::{ComputeEigenvectors, GeneralizedSchurParams};
+use faer::{Auto, Col, Mat, Par};
+use nalgebra::DMatrix;
 
-/// The complex Schur form `A = U T Uᴴ` of a real square matrix.
+/// The real Schur form `A = U R Uᵀ` of a real square matrix.
 pub struct SchurForm {
-    u: DMatrix<Complex64>,
-    t: DMatrix<Complex64>,
+    u: DMatrix<f64>,
+    /// `R` and its diagonal blocks (what [`Side::Transposed`] solves on).
+    upper: Blocked,
+    /// `PRᵀP` (`P` the order-reversing permutation: quasi-upper-triangular again) and its
+    /// blocks (what [`Side::Plain`] solves on: `RZ + ZRᵀ` is `R'ᵀZ' + Z'R'` with `Z' = PZP`).
+    reversed: Blocked,
+}
+
+/// A quasi-upper-triangular matrix with the first index of each diagonal block (and `n` last).
+struct Blocked {
+    r: DMatrix<f64>,
+    starts: Vec<usize>,
 }
 
 /// Which operator of `A` an equation is written in.
@@ -22,18 +44,43 @@ pub enum Side {
     Plain,
 }
 
-impl SchurForm {
-    /// QR sweeps allowed per row of the matrix (LAPACK allows 30 per eigenvalue).
-    pub const ITERATIONS_PER_ROW: usize = 100;
+/// Which equation [`SchurForm::solve`] solves.
+#[derive(Clone, Copy)]
+enum Equation {
+    Continuous,
+    Discrete,
+}
 
-    /// The Schur form of `a`, or `None` when the QR iteration does not converge within
-    /// [`SchurForm::ITERATIONS_PER_ROW`] sweeps per row (nalgebra's unbounded iteration at
-    /// machine precision can cycle for ever on some matrices: a design study met one).
+impl SchurForm {
+    /// The Schur form of `a`, or `None` when `a` is not finite or the QZ iteration did not
+    /// converge (faer bounds it at 30 sweeps per eigenvalue, as LAPACK does; what it leaves
+    /// then is not quasi-triangular, which is checked).
     pub fn new(a: &DMatrix<f64>) -> Option<Self> {
-        let complex = a.map(|v| Complex64::new(v, 0.0));
-        let limit = Self::ITERATIONS_PER_ROW * a.nrows().max(1);
-        let (u, t) = nalgebra::Schur::try_new(complex, f64::EPSILON, limit)?.unpack();
-        Some(SchurForm { u, t })
+        let n = a.nrows();
+        if a.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let (z, s) = real_qz(a);
+        let starts = blocks(&s)?;
+        let u = DMatrix::from_fn(n, n, |i, j| z[(i, j)]);
+        let mut r = u.transpose() * a * &u;
+        for w in starts.windows(2) {
+            for j in w[0]..w[1] {
+                for i in w[1]..n {
+                    r[(i, j)] = 0.0;
+                }
+            }
+        }
+        let reversed = DMatrix::from_fn(n, n, |i, j| r[(n - 1 - j, n - 1 - i)]);
+        let reversed_starts = starts.iter().rev().map(|&s| n - s).collect();
+        Some(SchurForm {
+            u,
+            upper: Blocked { r, starts },
+            reversed: Blocked {
+                r: reversed,
+                starts: reversed_starts,
+            },
+        })
     }
 
     /// `Z` with `AᵀZ + ZA + W = 0` ([`Side::Transposed`]) or `AZ + ZAᵀ + W = 0`
@@ -48,75 +95,174 @@ impl SchurForm {
         self.solve(w, side, Equation::Discrete)
     }
 
-    /// In Schur coordinates (`Ẑ = UᴴZU`, `Ŵ = UᴴWU`) with `M = Tᴴ` (lower triangular,
-    /// [`Side::Transposed`]) or `M = T` (upper, [`Side::Plain`]) each column `j` of `Ẑ` solves
-    /// a triangular system once the columns it couples to are known: with `s` the pivot
-    /// (`t_jj` or its conjugate) and `v` the known columns' coupling (`Σ_{l<j} Ẑ_:l T_lj`, or
-    /// `Σ_{l>j} Ẑ_:l conj(T_jl)`), `(M + sI)ẑ = −ŵ − v` (continuous) or
-    /// `(I − sM)ẑ = ŵ + Mv` (discrete).
+    /// In Schur coordinates (`Ẑ = UᵀZU`, `Ŵ = UᵀWU`); the plain side on the reversed form.
     fn solve(&self, w: &DMatrix<f64>, side: Side, equation: Equation) -> DMatrix<f64> {
-        let n = self.t.nrows();
-        let (u, t) = (&self.u, &self.t);
-        let what = u.adjoint() * w.map(|v| Complex64::new(v, 0.0)) * u;
-        let lower = side == Side::Transposed;
-        // M (Tᴴ or T); the coupling coefficient of column l in column j (T_lj, or conj(T_jl))
-        // is conj(M_jl) either way, the pivot s its diagonal's.
-        let m = if lower { t.adjoint() } else { t.clone() };
-        let zero = Complex64::new(0.0, 0.0);
-        let one = Complex64::new(1.0, 0.0);
-        let mut z = DMatrix::<Complex64>::zeros(n, n);
-        let mut v = vec![zero; n];
-        let mut rhs = vec![zero; n];
-        for step in 0..n {
-            let j = if lower { step } else { n - 1 - step };
-            let s = m[(j, j)].conj();
-            // The known columns' coupling: Σ_{l<j} Ẑ_:l T_lj, or Σ_{l>j} Ẑ_:l conj(T_jl).
-            v.iter_mut().for_each(|x| *x = zero);
-            let known = if lower { 0..j } else { j + 1..n };
-            for l in known {
-                let coefficient = m[(j, l)].conj();
-                if coefficient != zero {
-                    for (vk, zk) in v.iter_mut().zip(z.column(l).iter()) {
-                        *vk += zk * coefficient;
-                    }
-                }
+        let n = self.u.nrows();
+        let what = self.u.transpose() * w * &self.u;
+        let zhat = match side {
+            Side::Transposed => self.upper.solve(&what, equation),
+            Side::Plain => {
+                let flip =
+                    |m: &DMatrix<f64>| DMatrix::from_fn(n, n, |i, j| m[(n - 1 - i, n - 1 - j)]);
+                flip(&self.reversed.solve(&flip(&what), equation))
             }
-            // (diag + scale·offdiag(M)) ẑ = rhs, substituted in M's direction.
-            let (scale, diagonal): (Complex64, fn(Complex64, Complex64) -> Complex64) =
-                match equation {
-                    Equation::Continuous => {
-                        for (i, r) in rhs.iter_mut().enumerate() {
-                            *r = -what[(i, j)] - v[i];
-                        }
-                        (one, |mii, s| mii + s)
-                    }
-                    Equation::Discrete => {
-                        let mv = &m * DVector::from_column_slice(&v);
-                        for (i, r) in rhs.iter_mut().enumerate() {
-                            *r = what[(i, j)] + mv[i];
-                        }
-                        (-s, |mii, s| 1.0 - s * mii)
-                    }
-                };
-            for k in 0..n {
-                let i = if lower { k } else { n - 1 - k };
-                let off: Complex64 = if lower {
-                    (0..i).map(|q| m[(i, q)] * z[(q, j)]).sum()
-                } else {
-                    (i + 1..n).map(|q| m[(i, q)] * z[(q, j)]).sum()
-                };
-                z[(i, j)] = (rhs[i] - scale * off) / diagonal(m[(i, i)], s);
-            }
-        }
-        (u * z * u.adjoint()).map(|v| v.re)
+        };
+        &self.u * zhat * self.u.transpose()
     }
 }
 
-/// Which equation [`SchurForm::solve`] solves.
-#[derive(Clone, Copy)]
-enum Equation {
-    Continuous,
-    Discrete,
+impl Blocked {
+    /// `Z` with `RᵀZ + ZR + W = 0` or `Z = RᵀZR + W`, block column by block column: for block
+    /// `J` the columns before it are known, `C = Z_{:,<J} R_{<J,J}`, and
+    /// - continuous: `RᵀZ_J + Z_J R_JJ = −W_J − C`,
+    /// - discrete: `Z_J − RᵀZ_J R_JJ = W_J + RᵀC`,
+    ///
+    /// each then solved block row by block row (`Rᵀ` is quasi-lower-triangular), a Sylvester
+    /// equation of at most 2×2 per block pair.
+    fn solve(&self, w: &DMatrix<f64>, equation: Equation) -> DMatrix<f64> {
+        let r = &self.r;
+        let n = r.nrows();
+        let mut z = DMatrix::<f64>::zeros(n, n);
+        for cols in self.starts.windows(2) {
+            let (j0, q) = (cols[0], cols[1] - cols[0]);
+            let known = z.view((0, 0), (n, j0)) * r.view((0, j0), (j0, q));
+            let rhs = match equation {
+                Equation::Continuous => -(w.columns(j0, q) + &known),
+                Equation::Discrete => w.columns(j0, q) + r.transpose() * &known,
+            };
+            let rjj = r.view((j0, j0), (q, q)).clone_owned();
+            for rows in self.starts.windows(2) {
+                let (i0, p) = (rows[0], rows[1] - rows[0]);
+                // Σ_{K<I} R_KIᵀ Z_KJ: the block rows already solved.
+                let coupled = r.view((0, i0), (i0, p)).transpose() * z.view((0, j0), (i0, q));
+                let f = match equation {
+                    Equation::Continuous => rhs.rows(i0, p) - coupled,
+                    Equation::Discrete => rhs.rows(i0, p) + coupled * &rjj,
+                };
+                let rii = r.view((i0, i0), (p, p));
+                let x = small_sylvester(&rii.transpose(), &rjj, &f, equation);
+                z.view_mut((i0, j0), (p, q)).copy_from(&x);
+            }
+        }
+        z
+    }
+}
+
+/// `X` (p×q, p and q at most 2) with `MX + XN = F` (continuous) or `X − MXN = F` (discrete),
+/// by Gaussian elimination with partial pivoting on its Kronecker form (a singular system
+/// gives non-finite entries, which the caller's checks see).
+fn small_sylvester(
+    m: &DMatrix<f64>,
+    n: &DMatrix<f64>,
+    f: &DMatrix<f64>,
+    equation: Equation,
+) -> DMatrix<f64> {
+    let (p, q) = (m.nrows(), n.nrows());
+    let size = p * q;
+    let mut k = [[0.0f64; 5]; 4];
+    // vec(X) column-major: index i + p·j. vec(MX) = (I⊗M)vec X, vec(XN) = (Nᵀ⊗I)vec X,
+    // vec(MXN) = (Nᵀ⊗M)vec X.
+    for j in 0..q {
+        for i in 0..p {
+            let row = i + p * j;
+            for l in 0..q {
+                for h in 0..p {
+                    let col = h + p * l;
+                    let identity = f64::from(u8::from(row == col));
+                    k[row][col] = match equation {
+                        Equation::Continuous => {
+                            f64::from(u8::from(l == j)) * m[(i, h)]
+                                + f64::from(u8::from(h == i)) * n[(l, j)]
+                        }
+                        Equation::Discrete => identity - n[(l, j)] * m[(i, h)],
+                    };
+                }
+            }
+            k[row][4] = f[(i, j)];
+        }
+    }
+    for c in 0..size {
+        let pivot = (c..size)
+            .max_by(|&a, &b| k[a][c].abs().total_cmp(&k[b][c].abs()))
+            .unwrap_or(c);
+        k.swap(c, pivot);
+        let top = k[c];
+        for row in k.iter_mut().take(size).skip(c + 1) {
+            let factor = row[c] / top[c];
+            for (v, t) in row.iter_mut().zip(top).skip(c) {
+                *v -= factor * t;
+            }
+        }
+    }
+    let mut x = [0.0f64; 4];
+    for c in (0..size).rev() {
+        let known: f64 = (c + 1..size).map(|l| k[c][l] * x[l]).sum();
+        x[c] = (k[c][4] - known) / k[c][c];
+    }
+    DMatrix::from_fn(p, q, |i, j| x[i + p * j])
+}
+
+/// `(Z, S)` of the real QZ decomposition of `(a, I)`: `QᵀaZ = S` quasi-upper-triangular.
+fn real_qz(a: &DMatrix<f64>) -> (Mat<f64>, Mat<f64>) {
+    let n = a.nrows();
+    let mut s = Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
+    let mut t = Mat::<f64>::identity(n, n);
+    let mut q = Mat::<f64>::identity(n, n);
+    let mut z = Mat::<f64>::identity(n, n);
+    let hessenberg: GeneralizedHessenbergParams = Auto::<f64>::auto();
+    let schur: GeneralizedSchurParams = Auto::<f64>::auto();
+    let mut memory = MemBuffer::new(StackReq::any_of(&[
+        generalized_hessenberg_scratch::<f64>(n, hessenberg),
+        hessenberg_to_qz_scratch::<f64>(n, Par::Seq, schur),
+    ]));
+    let stack = MemStack::new(&mut memory);
+    generalized_hessenberg(
+        s.as_mut(),
+        t.as_mut(),
+        Some(q.as_mut()),
+        Some(z.as_mut()),
+        Par::Seq,
+        stack,
+        hessenberg,
+    );
+    // The eigenvalues (αr + iαi)/β, which the blocks of S carry too.
+    let (mut re, mut im, mut beta) = (Col::<f64>::zeros(n), Col::zeros(n), Col::zeros(n));
+    hessenberg_to_qz(
+        s.as_mut(),
+        t.as_mut(),
+        Some(q.as_mut()),
+        Some(z.as_mut()),
+        re.as_mut(),
+        im.as_mut(),
+        beta.as_mut(),
+        ComputeEigenvectors::Yes,
+        Par::Seq,
+        schur,
+        stack,
+    );
+    (z, s)
+}
+
+/// The first index of each diagonal block of quasi-triangular `s` (and `n` last), or `None`
+/// when it is not quasi-triangular (two subdiagonal entries in a row: the iteration did not
+/// converge) or not finite.
+fn blocks(s: &Mat<f64>) -> Option<Vec<usize>> {
+    let n = s.nrows();
+    if (0..n).any(|j| (0..n).any(|i| !s[(i, j)].is_finite())) {
+        return None;
+    }
+    let mut starts = Vec::with_capacity(n + 1);
+    let mut i = 0;
+    while i < n {
+        starts.push(i);
+        let pair = i + 1 < n && s[(i + 1, i)] != 0.0;
+        if pair && i + 2 < n && s[(i + 2, i + 1)] != 0.0 {
+            return None;
+        }
+        i += if pair { 2 } else { 1 };
+    }
+    starts.push(n);
+    Some(starts)
 }
 
 #[cfg(test)]
@@ -150,6 +296,48 @@ mod tests {
             assert!((ad.transpose() * &z * &ad + w - &z).norm() < 1e-13 * scale);
             let z = sd.discrete(w, Side::Plain);
             assert!((&ad * &z * ad.transpose() + w - &z).norm() < 1e-13 * scale);
+        }
+    }
+
+    /// Larger nonnormal matrices with many complex pairs and real eigenvalues: the residual of
+    /// each equation is at rounding relative to the sizes of its terms.
+    #[test]
+    fn many_blocks_hold_to_rounding() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for n in [7, 30, 61] {
+            let raw = DMatrix::from_fn(n, n, |_, _| next());
+            let radius = crate::eigenvalues(&raw)
+                .iter()
+                .map(|l| l.norm())
+                .fold(0.0, f64::max);
+            // Continuous: shifted left of the axis; discrete: scaled inside the circle.
+            let a = &raw - DMatrix::identity(n, n) * (radius + 0.1);
+            let ad = &raw / (radius * 1.1);
+            let w = DMatrix::from_fn(n, n, |_, _| next());
+            let s = SchurForm::new(&a).unwrap();
+            let sd = SchurForm::new(&ad).unwrap();
+            assert!(s.upper.starts.len() < n + 1, "no complex pair at n = {n}");
+            let tol = 1e-13 * n as f64;
+            for side in [Side::Transposed, Side::Plain] {
+                let op = |m: &DMatrix<f64>| match side {
+                    Side::Transposed => m.transpose(),
+                    Side::Plain => m.clone(),
+                };
+                let z = s.continuous(&w, side);
+                let (left, right) = (op(&a) * &z, &z * op(&a).transpose());
+                let terms = left.norm() + right.norm() + w.norm();
+                assert!((left + right + &w).norm() < tol * terms, "{side:?} n = {n}");
+                let z = sd.discrete(&w, side);
+                let middle = op(&ad) * &z * op(&ad).transpose();
+                let terms = middle.norm() + w.norm() + z.norm();
+                assert!((middle + &w - &z).norm() < tol * terms, "{side:?} n = {n}");
+            }
         }
     }
 }
