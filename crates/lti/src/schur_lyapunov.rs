@@ -18,6 +18,7 @@ use faer::linalg::gevd::qz_real::{hessenberg_to_qz, hessenberg_to_qz_scratch};
 use faer::linalg::gevd::{ComputeEigenvectors, GeneralizedSchurParams};
 use faer::{Auto, Col, Mat, Par};
 use nalgebra::DMatrix;
+use num_complex::Complex64;
 
 /// The real Schur form `A = U R Uᵀ` of a real square matrix.
 pub struct SchurForm {
@@ -83,6 +84,31 @@ impl SchurForm {
         })
     }
 
+    /// The eigenvalues of `A`, from the diagonal blocks of `R` (a 2×2 block's pair by the
+    /// quadratic formula).
+    pub fn eigenvalues(&self) -> Vec<Complex64> {
+        let r = &self.upper.r;
+        let mut out = Vec::with_capacity(r.nrows());
+        for w in self.upper.starts.windows(2) {
+            let i = w[0];
+            if w[1] - i == 1 {
+                out.push(Complex64::new(r[(i, i)], 0.0));
+                continue;
+            }
+            let (a, b, c, d) = (r[(i, i)], r[(i, i + 1)], r[(i + 1, i)], r[(i + 1, i + 1)]);
+            let mid = 0.5 * (a + d);
+            let discriminant = 0.25 * (a - d) * (a - d) + b * c;
+            let root = if discriminant >= 0.0 {
+                Complex64::new(discriminant.sqrt(), 0.0)
+            } else {
+                Complex64::new(0.0, (-discriminant).sqrt())
+            };
+            out.push(Complex64::new(mid, 0.0) + root);
+            out.push(Complex64::new(mid, 0.0) - root);
+        }
+        out
+    }
+
     /// `Z` with `AᵀZ + ZA + W = 0` ([`Side::Transposed`]) or `AZ + ZAᵀ + W = 0`
     /// ([`Side::Plain`]). Unique when no two eigenvalues of `A` sum to zero.
     pub fn continuous(&self, w: &DMatrix<f64>, side: Side) -> DMatrix<f64> {
@@ -117,47 +143,96 @@ impl Blocked {
     /// - continuous: `RᵀZ_J + Z_J R_JJ = −W_J − C`,
     /// - discrete: `Z_J − RᵀZ_J R_JJ = W_J + RᵀC`,
     ///
-    /// each then solved block row by block row (`Rᵀ` is quasi-lower-triangular), a Sylvester
-    /// equation of at most 2×2 per block pair.
+    /// each then solved block row by block row (`Rᵀ` is quasi-lower-triangular): with
+    /// `E = Σ_{K<I} R_KIᵀ Z_KJ` from the rows solved, a Sylvester equation of at most 2×2,
+    /// `R_IIᵀ Z_IJ + Z_IJ R_JJ = F_I − E` or `Z_IJ − R_IIᵀ Z_IJ R_JJ = F_I + E R_JJ`.
     fn solve(&self, w: &DMatrix<f64>, equation: Equation) -> DMatrix<f64> {
         let r = &self.r;
         let n = r.nrows();
+        let rs = r.as_slice();
         let mut z = DMatrix::<f64>::zeros(n, n);
         for cols in self.starts.windows(2) {
             let (j0, q) = (cols[0], cols[1] - cols[0]);
-            let known = z.view((0, 0), (n, j0)) * r.view((0, j0), (j0, q));
+            let known = z.columns(0, j0) * r.view((0, j0), (j0, q));
             let rhs = match equation {
                 Equation::Continuous => -(w.columns(j0, q) + &known),
-                Equation::Discrete => w.columns(j0, q) + r.transpose() * &known,
+                Equation::Discrete => w.columns(j0, q) + r.tr_mul(&known),
             };
-            let rjj = r.view((j0, j0), (q, q)).clone_owned();
+            let rjj = block(rs, n, j0, q);
             for rows in self.starts.windows(2) {
                 let (i0, p) = (rows[0], rows[1] - rows[0]);
-                // Σ_{K<I} R_KIᵀ Z_KJ: the block rows already solved.
-                let coupled = r.view((0, i0), (i0, p)).transpose() * z.view((0, j0), (i0, q));
-                let f = match equation {
-                    Equation::Continuous => rhs.rows(i0, p) - coupled,
-                    Equation::Discrete => rhs.rows(i0, p) + coupled * &rjj,
-                };
-                let rii = r.view((i0, i0), (p, p));
-                let x = small_sylvester(&rii.transpose(), &rjj, &f, equation);
-                z.view_mut((i0, j0), (p, q)).copy_from(&x);
+                let zs = z.as_slice();
+                let mut e = [[0.0; 2]; 2];
+                for (a, ea) in e.iter_mut().enumerate().take(p) {
+                    let rc = &rs[(i0 + a) * n..(i0 + a) * n + i0];
+                    for (b, eab) in ea.iter_mut().enumerate().take(q) {
+                        *eab = dot(rc, &zs[(j0 + b) * n..(j0 + b) * n + i0]);
+                    }
+                }
+                let mut f = [[0.0; 2]; 2];
+                for (a, fa) in f.iter_mut().enumerate().take(p) {
+                    for (b, fab) in fa.iter_mut().enumerate().take(q) {
+                        *fab = rhs[(i0 + a, b)]
+                            + match equation {
+                                Equation::Continuous => -e[a][b],
+                                Equation::Discrete => (0..q).map(|l| e[a][l] * rjj[l][b]).sum(),
+                            };
+                    }
+                }
+                let rii = block(rs, n, i0, p);
+                let mt = [[rii[0][0], rii[1][0]], [rii[0][1], rii[1][1]]];
+                let x = small_sylvester(&mt, &rjj, &f, p, q, equation);
+                for (a, xa) in x.iter().enumerate().take(p) {
+                    for (b, xab) in xa.iter().enumerate().take(q) {
+                        z[(i0 + a, j0 + b)] = *xab;
+                    }
+                }
             }
         }
         z
     }
 }
 
+/// The diagonal block of size `size` at `start` of the column-major n×n matrix `rs`.
+fn block(rs: &[f64], n: usize, start: usize, size: usize) -> [[f64; 2]; 2] {
+    let mut b = [[0.0; 2]; 2];
+    for (i, bi) in b.iter_mut().enumerate().take(size) {
+        for (j, bij) in bi.iter_mut().enumerate().take(size) {
+            *bij = rs[start + i + (start + j) * n];
+        }
+    }
+    b
+}
+
+/// `Σ aᵢbᵢ` with four partial sums (vectorisable).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut s = [0.0; 4];
+    let (ac, bc) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ac
+        .remainder()
+        .iter()
+        .zip(bc.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ac.zip(bc) {
+        for k in 0..4 {
+            s[k] += x[k] * y[k];
+        }
+    }
+    (s[0] + s[1]) + (s[2] + s[3]) + tail
+}
+
 /// `X` (p×q, p and q at most 2) with `MX + XN = F` (continuous) or `X − MXN = F` (discrete),
 /// by Gaussian elimination with partial pivoting on its Kronecker form (a singular system
 /// gives non-finite entries, which the caller's checks see).
 fn small_sylvester(
-    m: &DMatrix<f64>,
-    n: &DMatrix<f64>,
-    f: &DMatrix<f64>,
+    m: &[[f64; 2]; 2],
+    n: &[[f64; 2]; 2],
+    f: &[[f64; 2]; 2],
+    p: usize,
+    q: usize,
     equation: Equation,
-) -> DMatrix<f64> {
-    let (p, q) = (m.nrows(), n.nrows());
+) -> [[f64; 2]; 2] {
     let size = p * q;
     let mut k = [[0.0f64; 5]; 4];
     // vec(X) column-major: index i + p·j. vec(MX) = (I⊗M)vec X, vec(XN) = (Nᵀ⊗I)vec X,
@@ -167,18 +242,17 @@ fn small_sylvester(
             let row = i + p * j;
             for l in 0..q {
                 for h in 0..p {
-                    let col = h + p * l;
-                    let identity = f64::from(u8::from(row == col));
-                    k[row][col] = match equation {
+                    let identity = f64::from(u8::from(h == i && l == j));
+                    k[row][h + p * l] = match equation {
                         Equation::Continuous => {
-                            f64::from(u8::from(l == j)) * m[(i, h)]
-                                + f64::from(u8::from(h == i)) * n[(l, j)]
+                            f64::from(u8::from(l == j)) * m[i][h]
+                                + f64::from(u8::from(h == i)) * n[l][j]
                         }
-                        Equation::Discrete => identity - n[(l, j)] * m[(i, h)],
+                        Equation::Discrete => identity - n[l][j] * m[i][h],
                     };
                 }
             }
-            k[row][4] = f[(i, j)];
+            k[row][4] = f[i][j];
         }
     }
     for c in 0..size {
@@ -199,7 +273,13 @@ fn small_sylvester(
         let known: f64 = (c + 1..size).map(|l| k[c][l] * x[l]).sum();
         x[c] = (k[c][4] - known) / k[c][c];
     }
-    DMatrix::from_fn(p, q, |i, j| x[i + p * j])
+    let mut out = [[0.0; 2]; 2];
+    for (i, oi) in out.iter_mut().enumerate().take(p) {
+        for (j, oij) in oi.iter_mut().enumerate().take(q) {
+            *oij = x[i + p * j];
+        }
+    }
+    out
 }
 
 /// `(Z, S)` of the real QZ decomposition of `(a, I)`: `QᵀaZ = S` quasi-upper-triangular.
@@ -210,7 +290,10 @@ fn real_qz(a: &DMatrix<f64>) -> (Mat<f64>, Mat<f64>) {
     let mut q = Mat::<f64>::identity(n, n);
     let mut z = Mat::<f64>::identity(n, n);
     let hessenberg: GeneralizedHessenbergParams = Auto::<f64>::auto();
-    let schur: GeneralizedSchurParams = Auto::<f64>::auto();
+    let mut schur: GeneralizedSchurParams = Auto::<f64>::auto();
+    if let Ok(v) = std::env::var("QZ_BLOCK") {
+        schur.blocking_threshold = v.parse().unwrap();
+    }
     let mut memory = MemBuffer::new(StackReq::any_of(&[
         generalized_hessenberg_scratch::<f64>(n, hessenberg),
         hessenberg_to_qz_scratch::<f64>(n, Par::Seq, schur),
@@ -323,6 +406,15 @@ mod tests {
             let s = SchurForm::new(&a).unwrap();
             let sd = SchurForm::new(&ad).unwrap();
             assert!(s.upper.starts.len() < n + 1, "no complex pair at n = {n}");
+            // The blocks' eigenvalues are the matrix's (each near one of the reference's).
+            let reference = crate::eigenvalues(&a);
+            for l in s.eigenvalues() {
+                let nearest = reference
+                    .iter()
+                    .map(|r| (r - l).norm())
+                    .fold(f64::INFINITY, f64::min);
+                assert!(nearest < 1e-10 * radius, "{l} at n = {n}");
+            }
             let tol = 1e-13 * n as f64;
             for side in [Side::Transposed, Side::Plain] {
                 let op = |m: &DMatrix<f64>| match side {

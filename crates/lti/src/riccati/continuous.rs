@@ -6,6 +6,10 @@
 //! finishes the job.
 
 use super::problem::{Problem, Stall};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::lu::partial_pivoting::factor::{lu_in_place, lu_in_place_scratch};
+use faer::linalg::lu::partial_pivoting::inverse::{inverse, inverse_scratch};
+use faer::{Mat, Par};
 use nalgebra::DMatrix;
 
 /// Sign-function steps at most.
@@ -38,28 +42,63 @@ pub(super) fn sign_start(p: &Problem, q: &DMatrix<f64>) -> Result<DMatrix<f64>, 
         .map_err(|_| steps)
 }
 
-/// The matrix sign function by scaled Newton iteration, with the steps taken.
+/// The matrix sign function by scaled Newton iteration, with the steps taken: each step one
+/// LU factorisation (faer, sequential) gives the inverse and the determinant's scaling.
 fn sign(h: &DMatrix<f64>) -> Result<(DMatrix<f64>, usize), usize> {
     let n = h.nrows();
-    let mut z = h.clone();
+    let mut z = Mat::<f64>::from_fn(n, n, |i, j| h[(i, j)]);
+    let mut lu = Mat::<f64>::zeros(n, n);
+    let mut inv = Mat::<f64>::zeros(n, n);
+    let (mut forward, mut backward) = (vec![0usize; n], vec![0usize; n]);
+    let mut memory = MemBuffer::new(StackReq::any_of(&[
+        lu_in_place_scratch::<usize, f64>(n, n, Par::Seq, Default::default()),
+        inverse_scratch::<usize, f64>(n, Par::Seq),
+    ]));
+    let stack = MemStack::new(&mut memory);
     // Near-axis eigenvalues stall it as high as 1e-5.
     let mut stall = Stall::below(1e-3);
     for step in 1..=MAX_STEPS {
-        let inv = z.clone().try_inverse().ok_or(step)?;
-        let det = z.determinant().abs();
-        let c = if det > 0.0 && det.is_finite() {
-            libm::pow(det, -1.0 / n as f64)
-        } else {
-            1.0
-        };
-        let next = (&z * c + inv / c) * 0.5;
-        let change = (&next - &z).norm() / next.norm();
-        z = next;
+        lu.copy_from(&z);
+        let (_, perm) = lu_in_place(
+            lu.as_mut(),
+            &mut forward,
+            &mut backward,
+            Par::Seq,
+            stack,
+            Default::default(),
+        );
+        let pivots: Vec<f64> = (0..n).map(|i| lu[(i, i)].abs()).collect();
+        if pivots.iter().any(|&u| !(u > 0.0 && u.is_finite())) {
+            return Err(step);
+        }
+        inverse(
+            inv.as_mut(),
+            lu.as_ref(),
+            lu.as_ref(),
+            perm,
+            Par::Seq,
+            stack,
+        );
+        // |det|^(−1/n), from the pivots' logarithms (the determinant itself over- or
+        // underflows at this size).
+        let log_det: f64 = pivots.iter().map(|&u| libm::log(u)).sum();
+        let c = libm::exp(-log_det / n as f64);
+        let c = if c.is_finite() && c > 0.0 { c } else { 1.0 };
+        let (mut change, mut size) = (0.0, 0.0);
+        for j in 0..n {
+            for i in 0..n {
+                let next = 0.5 * (z[(i, j)] * c + inv[(i, j)] / c);
+                change += (next - z[(i, j)]) * (next - z[(i, j)]);
+                size += next * next;
+                z[(i, j)] = next;
+            }
+        }
+        let change = (change / size).sqrt();
         if !change.is_finite() {
             return Err(step);
         }
         if change < 1e-14 || stall.stalled(change) {
-            return Ok((z, step));
+            return Ok((DMatrix::from_fn(n, n, |i, j| z[(i, j)]), step));
         }
     }
     Err(MAX_STEPS)

@@ -68,20 +68,12 @@ fn modes(p: &Problem, boundary_only: bool) -> Option<RiccatiError> {
     None
 }
 
-/// An eigenvalue of the Hamiltonian within resolution of the imaginary axis.
+/// An eigenvalue of the Hamiltonian that cannot be told from the imaginary axis.
 fn hamiltonian_on_axis(p: &Problem) -> Option<RiccatiError> {
-    if p.kind == Kind::Continuous {
-        let h = p.hamiltonian();
-        let resolution = p.data_resolution();
-        if let Some(l) = crate::state_space::eigenvalues(&h)
-            .into_iter()
-            .filter(|l| l.re.abs() <= resolution)
-            .min_by(|x, y| x.re.abs().total_cmp(&y.re.abs()))
-        {
-            return Some(RiccatiError::HamiltonianOnAxis {
-                eigenvalue: Mode::of(l),
-            });
-        }
-    }
-    None
+    (p.kind == Kind::Continuous)
+        .then(|| super::resolution::hamiltonian_on_axis(p))
+        .flatten()
+        .map(|l| RiccatiError::HamiltonianOnAxis {
+            eigenvalue: Mode::of(l),
+        })
 }

@@ -13,12 +13,13 @@
 //! method from it converges to the stabilising solution of the original equation (Kleinman 1968,
 //! Hewer 1971: the iterates stay stabilising and fall monotonically to it).
 //!
-//! A result is returned only when its closed loop is stable by more than the data's eigenvalues
-//! can be resolved (continuous: `√ε` times the balanced Hamiltonian's size, since a double
-//! eigenvalue on the axis, where no stabilising solution exists, is computed that far off it;
-//! discrete: rounding, boundary modes being checked before solving) and its residual, relative to the size of the terms the equation sums, is
-//! at most [`RESIDUAL_BOUND`]. It carries the equation's
-//! relative condition number and the forward error that implies ([`condition`]). Failures name
+//! A result is returned only when its closed loop is stable by more than its eigenvalues can be
+//! resolved ([`resolution`]: continuous, each eigenvalue's own perturbation bound as an
+//! eigenvalue of the Hamiltonian, so a simple pair a hair from the axis is told from a double
+//! one on it; discrete: rounding, boundary modes being checked before solving) and its
+//! residual, relative to the size of the terms the equation sums, is at most
+//! [`RESIDUAL_BOUND`]. It carries the equation's relative condition number and the forward
+//! error that implies ([`condition`]). Failures name
 //! their reason from the data where it shows one ([`diagnose`]).
 
 mod condition;
@@ -26,6 +27,7 @@ mod continuous;
 mod diagnose;
 mod discrete;
 mod problem;
+mod resolution;
 
 use nalgebra::DMatrix;
 use problem::{Kind, Measured, Problem};
@@ -223,20 +225,18 @@ fn solve(p: &Problem, start: Start) -> Result<Riccati, RiccatiError> {
         let x = start(p, q).map_err(|iterations| RiccatiError::NoConvergence { iterations })?;
         let m = p.measure(x).ok_or(RiccatiError::SingularR)?;
         let (m, taken) = p.refine(m, steps);
-        let (measure, value, stable) = p.stability(&m.closed);
+        let (measure, value, stable) = p.stability(&m);
         if !stable {
             return Err(RiccatiError::NotStabilising { measure, value });
         }
-        let resolution = p.data_resolution();
-        let margin = match p.kind {
-            Kind::Continuous => -value,
-            Kind::Discrete => 1.0 - value,
-        };
-        if margin <= resolution {
+        if let Some(u) = resolution::closed_loop(p, m.eigenvalues()) {
             return Err(RiccatiError::MarginalClosedLoop {
                 measure,
-                value,
-                resolution,
+                value: match p.kind {
+                    Kind::Continuous => u.eigenvalue.re,
+                    Kind::Discrete => u.eigenvalue.norm(),
+                },
+                resolution: u.resolution,
             });
         }
         if m.relative > RESIDUAL_BOUND {

@@ -52,11 +52,20 @@ pub(super) struct Measured {
 }
 
 impl Measured {
-    /// The closed loop's Schur form (`None` when its QR iteration does not converge).
+    /// The closed loop's Schur form (`None` when its QZ iteration does not converge).
     pub fn schur(&self) -> Option<&SchurForm> {
         self.schur
             .get_or_init(|| SchurForm::new(&self.closed))
             .as_ref()
+    }
+
+    /// The closed loop's eigenvalues (from its Schur form, which the condition estimate needs
+    /// anyway).
+    pub fn eigenvalues(&self) -> Vec<num_complex::Complex64> {
+        self.schur().map_or_else(
+            || crate::state_space::eigenvalues(&self.closed),
+            SchurForm::eigenvalues,
+        )
     }
 }
 
@@ -214,12 +223,18 @@ impl Problem {
 
     /// The closed loop's stability measure: spectral radius (discrete) or abscissa
     /// (continuous), with its name and whether it is stable.
-    pub fn stability(&self, closed: &DMatrix<f64>) -> (&'static str, f64, bool) {
+    pub fn stability(&self, m: &Measured) -> (&'static str, f64, bool) {
+        let eigenvalues = m.eigenvalues();
         match self.kind {
-            Kind::Continuous => Self::hurwitz(closed),
+            Kind::Continuous => {
+                let v = eigenvalues
+                    .iter()
+                    .map(|l| l.re)
+                    .fold(f64::NEG_INFINITY, f64::max);
+                ("spectral abscissa", v, v < 0.0)
+            }
             Kind::Discrete => {
-                let eig = crate::state_space::eigenvalues(closed);
-                let v = eig.iter().map(|l| l.norm()).fold(0.0, f64::max);
+                let v = eigenvalues.iter().map(|l| l.norm()).fold(0.0, f64::max);
                 ("spectral radius", v, v < 1.0)
             }
         }
@@ -235,22 +250,6 @@ impl Problem {
         h.view_mut((n, n), (n, n))
             .copy_from(&(-self.a0.transpose()));
         h
-    }
-
-    /// How close to the boundary a closed-loop eigenvalue cannot be told from it.
-    /// - continuous: `√ε` times the size of the balanced Hamiltonian — a double eigenvalue on
-    ///   the axis (no stabilising solution exists) is computed about that far off it;
-    /// - discrete: `100·ε·(1 + ‖Ā‖)`, rounding — with `Q ≥ 0` the symplectic pencil's double
-    ///   unit-circle eigenvalues come from boundary modes of `A` that the input cannot move or
-    ///   the penalty does not see, which are checked before solving, while a lag pole a
-    ///   hair inside the circle (DAREX 14: 1 − 10⁻⁸) is a simple eigenvalue, known to rounding.
-    pub fn data_resolution(&self) -> f64 {
-        match self.kind {
-            Kind::Continuous => {
-                f64::EPSILON.sqrt() * crate::state_space::balance(self.hamiltonian()).0.norm()
-            }
-            Kind::Discrete => 100.0 * f64::EPSILON * (1.0 + self.a0.norm()),
-        }
     }
 
     /// The spectral abscissa of `a`, its name and whether it is negative.

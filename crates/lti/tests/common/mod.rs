@@ -3,6 +3,7 @@
 
 #![allow(dead_code)] // each test file uses its own part
 
+pub mod extended;
 pub mod random;
 
 use lti::riccati::{Riccati, RESIDUAL_BOUND};
