@@ -22,6 +22,10 @@ use num_complex::Complex64;
 
 /// The real Schur form `A = U R Uᵀ` of a real square matrix.
 pub struct SchurForm {
+    /// The balancing `D` (powers of two): the form is of `D⁻¹AD`, whose eigenvalues a matrix
+    /// with rows and columns of very different sizes keeps only balanced (a closed loop of norm
+    /// 10¹⁸ whose spectral radius is 0.99998).
+    d: Vec<f64>,
     u: DMatrix<f64>,
     /// `Uᵀ` (products with it are matrix products, not dot products).
     ut: DMatrix<f64>,
@@ -39,6 +43,14 @@ struct Blocked {
     rt: DMatrix<f64>,
     starts: Vec<usize>,
 }
+
+/// QR sweeps nalgebra's Schur iteration may take per row (LAPACK allows 30 per eigenvalue;
+/// nalgebra's unbounded iteration can cycle for ever on some matrices).
+const SWEEPS_PER_ROW: usize = 100;
+
+/// How far below its blocks `UᵀAU` may be from zero, in units of `n·ε·‖A‖_F` (rounding of
+/// the two products).
+const REDUCTION_TOLERANCE: f64 = 64.0;
 
 /// Which operator of `A` an equation is written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -65,20 +77,41 @@ impl SchurForm {
         if a.iter().any(|v| !v.is_finite()) {
             return None;
         }
-        let (z, s) = real_qz(a);
-        let starts = blocks(&s)?;
-        let u = DMatrix::from_fn(n, n, |i, j| z[(i, j)]);
+        let (a, d) = crate::state_space::balance(a.clone());
+        let (z, s) = real_qz(&a);
+        let from_qz = blocks(n, |i, j| s[(i, j)]).and_then(|starts| {
+            Self::checked(&a, &d, DMatrix::from_fn(n, n, |i, j| z[(i, j)]), starts)
+        });
+        from_qz.or_else(|| {
+            // Should faer's QZ not reduce the matrix, nalgebra's real Schur form.
+            let limit = SWEEPS_PER_ROW * n.max(1);
+            let (q, t) = nalgebra::Schur::try_new(a.clone(), f64::EPSILON, limit)?.unpack();
+            let starts = blocks(n, |i, j| t[(i, j)])?;
+            Self::checked(&a, &d, q, starts)
+        })
+    }
+
+    /// `R = UᵀAU` with its entries below the diagonal `starts` blocks dropped — `None` when
+    /// they are more than rounding (`U` does not reduce `A`).
+    fn checked(a: &DMatrix<f64>, d: &[f64], u: DMatrix<f64>, starts: Vec<usize>) -> Option<Self> {
+        let n = a.nrows();
         let mut r = u.transpose() * a * &u;
+        let mut dropped = 0.0;
         for w in starts.windows(2) {
             for j in w[0]..w[1] {
                 for i in w[1]..n {
+                    dropped += r[(i, j)] * r[(i, j)];
                     r[(i, j)] = 0.0;
                 }
             }
         }
+        if dropped.sqrt() > REDUCTION_TOLERANCE * (n as f64) * f64::EPSILON * a.norm() {
+            return None;
+        }
         let reversed = DMatrix::from_fn(n, n, |i, j| r[(n - 1 - j, n - 1 - i)]);
         let reversed_starts = starts.iter().rev().map(|&s| n - s).collect();
         Some(SchurForm {
+            d: d.to_vec(),
             ut: u.transpose(),
             u,
             upper: Blocked::new(r, starts),
@@ -126,6 +159,14 @@ impl SchurForm {
     /// In Schur coordinates (`Ẑ = UᵀZU`, `Ŵ = UᵀWU`); the plain side on the reversed form.
     fn solve(&self, w: &DMatrix<f64>, side: Side, equation: Equation) -> DMatrix<f64> {
         let n = self.u.nrows();
+        // In the balanced basis: `DWD` and `Z = D⁻¹ẐD⁻¹` (transposed), `D⁻¹WD⁻¹` and
+        // `Z = DẐD` (plain).
+        let d = &self.d;
+        let scale = |i: usize, j: usize| match side {
+            Side::Transposed => d[i] * d[j],
+            Side::Plain => 1.0 / (d[i] * d[j]),
+        };
+        let w = DMatrix::from_fn(n, n, |i, j| w[(i, j)] * scale(i, j));
         let what = &self.ut * w * &self.u;
         let zhat = match side {
             Side::Transposed => self.upper.solve(&what, equation),
@@ -135,7 +176,8 @@ impl SchurForm {
                 flip(&self.reversed.solve(&flip(&what), equation))
             }
         };
-        &self.u * zhat * &self.ut
+        let z = &self.u * zhat * &self.ut;
+        DMatrix::from_fn(n, n, |i, j| z[(i, j)] / scale(i, j))
     }
 }
 
@@ -339,20 +381,19 @@ fn real_qz(a: &DMatrix<f64>) -> (Mat<f64>, Mat<f64>) {
     (z, s)
 }
 
-/// The first index of each diagonal block of quasi-triangular `s` (and `n` last), or `None`
-/// when it is not quasi-triangular (two subdiagonal entries in a row: the iteration did not
-/// converge) or not finite.
-fn blocks(s: &Mat<f64>) -> Option<Vec<usize>> {
-    let n = s.nrows();
-    if (0..n).any(|j| (0..n).any(|i| !s[(i, j)].is_finite())) {
+/// The first index of each diagonal block of the quasi-triangular n×n matrix with entries
+/// `s(i, j)` (and `n` last), or `None` when it is not quasi-triangular (two subdiagonal entries
+/// in a row: the iteration did not converge) or not finite.
+fn blocks(n: usize, s: impl Fn(usize, usize) -> f64) -> Option<Vec<usize>> {
+    if (0..n).any(|j| (0..n).any(|i| !s(i, j).is_finite())) {
         return None;
     }
     let mut starts = Vec::with_capacity(n + 1);
     let mut i = 0;
     while i < n {
         starts.push(i);
-        let pair = i + 1 < n && s[(i + 1, i)] != 0.0;
-        if pair && i + 2 < n && s[(i + 2, i + 1)] != 0.0 {
+        let pair = i + 1 < n && s(i + 1, i) != 0.0;
+        if pair && i + 2 < n && s(i + 2, i + 1) != 0.0 {
             return None;
         }
         i += if pair { 2 } else { 1 };
