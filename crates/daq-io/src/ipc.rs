@@ -298,14 +298,12 @@ pub fn take<T: Debug + ZeroCopySend + Copy>(s: &Subscriber<T>) -> Option<T> {
     s.receive().ok().flatten().map(|sample| *sample)
 }
 
-/// The samples waiting now, at most `limit` of them: a reader that drains a publisher faster
-/// than itself would otherwise never leave the loop (pass a subscriber's buffer, e.g.
-/// [`settings`]`(leaf).buffer`, and come back on the next pass).
+/// The samples waiting now, at most one buffer of `s` (come back on the next pass for the
+/// rest): a reader that drains a publisher as fast as itself until empty never leaves.
 pub fn take_waiting<T: Debug + ZeroCopySend + Copy>(
     s: &Subscriber<T>,
-    limit: usize,
 ) -> impl Iterator<Item = T> + '_ {
-    std::iter::from_fn(|| take(s)).take(limit)
+    std::iter::from_fn(|| take(s)).take(s.buffer_size())
 }
 
 /// A publisher that keeps its next sample loaned: [`Sender::send`] writes and publishes it,

@@ -192,15 +192,13 @@ pub fn serve(
             report.overview_samples += 1;
         }
     };
-    // A pass takes what one subscriber buffer holds, then turns to the rest.
-    let blocks = daq_io::ipc::settings(daq_io::ipc::leaf::TELEMETRY).buffer;
     while !stop.load(Ordering::Relaxed) {
         let mut got = false;
-        for b in take_waiting(&tap.telemetry, blocks) {
+        for b in take_waiting(&tap.telemetry) {
             got = true;
             join.telemetry(&b);
         }
-        for b in take_waiting(&tap.truth, blocks) {
+        for b in take_waiting(&tap.truth) {
             got = true;
             if run_id.is_none() {
                 run_id = Some(b.run_id);

@@ -234,16 +234,14 @@ pub fn record(
     let mut load_requests: VecDeque<(u64, Vec<u8>)> = VecDeque::new();
     let mut applied: VecDeque<Ack> = VecDeque::new();
     let mut swaps: Vec<(Swap, f64)> = Vec::new();
-    // A pass takes what one subscriber buffer holds, then turns to the rest.
-    let blocks = daq_io::ipc::settings(daq_io::ipc::leaf::TELEMETRY).buffer;
     loop {
         let mut got = false;
-        for b in take_waiting(&tap.telemetry, blocks) {
+        for b in take_waiting(&tap.telemetry) {
             got = true;
             same_run(&mut run_id, b.run_id, "telemetry")?;
             join.telemetry(&b);
         }
-        for b in take_waiting(&tap.truth, blocks) {
+        for b in take_waiting(&tap.truth) {
             got = true;
             same_run(&mut run_id, b.run_id, "truth")?;
             join.truth(&b);

@@ -75,10 +75,7 @@ impl Peer {
 
     fn drain(&mut self) {
         // What is there now: the loop publishes as fast as this takes.
-        for b in take_waiting(
-            &self.tap.telemetry,
-            daq_io::ipc::settings(leaf::TELEMETRY).buffer,
-        ) {
+        for b in take_waiting(&self.tap.telemetry) {
             self.blocks += 1;
             self.end_seen |= b.flags & flags::END != 0;
         }

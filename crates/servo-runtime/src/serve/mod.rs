@@ -89,6 +89,24 @@ pub(crate) struct Link {
 }
 
 impl Link {
+    /// The ticking thread's ends of the rings, served by `thread` (None: no thread, a test).
+    fn new(
+        telemetry: Producer<Telemetry>,
+        events: Producer<Event>,
+        requests: Consumer<Request>,
+        thread: Option<JoinHandle<()>>,
+    ) -> Self {
+        Link {
+            telemetry,
+            events,
+            requests,
+            pending: None,
+            started: false,
+            dropped: 0,
+            thread,
+        }
+    }
+
     /// Telemetry records dropped so far.
     pub(crate) fn dropped(&self) -> u64 {
         self.dropped
@@ -127,8 +145,8 @@ pub(crate) fn after_tick(link: &mut Link, sample: &Sensor, v: TickView<'_>) {
             link.dropped += 1;
         }
     }
-    if let Some((id, radius)) = link.pending {
-        if let (Some(tick), true) = (v.core.handed_over_at(), link.events.slots() > 0) {
+    if let Some((id, radius)) = link.pending.filter(|_| link.events.slots() > 0) {
+        if let Some(tick) = v.core.handed_over_at() {
             link.pending = None;
             let replaced = v.core.take_replaced();
             let _ = link.events.push(Event::Loaded {
@@ -222,15 +240,7 @@ pub(crate) fn start(setup: Setup) -> Result<Link, ServeError> {
         }
         Err(_) => return Err(ServeError::Lost),
     }
-    Ok(Link {
-        telemetry,
-        events,
-        requests,
-        pending: None,
-        started: false,
-        dropped: 0,
-        thread: Some(thread),
-    })
+    Ok(Link::new(telemetry, events, requests, Some(thread)))
 }
 
 /// Ends the service of `link` with `end` (waiting for the ring to take it), joins its thread;
@@ -259,16 +269,11 @@ mod tests {
         let (telemetry, _) = RingBuffer::new(4);
         let (events, events_rx) = RingBuffer::new(64);
         let (requests_tx, requests) = RingBuffer::new(8);
-        let link = Link {
-            telemetry,
-            events,
-            requests,
-            pending: None,
-            started: false,
-            dropped: 0,
-            thread: None,
-        };
-        (link, events_rx, requests_tx)
+        (
+            Link::new(telemetry, events, requests, None),
+            events_rx,
+            requests_tx,
+        )
     }
 
     #[test]
