@@ -5,10 +5,12 @@
 //! Newton's refinement of a Riccati solution and the Riccati condition estimate need: the
 //! closed loop stays the same while the right-hand side changes.
 //!
-//! The Schur form comes from faer's real QZ algorithm on the pair `(A, I)` (faer has no public
-//! real Schur): `QᵀAZ = S`, `QᵀZ = T` with `T` triangular and orthogonal, hence `±1` on its
-//! diagonal, so `ZᵀAZ` is quasi-triangular with `S`'s blocks; it is formed as `ZᵀAZ` and its
-//! entries below the blocks, rounding, are dropped (a backward error of `ε‖A‖`).
+//! The Schur form is of the balanced matrix `D⁻¹AD` (the equations scaled to match) and comes
+//! from faer's real QZ algorithm on the pair `(A, I)` (faer has no public real Schur):
+//! `QᵀAZ = S`, `QᵀZ = T` with `T` triangular and orthogonal, hence `±1` on its diagonal, so
+//! `ZᵀAZ` is quasi-triangular with `S`'s blocks; it is formed as `ZᵀAZ` and its entries below
+//! the blocks, rounding, are dropped (a backward error of `ε‖A‖`) — or, should they be more
+//! than rounding, nalgebra's real Schur form is taken instead.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::gevd::gen_hessenberg::{
@@ -69,9 +71,9 @@ enum Equation {
 }
 
 impl SchurForm {
-    /// The Schur form of `a`, or `None` when `a` is not finite or the QZ iteration did not
-    /// converge (faer bounds it at 30 sweeps per eigenvalue, as LAPACK does; what it leaves
-    /// then is not quasi-triangular, which is checked).
+    /// The Schur form of `a`, or `None` when `a` is not finite or neither faer's QZ nor
+    /// nalgebra's Schur iteration reduces it within their sweep limits (what they leave then
+    /// is not quasi-triangular, which is checked).
     pub fn new(a: &DMatrix<f64>) -> Option<Self> {
         let n = a.nrows();
         if a.iter().any(|v| !v.is_finite()) {
@@ -95,7 +97,8 @@ impl SchurForm {
     /// they are more than rounding (`U` does not reduce `A`).
     fn checked(a: &DMatrix<f64>, d: &[f64], u: DMatrix<f64>, starts: Vec<usize>) -> Option<Self> {
         let n = a.nrows();
-        let mut r = u.transpose() * a * &u;
+        let ut = u.transpose();
+        let mut r = &ut * a * &u;
         let mut dropped = 0.0;
         for w in starts.windows(2) {
             for j in w[0]..w[1] {
@@ -112,7 +115,7 @@ impl SchurForm {
         let reversed_starts = starts.iter().rev().map(|&s| n - s).collect();
         Some(SchurForm {
             d: d.to_vec(),
-            ut: u.transpose(),
+            ut,
             u,
             upper: Blocked::new(r, starts),
             reversed: Blocked::new(reversed, reversed_starts),
@@ -440,13 +443,9 @@ mod tests {
     /// each equation is at rounding relative to the sizes of its terms.
     #[test]
     fn many_blocks_hold_to_rounding() {
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(42);
+        let mut next = move || rng.random::<f64>() - 0.5;
         for n in [7, 30, 61] {
             let raw = DMatrix::from_fn(n, n, |_, _| next());
             let radius = crate::eigenvalues(&raw)

@@ -67,9 +67,15 @@ fn sign(h: &DMatrix<f64>) -> Result<(DMatrix<f64>, usize), usize> {
             stack,
             Default::default(),
         );
-        let pivots: Vec<f64> = (0..n).map(|i| lu[(i, i)].abs()).collect();
-        if pivots.iter().any(|&u| !(u > 0.0 && u.is_finite())) {
-            return Err(step);
+        // |det|^(−1/n) from the pivots' logarithms (the determinant itself over- or
+        // underflows at this size).
+        let mut log_det = 0.0;
+        for i in 0..n {
+            let u = lu[(i, i)].abs();
+            if !(u > 0.0 && u.is_finite()) {
+                return Err(step);
+            }
+            log_det += libm::log(u);
         }
         inverse(
             inv.as_mut(),
@@ -79,9 +85,6 @@ fn sign(h: &DMatrix<f64>) -> Result<(DMatrix<f64>, usize), usize> {
             Par::Seq,
             stack,
         );
-        // |det|^(−1/n), from the pivots' logarithms (the determinant itself over- or
-        // underflows at this size).
-        let log_det: f64 = pivots.iter().map(|&u| libm::log(u)).sum();
         let c = libm::exp(-log_det / n as f64);
         let c = if c.is_finite() && c > 0.0 { c } else { 1.0 };
         let (mut change, mut size) = (0.0, 0.0);

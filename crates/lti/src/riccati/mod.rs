@@ -225,11 +225,12 @@ fn solve(p: &Problem, start: Start) -> Result<Riccati, RiccatiError> {
         let x = start(p, q).map_err(|iterations| RiccatiError::NoConvergence { iterations })?;
         let m = p.measure(x).ok_or(RiccatiError::SingularR)?;
         let (m, taken) = p.refine(m, steps);
-        let (measure, value, stable) = p.stability(&m);
+        let eigenvalues = m.eigenvalues();
+        let (measure, value, stable) = p.stability(&eigenvalues);
         if !stable {
             return Err(RiccatiError::NotStabilising { measure, value });
         }
-        if let Some(u) = resolution::closed_loop(p, m.eigenvalues()) {
+        if let Some(u) = resolution::closed_loop(p, eigenvalues) {
             return Err(RiccatiError::MarginalClosedLoop {
                 measure,
                 value: match p.kind {

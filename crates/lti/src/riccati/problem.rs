@@ -5,6 +5,7 @@
 use super::RiccatiError;
 use crate::schur_lyapunov::{SchurForm, Side};
 use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
 use std::cell::OnceCell;
 
 /// Continuous (`AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0`) or discrete
@@ -61,7 +62,7 @@ impl Measured {
 
     /// The closed loop's eigenvalues (from its Schur form, which the condition estimate needs
     /// anyway).
-    pub fn eigenvalues(&self) -> Vec<num_complex::Complex64> {
+    pub fn eigenvalues(&self) -> Vec<Complex64> {
         self.schur().map_or_else(
             || crate::state_space::eigenvalues(&self.closed),
             SchurForm::eigenvalues,
@@ -221,18 +222,11 @@ impl Problem {
         })
     }
 
-    /// The closed loop's stability measure: spectral radius (discrete) or abscissa
-    /// (continuous), with its name and whether it is stable.
-    pub fn stability(&self, m: &Measured) -> (&'static str, f64, bool) {
-        let eigenvalues = m.eigenvalues();
+    /// The stability measure of a closed loop with `eigenvalues`: spectral radius (discrete)
+    /// or abscissa (continuous), with its name and whether it is stable.
+    pub fn stability(&self, eigenvalues: &[Complex64]) -> (&'static str, f64, bool) {
         match self.kind {
-            Kind::Continuous => {
-                let v = eigenvalues
-                    .iter()
-                    .map(|l| l.re)
-                    .fold(f64::NEG_INFINITY, f64::max);
-                ("spectral abscissa", v, v < 0.0)
-            }
+            Kind::Continuous => Self::hurwitz_of(eigenvalues),
             Kind::Discrete => {
                 let v = eigenvalues.iter().map(|l| l.norm()).fold(0.0, f64::max);
                 ("spectral radius", v, v < 1.0)
@@ -254,8 +248,15 @@ impl Problem {
 
     /// The spectral abscissa of `a`, its name and whether it is negative.
     pub fn hurwitz(a: &DMatrix<f64>) -> (&'static str, f64, bool) {
-        let eig = crate::state_space::eigenvalues(a);
-        let v = eig.iter().map(|l| l.re).fold(f64::NEG_INFINITY, f64::max);
+        Self::hurwitz_of(&crate::state_space::eigenvalues(a))
+    }
+
+    /// The spectral abscissa of `eigenvalues`, its name and whether it is negative.
+    fn hurwitz_of(eigenvalues: &[Complex64]) -> (&'static str, f64, bool) {
+        let v = eigenvalues
+            .iter()
+            .map(|l| l.re)
+            .fold(f64::NEG_INFINITY, f64::max);
         ("spectral abscissa", v, v < 0.0)
     }
 

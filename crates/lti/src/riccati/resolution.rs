@@ -61,19 +61,24 @@ impl Hamiltonian {
             resolution,
         })
     }
+
+    /// Of `eigenvalues` (the Hamiltonian's), the one nearest the axis that cannot be told from
+    /// it, if any; only the suspects pay for their condition.
+    fn nearest_unresolved(&self, eigenvalues: Vec<Complex64>) -> Option<Unresolved> {
+        let mut suspects: Vec<Complex64> = eigenvalues
+            .into_iter()
+            .filter(|&l| self.suspect(l))
+            .collect();
+        suspects.sort_by(|x, y| x.re.abs().total_cmp(&y.re.abs()));
+        suspects.into_iter().find_map(|l| self.unresolved(l))
+    }
 }
 
 /// The closed-loop eigenvalue (of the stable `eigenvalues`) nearest the boundary that cannot
 /// be told from it, if any.
 pub(super) fn closed_loop(p: &Problem, eigenvalues: Vec<Complex64>) -> Option<Unresolved> {
     match p.kind {
-        Kind::Continuous => {
-            let h = Hamiltonian::of(p);
-            let mut suspects: Vec<Complex64> =
-                eigenvalues.into_iter().filter(|&l| h.suspect(l)).collect();
-            suspects.sort_by(|x, y| y.re.total_cmp(&x.re));
-            suspects.into_iter().find_map(|l| h.unresolved(l))
-        }
+        Kind::Continuous => Hamiltonian::of(p).nearest_unresolved(eigenvalues),
         Kind::Discrete => {
             let resolution = 100.0 * f64::EPSILON * (1.0 + p.a0.norm());
             eigenvalues
@@ -92,14 +97,7 @@ pub(super) fn closed_loop(p: &Problem, eigenvalues: Vec<Complex64>) -> Option<Un
 /// imaginary axis (the nearest), if any.
 pub(super) fn hamiltonian_on_axis(p: &Problem) -> Option<Complex64> {
     let h = Hamiltonian::of(p);
-    let mut suspects: Vec<Complex64> = crate::state_space::eigenvalues(&h.h)
-        .into_iter()
-        .filter(|&l| h.suspect(l))
-        .collect();
-    suspects.sort_by(|x, y| x.re.abs().total_cmp(&y.re.abs()));
-    suspects
-        .into_iter()
-        .find_map(|l| h.unresolved(l))
+    h.nearest_unresolved(crate::state_space::eigenvalues(&h.h))
         .map(|u| u.eigenvalue)
 }
 
