@@ -7,7 +7,8 @@
 //! ```
 //!
 //! `DIR/problems.json`: random CARE and DARE problems, n = 20 … 160 (with a cross term at
-//! n = 40), each with our `X`, relative residual, forward-error estimate and median time.
+//! n = 40), each with our `X`, relative residual, forward-error estimate and median times (of
+//! the solve, and of the solve with its sensitivity estimate).
 //! `DIR/h2_plants.json`: random continuous generalized plants, n = 4 … 64 (n/4 controls and
 //! measurements), with our H2-optimal closed-loop norm. Existing files are not overwritten.
 
@@ -62,13 +63,21 @@ fn riccati_problems() -> Vec<Value> {
         ] {
             let Data { a, b, q, r, s } = problem(n, n as u64, cross, discrete);
             let (x, seconds) = timed(|| solver(&a, &b, &q, &r, s.as_ref()));
+            // The solve and the sensitivity estimate together (what SB02OD and SB02QD/SB02SD
+            // compute between them).
+            let (_, with_estimate) = timed(|| {
+                solver(&a, &b, &q, &r, s.as_ref()).inspect(|x| {
+                    x.sensitivity();
+                })
+            });
             let ours = match x {
                 Ok(x) => json!({
                     "x": rows(&x.x),
                     "residual": x.residual,
-                    "forward_error": x.forward_error,
-                    "condition": x.condition,
+                    "forward_error": x.forward_error(),
+                    "condition": x.condition(),
                     "seconds": seconds,
+                    "seconds_with_estimate": with_estimate,
                 }),
                 Err(e) => json!({ "error": e.to_string() }),
             };

@@ -13,12 +13,15 @@
 //! than rounding, nalgebra's real Schur form is taken instead.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::gevd::gen_hessenberg::{
-    generalized_hessenberg, generalized_hessenberg_scratch, GeneralizedHessenbergParams,
-};
+use faer::linalg::evd::hessenberg::{hessenberg_in_place, hessenberg_in_place_scratch};
 use faer::linalg::gevd::qz_real::{hessenberg_to_qz, hessenberg_to_qz_scratch};
 use faer::linalg::gevd::{ComputeEigenvectors, GeneralizedSchurParams};
-use faer::{Auto, Col, Mat, Par};
+use faer::linalg::householder::{
+    apply_block_householder_sequence_on_the_right_in_place_scratch,
+    apply_block_householder_sequence_on_the_right_in_place_with_conj,
+};
+use faer::linalg::qr::no_pivoting::factor::recommended_block_size;
+use faer::{Auto, Col, Conj, Mat, Par};
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
@@ -288,6 +291,14 @@ fn small_sylvester(
     q: usize,
     equation: Equation,
 ) -> [[f64; 2]; 2] {
+    if p == 1 && q == 1 {
+        // Two real eigenvalues: `(m + n)x = f` or `(1 − mn)x = f`.
+        let divisor = match equation {
+            Equation::Continuous => m[0][0] + n[0][0],
+            Equation::Discrete => 1.0 - m[0][0] * n[0][0],
+        };
+        return [[f[0][0] / divisor, 0.0], [0.0, 0.0]];
+    }
     let size = p * q;
     let mut k = [[0.0f64; 5]; 4];
     // vec(X) column-major: index i + p·j. vec(MX) = (I⊗M)vec X, vec(XN) = (Nᵀ⊗I)vec X,
@@ -338,13 +349,19 @@ fn small_sylvester(
 }
 
 /// `(Z, S)` of the real QZ decomposition of `(a, I)`: `QᵀaZ = S` quasi-upper-triangular.
+/// The Hessenberg form comes from Householder reflections (`a = V H Vᵀ`, blocked), not the
+/// generalised reduction's rotations (with `I` for the second matrix, `(H, I)` is already
+/// Hessenberg-triangular); the QZ sweeps then accumulate onto `V`, and `Q` is not formed.
 fn real_qz(a: &DMatrix<f64>) -> (Mat<f64>, Mat<f64>) {
     let n = a.nrows();
     let mut s = Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
     let mut t = Mat::<f64>::identity(n, n);
-    let mut q = Mat::<f64>::identity(n, n);
     let mut z = Mat::<f64>::identity(n, n);
-    let hessenberg: GeneralizedHessenbergParams = Auto::<f64>::auto();
+    if n == 0 {
+        return (z, s);
+    }
+    let block = recommended_block_size::<f64>(n - 1, n - 1);
+    let mut householder = Mat::<f64>::zeros(block, n - 1);
     // The unblocked double-shift sweep at every order: faer's blocked QZ (multishift sweeps
     // with aggressive early deflation) took 5–50 s on (A, I) pairs of order 76–150 in our
     // measurements (riccati at n = 80: 6.2 s against 27 ms unblocked).
@@ -353,25 +370,38 @@ fn real_qz(a: &DMatrix<f64>) -> (Mat<f64>, Mat<f64>) {
         ..Auto::<f64>::auto()
     };
     let mut memory = MemBuffer::new(StackReq::any_of(&[
-        generalized_hessenberg_scratch::<f64>(n, hessenberg),
+        hessenberg_in_place_scratch::<f64>(n, block, Par::Seq, Default::default()),
+        apply_block_householder_sequence_on_the_right_in_place_scratch::<f64>(n - 1, block, n),
         hessenberg_to_qz_scratch::<f64>(n, Par::Seq, schur),
     ]));
     let stack = MemStack::new(&mut memory);
-    generalized_hessenberg(
+    hessenberg_in_place(
         s.as_mut(),
-        t.as_mut(),
-        Some(q.as_mut()),
-        Some(z.as_mut()),
+        householder.as_mut(),
         Par::Seq,
         stack,
-        hessenberg,
+        Default::default(),
     );
+    apply_block_householder_sequence_on_the_right_in_place_with_conj(
+        s.as_ref().submatrix(1, 0, n - 1, n - 1),
+        householder.as_ref(),
+        Conj::No,
+        z.as_mut().submatrix_mut(1, 1, n - 1, n - 1),
+        Par::Seq,
+        stack,
+    );
+    // The reflectors' vectors lie below the subdiagonal.
+    for j in 0..n {
+        for i in j + 2..n {
+            s[(i, j)] = 0.0;
+        }
+    }
     // The eigenvalues (αr + iαi)/β, which the blocks of S carry too.
     let (mut re, mut im, mut beta) = (Col::<f64>::zeros(n), Col::zeros(n), Col::zeros(n));
     hessenberg_to_qz(
         s.as_mut(),
         t.as_mut(),
-        Some(q.as_mut()),
+        None,
         Some(z.as_mut()),
         re.as_mut(),
         im.as_mut(),

@@ -20,8 +20,10 @@ use nalgebra::DMatrix;
 /// Power iterations per operator norm.
 const POWER_STEPS: usize = 3;
 
-/// How far to trust a computed solution.
-pub(super) struct Sensitivity {
+/// How far to trust a computed solution (in the balanced state basis of
+/// [`RESIDUAL_BOUND`](super::RESIDUAL_BOUND)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sensitivity {
     /// The relative condition number `κ`.
     pub condition: f64,
     /// The estimated relative forward error: the residual (at least its rounding, `ε` times the

@@ -18,8 +18,9 @@
 //! eigenvalue of the Hamiltonian, so a simple pair a hair from the axis is told from a double
 //! one on it; discrete: rounding, boundary modes being checked before solving) and its
 //! residual, relative to the size of the terms the equation sums, is at most
-//! [`RESIDUAL_BOUND`]. It carries the equation's relative condition number and the forward
-//! error that implies ([`condition`]). Failures name
+//! [`RESIDUAL_BOUND`]. The equation's relative condition number and the forward error it
+//! implies ([`condition`]) are estimated when first asked for ([`Riccati::sensitivity`]: about
+//! twenty Lyapunov solves, which a design that only needs `X` does not pay). Failures name
 //! their reason from the data where it shows one ([`diagnose`]).
 
 mod condition;
@@ -31,6 +32,9 @@ mod resolution;
 
 use nalgebra::DMatrix;
 use problem::{Kind, Measured, Problem};
+use std::sync::{Arc, OnceLock};
+
+pub use condition::Sensitivity;
 
 /// The largest residual a returned solution may have: `‖Res(X)‖_F / Σ‖term‖_F` over the terms
 /// the equation sums (a backward error: the data would have to change by about this much,
@@ -157,20 +161,53 @@ pub struct Riccati {
     /// The optimal gain `K` with `u = −K x`.
     pub k: DMatrix<f64>,
     /// Relative residual `‖Res(X)‖_F / Σ‖term‖_F`, at most [`RESIDUAL_BOUND`] (in the balanced
-    /// state basis, as the two below: see [`RESIDUAL_BOUND`]).
+    /// state basis, as the estimates of [`Riccati::sensitivity`]: see [`RESIDUAL_BOUND`]).
     pub residual: f64,
     /// Closed-loop spectral radius (discrete) or spectral abscissa (continuous) of `A − BK`.
     pub closed_loop: f64,
-    /// The equation's relative condition number `κ`: a relative change `δ` of the data moves
-    /// `X` by about `κ·δ`, relatively.
-    pub condition: f64,
-    /// Estimated relative forward error of `X`: the residual's Newton correction (at least its
-    /// rounding's) plus `κ·ε` (see [`condition`]).
-    pub forward_error: f64,
     /// Newton steps taken.
     pub newton_steps: usize,
     /// How the solution was reached.
     pub route: Route,
+    /// What the sensitivity is estimated from, and the estimate once asked for.
+    deferred: Arc<Deferred>,
+}
+
+/// The balanced problem and its measured solution (with the closed loop's Schur form), kept
+/// until the sensitivity is asked for.
+struct Deferred {
+    problem: Problem,
+    solution: Measured,
+    sensitivity: OnceLock<Sensitivity>,
+}
+
+impl std::fmt::Debug for Deferred {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Deferred")
+            .field("sensitivity", &self.sensitivity.get())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Riccati {
+    /// The equation's relative condition number and the solution's estimated forward error,
+    /// computed on the first call (power iterations on the closed loop's Schur form: about
+    /// twenty Lyapunov or Stein solves, as long as the solve itself) and kept.
+    pub fn sensitivity(&self) -> Sensitivity {
+        let d = &*self.deferred;
+        *d.sensitivity
+            .get_or_init(|| condition::sensitivity(&d.problem, &d.solution))
+    }
+
+    /// The equation's relative condition number `κ` ([`Sensitivity::condition`]).
+    pub fn condition(&self) -> f64 {
+        self.sensitivity().condition
+    }
+
+    /// The estimated relative forward error of `X` ([`Sensitivity::forward_error`]).
+    pub fn forward_error(&self) -> f64 {
+        self.sensitivity().forward_error
+    }
 }
 
 /// [`care`] or [`dare`]: `(A, B, Q, R, S)` to the stabilising solution (one signature, so that a
@@ -192,7 +229,7 @@ pub fn care(
     s: Option<&DMatrix<f64>>,
 ) -> Result<Riccati, RiccatiError> {
     solve(
-        &Problem::new(Kind::Continuous, a, b, q, r, s)?,
+        Problem::new(Kind::Continuous, a, b, q, r, s)?,
         continuous::sign_start,
     )
 }
@@ -206,7 +243,7 @@ pub fn dare(
     s: Option<&DMatrix<f64>>,
 ) -> Result<Riccati, RiccatiError> {
     solve(
-        &Problem::new(Kind::Discrete, a, b, q, r, s)?,
+        Problem::new(Kind::Discrete, a, b, q, r, s)?,
         discrete::doubling_start,
     )
 }
@@ -217,52 +254,67 @@ type Start = fn(&Problem, &DMatrix<f64>) -> Result<DMatrix<f64>, usize>;
 
 /// The direct route, then the regularised one; the first result that is stabilising and
 /// within the residual bound, or the reason there is none.
-fn solve(p: &Problem, start: Start) -> Result<Riccati, RiccatiError> {
-    if let Some(e) = diagnose::boundary_modes(p) {
+fn solve(p: Problem, start: Start) -> Result<Riccati, RiccatiError> {
+    if let Some(e) = diagnose::boundary_modes(&p) {
         return Err(e);
     }
-    let attempt = |q: &DMatrix<f64>, steps: usize| {
-        let x = start(p, q).map_err(|iterations| RiccatiError::NoConvergence { iterations })?;
-        let m = p.measure(x).ok_or(RiccatiError::SingularR)?;
-        let (m, taken) = p.refine(m, steps);
-        let eigenvalues = m.eigenvalues();
-        let (measure, value, stable) = p.stability(&eigenvalues);
-        if !stable {
-            return Err(RiccatiError::NotStabilising { measure, value });
-        }
-        if let Some(u) = resolution::closed_loop(p, eigenvalues) {
-            return Err(RiccatiError::MarginalClosedLoop {
-                measure,
-                value: match p.kind {
-                    Kind::Continuous => u.eigenvalue.re,
-                    Kind::Discrete => u.eigenvalue.norm(),
-                },
-                resolution: u.resolution,
-            });
-        }
-        if m.relative > RESIDUAL_BOUND {
-            return Err(RiccatiError::ResidualAboveBound {
-                residual: m.relative,
-                bound: RESIDUAL_BOUND,
-            });
-        }
-        let sensitivity = condition::sensitivity(p, &m);
-        Ok((m, taken, value, sensitivity))
-    };
-    let first = match attempt(&p.q0, POLISH_STEPS) {
-        Ok((m, taken, value, sensitivity)) => {
-            return Ok(finish(p, m, taken, value, sensitivity, Route::Direct))
-        }
+    let first = match attempt(&p, start, &p.q0, POLISH_STEPS) {
+        Ok(found) => return Ok(finish(p, found, Route::Direct)),
         Err(e) => e,
     };
     let n = p.n();
-    let regularised = &p.q0 + DMatrix::<f64>::identity(n, n) * regularisation(p);
-    match attempt(&regularised, NEWTON_STEPS) {
-        Ok((m, taken, value, sensitivity)) => {
-            Ok(finish(p, m, taken, value, sensitivity, Route::Regularised))
-        }
-        Err(_) => Err(diagnose::diagnose(p).unwrap_or(first)),
+    let regularised = &p.q0 + DMatrix::<f64>::identity(n, n) * regularisation(&p);
+    match attempt(&p, start, &regularised, NEWTON_STEPS) {
+        Ok(found) => Ok(finish(p, found, Route::Regularised)),
+        Err(_) => Err(diagnose::diagnose(&p).unwrap_or(first)),
     }
+}
+
+/// A solution that passed every check: the measured candidate, the Newton steps that improved
+/// it and its closed loop's stability measure.
+struct Found {
+    solution: Measured,
+    newton_steps: usize,
+    closed_loop: f64,
+}
+
+/// The start with penalty `q`, Newton's refinement (at most `steps`) and the checks: stable,
+/// resolved from the boundary, residual within [`RESIDUAL_BOUND`].
+fn attempt(
+    p: &Problem,
+    start: Start,
+    q: &DMatrix<f64>,
+    steps: usize,
+) -> Result<Found, RiccatiError> {
+    let x = start(p, q).map_err(|iterations| RiccatiError::NoConvergence { iterations })?;
+    let m = p.measure(x).ok_or(RiccatiError::SingularR)?;
+    let (m, taken) = p.refine(m, steps);
+    let eigenvalues = m.eigenvalues();
+    let (measure, value, stable) = p.stability(&eigenvalues);
+    if !stable {
+        return Err(RiccatiError::NotStabilising { measure, value });
+    }
+    if let Some(u) = resolution::closed_loop(p, eigenvalues) {
+        return Err(RiccatiError::MarginalClosedLoop {
+            measure,
+            value: match p.kind {
+                Kind::Continuous => u.eigenvalue.re,
+                Kind::Discrete => u.eigenvalue.norm(),
+            },
+            resolution: u.resolution,
+        });
+    }
+    if m.relative > RESIDUAL_BOUND {
+        return Err(RiccatiError::ResidualAboveBound {
+            residual: m.relative,
+            bound: RESIDUAL_BOUND,
+        });
+    }
+    Ok(Found {
+        solution: m,
+        newton_steps: taken,
+        closed_loop: value,
+    })
 }
 
 /// `δ` of the regularised penalty `Q + δI`: a small fraction of `‖Q‖`, or of `‖A‖²/‖G‖` (the
@@ -281,28 +333,21 @@ fn regularisation(p: &Problem) -> f64 {
     REGULARISATION * scale
 }
 
-fn finish(
-    p: &Problem,
-    m: Measured,
-    newton_steps: usize,
-    closed_loop: f64,
-    sensitivity: condition::Sensitivity,
-    route: Route,
-) -> Riccati {
-    let condition::Sensitivity {
-        condition,
-        forward_error,
-    } = sensitivity;
-    let (x, k) = p.unscaled(&m.x, &m.k);
+/// The result in the caller's basis, with what its sensitivity is estimated from.
+fn finish(p: Problem, found: Found, route: Route) -> Riccati {
+    let (x, k) = p.unscaled(&found.solution.x, &found.solution.k);
     Riccati {
-        forward_error,
-        condition,
-        residual: m.relative,
-        closed_loop,
-        newton_steps,
+        residual: found.solution.relative,
+        closed_loop: found.closed_loop,
+        newton_steps: found.newton_steps,
         route,
         x,
         k,
+        deferred: Arc::new(Deferred {
+            problem: p,
+            solution: found.solution,
+            sensitivity: OnceLock::new(),
+        }),
     }
 }
 

@@ -6,7 +6,7 @@ use super::RiccatiError;
 use crate::schur_lyapunov::{SchurForm, Side};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
-use std::cell::OnceCell;
+use std::sync::{Arc, OnceLock};
 
 /// Continuous (`AᵀX + XA − (XB + S)R⁻¹(BᵀX + Sᵀ) + Q = 0`) or discrete
 /// (`AᵀXA − X − (AᵀXB + S)(R + BᵀXB)⁻¹(BᵀXA + Sᵀ) + Q = 0`).
@@ -49,14 +49,24 @@ pub(super) struct Measured {
     pub relative: f64,
     /// The closed loop's Schur form, computed once when first needed (Newton's step and the
     /// condition estimate both solve on it).
-    schur: OnceCell<Option<SchurForm>>,
+    schur: OnceLock<Option<Arc<SchurForm>>>,
 }
+
+/// Below this relative residual a chord step (on an earlier closed loop's Schur form) that
+/// lowers the residual at all is kept: what remains is rounding, which Newton's own step would
+/// not remove either.
+const ROUNDING: f64 = 1e-13;
+
+/// Above [`ROUNDING`], a chord step must lower the residual by this factor; a slower one is
+/// retaken as Newton's step on the current closed loop (whose quadratic convergence the
+/// regularised route needs).
+const CHORD_GAIN: f64 = 0.25;
 
 impl Measured {
     /// The closed loop's Schur form (`None` when its QZ iteration does not converge).
-    pub fn schur(&self) -> Option<&SchurForm> {
+    pub fn schur(&self) -> Option<&Arc<SchurForm>> {
         self.schur
-            .get_or_init(|| SchurForm::new(&self.closed))
+            .get_or_init(|| SchurForm::new(&self.closed).map(Arc::new))
             .as_ref()
     }
 
@@ -65,7 +75,7 @@ impl Measured {
     pub fn eigenvalues(&self) -> Vec<Complex64> {
         self.schur().map_or_else(
             || crate::state_space::eigenvalues(&self.closed),
-            SchurForm::eigenvalues,
+            |s| s.eigenvalues(),
         )
     }
 }
@@ -218,7 +228,7 @@ impl Problem {
             residual,
             terms,
             relative,
-            schur: OnceCell::new(),
+            schur: OnceLock::new(),
         })
     }
 
@@ -260,34 +270,58 @@ impl Problem {
         ("spectral abscissa", v, v < 0.0)
     }
 
-    /// One Newton step in defect form: `X + Δ` with `AcᵀΔ + ΔAc + Res = 0` (Kleinman) or
-    /// `Δ = AcᵀΔAc + Res` (Hewer), `Ac` the closed loop of `X`.
-    pub fn newton(&self, m: &Measured) -> Option<DMatrix<f64>> {
-        let schur = m.schur()?;
+    /// One step in defect form on the Schur form of a closed loop `Ac`: `X + Δ` with
+    /// `AcᵀΔ + ΔAc + Res = 0` (Kleinman) or `Δ = AcᵀΔAc + Res` (Hewer). Newton's step when `Ac`
+    /// is `X`'s own closed loop, a chord step when it is an earlier iterate's.
+    fn step(&self, m: &Measured, schur: &SchurForm) -> Option<Measured> {
         let delta = match self.kind {
             Kind::Continuous => schur.continuous(&m.residual, Side::Transposed),
             Kind::Discrete => schur.discrete(&m.residual, Side::Transposed),
         };
         let next = symmetric(&m.x + delta);
-        next.iter().all(|v| v.is_finite()).then_some(next)
+        if next.iter().all(|v| v.is_finite()) {
+            self.measure(next)
+        } else {
+            None
+        }
     }
 
-    /// Newton steps from `m` while they lower the relative residual, at most `steps`; the best
-    /// candidate and the number of steps that improved it.
+    /// Steps from `m` while they lower the relative residual, at most `steps`; the best
+    /// candidate and the number of steps that improved it. Steps are taken on the Schur form of
+    /// the last closed loop one was computed for (chord steps: a Schur form is as costly as
+    /// the rest of a step together) while that lowers the residual fast enough
+    /// ([`CHORD_GAIN`], [`ROUNDING`]); otherwise on the current closed loop's own (Newton's
+    /// step), which is then kept. The best candidate's own Schur form is computed when the
+    /// chord stalls, which the stability check and the condition estimate then use.
     pub fn refine(&self, mut best: Measured, steps: usize) -> (Measured, usize) {
         let mut taken = 0;
+        let mut frozen: Option<Arc<SchurForm>> = None;
         for _ in 0..steps {
             if best.relative <= f64::EPSILON {
                 break;
             }
-            let Some(next) = self.newton(&best).and_then(|x| self.measure(x)) else {
-                break;
+            let chord = frozen
+                .as_ref()
+                .and_then(|f| self.step(&best, f))
+                .filter(|next| {
+                    next.relative < CHORD_GAIN * best.relative
+                        || (next.relative < best.relative && best.relative <= ROUNDING)
+                });
+            let next = match chord {
+                Some(next) => Some(next),
+                None => best.schur().cloned().and_then(|own| {
+                    let next = self.step(&best, &own);
+                    frozen = Some(own);
+                    next
+                }),
             };
-            if next.relative >= best.relative {
-                break;
+            match next {
+                Some(next) if next.relative < best.relative => {
+                    best = next;
+                    taken += 1;
+                }
+                _ => break,
             }
-            best = next;
-            taken += 1;
         }
         (best, taken)
     }
