@@ -352,6 +352,9 @@ fn small_sylvester(
 /// The Hessenberg form comes from Householder reflections (`a = V H Vᵀ`, blocked), not the
 /// generalised reduction's rotations (with `I` for the second matrix, `(H, I)` is already
 /// Hessenberg-triangular); the QZ sweeps then accumulate onto `V`, and `Q` is not formed.
+/// `S` is updated only on the active window (faer's eigenvalues-only sweep, which still
+/// accumulates every rotation into `Z`): its diagonal blocks are exact, its upper part stale,
+/// so the caller forms `ZᵀaZ` itself.
 fn real_qz(a: &DMatrix<f64>) -> (Mat<f64>, Mat<f64>) {
     let n = a.nrows();
     let mut s = Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
@@ -396,7 +399,7 @@ fn real_qz(a: &DMatrix<f64>) -> (Mat<f64>, Mat<f64>) {
             s[(i, j)] = 0.0;
         }
     }
-    // The eigenvalues (αr + iαi)/β, which the blocks of S carry too.
+    // The eigenvalues (αr + iαi)/β, which the diagonal blocks of S carry too.
     let (mut re, mut im, mut beta) = (Col::<f64>::zeros(n), Col::zeros(n), Col::zeros(n));
     hessenberg_to_qz(
         s.as_mut(),
@@ -406,7 +409,7 @@ fn real_qz(a: &DMatrix<f64>) -> (Mat<f64>, Mat<f64>) {
         re.as_mut(),
         im.as_mut(),
         beta.as_mut(),
-        ComputeEigenvectors::Yes,
+        ComputeEigenvectors::No,
         Par::Seq,
         schur,
         stack,

@@ -247,8 +247,29 @@ pub fn eigenvalues(a: &DMatrix<f64>) -> Vec<Complex64> {
     let n = a.nrows();
     let (a, _) = balance(a.clone());
     let m = faer::Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
-    match m.eigenvalues() {
-        Ok(v) => v.into_iter().map(|z| Complex64::new(z.re, z.im)).collect(),
+    let (mut re, mut im) = (
+        faer::diag::Diag::<f64>::zeros(n),
+        faer::diag::Diag::<f64>::zeros(n),
+    );
+    // Sequential: at the orders a controller has, threads cost more than they save (a
+    // Riccati solve of order 80 spent a sixth of its time handing this to rayon's pool).
+    let (par, params) = (faer::Par::Seq, Default::default());
+    let no = faer::linalg::evd::ComputeEigenvectors::No;
+    let mut memory = faer::dyn_stack::MemBuffer::new(faer::linalg::evd::evd_scratch::<f64>(
+        n, no, no, par, params,
+    ));
+    let stack = faer::dyn_stack::MemStack::new(&mut memory);
+    match faer::linalg::evd::evd_real(
+        m.as_ref(),
+        re.as_mut(),
+        im.as_mut(),
+        None,
+        None,
+        par,
+        stack,
+        params,
+    ) {
+        Ok(()) => (0..n).map(|i| Complex64::new(re[i], im[i])).collect(),
         Err(_) => vec![Complex64::new(f64::NAN, f64::NAN); n],
     }
 }
