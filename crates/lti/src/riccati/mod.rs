@@ -44,6 +44,13 @@ pub use condition::Sensitivity;
 /// to `√(X̃ᵢᵢX̃ⱼⱼ)/(dᵢdⱼ)`.
 pub const RESIDUAL_BOUND: f64 = 1e-10;
 
+/// How near the stability boundary (relative, as [`Found::margin`]) a directly found closed
+/// loop must come for the data's boundary modes to be checked: a mode on the boundary that the
+/// input cannot move or the penalty does not see is a double eigenvalue of the Hamiltonian
+/// or symplectic pencil, which rounding splits by about `√(κ·ε)` — within this margin for any
+/// condition `κ` below 10¹⁰.
+const BOUNDARY_SUSPECT: f64 = 1e-3;
+
 /// Newton steps after a start that converged (polishing).
 const POLISH_STEPS: usize = 4;
 
@@ -253,15 +260,26 @@ pub fn dare(
 type Start = fn(&Problem, &DMatrix<f64>) -> Result<DMatrix<f64>, usize>;
 
 /// The direct route, then the regularised one; the first result that is stabilising and
-/// within the residual bound, or the reason there is none.
+/// within the residual bound, or the reason there is none. Modes of `A` on the stability
+/// boundary that the input cannot move or the penalty does not see ([`diagnose::boundary_modes`]:
+/// no stabilising solution exists, but a solver can land near such a mode and look
+/// stabilising) are looked for when they can matter: before the regularised route, and after
+/// the direct one when its closed loop comes within [`BOUNDARY_SUSPECT`] of the boundary.
 fn solve(p: Problem, start: Start) -> Result<Riccati, RiccatiError> {
+    let first = match attempt(&p, start, &p.q0, POLISH_STEPS) {
+        Ok(found) => {
+            if found.margin <= BOUNDARY_SUSPECT {
+                if let Some(e) = diagnose::boundary_modes(&p) {
+                    return Err(e);
+                }
+            }
+            return Ok(finish(p, found, Route::Direct));
+        }
+        Err(e) => e,
+    };
     if let Some(e) = diagnose::boundary_modes(&p) {
         return Err(e);
     }
-    let first = match attempt(&p, start, &p.q0, POLISH_STEPS) {
-        Ok(found) => return Ok(finish(p, found, Route::Direct)),
-        Err(e) => e,
-    };
     let n = p.n();
     let regularised = &p.q0 + DMatrix::<f64>::identity(n, n) * regularisation(&p);
     match attempt(&p, start, &regularised, NEWTON_STEPS) {
@@ -276,6 +294,9 @@ struct Found {
     solution: Measured,
     newton_steps: usize,
     closed_loop: f64,
+    /// How far the closed loop is from the stability boundary, relative: `1 − ρ` (discrete)
+    /// or `−α/‖Ā‖` (continuous).
+    margin: f64,
 }
 
 /// The start with penalty `q`, Newton's refinement (at most `steps`) and the checks: stable,
@@ -310,10 +331,15 @@ fn attempt(
             bound: RESIDUAL_BOUND,
         });
     }
+    let margin = match p.kind {
+        Kind::Continuous => -value / p.a0.norm().max(f64::MIN_POSITIVE),
+        Kind::Discrete => 1.0 - value,
+    };
     Ok(Found {
         solution: m,
         newton_steps: taken,
         closed_loop: value,
+        margin,
     })
 }
 
