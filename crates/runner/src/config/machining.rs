@@ -100,6 +100,16 @@ pub struct Machining {
     pub finish_depth_m: Option<f64>,
     /// Bandwidth of the controller's encoder tracking loop in Hz (10).
     pub tracker_bandwidth_hz: f64,
+    /// Amplitude of a slow sinusoidal variation of the spindle's speed, relative to
+    /// `spindle_rpm` (0: none; 0.01 is ±1 %). The controller sees it only through the encoder.
+    pub spindle_drift_fraction: f64,
+    /// Period of that variation in s (10).
+    pub spindle_drift_period_s: f64,
+    /// A step of the spindle's speed, relative to `spindle_rpm`, at `spindle_step_time_s`
+    /// (0: none; −0.01 slows it by 1 %).
+    pub spindle_step_fraction: f64,
+    /// When the speed steps, in s from the start of the run (0).
+    pub spindle_step_time_s: f64,
 }
 
 impl Default for Machining {
@@ -114,6 +124,10 @@ impl Default for Machining {
             specific_thrust_n_per_m2: plant_sim::cutting::SPECIFIC_THRUST_N_PER_M2,
             finish_depth_m: Some(2e-6),
             tracker_bandwidth_hz: 10.0,
+            spindle_drift_fraction: 0.0,
+            spindle_drift_period_s: 10.0,
+            spindle_step_fraction: 0.0,
+            spindle_step_time_s: 0.0,
         }
     }
 }
@@ -167,6 +181,45 @@ impl Machining {
             0.0,
             1e3,
             "Hz",
+        )?;
+        check(
+            "spindle_drift_period_s",
+            self.spindle_drift_period_s,
+            0.0,
+            1e4,
+            "s",
+        )?;
+        let within = |key: &str, v: f64, lo: f64, hi: f64, unit: &str| {
+            if (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(at.invalid(
+                    &format!("scenario.{key}"),
+                    v,
+                    &format!("[{lo}, {hi}] {unit}"),
+                ))
+            }
+        };
+        within(
+            "spindle_drift_fraction",
+            self.spindle_drift_fraction,
+            0.0,
+            0.2,
+            "(relative)",
+        )?;
+        within(
+            "spindle_step_fraction",
+            self.spindle_step_fraction,
+            -0.2,
+            0.2,
+            "(relative)",
+        )?;
+        within(
+            "spindle_step_time_s",
+            self.spindle_step_time_s,
+            0.0,
+            1e6,
+            "s",
         )?;
         if let Some(d) = self.finish_depth_m {
             if !(0.0..=1e-3).contains(&d) {

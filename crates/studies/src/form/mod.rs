@@ -12,7 +12,7 @@ use nalgebra::{SMatrix, SVector};
 use recorder::Frame;
 use roughness::{Roughness, RoughnessWindow};
 use runner::config::{Machining, RunConfig, Scenario};
-use runner::machining::SpiralCut;
+use runner::machining::{SpindleMotion, SpiralCut};
 use runner::plan::SURFACE_INPUT;
 use runner::recording::{FrameSink, RunHeader};
 use runner::run::{run_with, RunOptions};
@@ -88,7 +88,10 @@ pub struct SegmentRow {
 pub struct FormAnalysis {
     cut: SpiralCut,
     grid: Option<SinusoidalGrid>,
+    /// The configured speed in rad/s (the segment's window and the motion frequency).
     rad_per_s: f64,
+    /// The spindle's true angle over time (with its drift and step).
+    spindle: SpindleMotion,
     settle_s: f64,
     form: Acc,
     range: (f64, f64),
@@ -109,10 +112,11 @@ pub struct FormAnalysis {
 impl FormAnalysis {
     /// The analysis of a run of `c` cutting `surface` as `m` says.
     pub fn new(c: &RunConfig, m: &Machining, surface: LoadedSurface) -> Self {
-        let revolutions = c.run.duration_s * m.spindle_rpm / 60.0;
+        let spindle = SpindleMotion::of(m);
+        let revolutions = spindle.angle_rad(c.run.duration_s) / TAU;
         let rows = ((revolutions - 1e-9).ceil() as usize).max(1);
         let spiral = m.spiral();
-        let theta = |t: f64| m.rad_per_s() * t;
+        let theta = |t: f64| spindle.angle_rad(t);
         let outer = spiral.radius_m(theta(c.run.settle()));
         let roughness = RoughnessWindow::new(
             spiral,
@@ -128,6 +132,7 @@ impl FormAnalysis {
             },
             cut: SpiralCut::new(m, surface),
             rad_per_s: m.rad_per_s(),
+            spindle,
             settle_s: c.run.settle(),
             form: Acc::default(),
             range: (f64::INFINITY, f64::NEG_INFINITY),
@@ -151,7 +156,7 @@ impl FormAnalysis {
         if t < self.settle_s {
             return;
         }
-        let theta = self.rad_per_s * t;
+        let theta = self.spindle.angle_rad(t);
         let design = self.cut.height_m(theta);
         let tool = f.truth.tool_m as f64;
         let e = tool - design;
