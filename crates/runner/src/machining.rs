@@ -234,7 +234,7 @@ mod tests {
             };
             m.rad_per_s()
                 * (1.0
-                    + m.spindle_drift_fraction * (TAU * t / m.spindle_drift_period_s).sin()
+                    + m.spindle_drift_fraction * libm::sin(TAU * t / m.spindle_drift_period_s)
                     + step)
         };
         let dt = 1e-6;
