@@ -172,7 +172,8 @@ pub struct Riccati {
     pub residual: f64,
     /// Closed-loop spectral radius (discrete) or spectral abscissa (continuous) of `A − BK`.
     pub closed_loop: f64,
-    /// Newton steps taken.
+    /// Refinement steps that lowered the residual (Newton's, or chord steps on an earlier
+    /// closed loop's Schur form).
     pub newton_steps: usize,
     /// How the solution was reached.
     pub route: Route,
