@@ -75,8 +75,8 @@ fn riccati_problems() -> Vec<Value> {
                 Ok(x) => json!({
                     "x": rows(&x.x),
                     "residual": x.residual,
-                    "forward_error": x.forward_error(),
-                    "condition": x.condition(),
+                    "forward_error": x.sensitivity().forward_error,
+                    "condition": x.sensitivity().condition,
                     "seconds": seconds,
                     "seconds_with_estimate": with_estimate,
                 }),

@@ -20,9 +20,9 @@ fn random_problems_up_to_160_states() {
                     .unwrap_or_else(|e| panic!("{name} n = {n}, cross {cross}: {e}"));
                 trusted(&format!("{name} n = {n}, cross {cross}"), &x);
                 assert!(
-                    x.forward_error() < 1e-8,
+                    x.sensitivity().forward_error < 1e-8,
                     "{name} n = {n}: forward error {:.1e}",
-                    x.forward_error()
+                    x.sensitivity().forward_error
                 );
             }
         }
@@ -106,7 +106,7 @@ fn the_condition_number_predicts_the_effect_of_perturbed_data() {
     let delta = 1e-9;
     for (name, solver, a, b, q, r) in cases {
         let x = solver(&a, &b, &q, &r, None).unwrap();
-        let predicted = x.condition() * delta;
+        let predicted = x.sensitivity().condition * delta;
         let mut worst: f64 = 0.0;
         for _ in 0..8 {
             let mut nudge = |mat: &DMatrix<f64>, symmetric: bool| {
@@ -126,7 +126,7 @@ fn the_condition_number_predicts_the_effect_of_perturbed_data() {
         assert!(
             worst <= 2.0 * predicted && worst >= predicted / 10.0,
             "{name}: moved {worst:.2e}, predicted κ·δ = {predicted:.2e} (κ {:.2e})",
-            x.condition()
+            x.sensitivity().condition
         );
     }
 }

@@ -34,14 +34,15 @@ pub(super) fn doubling_start(p: &Problem, q: &DMatrix<f64>) -> Result<DMatrix<f6
         solve_in_place_scratch::<usize, f64>(n, 2 * n, Par::Seq),
     ]));
     let stack = MemStack::new(&mut memory);
-    let product = |dst: &mut Mat<f64>, lhs: MatRef<f64>, rhs: MatRef<f64>| {
-        matmul(dst.as_mut(), Accum::Replace, lhs, rhs, 1.0, Par::Seq);
+    // `dst = lhs·rhs` or `dst += lhs·rhs`.
+    let product = |dst: &mut Mat<f64>, accum: Accum, lhs: MatRef<f64>, rhs: MatRef<f64>| {
+        matmul(dst.as_mut(), accum, lhs, rhs, 1.0, Par::Seq);
     };
     // Only far down: a weakly weighted unstable mode grows from a relative 1e-6 of the whole,
     // and stopping then would leave it unstabilised.
     let mut stall = Stall::below(1e-12);
     for step in 1..=MAX_STEPS {
-        product(&mut w, gk.as_ref(), hk.as_ref());
+        product(&mut w, Accum::Replace, gk.as_ref(), hk.as_ref());
         for i in 0..n {
             w[(i, i)] += 1.0;
         }
@@ -67,27 +68,13 @@ pub(super) fn doubling_start(p: &Problem, q: &DMatrix<f64>) -> Result<DMatrix<f6
             stack,
         );
         let (w_a, w_g) = solved.as_ref().split_at_col(n);
-        product(&mut t, hk.as_ref(), w_a);
+        product(&mut t, Accum::Replace, hk.as_ref(), w_a);
         h_next.copy_from(&hk);
-        matmul(
-            h_next.as_mut(),
-            Accum::Add,
-            ak.transpose(),
-            t.as_ref(),
-            1.0,
-            Par::Seq,
-        );
-        product(&mut t, ak.as_ref(), w_g);
+        product(&mut h_next, Accum::Add, ak.transpose(), t.as_ref());
+        product(&mut t, Accum::Replace, ak.as_ref(), w_g);
         g_next.copy_from(&gk);
-        matmul(
-            g_next.as_mut(),
-            Accum::Add,
-            t.as_ref(),
-            ak.transpose(),
-            1.0,
-            Par::Seq,
-        );
-        product(&mut a_next, ak.as_ref(), w_a);
+        product(&mut g_next, Accum::Add, t.as_ref(), ak.transpose());
+        product(&mut a_next, Accum::Replace, ak.as_ref(), w_a);
         let (mut change, mut size) = (0.0, 0.0);
         for j in 0..n {
             for i in 0..n {

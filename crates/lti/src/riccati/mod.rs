@@ -206,16 +206,6 @@ impl Riccati {
         *d.sensitivity
             .get_or_init(|| condition::sensitivity(&d.problem, &d.solution))
     }
-
-    /// The equation's relative condition number `κ` ([`Sensitivity::condition`]).
-    pub fn condition(&self) -> f64 {
-        self.sensitivity().condition
-    }
-
-    /// The estimated relative forward error of `X` ([`Sensitivity::forward_error`]).
-    pub fn forward_error(&self) -> f64 {
-        self.sensitivity().forward_error
-    }
 }
 
 /// [`care`] or [`dare`]: `(A, B, Q, R, S)` to the stabilising solution (one signature, so that a
@@ -267,20 +257,19 @@ type Start = fn(&Problem, &DMatrix<f64>) -> Result<DMatrix<f64>, usize>;
 /// stabilising) are looked for when they can matter: before the regularised route, and after
 /// the direct one when its closed loop comes within [`BOUNDARY_SUSPECT`] of the boundary.
 fn solve(p: Problem, start: Start) -> Result<Riccati, RiccatiError> {
-    let first = match attempt(&p, start, &p.q0, POLISH_STEPS) {
-        Ok(found) => {
-            if found.margin <= BOUNDARY_SUSPECT {
-                if let Some(e) = diagnose::boundary_modes(&p) {
-                    return Err(e);
-                }
-            }
-            return Ok(finish(p, found, Route::Direct));
+    let direct = attempt(&p, start, &p.q0, POLISH_STEPS);
+    if direct
+        .as_ref()
+        .map_or(true, |f| f.margin <= BOUNDARY_SUSPECT)
+    {
+        if let Some(e) = diagnose::boundary_modes(&p) {
+            return Err(e);
         }
+    }
+    let first = match direct {
+        Ok(found) => return Ok(finish(p, found, Route::Direct)),
         Err(e) => e,
     };
-    if let Some(e) = diagnose::boundary_modes(&p) {
-        return Err(e);
-    }
     let n = p.n();
     let regularised = &p.q0 + DMatrix::<f64>::identity(n, n) * regularisation(&p);
     match attempt(&p, start, &regularised, NEWTON_STEPS) {

@@ -37,10 +37,12 @@ pub fn trusted(name: &str, x: &Riccati) {
         x.residual
     );
     assert!(
-        x.forward_error().is_finite() && x.forward_error() > 0.0 && x.condition() >= 1.0 - 1e-9,
+        x.sensitivity().forward_error.is_finite()
+            && x.sensitivity().forward_error > 0.0
+            && x.sensitivity().condition >= 1.0 - 1e-9,
         "{name}: forward error {:.2e}, condition {:.2e}",
-        x.forward_error(),
-        x.condition()
+        x.sensitivity().forward_error,
+        x.sensitivity().condition
     );
 }
 
@@ -50,10 +52,10 @@ pub fn matches(name: &str, x: &Riccati, want: &DMatrix<f64>) -> f64 {
     trusted(name, x);
     let err = (&x.x - want).norm() / want.norm();
     assert!(
-        err <= 10.0 * x.forward_error().max(1e-15),
+        err <= 10.0 * x.sensitivity().forward_error.max(1e-15),
         "{name}: error {err:.2e} beyond the estimate {:.2e} (κ {:.2e})\n{}\nwant\n{want}",
-        x.forward_error(),
-        x.condition(),
+        x.sensitivity().forward_error,
+        x.sensitivity().condition,
         x.x
     );
     err
