@@ -177,9 +177,38 @@ fn zpetc(c: &mut Criterion) {
     });
 }
 
+/// Repetitive control at the grid cut's speed (60 rpm: 199 600 ticks per revolution, 8192
+/// bins, learning on): accumulate the error, learn a bin when the angle leaves it, interpolate
+/// the output. Baseline in the same run: the PID (`pid/servo_core`).
+fn repetitive(c: &mut Criterion) {
+    let mut rc: Box<Repetitive<8192>> = Box::new(
+        RepetitiveConfig {
+            bins_per_rev: 8192,
+            ..RepetitiveConfig::DEFAULT
+        }
+        .try_build(T)
+        .unwrap(),
+    );
+    rc.set_enabled(true);
+    let rate = std::f64::consts::TAU / 199_600.0;
+    let mut angle = 0.0;
+    c.bench_function("repetitive/servo_core", |b| {
+        b.iter(|| {
+            angle += rate;
+            rc.update(RepetitiveInput {
+                angle_rad: angle,
+                error_m: black_box(1e-9),
+                output_angle_rad: angle + 2.0 * rate,
+                rate_rad_per_tick: rate,
+            })
+        })
+    });
+}
+
 criterion_group!(
     benches,
     pid,
+    repetitive,
     cascade,
     biquad,
     surface,

@@ -35,6 +35,7 @@ pub mod pil;
 pub mod plan;
 pub mod recording;
 pub mod remote_plant;
+pub mod repetitive;
 pub mod replay;
 pub mod run;
 pub mod schema;

@@ -13,6 +13,7 @@ use crate::config::{
 use crate::controller::{stage_of, Controller};
 use crate::error::RunError;
 use crate::feedforward::feedforward_spec;
+use crate::repetitive::RepetitivePlan;
 use crate::surface::LoadedSurface;
 use plant_sim::model::ModelError;
 use plant_sim::params::CurrentLoopModel;
@@ -48,6 +49,8 @@ pub struct Plan {
     pub deployment: Deployment,
     /// The files the run read (controller file, surface image), to embed in its recording.
     pub inputs: Vec<Input>,
+    /// The repetitive controller of a machining run, checked on the closed loop.
+    pub repetitive: Option<RepetitivePlan>,
 }
 
 impl Plan {
@@ -201,6 +204,24 @@ impl Plan {
         deployment
             .check()
             .map_err(|e| located_in_run(&e, &origin))?;
+        let repetitive = match &config.scenario {
+            Scenario::Machine(m) => match &m.repetitive {
+                Some(s) => Some(crate::repetitive::plan(
+                    &config,
+                    m,
+                    s,
+                    &closed_loop,
+                    &deployment,
+                    &origin,
+                    &mut inputs,
+                )?),
+                None => None,
+            },
+            _ => None,
+        };
+        if repetitive.is_none() {
+            inputs.retain(|i| i.name != crate::repetitive::TABLE_INPUT);
+        }
         Ok(Plan {
             config,
             origin,
@@ -210,6 +231,7 @@ impl Plan {
             surface,
             deployment,
             inputs,
+            repetitive,
         })
     }
 
@@ -289,6 +311,9 @@ fn resolve_paths(config: &mut RunConfig, at: &Origin) {
     if let Scenario::Machine(m) = &mut config.scenario {
         if let SurfaceConfig::Image { path, .. } = &mut m.surface {
             *path = at.resolve(path);
+        }
+        if let Some(table) = m.repetitive.as_mut().and_then(|r| r.table.as_mut()) {
+            *table = at.resolve(table);
         }
     }
 }

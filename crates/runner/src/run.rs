@@ -182,6 +182,10 @@ fn run_side(
     (opts.progress)(summary.ticks(), total);
     let reason = reason.after_trip(servo.trip().is_some());
     let wall = start.elapsed().as_secs_f64();
+    let learned = match &servo {
+        Side::Host(l) => l.repetitive_table().map(<[f64]>::to_vec),
+        Side::Target(_) => None,
+    };
     let target = match servo {
         Side::Target(t) => Some(t.finish()),
         Side::Host(_) => None,
@@ -191,6 +195,18 @@ fn run_side(
             let mut end = recording::end_record(plan, reason, &summary);
             if let Some(t) = &target {
                 end.extend(crate::pil::end_facts(t));
+            }
+            let mut r = r;
+            if let (Some(table), Some(p)) = (&learned, &plan.repetitive) {
+                end.extend(crate::repetitive::end_facts(p, table));
+                r.attach(
+                    recorder::Input {
+                        name: crate::repetitive::LEARNED_ATTACHMENT.into(),
+                        media_type: "text/csv".into(),
+                        data: crate::repetitive::table_csv(table).into_bytes(),
+                    },
+                    (summary.ticks() as f64 * plan.period_s() * 1e9).round() as u64,
+                );
             }
             Some(r.finish(end)?)
         }
@@ -205,6 +221,7 @@ fn run_side(
         spectral_radius: Some(radius),
         loop_digest: digest.map(|d| format!("{:016x}", d.value())),
         target,
+        repetitive_table_m: learned,
         ..RunMeta::of(c, description)
     }))
 }

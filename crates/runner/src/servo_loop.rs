@@ -30,8 +30,9 @@ impl ServoLoop {
                     .surface
                     .clone()
                     .expect("a machining plan has its surface");
-                let r = SurfaceReference::new(m, surface, plan.period_s())
-                    .map_err(|e| plan.origin.invalid("scenario", e, "see the message"))?;
+                let r =
+                    SurfaceReference::new(m, surface, plan.period_s(), plan.repetitive.as_ref())
+                        .map_err(|e| plan.origin.invalid("scenario", e, "see the message"))?;
                 Some(Box::new(r))
             }
             _ => None,
@@ -49,6 +50,11 @@ impl ServoLoop {
         };
         let command = (s.flags & flags::END == 0).then_some(command);
         (command, self.servo.telemetry().copied())
+    }
+
+    /// The repetitive controller's learned table (m per bin), if the run has one.
+    pub fn repetitive_table(&self) -> Option<&[f64]> {
+        self.surface.as_ref().and_then(|r| r.repetitive_table())
     }
 
     /// The cause and tick of the machine-protection trip, if the loop tripped.

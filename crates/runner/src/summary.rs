@@ -230,6 +230,10 @@ pub struct RunMeta {
     /// measured there (`servo run --pil`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target: Option<crate::pil::TargetMeta>,
+    /// The repetitive controller's learned table at the end of an in-process machining run,
+    /// m per bin (in the recording as [`crate::repetitive::LEARNED_ATTACHMENT`]).
+    #[serde(skip)]
+    pub repetitive_table_m: Option<Vec<f64>>,
 }
 
 /// The summary of a run.
@@ -518,6 +522,7 @@ impl RunMeta {
             loop_digest: None,
             arithmetic: servo_core::ARITHMETIC.into(),
             target: None,
+            repetitive_table_m: None,
         }
     }
 }

@@ -5,7 +5,7 @@
 //! 27-state H2 controller of §6.4.1), cascade acceleration feedback (Fig 7-6), a disturbance
 //! observer (Fig 7-4), model-inverse feedforward, integer and fractional delay lines, an
 //! oversampling averager, setpoint generators, spindle synchronisation (encoder tracking, spiral
-//! path) and freeform surfaces evaluated per tick.
+//! path), repetitive control on the spindle angle and freeform surfaces evaluated per tick.
 //!
 //! Every block follows one contract, [`Block`]: a configuration in SI units is validated once
 //! by `try_build(sample_period_s)`; the tick (`update`) never allocates, never panics and
@@ -42,6 +42,7 @@ mod math;
 mod observer;
 mod oversample;
 mod pid;
+mod repetitive;
 pub mod setpoint;
 pub mod simd;
 mod spindle;
@@ -62,6 +63,7 @@ pub use math::{mul_add, ARITHMETIC, FUSED_ARITHMETIC};
 pub use observer::{DisturbanceObserver, ObserverInput};
 pub use oversample::Averager;
 pub use pid::{Pid, PidCoeffs, PidConfig, PidState, Realization};
+pub use repetitive::{Repetitive, RepetitiveConfig, RepetitiveInput};
 pub use setpoint::{
     Chirp, ChirpConfig, Setpoint, Sine, SineConfig, Step, StepConfig, SteppedSine,
     SteppedSineConfig, Sweep, SweepSegment,

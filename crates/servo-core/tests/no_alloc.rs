@@ -50,6 +50,15 @@ fn every_block_ticks_without_allocating() {
     }
     .try_build(T)
     .unwrap();
+    let mut rc: Box<Repetitive<4096>> = Box::new(
+        RepetitiveConfig {
+            bins_per_rev: 4000,
+            ..RepetitiveConfig::DEFAULT
+        }
+        .try_build(T)
+        .unwrap(),
+    );
+    rc.set_enabled(true);
     let mut sink = 0.0;
     let (bytes, count) = allocated_by(|| {
         for k in 0..TICKS {
@@ -68,6 +77,14 @@ fn every_block_ticks_without_allocating() {
                 acceleration: x,
             });
             sink += avg.update([x, r, x, r]);
+            // 25 revolutions of 4000 ticks: every bin learns, the table wraps.
+            let angle = k as f64 * (core::f64::consts::TAU / 4000.0);
+            sink += rc.update(RepetitiveInput {
+                angle_rad: angle,
+                error_m: 1e-9 * x,
+                output_angle_rad: angle,
+                rate_rad_per_tick: core::f64::consts::TAU / 4000.0,
+            });
         }
     });
     assert!(sink.is_finite());

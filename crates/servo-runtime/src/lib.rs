@@ -53,6 +53,7 @@ pub mod link;
 mod preview;
 mod protection;
 mod reference;
+mod reference_path;
 mod servo;
 mod servo_loop;
 mod status;
@@ -76,6 +77,7 @@ pub use deployment::{
 };
 pub use protection::TripCause;
 pub use reference::Reference;
+pub use reference_path::{Complex, PathResponse};
 pub use servo::Servo;
 pub use servo_loop::HANDOVER_TIME_CONSTANT_S;
 pub use status::{GainRefused, Status, Trip};

@@ -6,7 +6,7 @@ use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, print_summary, print_written, CliError};
 use clap::Args;
 use runner::config::presets::{ImageMap, SurfacePreset};
-use runner::config::{FeedforwardKind, Machining, Scenario, SurfaceConfig};
+use runner::config::{FeedforwardKind, Machining, RepetitiveSection, Scenario, SurfaceConfig};
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -59,6 +59,10 @@ pub struct MachineCmd {
     /// surface) instead of a finishing pass of constant depth over a pre-shaped part.
     #[arg(long)]
     flat_blank: bool,
+    /// Learn a correction per revolution (repetitive control on the spindle angle): the
+    /// configured [scenario.repetitive], else its defaults (4096 bins, learning gain 0.5).
+    #[arg(long)]
+    repetitive: bool,
     /// Directory for the analysis files.
     #[arg(long, default_value = "machine")]
     out_dir: PathBuf,
@@ -117,6 +121,9 @@ impl MachineCmd {
         if self.flat_blank {
             m.finish_depth_m = None;
         }
+        if self.repetitive && m.repetitive.is_none() {
+            m.repetitive = Some(RepetitiveSection::default());
+        }
         m.start_radius_m = outer;
         if self.length.duration.is_none() {
             l.config.run.duration_s = m.duration_to(inner);
@@ -145,7 +152,8 @@ impl MachineCmd {
                 FeedforwardKind::ZpetcSensor => "ZPETC feedforward (sensor)",
             }
         );
-        let written = form::report::write(&analysis, &title, &self.out_dir)
+        let learned = summary.meta.repetitive_table_m.as_deref();
+        let written = form::report::write(&analysis, &title, learned, &self.out_dir)
             .map_err(studies::StudyError::from)?;
         let report = analysis.report();
         let code = crate::interrupt::exit_code(&stop, summary.trip.is_some());
@@ -155,6 +163,9 @@ impl MachineCmd {
         }
         print_summary(&summary, false);
         print_form(&report);
+        if let Some(p) = &plan.repetitive {
+            print_repetitive(p, &report);
+        }
         if summary.saturated_ticks > 0 && plan.config.controller.smoothing_hz == 0.0 {
             println!(
                 "  note: the DAC saturated for {} ticks: the surface has kinks or steps the loop cannot follow; try --smoothing-hz 5000",
@@ -166,6 +177,25 @@ impl MachineCmd {
         }
         print_written(&written);
         Ok(code)
+    }
+}
+
+/// The repetitive controller's law and how the form error converged.
+fn print_repetitive(p: &runner::repetitive::RepetitivePlan, report: &FormReport) {
+    let c = &p.config;
+    let k = &p.convergence;
+    println!(
+        "  repetitive control: {} bins, learning gain {}, q1 {}, lead {:.2} ticks; slowest harmonic {} ({:.0} Hz): error × {:.3} per revolution",
+        c.bins_per_rev, c.learning_gain, c.q_neighbour, c.lead_ticks, k.harmonic, k.frequency_hz, k.factor
+    );
+    let revs: Vec<String> = report
+        .revolution_rms_m
+        .iter()
+        .map(|v| format!("{:.1}", v * 1e9))
+        .collect();
+    println!("  form error RMS per revolution (nm): {}", revs.join(" "));
+    if let Some(s) = report.synchronous_rms_m {
+        println!("  spindle-synchronous form error RMS {:.1} nm", s * 1e9);
     }
 }
 

@@ -2,7 +2,7 @@
 //! surface, the spindle and the tool path. Data and range checks only; the surface is loaded
 //! by `crate::surface` and cut by `crate::machining`.
 
-use super::{ConfigError, Origin};
+use super::{ConfigError, Origin, RepetitiveSection};
 use serde::{Deserialize, Serialize};
 use servo_core::Spiral;
 use std::f64::consts::TAU;
@@ -110,6 +110,8 @@ pub struct Machining {
     pub spindle_step_fraction: f64,
     /// When the speed steps, in s from the start of the run (0).
     pub spindle_step_time_s: f64,
+    /// Repetitive control on the spindle angle (absent: none).
+    pub repetitive: Option<RepetitiveSection>,
 }
 
 impl Default for Machining {
@@ -128,6 +130,7 @@ impl Default for Machining {
             spindle_drift_period_s: 10.0,
             spindle_step_fraction: 0.0,
             spindle_step_time_s: 0.0,
+            repetitive: None,
         }
     }
 }
@@ -221,6 +224,9 @@ impl Machining {
             1e6,
             "s",
         )?;
+        if let Some(r) = &self.repetitive {
+            r.validate(at)?;
+        }
         if let Some(d) = self.finish_depth_m {
             if !(0.0..=1e-3).contains(&d) {
                 return Err(at.invalid("scenario.finish_depth_m", d, "[0, 1e-3] m"));

@@ -6,6 +6,7 @@ mod made_for;
 mod plant_file;
 pub mod presets;
 mod realtime;
+mod repetitive;
 
 /// Reading the files a run depends on, bounded (the runtime's, shared).
 pub mod input_file {
@@ -16,6 +17,7 @@ pub use machining::{Machining, SurfaceConfig, GRID_EDGE_RADIUS_M};
 pub use made_for::{check_made_for, describe_made_for, made_for_plant, plant_toml, sha256_hex};
 pub use plant_file::read_plant_file;
 pub use realtime::{RealtimeConfig, Role, WaitKind};
+pub use repetitive::{RepetitiveSection, MAX_BINS};
 pub use servo_runtime::{
     line_of, ConfigError, ControllerKind, MadeFor, Origin, PidGains, ProtectionConfig, SafeState,
 };

@@ -67,6 +67,13 @@ pub struct FormReport {
     pub roughness: Option<Roughness>,
     /// Largest cutting force in N.
     pub max_cutting_force_n: f64,
+    /// Form error RMS of each revolution in m (the run's mean removed), the first (outermost)
+    /// first: how a repetitive controller converges.
+    pub revolution_rms_m: Vec<f64>,
+    /// RMS in m of the spindle-synchronous part of the form error: the error at each angle
+    /// averaged over the complete revolutions, the run's mean removed (None: no complete
+    /// revolution).
+    pub synchronous_rms_m: Option<f64>,
 }
 
 /// One row of the trajectory segment.
@@ -102,6 +109,8 @@ pub struct FormAnalysis {
     rows: usize,
     map_sum: Vec<f64>,
     map_count: Vec<u32>,
+    /// Per revolution: Σe, Σe², samples.
+    revolution_sums: Vec<(f64, f64, u64)>,
     fit_ata: SMatrix<f64, 5, 5>,
     fit_atb: SVector<f64, 5>,
     segment_from: Option<f64>,
@@ -143,6 +152,7 @@ impl FormAnalysis {
             rows,
             map_sum: vec![0.0; rows * MAP_COLUMNS],
             map_count: vec![0; rows * MAP_COLUMNS],
+            revolution_sums: vec![(0.0, 0.0, 0); rows],
             fit_ata: SMatrix::zeros(),
             fit_atb: SVector::zeros(),
             segment_from: None,
@@ -174,6 +184,8 @@ impl FormAnalysis {
         let col = ((turns.fract() * MAP_COLUMNS as f64) as usize).min(MAP_COLUMNS - 1);
         self.map_sum[row * MAP_COLUMNS + col] += e;
         self.map_count[row * MAP_COLUMNS + col] += 1;
+        let sums = &mut self.revolution_sums[row];
+        *sums = (sums.0 + e, sums.1 + e * e, sums.2 + 1);
         if let Some(g) = &self.grid {
             let r = self.cut.radius_m(theta);
             let (x, y) = (r * libm::cos(theta), r * libm::sin(theta));
@@ -237,7 +249,42 @@ impl FormAnalysis {
             grid,
             roughness: self.roughness.as_ref().and_then(RoughnessWindow::roughness),
             max_cutting_force_n: self.max_force,
+            revolution_rms_m: self
+                .revolution_sums
+                .iter()
+                .filter(|s| s.2 > 0)
+                .map(|&(sum, sq, n)| {
+                    let n = n as f64;
+                    let mu = form.mean;
+                    (sq / n - 2.0 * mu * sum / n + mu * mu).max(0.0).sqrt()
+                })
+                .collect(),
+            synchronous_rms_m: self.synchronous_rms(form.mean),
         }
+    }
+
+    /// See [`FormReport::synchronous_rms_m`].
+    fn synchronous_rms(&self, mean: f64) -> Option<f64> {
+        let complete: Vec<usize> = (0..self.rows)
+            .filter(|&r| {
+                self.map_count[r * MAP_COLUMNS..(r + 1) * MAP_COLUMNS]
+                    .iter()
+                    .all(|&n| n > 0)
+            })
+            .collect();
+        if complete.is_empty() {
+            return None;
+        }
+        let mut sq = 0.0;
+        for col in 0..MAP_COLUMNS {
+            let at = |r: usize| {
+                let i = r * MAP_COLUMNS + col;
+                self.map_sum[i] / f64::from(self.map_count[i])
+            };
+            let average = complete.iter().map(|&r| at(r)).sum::<f64>() / complete.len() as f64;
+            sq += (average - mean) * (average - mean);
+        }
+        Some((sq / MAP_COLUMNS as f64).sqrt())
     }
 
     /// The form-error map: mean error per 0.1° bin and revolution (m; NaN where the run did

@@ -13,7 +13,12 @@ const MAP_PICTURE_COLUMNS: usize = 720;
 /// `machine.json` (the [`FormReport`](super::FormReport)), `form_map.csv`,
 /// `trajectory.csv`, and the pictures `form_error_map`, `trajectory`, `trajectory_error`
 /// (PNG + SVG).
-pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written, ReportError> {
+pub fn write(
+    a: &super::FormAnalysis,
+    title: &str,
+    learned: Option<&[f64]>,
+    dir: &Path,
+) -> Result<Written, ReportError> {
     let report = a.report();
     let (rows, values) = a.map();
     let [inner, outer] = report.band_m;
@@ -139,6 +144,13 @@ pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written
             "roughness_profile",
         ));
     }
+    if let Some(table) = learned {
+        out.files.push(crate::report::write_file(
+            dir.join("repetitive_table.csv"),
+            &runner::repetitive::table_csv(table),
+        )?);
+        figures.extend(repetitive_figures(&report, table, title));
+    }
     out.note = plots(&figures, dir, &mut out.files);
     if out.note.is_none() {
         match plot::write(&map, &dir.join("form_error_map")) {
@@ -147,4 +159,46 @@ pub fn write(a: &super::FormAnalysis, title: &str, dir: &Path) -> Result<Written
         }
     }
     Ok(out)
+}
+
+/// The repetitive controller's convergence (form error RMS per revolution) and its learned
+/// correction over one revolution.
+fn repetitive_figures(
+    report: &super::FormReport,
+    table: &[f64],
+    title: &str,
+) -> [(Figure, &'static str); 2] {
+    let revs: Vec<f64> = (1..=report.revolution_rms_m.len())
+        .map(|r| r as f64)
+        .collect();
+    let rms: Vec<f64> = report.revolution_rms_m.iter().map(|v| v * 1e9).collect();
+    let n = table.len() as f64;
+    let deg: Vec<f64> = (0..table.len())
+        .map(|i| (i as f64 + 0.5) * 360.0 / n)
+        .collect();
+    let nm: Vec<f64> = table.iter().map(|v| v * 1e9).collect();
+    [
+        (
+            Figure {
+                title: format!("Form error RMS per revolution — {title}"),
+                x_label: "revolution".into(),
+                y_label: "form error RMS (nm)".into(),
+                log_x: false,
+                log_y: true,
+                series: vec![Series::line("form error RMS of the revolution", revs, rms)],
+            },
+            "repetitive_convergence",
+        ),
+        (
+            Figure {
+                title: format!("Learned correction at the end of the run — {title}"),
+                x_label: "spindle angle (°)".into(),
+                y_label: "correction added to the reference (nm)".into(),
+                log_x: false,
+                log_y: false,
+                series: vec![Series::line("repetitive table", deg, nm)],
+            },
+            "repetitive_table",
+        ),
+    ]
 }

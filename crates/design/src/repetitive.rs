@@ -1,0 +1,194 @@
+//! Convergence of repetitive control on the spindle angle (`servo_core::Repetitive`), checked
+//! from the sampled loop before a run, and the learning filter's lead that makes it fastest.
+//!
+//! The table learns once per revolution; at harmonic `n` of the revolution (`n` cycles per
+//! revolution, at `f = n·f_spindle` Hz) the error left after a revolution is the one before
+//! times
+//!
+//! ```text
+//! κ(n) = |Q(n)·(1 − k_r·H(n)·e^{j2πf·mT}·G(e^{j2πfT}))|
+//! Q(n) = 1 − 2q₁(1 − cos 2πn/N),   H(n) = (3 + cos 2πn/N)/4
+//! ```
+//!
+//! (Tomizuka, Tsao & Chew 1989, with the zero-phase `Q` over `N` bins; `H` is the bin average of
+//! the linearly interpolated table; `G` the loop from the correction to the measured error,
+//! `m` the lead in ticks). Learning converges when `κ < 1` at every harmonic the bins hold,
+//! `0 ≤ n ≤ N/2`, at every speed the spindle may turn.
+
+use num_complex::Complex64 as C;
+use std::f64::consts::TAU;
+
+/// The learning law's parameters (`servo_core::RepetitiveConfig`'s, without the lead).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Learning {
+    /// Bins per revolution `N`.
+    pub bins_per_rev: usize,
+    /// Learning gain `k_r`.
+    pub learning_gain: f64,
+    /// Robustness filter's neighbour weight `q₁`.
+    pub q_neighbour: f64,
+}
+
+impl Learning {
+    /// `κ(n)` for the loop's response `g` at the harmonic's frequency with the lead applied.
+    pub fn factor(&self, harmonic: usize, g_with_lead: C) -> f64 {
+        let cos = libm::cos(TAU * harmonic as f64 / self.bins_per_rev as f64);
+        let q = 1.0 - 2.0 * self.q_neighbour * (1.0 - cos);
+        let h = 0.25 * (3.0 + cos);
+        (q * (1.0 - self.learning_gain * h * g_with_lead)).norm()
+    }
+}
+
+/// The loop sampled at every harmonic the bins hold, at each spindle speed.
+#[derive(Debug, Clone)]
+pub struct Harmonics {
+    /// `(harmonic n, frequency in Hz, G(e^{j2πfT}))`.
+    points: Vec<(usize, f64, C)>,
+    period_s: f64,
+}
+
+impl Harmonics {
+    /// `g(f_hz)` at `n·s` Hz for `n = 0..=N/2` and each speed `s` of `speeds_rev_per_s`
+    /// (revolutions per s), servo period `period_s` (s). Harmonics at or above the Nyquist
+    /// frequency are left out (the loop cannot act there; the bins cannot hold them unless the
+    /// table is finer than the ticks, which `servo_core` refuses).
+    pub fn sample(
+        bins_per_rev: usize,
+        speeds_rev_per_s: &[f64],
+        period_s: f64,
+        mut g: impl FnMut(f64) -> C,
+    ) -> Self {
+        let nyquist = 0.5 / period_s;
+        let mut points = Vec::new();
+        for &s in speeds_rev_per_s {
+            for n in 0..=bins_per_rev / 2 {
+                let f = n as f64 * s.abs();
+                if f < nyquist {
+                    points.push((n, f, g(f)));
+                }
+            }
+        }
+        Harmonics { points, period_s }
+    }
+
+    /// The worst harmonic with lead `lead_ticks`.
+    pub fn convergence(&self, learning: &Learning, lead_ticks: f64) -> Convergence {
+        self.scored(learning, lead_ticks).0
+    }
+
+    /// The worst harmonic, and the sum of `κ²` over all (to rank leads whose worst is the same).
+    fn scored(&self, learning: &Learning, lead_ticks: f64) -> (Convergence, f64) {
+        let mut worst = Convergence {
+            factor: 0.0,
+            harmonic: 0,
+            frequency_hz: 0.0,
+            lead_ticks,
+        };
+        let mut sum = 0.0;
+        for &(n, f, g) in &self.points {
+            let lead = C::from_polar(1.0, TAU * f * lead_ticks * self.period_s);
+            let k = learning.factor(n, g * lead);
+            sum += k * k;
+            if !(k <= worst.factor) {
+                worst = Convergence {
+                    factor: k,
+                    harmonic: n,
+                    frequency_hz: f,
+                    lead_ticks,
+                };
+            }
+        }
+        (worst, sum)
+    }
+
+    /// The lead in [0, `max_lead_ticks`] (to 0.05 tick) whose worst harmonic converges fastest
+    /// (of leads as good there, the one fastest over all harmonics).
+    pub fn best_lead(&self, learning: &Learning, max_lead_ticks: f64) -> Convergence {
+        let better = |a: (Convergence, f64), b: (Convergence, f64)| {
+            if (b.0.factor, b.1) < (a.0.factor, a.1) {
+                b
+            } else {
+                a
+            }
+        };
+        let mut best = self.scored(learning, 0.0);
+        let mut m = 1.0;
+        while m <= max_lead_ticks {
+            best = better(best, self.scored(learning, m));
+            m += 1.0;
+        }
+        let centre = best.0.lead_ticks;
+        for i in -20..=20 {
+            let m = centre + 0.05 * f64::from(i);
+            if (0.0..=max_lead_ticks).contains(&m) {
+                best = better(best, self.scored(learning, m));
+            }
+        }
+        best.0
+    }
+}
+
+/// The slowest-converging harmonic of a repetitive controller on a loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Convergence {
+    /// `κ` there: the error left after one revolution (learning diverges when ≥ 1).
+    pub factor: f64,
+    /// The harmonic, cycles per revolution.
+    pub harmonic: usize,
+    /// Its frequency in Hz.
+    pub frequency_hz: f64,
+    /// The lead it was computed with, ticks.
+    pub lead_ticks: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A loop that is a pure delay of `d` ticks with exact gain: the lead `d` makes
+    /// `κ = |Q·(1 − k_r·H)|`, largest at DC (`|1 − k_r|`), which the search finds.
+    #[test]
+    fn a_pure_delay_is_led_by_its_delay() {
+        let t = 5e-6;
+        let d = 7.0;
+        let learning = Learning {
+            bins_per_rev: 1000,
+            learning_gain: 0.6,
+            q_neighbour: 0.25,
+        };
+        let h = Harmonics::sample(1000, &[50.0], t, |f| C::from_polar(1.0, -TAU * f * d * t));
+        let best = h.best_lead(&learning, 50.0);
+        assert!((best.lead_ticks - d).abs() < 1e-9, "{best:?}");
+        assert!((best.factor - 0.4).abs() < 1e-12, "{best:?}");
+        // Without the lead and without Q the delay turns the correction against the error
+        // near where its phase passes π (f = 1/(2dT), harmonic 286; H falls beyond, so the
+        // worst is a little below): |1 + k_r·H| ≈ 1.42.
+        let bare = Learning {
+            q_neighbour: 0.0,
+            ..learning
+        };
+        let none = h.convergence(&bare, 0.0);
+        let turns = none.frequency_hz * d * t;
+        assert!(
+            none.factor > 1.4 && (0.4..=0.5).contains(&turns),
+            "{none:?}"
+        );
+    }
+
+    /// `Q` alone: with `k_r·H·G = 0` the factor is |Q| = |1 − 2q₁(1 − cos 2πn/N)|, which for
+    /// q₁ > ¼ exceeds 1 at the bins' Nyquist harmonic (|1 − 4q₁|).
+    #[test]
+    fn q_beyond_a_quarter_amplifies_the_finest_harmonic() {
+        let learning = Learning {
+            bins_per_rev: 64,
+            learning_gain: 1e-9,
+            q_neighbour: 0.3,
+        };
+        assert!((learning.factor(32, C::new(0.0, 0.0)) - 0.2).abs() < 1e-12);
+        let learning = Learning {
+            q_neighbour: 0.6,
+            ..learning
+        };
+        assert!((learning.factor(32, C::new(0.0, 0.0)) - 1.4).abs() < 1e-12);
+    }
+}

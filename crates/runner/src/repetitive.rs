@@ -1,0 +1,297 @@
+//! Repetitive control of a machining run, planned on its sampled loop: the convergence check
+//! (refused when learning would diverge at some harmonic), the lead when none is configured,
+//! the target the measured error is taken against, and the learned table as a file.
+//!
+//! The controller learns from what it measures: the gap sensor on the coil carrier, which
+//! lags the tool by its filter and the sampling (≈ 6 ticks on the default stage). Learned
+//! against the design surface itself, the correction would make the *sensor* follow it and
+//! cut the lag into the part (ZPETC's `zpetc-sensor` case). So unless the feedforward targets
+//! the sensor, the error is taken against the surface `lag_ticks` earlier — the model's delay
+//! from the tool to the reading at low frequency — and the tool converges to the surface.
+
+use crate::closed_loop::{input, output, ClosedLoop};
+use crate::config::Origin;
+use crate::config::{FeedforwardKind, Machining, RepetitiveSection, RunConfig, MAX_BINS};
+use crate::error::RunError;
+use design::repetitive::{Convergence, Harmonics, Learning};
+use num_complex::Complex64 as C;
+use recorder::Input;
+use servo_core::RepetitiveConfig;
+use servo_runtime::Deployment;
+use std::f64::consts::TAU;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Name of a starting table among a run's inputs (and in its recording).
+pub const TABLE_INPUT: &str = "repetitive_table.csv";
+
+/// Name of the table a run learned, in its recording (attached at the end).
+pub const LEARNED_ATTACHMENT: &str = "repetitive_learned.csv";
+
+/// Largest table file read, bytes (8192 rows of two numbers).
+const MAX_TABLE_BYTES: u64 = 1 << 20;
+
+/// Frequency at which the sensor's lag behind the tool is measured, Hz.
+const LAG_PROBE_HZ: f64 = 100.0;
+
+/// Longest lead searched, ticks.
+const MAX_AUTO_LEAD_TICKS: f64 = 200.0;
+
+/// A machining run's repetitive controller, checked on its loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RepetitivePlan {
+    /// The block's configuration (the lead chosen when none was configured).
+    pub config: RepetitiveConfig,
+    /// The slowest harmonic's convergence per revolution on the run's loop.
+    pub convergence: Convergence,
+    /// The error compares the measured position with the surface this many ticks earlier
+    /// (the tool → reading delay less the tick the reference leads; −1 for a sensor target).
+    pub lag_ticks: f64,
+    /// Switched on at this tick.
+    pub on_tick: u64,
+    /// Switched off at this tick, if ever.
+    pub off_tick: Option<u64>,
+    /// The table it starts from, m per bin.
+    pub table: Option<Vec<f64>>,
+    /// Gap reading per metre, V/m.
+    pub sensitivity_v_per_m: f64,
+}
+
+/// Plans `s` for the machining `m` of `config` on the loop `cl` running `deployment`; a
+/// starting table is taken from `inputs` ([`TABLE_INPUT`]) or read and added there.
+pub fn plan(
+    config: &RunConfig,
+    m: &Machining,
+    s: &RepetitiveSection,
+    cl: &ClosedLoop,
+    deployment: &Deployment,
+    origin: &Origin,
+    inputs: &mut Vec<Input>,
+) -> Result<RepetitivePlan, RunError> {
+    let period = cl.period_s;
+    let key = |k: &str| format!("scenario.repetitive.{k}");
+    let nominal = m.spindle_rpm / 60.0;
+    let slow = 1.0 - m.spindle_drift_fraction + m.spindle_step_fraction.min(0.0);
+    let fast = 1.0 + m.spindle_drift_fraction + m.spindle_step_fraction.max(0.0);
+    let block = |lead_ticks: f64| RepetitiveConfig {
+        bins_per_rev: s.bins_per_rev,
+        learning_gain: s.learning_gain,
+        lead_ticks,
+        q_neighbour: s.q_neighbour,
+        limit_m: s.limit_m,
+        max_speed_rpm: m.spindle_rpm * fast,
+    };
+    if let Err(e) = block(0.0).try_build::<MAX_BINS>(period) {
+        return Err(origin
+            .invalid(
+                &key("bins_per_rev"),
+                s.bins_per_rev,
+                &format!("at most the ticks of one revolution at the fastest spindle speed ({e})"),
+            )
+            .into());
+    }
+    let speeds: Vec<f64> =
+        [nominal * slow, nominal, nominal * fast]
+            .into_iter()
+            .fold(Vec::new(), |mut v, x| {
+                if !v.contains(&x) {
+                    v.push(x);
+                }
+                v
+            });
+    let response = loop_response(cl, deployment);
+    let harmonics = Harmonics::sample(s.bins_per_rev, &speeds, period, &response);
+    let learning = Learning {
+        bins_per_rev: s.bins_per_rev,
+        learning_gain: s.learning_gain,
+        q_neighbour: s.q_neighbour,
+    };
+    let convergence = match s.lead_ticks {
+        Some(lead) => harmonics.convergence(&learning, lead),
+        None => harmonics.best_lead(&learning, MAX_AUTO_LEAD_TICKS),
+    };
+    if !(convergence.factor < 1.0) {
+        return Err(origin
+            .invalid(
+                &key("learning_gain"),
+                s.learning_gain,
+                &format!(
+                    "a learning law that converges on this loop: at harmonic {} ({:.0} Hz) a revolution multiplies the error by {:.3} with lead {:.2} ticks (must be < 1); lower learning_gain, raise q_neighbour toward 0.25, or leave lead_ticks out to have it chosen",
+                    convergence.harmonic, convergence.frequency_hz, convergence.factor, convergence.lead_ticks
+                ),
+            )
+            .into());
+    }
+    let lag_ticks = match config.controller.feedforward {
+        FeedforwardKind::ZpetcSensor => -1.0,
+        _ => sensor_delay_ticks(cl) - 1.0,
+    };
+    let table = match &s.table {
+        None => None,
+        Some(path) => Some(load_table(path, s, inputs, origin)?),
+    };
+    let ticks = |t: f64| (t / period).round() as u64;
+    Ok(RepetitivePlan {
+        config: block(convergence.lead_ticks),
+        convergence,
+        lag_ticks,
+        on_tick: ticks(s.on_at_s),
+        off_tick: s.off_at_s.map(ticks),
+        table,
+        sensitivity_v_per_m: config.plant.capa.sensitivity_v_per_m,
+    })
+}
+
+/// `G(f)`: the measured position (m) per metre added to the reference, through the reference
+/// path (smoothing, feedforward) and the closed loop.
+fn loop_response<'a>(cl: &'a ClosedLoop, deployment: &'a Deployment) -> impl Fn(f64) -> C + 'a {
+    let to_reading = |inp: usize| {
+        let siso = cl.subsystem(&[(output::MEASURED_M, 1.0)], inp);
+        lti::FrequencyResponse::new(&siso)
+    };
+    let reference = to_reading(input::REFERENCE_M);
+    let command = to_reading(input::CONTROL_DISTURBANCE_V);
+    let period = cl.period_s;
+    move |f| {
+        let path = deployment.reference_path(f);
+        let c = |v: [f64; 2]| C::new(v[0], v[1]);
+        let at = |r: &lti::FrequencyResponse| {
+            r.discrete(f, period)
+                .map(|m| m[(0, 0)])
+                .unwrap_or(C::new(f64::NAN, f64::NAN))
+        };
+        at(&reference) * c(path.reference) + at(&command) * c(path.feedforward_v_per_m)
+    }
+}
+
+/// The measured position's delay behind the tool at low frequency, ticks (the loop model's
+/// tool at a tick's end against the sample the tick starts with).
+fn sensor_delay_ticks(cl: &ClosedLoop) -> f64 {
+    let reading = cl.response(output::MEASURED_M, input::REFERENCE_M, LAG_PROBE_HZ);
+    let tool = cl.response(output::TOOL_M, input::REFERENCE_M, LAG_PROBE_HZ);
+    match (reading, tool) {
+        (Ok(r), Ok(t)) => -(r / t).arg() / (TAU * LAG_PROBE_HZ * cl.period_s),
+        _ => 0.0,
+    }
+}
+
+/// The table of `s.table`: from `inputs` when there (a replay), else read and added.
+fn load_table(
+    path: &Path,
+    s: &RepetitiveSection,
+    inputs: &mut Vec<Input>,
+    origin: &Origin,
+) -> Result<Vec<f64>, RunError> {
+    let key = "scenario.repetitive.table";
+    let text = match inputs.iter().find(|i| i.name == TABLE_INPUT) {
+        Some(i) => String::from_utf8_lossy(&i.data).into_owned(),
+        None => {
+            let shown = path.display().to_string();
+            let meta = std::fs::metadata(path)
+                .map_err(|e| origin.invalid(key, &shown, &format!("a readable file ({e})")))?;
+            if !meta.is_file() || meta.len() > MAX_TABLE_BYTES {
+                return Err(origin
+                    .invalid(key, &shown, "a regular file of at most 1 MiB")
+                    .into());
+            }
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| origin.invalid(key, &shown, &format!("a UTF-8 CSV file ({e})")))?;
+            inputs.push(Input {
+                name: TABLE_INPUT.into(),
+                media_type: "text/csv".into(),
+                data: text.clone().into_bytes(),
+            });
+            text
+        }
+    };
+    parse_table(&text, s.bins_per_rev, s.limit_m).map_err(|why| {
+        origin
+            .invalid(
+                key,
+                path.display(),
+                &format!("a table of this run's bins: {why}"),
+            )
+            .into()
+    })
+}
+
+/// The correction column of a table written by [`table_csv`]: `bins` rows, each within
+/// ±`limit_m`.
+fn parse_table(text: &str, bins: usize, limit_m: f64) -> Result<Vec<f64>, String> {
+    let mut out = Vec::with_capacity(bins);
+    for (n, line) in text.lines().enumerate().skip(1) {
+        if line.trim().is_empty() {
+            continue;
+        }
+        if out.len() == bins {
+            return Err(format!("more than {bins} rows"));
+        }
+        let value = line
+            .split(',')
+            .nth(1)
+            .and_then(|v| v.trim().parse::<f64>().ok())
+            .filter(|v| v.abs() <= limit_m)
+            .ok_or_else(|| {
+                format!(
+                    "line {}: `angle_rad,correction_m` with |correction| ≤ {limit_m} m",
+                    n + 1
+                )
+            })?;
+        out.push(value);
+    }
+    if out.len() != bins {
+        return Err(format!("{} rows, this run has {bins} bins", out.len()));
+    }
+    Ok(out)
+}
+
+/// What the recording's end record says of the repetitive controller.
+pub fn end_facts(p: &RepetitivePlan, table: &[f64]) -> Vec<(String, String)> {
+    let peak = table.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    vec![
+        (
+            "repetitive.law".into(),
+            format!(
+                "{} bins, learning gain {}, q1 {}, lead {:.2} ticks, error against the surface {:.2} ticks earlier",
+                p.config.bins_per_rev, p.config.learning_gain, p.config.q_neighbour, p.config.lead_ticks, p.lag_ticks
+            ),
+        ),
+        (
+            "repetitive.convergence".into(),
+            format!(
+                "slowest harmonic {} ({:.0} Hz): error × {:.3} per revolution",
+                p.convergence.harmonic, p.convergence.frequency_hz, p.convergence.factor
+            ),
+        ),
+        (
+            "repetitive.table".into(),
+            format!("{LEARNED_ATTACHMENT}: largest correction {:.1} nm", peak * 1e9),
+        ),
+    ]
+}
+
+/// A learned table as CSV: `angle_rad,correction_m`, one row per bin (its centre).
+pub fn table_csv(table: &[f64]) -> String {
+    let mut s = String::from("angle_rad,correction_m\n");
+    let n = table.len() as f64;
+    for (i, v) in table.iter().enumerate() {
+        let _ = writeln!(s, "{:.9},{v:e}", TAU * (i as f64 + 0.5) / n);
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_written_table_reads_back() {
+        let table: Vec<f64> = (0..64).map(|i| 1e-9 * f64::from(i) - 3e-8).collect();
+        let text = table_csv(&table);
+        assert_eq!(parse_table(&text, 64, 1e-6).unwrap(), table);
+        assert!(parse_table(&text, 65, 1e-6)
+            .unwrap_err()
+            .contains("64 rows"));
+        assert!(parse_table(&text, 64, 1e-8).unwrap_err().contains("line 2"));
+    }
+}

@@ -1,0 +1,338 @@
+//! Repetitive control on the spindle angle (Tomizuka, Tsao & Chew, ASME J. Dyn. Sys. 111, 1989;
+//! Tsao & Tomizuka, ibid. 116, 1994): a plug-in correction added to the reference of a
+//! spindle-synchronised cut, learned from the error of earlier revolutions.
+//!
+//! The learned signal is a table of `bins_per_rev` values over one revolution, indexed by the
+//! **spindle angle** (not by time), so a revolution may last a fractional number of ticks and
+//! the speed may drift. Each tick the error measured at the sample's angle is averaged into the
+//! bin under it; when the angle leaves a bin, the bin learns:
+//!
+//! ```text
+//! c_{j+1}[i] = q₁·c_j[i−1] + (1 − 2q₁)·c_j[i] + q₁·c_j[i+1] + k_r·ē_j[i]
+//! ```
+//!
+//! (`j` the revolution, `ē` the bin's mean error): a zero-phase robustness filter `Q` over the
+//! bins and the learning gain `k_r`. The correction for an angle is the table interpolated
+//! linearly between bin centres, read `lead_ticks` ahead of it (the learning filter `z^m`, the
+//! phase lead that compensates the loop's lag). The error converges revolution by revolution at
+//! harmonic `n` (cycles per revolution) when
+//!
+//! ```text
+//! |Q(n)·(1 − k_r·H(n)·e^{jωm}·G(e^{jω}))| < 1,  Q(n) = 1 − 2q₁(1 − cos 2πn/N),  H(n) = (3 + cos 2πn/N)/4
+//! ```
+//!
+//! with `G` the loop from the correction to the error's measurement and `H` the bin average of the
+//! interpolated table; `design::repetitive` evaluates it for a loop before a run.
+//!
+//! The table is `BINS` values, fixed at build time: `8·BINS` bytes (`Repetitive<8192>` is
+//! 64 KiB). Switching on and off is bumpless: the output is weighted by a factor that moves by
+//! the turned angle over one revolution, and the table learns only at full weight.
+//!
+//! ```
+//! use servo_core::{Block, Repetitive, RepetitiveConfig, RepetitiveInput};
+//! let cfg = RepetitiveConfig { bins_per_rev: 1000, ..RepetitiveConfig::DEFAULT };
+//! let mut rc: Repetitive<1024> = cfg.try_build(1.0 / 199_600.0).unwrap();
+//! let c = rc.update(RepetitiveInput {
+//!     angle_rad: 0.0,
+//!     error_m: 1e-9,
+//!     output_angle_rad: 0.01,
+//!     rate_rad_per_tick: 3.1e-5,
+//! });
+//! assert_eq!(c, 0.0); // nothing learned yet, and not switched on
+//! ```
+
+use crate::block::{Block, FaultLatch};
+use crate::error::{check_period, check_range, Error};
+use core::f64::consts::TAU;
+
+/// Configuration of a [`Repetitive`] controller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RepetitiveConfig {
+    /// Bins per revolution `N`: the table's resolution. At most the capacity `BINS` and the
+    /// ticks of one revolution at `max_speed_rpm` (every bin sees a sample each revolution).
+    pub bins_per_rev: usize,
+    /// Learning gain `k_r` in (0, 2): the fraction of a revolution's error learned per
+    /// revolution (with an exact loop model, `1 − k_r` is the error left after each).
+    pub learning_gain: f64,
+    /// Phase lead of the learning filter in ticks, [0, 1000]: the loop's delay from the
+    /// correction to the measured error.
+    pub lead_ticks: f64,
+    /// Robustness filter weight `q₁` in [0, 0.25] on each neighbouring bin (`Q = [q₁, 1 − 2q₁,
+    /// q₁]`, zero phase): 0 learns every harmonic up to `N/2`; 0.25 is the binomial low-pass
+    /// that removes the harmonic `N/2` and keeps learning stable where the loop model is poor.
+    pub q_neighbour: f64,
+    /// Largest correction in m, (0, 1e-3]: the table is clamped to ±limit.
+    pub limit_m: f64,
+    /// The fastest spindle speed the controller will see in rpm, (0, 1e6].
+    pub max_speed_rpm: f64,
+}
+
+impl RepetitiveConfig {
+    /// 4096 bins, `k_r` = 0.5, no lead, the binomial `Q` (q₁ = 0.25), ±10 µm, 1000 rpm.
+    pub const DEFAULT: RepetitiveConfig = RepetitiveConfig {
+        bins_per_rev: 4096,
+        learning_gain: 0.5,
+        lead_ticks: 0.0,
+        q_neighbour: 0.25,
+        limit_m: 10e-6,
+        max_speed_rpm: 1000.0,
+    };
+
+    /// Validates the configuration for sample period `sample_period_s` (s) and a table of
+    /// `BINS` values.
+    pub fn try_build<const BINS: usize>(
+        &self,
+        sample_period_s: f64,
+    ) -> Result<Repetitive<BINS>, Error> {
+        let t = check_period(sample_period_s)?;
+        let rpm = check_range("max_speed_rpm", self.max_speed_rpm, 1e-9, 1e6)?;
+        let ticks_per_rev = 60.0 / (rpm * t);
+        if BINS < 8 {
+            return Err(Error::DelayTooLong {
+                samples: 8,
+                capacity: BINS,
+            });
+        }
+        if self.bins_per_rev > BINS {
+            return Err(Error::DelayTooLong {
+                samples: self.bins_per_rev,
+                capacity: BINS,
+            });
+        }
+        let most = libm::floor(ticks_per_rev).min(BINS as f64).max(8.0);
+        check_range("bins_per_rev", self.bins_per_rev as f64, 8.0, most)?;
+        Ok(Repetitive {
+            bins: self.bins_per_rev,
+            bins_per_rad: self.bins_per_rev as f64 / TAU,
+            gain: check_range("learning_gain", self.learning_gain, 1e-6, 2.0 - 1e-6)?,
+            lead_ticks: check_range("lead_ticks", self.lead_ticks, 0.0, 1000.0)?,
+            q1: check_range("q_neighbour", self.q_neighbour, 0.0, 0.25)?,
+            limit_m: check_range("limit_m", self.limit_m, 1e-12, 1e-3)?,
+            table: [0.0; BINS],
+            bin: usize::MAX,
+            sum_m: 0.0,
+            count: 0,
+            last_bin: usize::MAX,
+            last_old_m: 0.0,
+            last_angle_rad: f64::NAN,
+            on: false,
+            weight: 0.0,
+            fault: FaultLatch::CLEAR,
+        })
+    }
+}
+
+/// What a [`Repetitive`] controller reads each tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RepetitiveInput {
+    /// Spindle angle of the sample in rad, unwrapped (a tracked encoder angle).
+    pub angle_rad: f64,
+    /// Error measured with the sample in m (desired minus measured position).
+    pub error_m: f64,
+    /// Spindle angle in rad of the reference the correction is for (a preview reads ahead).
+    pub output_angle_rad: f64,
+    /// Spindle speed in rad per tick (for the lead).
+    pub rate_rad_per_tick: f64,
+}
+
+/// Repetitive controller of `BINS` table values (see the [module](self) docs).
+#[derive(Debug, Clone)]
+pub struct Repetitive<const BINS: usize> {
+    bins: usize,
+    bins_per_rad: f64,
+    gain: f64,
+    lead_ticks: f64,
+    q1: f64,
+    limit_m: f64,
+    table: [f64; BINS],
+    /// The bin the accumulator belongs to (`usize::MAX`: none yet).
+    bin: usize,
+    sum_m: f64,
+    count: u32,
+    /// The bin learned last and its value before (the previous revolution's).
+    last_bin: usize,
+    last_old_m: f64,
+    last_angle_rad: f64,
+    on: bool,
+    weight: f64,
+    fault: FaultLatch,
+}
+
+impl<const BINS: usize> Repetitive<BINS> {
+    /// Switches the correction on or off: the output moves to (or from) the table over one
+    /// revolution of the spindle; the table learns only while fully on and is kept while off.
+    pub fn set_enabled(&mut self, on: bool) {
+        self.on = on;
+    }
+
+    /// Whether the controller is switched on.
+    pub fn enabled(&self) -> bool {
+        self.on
+    }
+
+    /// The fraction of the table in the output, [0, 1] (1: on and learning).
+    pub fn weight(&self) -> f64 {
+        self.weight
+    }
+
+    /// The correction in m for the reference at `angle_rad` with the spindle turning
+    /// `rate_rad_per_tick`: what [`Block::update`] returns, without learning (for a reference
+    /// read ahead over several ticks at once).
+    #[inline]
+    pub fn output_m(&self, angle_rad: f64, rate_rad_per_tick: f64) -> f64 {
+        if self.fault.is_set() {
+            return 0.0;
+        }
+        let read = angle_rad + self.lead_ticks * rate_rad_per_tick;
+        let c = self.weight * self.correction_m(read);
+        if c.is_finite() {
+            c
+        } else {
+            0.0
+        }
+    }
+
+    /// The learned table in m: bin `i` is the correction at spindle angle `(i + ½)·2π/N`.
+    pub fn table(&self) -> &[f64] {
+        &self.table[..self.bins]
+    }
+
+    /// Starts from a learned `table` (m per bin, as [`Repetitive::table`] gives it): refused
+    /// unless it has `bins_per_rev` finite values within ±`limit_m`.
+    pub fn load(&mut self, table: &[f64]) -> Result<(), Error> {
+        check_range(
+            "table length",
+            table.len() as f64,
+            self.bins as f64,
+            self.bins as f64,
+        )?;
+        for v in table {
+            check_range("table value", *v, -self.limit_m, self.limit_m)?;
+        }
+        self.table[..self.bins].copy_from_slice(table);
+        self.bin = usize::MAX;
+        self.last_bin = usize::MAX;
+        Ok(())
+    }
+
+    /// The bin coordinate of `angle_rad`, in [0, N).
+    #[inline]
+    fn position(&self, angle_rad: f64) -> f64 {
+        let n = self.bins as f64;
+        let u = angle_rad * self.bins_per_rad;
+        let u = u - libm::floor(u / n) * n;
+        if u >= n {
+            0.0
+        } else {
+            u
+        }
+    }
+
+    /// The table interpolated between bin centres at `angle_rad`, as it was one revolution
+    /// before.
+    #[inline]
+    fn correction_m(&self, angle_rad: f64) -> f64 {
+        let u = self.position(angle_rad) - 0.5;
+        let below = libm::floor(u);
+        let frac = u - below;
+        let n = self.bins;
+        let i = if below < 0.0 { n - 1 } else { below as usize };
+        let j = if i + 1 == n { 0 } else { i + 1 };
+        // The bin learned last is read at its value of the previous revolution: what it learned
+        // acts one revolution later, not half a bin later (a fast inner loop through the
+        // interpolation, which the convergence check does not describe).
+        let (a, b) = (self.previous(i), self.previous(j));
+        a + frac * (b - a)
+    }
+
+    /// The table's value of bin `j` one revolution ago.
+    #[inline]
+    fn previous(&self, j: usize) -> f64 {
+        if j == self.last_bin {
+            self.last_old_m
+        } else {
+            self.table[j]
+        }
+    }
+
+    /// Bin `i` learns its mean error `mean_m`.
+    #[inline]
+    fn learn(&mut self, i: usize, mean_m: f64) {
+        let n = self.bins;
+        let left = self.previous(if i == 0 { n - 1 } else { i - 1 });
+        let right = self.previous(if i + 1 == n { 0 } else { i + 1 });
+        let old = self.table[i];
+        let filtered = self.q1 * (left + right) + (1.0 - 2.0 * self.q1) * old;
+        let new = filtered + self.gain * mean_m;
+        self.table[i] = new.clamp(-self.limit_m, self.limit_m);
+        self.last_bin = i;
+        self.last_old_m = old;
+    }
+}
+
+impl<const BINS: usize> Block for Repetitive<BINS> {
+    type Input = RepetitiveInput;
+    /// Correction in m to add to the reference at `output_angle_rad`.
+    type Output = f64;
+
+    #[inline]
+    fn update(&mut self, x: RepetitiveInput) -> f64 {
+        if self.fault.check_all(&[
+            x.angle_rad,
+            x.error_m,
+            x.output_angle_rad,
+            x.rate_rad_per_tick,
+        ]) {
+            return 0.0;
+        }
+        // The weight follows the switch by the angle turned: one revolution from 0 to 1.
+        let turned = if self.last_angle_rad.is_nan() {
+            0.0
+        } else {
+            libm::fabs(x.angle_rad - self.last_angle_rad) / TAU
+        };
+        self.last_angle_rad = x.angle_rad;
+        self.weight = if self.on {
+            (self.weight + turned).min(1.0)
+        } else {
+            (self.weight - turned).max(0.0)
+        };
+        let learning = self.on && self.weight >= 1.0;
+        if !learning {
+            // Bins left alone keep last revolution's value: no saved neighbour to prefer.
+            self.last_bin = usize::MAX;
+        }
+        let bin = self.position(x.angle_rad) as usize;
+        if bin != self.bin {
+            if learning && self.count > 0 && self.bin < self.bins {
+                self.learn(self.bin, self.sum_m / f64::from(self.count));
+            }
+            self.bin = bin;
+            self.sum_m = 0.0;
+            self.count = 0;
+        }
+        if learning {
+            self.sum_m += x.error_m;
+            self.count = self.count.saturating_add(1);
+        }
+        self.output_m(x.output_angle_rad, x.rate_rad_per_tick)
+    }
+
+    /// Forgets the table, the switch and the fault; the configuration is kept.
+    fn reset(&mut self) {
+        self.table = [0.0; BINS];
+        self.bin = usize::MAX;
+        self.sum_m = 0.0;
+        self.count = 0;
+        self.last_bin = usize::MAX;
+        self.last_old_m = 0.0;
+        self.last_angle_rad = f64::NAN;
+        self.on = false;
+        self.weight = 0.0;
+        self.fault = FaultLatch::CLEAR;
+    }
+
+    fn faulted(&self) -> bool {
+        self.fault.is_set()
+    }
+}
