@@ -89,7 +89,8 @@ impl Harmonics {
             let lead = C::from_polar(1.0, TAU * f * lead_ticks * self.period_s);
             let k = learning.factor(n, g * lead);
             sum += k * k;
-            if !(k <= worst.factor) {
+            // A NaN response (a loop that cannot be evaluated there) is the worst.
+            if k.is_nan() || k > worst.factor {
                 worst = Convergence {
                     factor: k,
                     harmonic: n,

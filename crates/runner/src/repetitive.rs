@@ -110,7 +110,7 @@ pub fn plan(
         Some(lead) => harmonics.convergence(&learning, lead),
         None => harmonics.best_lead(&learning, MAX_AUTO_LEAD_TICKS),
     };
-    if !(convergence.factor < 1.0) {
+    if convergence.factor.is_nan() || convergence.factor >= 1.0 {
         return Err(origin
             .invalid(
                 &key("learning_gain"),

@@ -18,7 +18,7 @@ fn flat_blank(rc: Option<RepetitiveSection>) -> Loaded {
     let mut cfg = Loaded::default();
     let m = Machining {
         finish_depth_m: None,
-        repetitive: rc,
+        repetitive: rc.map(Box::new),
         ..Machining::default()
     };
     cfg.config.run.duration_s = 6.0;

@@ -6,7 +6,7 @@ use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, print_summary, print_written, CliError};
 use clap::Args;
 use runner::config::presets::{ImageMap, SurfacePreset};
-use runner::config::{FeedforwardKind, Machining, RepetitiveSection, Scenario, SurfaceConfig};
+use runner::config::{FeedforwardKind, Machining, Scenario, SurfaceConfig};
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -122,7 +122,7 @@ impl MachineCmd {
             m.finish_depth_m = None;
         }
         if self.repetitive && m.repetitive.is_none() {
-            m.repetitive = Some(RepetitiveSection::default());
+            m.repetitive = Some(Box::default());
         }
         m.start_radius_m = outer;
         if self.length.duration.is_none() {

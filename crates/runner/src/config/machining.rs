@@ -111,7 +111,7 @@ pub struct Machining {
     /// When the speed steps, in s from the start of the run (0).
     pub spindle_step_time_s: f64,
     /// Repetitive control on the spindle angle (absent: none).
-    pub repetitive: Option<RepetitiveSection>,
+    pub repetitive: Option<Box<RepetitiveSection>>,
 }
 
 impl Default for Machining {
