@@ -111,6 +111,25 @@ impl PracticeStage {
         &self.truth
     }
 
+    /// The simulator of the drawn stage (before the mount).
+    pub fn simulator(&self) -> &Simulator {
+        &self.sim
+    }
+
+    /// One tick with `dac_v` (V) and a force `extra_force_n` (N) on the tool (a cut), as
+    /// [`Simulator::step_with_force`], the gap reading through the mount.
+    pub fn step_with_force(&mut self, dac_v: f64, extra_force_n: f64) -> Sensor {
+        let (s, t) = self.sim.step_with_force(dac_v, extra_force_n);
+        self.last_truth = t.to_contract(s.time_s);
+        Sensor {
+            time_s: s.time_s,
+            gap_v: self.through_mount(s.gap_v),
+            accel_v: s.accel_v,
+            flags: s.flags,
+            ..Default::default()
+        }
+    }
+
     /// The gap reading `g` (V) through the mount.
     fn through_mount(&mut self, g: f64) -> f64 {
         let (a, b, c, d) = &self.mount;
@@ -125,15 +144,7 @@ impl PracticeStage {
 
 impl Backend for PracticeStage {
     fn step(&mut self, dac_v: f64) -> Sensor {
-        let (s, t) = self.sim.step(dac_v);
-        self.last_truth = t.to_contract(s.time_s);
-        Sensor {
-            time_s: s.time_s,
-            gap_v: self.through_mount(s.gap_v),
-            accel_v: s.accel_v,
-            flags: s.flags,
-            ..Default::default()
-        }
+        self.step_with_force(dac_v, 0.0)
     }
 
     fn truth(&self) -> Option<Truth> {

@@ -262,8 +262,9 @@ fn is_number(node: &Value) -> bool {
     }
 }
 
-/// The default run with each scenario kind, and machining each preset surface (the image
-/// surface's file is [`probe_image`], given to the run as its embedded copy).
+/// The default run with each scenario kind, machining each preset surface (the image
+/// surface's file is [`probe_image`], given to the run as its embedded copy), and machining
+/// with repetitive control.
 fn base_configs() -> Vec<toml::Value> {
     let image = ImageMap {
         path: SURFACE_INPUT.into(),
@@ -283,6 +284,13 @@ fn base_configs() -> Vec<toml::Value> {
             scenario,
             ..RunConfig::default()
         })
+        .chain(std::iter::once(RunConfig {
+            scenario: Scenario::Machine(Machining {
+                repetitive: Some(Box::default()),
+                ..Machining::default()
+            }),
+            ..RunConfig::default()
+        }))
         .chain(std::iter::once(coil_current_loop()))
         .map(|config| toml::Value::try_from(&config).expect("a configuration always serialises"))
         .collect()
@@ -321,12 +329,18 @@ fn probe(base: &toml::Value, leaf: &KeyDoc, image: &[u8]) -> Option<String> {
         .filter(|p| !p.is_empty())
         .try_fold(&mut doc, |t, part| t.get_mut(part))?
         .as_table_mut()?;
-    if let Some((_, kind)) = &leaf.kind {
-        if table.get("kind").and_then(toml::Value::as_str) != Some(kind.as_str()) {
+    table.insert(name.to_owned(), toml::Value::Float(f64::NAN));
+    // The tagged table may be an ancestor (`scenario` of `scenario.repetitive.…`).
+    if let Some((tagged, kind)) = &leaf.kind {
+        let at = tagged
+            .split('.')
+            .try_fold(&doc, |t, part| t.get(part))
+            .and_then(|t| t.get("kind"))
+            .and_then(toml::Value::as_str);
+        if at != Some(kind.as_str()) {
             return None;
         }
     }
-    table.insert(name.to_owned(), toml::Value::Float(f64::NAN));
     let config: RunConfig = doc.try_into().ok()?;
     let loaded = Loaded {
         config,

@@ -5,22 +5,33 @@ use crate::config::Scenario;
 use crate::machining::Workpiece;
 use crate::plan::Plan;
 use daq_io::{Backend, Sensor, Truth};
+use plant_sim::practice::PracticeStage;
 use plant_sim::Simulator;
 
 /// The simulated stage as a daq-io backend (keeps the last step's truth), with the part on
 /// the spindle when machining.
 pub struct SimBackend {
-    sim: Simulator,
+    stage: Stage,
     truth: Truth,
     workpiece: Option<Workpiece>,
     tick: u64,
+}
+
+/// Which stage is simulated.
+// One per run, made once: the configured stage stays inline (no indirection on its tick).
+#[allow(clippy::large_enum_variant)]
+enum Stage {
+    /// The configured one.
+    Configured(Simulator),
+    /// The practice stage of `run.practice_seed` (the configured plant is the model).
+    Practice(Box<PracticeStage>),
 }
 
 impl SimBackend {
     /// Wraps `sim` (no spindle).
     pub fn new(sim: Simulator) -> Self {
         SimBackend {
-            sim,
+            stage: Stage::Configured(sim),
             truth: Truth::default(),
             workpiece: None,
             tick: 0,
@@ -36,15 +47,27 @@ impl SimBackend {
             }
             _ => None,
         };
+        let stage = match plan.config.run.practice_seed {
+            None => Stage::Configured(plan.sim.clone()),
+            Some(seed) => Stage::Practice(Box::new(
+                PracticeStage::new(&plan.config.plant, seed)
+                    .expect("the practice stage of a plant the plan built"),
+            )),
+        };
         SimBackend {
+            stage,
+            truth: Truth::default(),
             workpiece,
-            ..SimBackend::new(plan.sim.clone())
+            tick: 0,
         }
     }
 
-    /// The simulator.
+    /// The simulator (of the drawn stage, for the practice stage).
     pub fn sim(&self) -> &Simulator {
-        &self.sim
+        match &self.stage {
+            Stage::Configured(s) => s,
+            Stage::Practice(p) => p.simulator(),
+        }
     }
 }
 
@@ -55,21 +78,30 @@ impl Backend for SimBackend {
             .workpiece
             .as_ref()
             .map_or(0.0, |w| w.cutting_force_n(self.tick));
-        let (s, t) = self.sim.step_with_force(dac_v, force);
+        let mut sample = match &mut self.stage {
+            Stage::Configured(sim) => {
+                let (s, t) = sim.step_with_force(dac_v, force);
+                self.truth = t.to_contract(s.time_s);
+                Sensor {
+                    time_s: s.time_s,
+                    gap_v: s.gap_v,
+                    accel_v: s.accel_v,
+                    flags: s.flags,
+                    ..Default::default()
+                }
+            }
+            Stage::Practice(p) => {
+                let s = p.step_with_force(dac_v, force);
+                self.truth = Backend::truth(&**p).unwrap_or_default();
+                s
+            }
+        };
         self.tick += 1;
-        self.truth = t.to_contract(s.time_s);
-        Sensor {
-            seq: 0,
-            time_s: s.time_s,
-            gap_v: s.gap_v,
-            accel_v: s.accel_v,
-            encoder_count: self
-                .workpiece
-                .as_ref()
-                .map_or(0, |w| w.encoder_count(self.tick)),
-            flags: s.flags,
-            ..Default::default()
-        }
+        sample.encoder_count = self
+            .workpiece
+            .as_ref()
+            .map_or(0, |w| w.encoder_count(self.tick));
+        sample
     }
 
     fn truth(&self) -> Option<Truth> {

@@ -195,7 +195,10 @@ fn print_repetitive(p: &runner::repetitive::RepetitivePlan, report: &FormReport)
         .collect();
     println!("  form error RMS per revolution (nm): {}", revs.join(" "));
     if let Some(s) = report.synchronous_rms_m {
-        println!("  spindle-synchronous form error RMS {:.1} nm", s * 1e9);
+        println!(
+            "  spindle-synchronous part (each angle averaged over the revolutions): RMS {:.1} nm",
+            s * 1e9
+        );
     }
 }
 

@@ -56,6 +56,12 @@ pub struct RunSection {
     /// Statistics start after this many seconds (the loop and the slow noise filters settle);
     /// unset: 10 % of the duration, at most 0.1 s.
     pub settle_s: Option<f64>,
+    /// Simulate the practice stage of this seed instead of the configured one: the Table 5-2
+    /// parameters drawn within ±15 % and a sensor-mount resonance, hidden
+    /// (`plant_sim::practice`, what the example DAQ daemon serves). The configured plant is
+    /// then only the controller's model (its feedforward, its checks): a run on a stage that is
+    /// not the model. Unset: the configured stage.
+    pub practice_seed: Option<u64>,
 }
 
 impl RunSection {
@@ -71,6 +77,7 @@ impl Default for RunSection {
             duration_s: 1.0,
             seed: 1,
             settle_s: None,
+            practice_seed: None,
         }
     }
 }

@@ -172,11 +172,11 @@ fn repetitive_figures(
         .map(|r| r as f64)
         .collect();
     let rms: Vec<f64> = report.revolution_rms_m.iter().map(|v| v * 1e9).collect();
+    // The first twentieth of the revolution: a whole one is as dense as the surface.
     let n = table.len() as f64;
-    let deg: Vec<f64> = (0..table.len())
-        .map(|i| (i as f64 + 0.5) * 360.0 / n)
-        .collect();
-    let nm: Vec<f64> = table.iter().map(|v| v * 1e9).collect();
+    let shown = table.len().div_ceil(20);
+    let deg: Vec<f64> = (0..shown).map(|i| (i as f64 + 0.5) * 360.0 / n).collect();
+    let nm: Vec<f64> = table[..shown].iter().map(|v| v * 1e9).collect();
     [
         (
             Figure {
@@ -191,7 +191,7 @@ fn repetitive_figures(
         ),
         (
             Figure {
-                title: format!("Learned correction at the end of the run — {title}"),
+                title: format!("Learned correction at the end of the run, 0–18° — {title}"),
                 x_label: "spindle angle (°)".into(),
                 y_label: "correction added to the reference (nm)".into(),
                 log_x: false,
