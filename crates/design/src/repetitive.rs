@@ -19,7 +19,7 @@ use num_complex::Complex64 as C;
 use std::f64::consts::TAU;
 
 /// The learning law's parameters (`servo_core::RepetitiveConfig`'s, without the lead).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Learning {
     /// Bins per revolution `N`.
     pub bins_per_rev: usize,
@@ -27,16 +27,29 @@ pub struct Learning {
     pub learning_gain: f64,
     /// Robustness filter's neighbour weight `q₁`.
     pub q_neighbour: f64,
+    /// Learning filter taps at bin offsets `−K..=K` (odd length; `[1.0]`: the identity).
+    pub filter: Vec<f64>,
 }
 
 impl Learning {
     /// `κ(n)` for the loop's response `g` at the harmonic's frequency with the lead applied.
     pub fn factor(&self, harmonic: usize, g_with_lead: C) -> f64 {
-        let cos = libm::cos(TAU * harmonic as f64 / self.bins_per_rev as f64);
+        let nu = TAU * harmonic as f64 / self.bins_per_rev as f64;
+        let cos = libm::cos(nu);
         let q = 1.0 - 2.0 * self.q_neighbour * (1.0 - cos);
         let h = 0.25 * (3.0 + cos);
-        (q * (1.0 - self.learning_gain * h * g_with_lead)).norm()
+        let l = filter_response(&self.filter, nu);
+        (q * (1.0 - self.learning_gain * h * l * g_with_lead)).norm()
     }
+}
+
+/// `L(ν) = Σ L_l·e^{jνl}` of taps at offsets `−K..=K`.
+fn filter_response(taps: &[f64], nu: f64) -> C {
+    let k = (taps.len() / 2) as f64;
+    taps.iter()
+        .enumerate()
+        .map(|(i, &t)| t * C::from_polar(1.0, nu * (i as f64 - k)))
+        .sum()
 }
 
 /// The loop sampled at every harmonic the bins hold, at each spindle speed.
@@ -129,6 +142,49 @@ impl Harmonics {
     }
 }
 
+impl Harmonics {
+    /// The learning filter of `2·half + 1` taps that makes `L·H·G·e^{jωm}` closest to 1 over the
+    /// harmonics (least squares weighted by `|Q|`, where learning acts; a ridge of 10⁻³ of the
+    /// mean diagonal keeps the taps small where the loop gives little to fit): the inverse of
+    /// the loop over the band the bins hold.
+    pub fn fit_filter(&self, learning: &Learning, lead_ticks: f64, half: usize) -> Vec<f64> {
+        let t = 2 * half + 1;
+        let mut normal = nalgebra::DMatrix::<f64>::zeros(t, t);
+        let mut rhs = nalgebra::DVector::<f64>::zeros(t);
+        for &(n, f, g) in &self.points {
+            let nu = TAU * n as f64 / learning.bins_per_rev as f64;
+            let cos = libm::cos(nu);
+            let w = (1.0 - 2.0 * learning.q_neighbour * (1.0 - cos)).abs();
+            let lead = C::from_polar(1.0, TAU * f * lead_ticks * self.period_s);
+            let base = 0.25 * (3.0 + cos) * g * lead;
+            if !base.is_finite() {
+                continue;
+            }
+            let a: Vec<C> = (0..t)
+                .map(|i| base * C::from_polar(1.0, nu * (i as f64 - half as f64)))
+                .collect();
+            for i in 0..t {
+                rhs[i] += w * a[i].re;
+                for j in 0..t {
+                    normal[(i, j)] += w * (a[i].re * a[j].re + a[i].im * a[j].im);
+                }
+            }
+        }
+        let ridge = 1e-3 * normal.trace() / t as f64;
+        for i in 0..t {
+            normal[(i, i)] += ridge;
+        }
+        match normal.cholesky() {
+            Some(c) => c.solve(&rhs).iter().copied().collect(),
+            None => {
+                let mut identity = vec![0.0; t];
+                identity[half] = 1.0;
+                identity
+            }
+        }
+    }
+}
+
 /// The slowest-converging harmonic of a repetitive controller on a loop.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Convergence {
@@ -156,6 +212,7 @@ mod tests {
             bins_per_rev: 1000,
             learning_gain: 0.6,
             q_neighbour: 0.25,
+            filter: vec![1.0],
         };
         let h = Harmonics::sample(1000, &[50.0], t, |f| C::from_polar(1.0, -TAU * f * d * t));
         let best = h.best_lead(&learning, 50.0);
@@ -176,6 +233,42 @@ mod tests {
         );
     }
 
+    /// A loop whose gain falls with frequency (a first-order lag at 2 kHz, no delay): the lead
+    /// cannot undo its magnitude, the fitted filter does — with `k_r = 1` its worst factor over
+    /// the band the bins hold falls to nearly `|1 − k_r| = 0`.
+    #[test]
+    fn the_fitted_filter_inverts_the_loop() {
+        let t = 5e-6;
+        let learning = Learning {
+            bins_per_rev: 1000,
+            learning_gain: 1.0,
+            q_neighbour: 0.25,
+            filter: vec![1.0],
+        };
+        let lag = |f: f64| 1.0 / C::new(1.0, f / 2000.0);
+        let h = Harmonics::sample(1000, &[10.0], t, lag);
+        let lead_only = h.best_lead(&learning, 50.0);
+        let taps = h.fit_filter(&learning, lead_only.lead_ticks, 8);
+        let fitted = Learning {
+            filter: taps,
+            ..learning.clone()
+        };
+        let with_filter = h.convergence(&fitted, lead_only.lead_ticks);
+        // Lead only, with k_r = 1: where |G| has fallen (0.67 at 2.2 kHz) a revolution leaves a
+        // third of the error (0.28); the fitted filter inverts the lag: under 1 %.
+        assert!(lead_only.factor > 0.2, "{lead_only:?}");
+        assert!(
+            with_filter.factor < 0.05 * lead_only.factor,
+            "{with_filter:?} vs {lead_only:?}"
+        );
+        // At low harmonics it is a deadbeat law (k_r = 1): a revolution leaves almost nothing.
+        let low = fitted.factor(
+            10,
+            lag(100.0) * C::from_polar(1.0, TAU * 100.0 * lead_only.lead_ticks * t),
+        );
+        assert!(low < 0.02, "{low}");
+    }
+
     /// `Q` alone: with `k_r·H·G = 0` the factor is |Q| = |1 − 2q₁(1 − cos 2πn/N)|, which for
     /// q₁ > ¼ exceeds 1 at the bins' Nyquist harmonic (|1 − 4q₁|).
     #[test]
@@ -184,6 +277,7 @@ mod tests {
             bins_per_rev: 64,
             learning_gain: 1e-9,
             q_neighbour: 0.3,
+            filter: vec![1.0],
         };
         assert!((learning.factor(32, C::new(0.0, 0.0)) - 0.2).abs() < 1e-12);
         let learning = Learning {

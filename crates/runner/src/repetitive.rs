@@ -16,7 +16,7 @@ use crate::error::RunError;
 use design::repetitive::{Convergence, Harmonics, Learning};
 use num_complex::Complex64 as C;
 use recorder::Input;
-use servo_core::RepetitiveConfig;
+use servo_core::{RepetitiveConfig, LEARNING_IDENTITY, LEARNING_TAPS};
 use servo_runtime::Deployment;
 use std::f64::consts::TAU;
 use std::fmt::Write as _;
@@ -73,15 +73,16 @@ pub fn plan(
     let nominal = m.spindle_rpm / 60.0;
     let slow = 1.0 - m.spindle_drift_fraction + m.spindle_step_fraction.min(0.0);
     let fast = 1.0 + m.spindle_drift_fraction + m.spindle_step_fraction.max(0.0);
-    let block = |lead_ticks: f64| RepetitiveConfig {
+    let block = |lead_ticks: f64, learning_filter: [f64; LEARNING_TAPS]| RepetitiveConfig {
         bins_per_rev: s.bins_per_rev,
         learning_gain: s.learning_gain,
         lead_ticks,
+        learning_filter,
         q_neighbour: s.q_neighbour,
         limit_m: s.limit_m,
         max_speed_rpm: m.spindle_rpm * fast,
     };
-    if let Err(e) = block(0.0).try_build::<MAX_BINS>(period) {
+    if let Err(e) = block(0.0, LEARNING_IDENTITY).try_build::<MAX_BINS>(period) {
         return Err(origin
             .invalid(
                 &key("bins_per_rev"),
@@ -101,15 +102,26 @@ pub fn plan(
             });
     let response = loop_response(cl, deployment);
     let harmonics = Harmonics::sample(s.bins_per_rev, &speeds, period, &response);
-    let learning = Learning {
+    let mut learning = Learning {
         bins_per_rev: s.bins_per_rev,
         learning_gain: s.learning_gain,
         q_neighbour: s.q_neighbour,
+        filter: vec![1.0],
     };
-    let convergence = match s.lead_ticks {
+    let mut convergence = match s.lead_ticks {
         Some(lead) => harmonics.convergence(&learning, lead),
         None => harmonics.best_lead(&learning, MAX_AUTO_LEAD_TICKS),
     };
+    let half = s.learning_filter_half_taps;
+    let mut taps = LEARNING_IDENTITY;
+    if half > 0 {
+        let lead = convergence.lead_ticks;
+        learning.filter = harmonics.fit_filter(&learning, lead, half);
+        let centre = LEARNING_TAPS / 2;
+        taps = [0.0; LEARNING_TAPS];
+        taps[centre - half..=centre + half].copy_from_slice(&learning.filter);
+        convergence = harmonics.convergence(&learning, lead);
+    }
     if convergence.factor.is_nan() || convergence.factor >= 1.0 {
         return Err(origin
             .invalid(
@@ -132,7 +144,7 @@ pub fn plan(
     };
     let ticks = |t: f64| (t / period).round() as u64;
     Ok(RepetitivePlan {
-        config: block(convergence.lead_ticks),
+        config: block(convergence.lead_ticks, taps),
         convergence,
         lag_ticks,
         on_tick: ticks(s.on_at_s),
@@ -252,8 +264,8 @@ pub fn end_facts(p: &RepetitivePlan, table: &[f64]) -> Vec<(String, String)> {
         (
             "repetitive.law".into(),
             format!(
-                "{} bins, learning gain {}, q1 {}, lead {:.2} ticks, error against the surface {:.2} ticks earlier",
-                p.config.bins_per_rev, p.config.learning_gain, p.config.q_neighbour, p.config.lead_ticks, p.lag_ticks
+                "{} bins, learning gain {}, q1 {}, lead {:.2} ticks, learning filter {:?}, error against the surface {:.2} ticks earlier",
+                p.config.bins_per_rev, p.config.learning_gain, p.config.q_neighbour, p.config.lead_ticks, fitted_taps(&p.config.learning_filter), p.lag_ticks
             ),
         ),
         (
@@ -268,6 +280,13 @@ pub fn end_facts(p: &RepetitivePlan, table: &[f64]) -> Vec<(String, String)> {
             format!("{LEARNED_ATTACHMENT}: largest correction {:.1} nm", peak * 1e9),
         ),
     ]
+}
+
+/// The learning filter's taps from the first to the last nonzero one.
+pub fn fitted_taps(filter: &[f64; LEARNING_TAPS]) -> &[f64] {
+    let first = filter.iter().position(|t| *t != 0.0).unwrap_or(0);
+    let last = filter.iter().rposition(|t| *t != 0.0).unwrap_or(0);
+    &filter[first..=last.max(first)]
 }
 
 /// A learned table as CSV: `angle_rad,correction_m`, one row per bin (its centre).

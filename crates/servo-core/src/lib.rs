@@ -63,7 +63,9 @@ pub use math::{mul_add, ARITHMETIC, FUSED_ARITHMETIC};
 pub use observer::{DisturbanceObserver, ObserverInput};
 pub use oversample::Averager;
 pub use pid::{Pid, PidCoeffs, PidConfig, PidState, Realization};
-pub use repetitive::{Repetitive, RepetitiveConfig, RepetitiveInput};
+pub use repetitive::{
+    Repetitive, RepetitiveConfig, RepetitiveInput, LEARNING_IDENTITY, LEARNING_TAPS, MIN_BINS,
+};
 pub use setpoint::{
     Chirp, ChirpConfig, Setpoint, Sine, SineConfig, Step, StepConfig, SteppedSine,
     SteppedSineConfig, Sweep, SweepSegment,

@@ -11,18 +11,19 @@
 //! c_{j+1}[i] = q₁·c_j[i−1] + (1 − 2q₁)·c_j[i] + q₁·c_j[i+1] + k_r·ē_j[i]
 //! ```
 //!
-//! (`j` the revolution, `ē` the bin's mean error): a zero-phase robustness filter `Q` over the
-//! bins and the learning gain `k_r`. The correction for an angle is the table interpolated
-//! linearly between bin centres, read `lead_ticks` ahead of it (the learning filter `z^m`, the
-//! phase lead that compensates the loop's lag). The error converges revolution by revolution at
-//! harmonic `n` (cycles per revolution) when
+//! (`j` the revolution, `ē` the bin's mean error, filtered over neighbouring bins by the learning
+//! filter `L` when it is not the identity): a zero-phase robustness filter `Q` over the bins and
+//! the learning gain `k_r`. The correction for an angle is the table interpolated
+//! linearly between bin centres, read `lead_ticks` ahead of it (a phase lead `z^m` that
+//! compensates the loop's delay). The error converges revolution by revolution at harmonic `n`
+//! (cycles per revolution) when
 //!
 //! ```text
-//! |Q(n)·(1 − k_r·H(n)·e^{jωm}·G(e^{jω}))| < 1,  Q(n) = 1 − 2q₁(1 − cos 2πn/N),  H(n) = (3 + cos 2πn/N)/4
+//! |Q(n)·(1 − k_r·L(n)·H(n)·e^{jωm}·G(e^{jω}))| < 1,  Q(n) = 1 − 2q₁(1 − cos 2πn/N),  H(n) = (3 + cos 2πn/N)/4
 //! ```
 //!
-//! with `G` the loop from the correction to the error's measurement and `H` the bin average of the
-//! interpolated table; `design::repetitive` evaluates it for a loop before a run.
+//! with `G` the loop from the correction to the error's measurement, `H` the bin average of the
+//! interpolated table and `L(n) = Σ L_l·e^{j2πnl/N}`; `design::repetitive` evaluates it for a loop before a run.
 //!
 //! The table is `BINS` values, fixed at build time: `8·BINS` bytes (`Repetitive<8192>` is
 //! 64 KiB). Switching on and off is bumpless: the output is weighted by a factor that moves by
@@ -61,18 +62,38 @@ pub struct RepetitiveConfig {
     /// q₁]`, zero phase): 0 learns every harmonic up to `N/2`; 0.25 is the binomial low-pass
     /// that removes the harmonic `N/2` and keeps learning stable where the loop model is poor.
     pub q_neighbour: f64,
+    /// The learning filter `L`: taps on the bins' mean errors at offsets −8..=8 bins (index
+    /// `8 + l`), each in [−100, 100]: bin `i` learns `k_r·Σ L_l·ē[i + l]` (an FIR over the
+    /// previous revolution, non-causal, fitted to the inverse of the loop by
+    /// `design::repetitive`). [`LEARNING_IDENTITY`]: the bin's own error.
+    pub learning_filter: [f64; LEARNING_TAPS],
     /// Largest correction in m, (0, 1e-3]: the table is clamped to ±limit.
     pub limit_m: f64,
     /// The fastest spindle speed the controller will see in rpm, (0, 1e6].
     pub max_speed_rpm: f64,
 }
 
+/// Taps of the learning filter: offsets −8..=8 bins.
+pub const LEARNING_TAPS: usize = 17;
+
+/// Bins each side of the learning filter's centre.
+const HALF_TAPS: usize = LEARNING_TAPS / 2;
+
+/// The learning filter that takes each bin's own error.
+pub const LEARNING_IDENTITY: [f64; LEARNING_TAPS] = {
+    let mut taps = [0.0; LEARNING_TAPS];
+    taps[HALF_TAPS] = 1.0;
+    taps
+};
+
 impl RepetitiveConfig {
-    /// 4096 bins, `k_r` = 0.5, no lead, the binomial `Q` (q₁ = 0.25), ±10 µm, 1000 rpm.
+    /// 4096 bins, `k_r` = 0.5, no lead, the identity learning filter, the binomial `Q`
+    /// (q₁ = 0.25), ±10 µm, 1000 rpm.
     pub const DEFAULT: RepetitiveConfig = RepetitiveConfig {
         bins_per_rev: 4096,
         learning_gain: 0.5,
         lead_ticks: 0.0,
+        learning_filter: LEARNING_IDENTITY,
         q_neighbour: 0.25,
         limit_m: 10e-6,
         max_speed_rpm: 1000.0,
@@ -87,9 +108,9 @@ impl RepetitiveConfig {
         let t = check_period(sample_period_s)?;
         let rpm = check_range("max_speed_rpm", self.max_speed_rpm, 1e-9, 1e6)?;
         let ticks_per_rev = 60.0 / (rpm * t);
-        if BINS < 8 {
+        if BINS < MIN_BINS {
             return Err(Error::DelayTooLong {
-                samples: 8,
+                samples: MIN_BINS,
                 capacity: BINS,
             });
         }
@@ -99,8 +120,18 @@ impl RepetitiveConfig {
                 capacity: BINS,
             });
         }
-        let most = libm::floor(ticks_per_rev).min(BINS as f64).max(8.0);
-        check_range("bins_per_rev", self.bins_per_rev as f64, 8.0, most)?;
+        let most = libm::floor(ticks_per_rev)
+            .min(BINS as f64)
+            .max(MIN_BINS as f64);
+        check_range(
+            "bins_per_rev",
+            self.bins_per_rev as f64,
+            MIN_BINS as f64,
+            most,
+        )?;
+        for tap in self.learning_filter {
+            check_range("learning_filter", tap, -100.0, 100.0)?;
+        }
         Ok(Repetitive {
             bins: self.bins_per_rev,
             bins_per_rad: self.bins_per_rev as f64 / TAU,
@@ -108,7 +139,9 @@ impl RepetitiveConfig {
             lead_ticks: check_range("lead_ticks", self.lead_ticks, 0.0, 1000.0)?,
             q1: check_range("q_neighbour", self.q_neighbour, 0.0, 0.25)?,
             limit_m: check_range("limit_m", self.limit_m, 1e-12, 1e-3)?,
+            filter: self.learning_filter,
             table: [0.0; BINS],
+            window: Window::EMPTY,
             bin: usize::MAX,
             sum_m: 0.0,
             count: 0,
@@ -119,6 +152,83 @@ impl RepetitiveConfig {
             weight: 0.0,
             fault: FaultLatch::CLEAR,
         })
+    }
+}
+
+/// Fewest bins per revolution (the learning filter's span fits four times).
+pub const MIN_BINS: usize = 4 * LEARNING_TAPS;
+
+/// The last bins' mean errors in the order the spindle passed them, for the learning filter.
+#[derive(Debug, Clone, Copy)]
+struct Window {
+    errors: [f64; LEARNING_TAPS],
+    /// Where the next goes (the oldest, once full).
+    head: usize,
+    /// Consecutive bins held.
+    len: usize,
+    /// The newest bin.
+    last_bin: usize,
+    /// Whether the spindle passed them in increasing angle.
+    forward: bool,
+}
+
+impl Window {
+    const EMPTY: Window = Window {
+        errors: [0.0; LEARNING_TAPS],
+        head: 0,
+        len: 0,
+        last_bin: usize::MAX,
+        forward: true,
+    };
+
+    /// Adds bin `b`'s mean error (of `n` bins); a bin that does not follow the last starts
+    /// again.
+    #[inline]
+    fn push(&mut self, b: usize, mean_m: f64, n: usize) {
+        let after = self.last_bin < n && b == (self.last_bin + 1) % n;
+        let before = self.last_bin < n && b == (self.last_bin + n - 1) % n;
+        let follows = match self.len {
+            0 => false,
+            1 => {
+                self.forward = after;
+                after || before
+            }
+            _ => (self.forward && after) || (!self.forward && before),
+        };
+        if !follows {
+            self.len = 0;
+            self.head = 0;
+        }
+        self.errors[self.head] = mean_m;
+        self.head = (self.head + 1) % LEARNING_TAPS;
+        self.len = (self.len + 1).min(LEARNING_TAPS);
+        self.last_bin = b;
+    }
+
+    /// Once full: the middle bin and its filtered error `Σ L_l·ē[i + l]`.
+    #[inline]
+    fn filtered(&self, filter: &[f64; LEARNING_TAPS], n: usize) -> Option<(usize, f64)> {
+        if self.len < LEARNING_TAPS {
+            return None;
+        }
+        let centre = if self.forward {
+            (self.last_bin + n - HALF_TAPS) % n
+        } else {
+            (self.last_bin + HALF_TAPS) % n
+        };
+        // errors[(head + v) % T] is the v-th oldest; its angle offset is v − K forward,
+        // K − v backward.
+        let sum = (0..LEARNING_TAPS)
+            .map(|v| {
+                let tap = if self.forward {
+                    filter[v]
+                } else {
+                    filter[LEARNING_TAPS - 1 - v]
+                };
+                tap * self.errors[(self.head + v) % LEARNING_TAPS]
+            })
+            .sum();
+        Some((centre, sum))
     }
 }
 
@@ -144,7 +254,9 @@ pub struct Repetitive<const BINS: usize> {
     lead_ticks: f64,
     q1: f64,
     limit_m: f64,
+    filter: [f64; LEARNING_TAPS],
     table: [f64; BINS],
+    window: Window,
     /// The bin the accumulator belongs to (`usize::MAX`: none yet).
     bin: usize,
     sum_m: f64,
@@ -212,6 +324,7 @@ impl<const BINS: usize> Repetitive<BINS> {
         self.table[..self.bins].copy_from_slice(table);
         self.bin = usize::MAX;
         self.last_bin = usize::MAX;
+        self.window = Window::EMPTY;
         Ok(())
     }
 
@@ -255,7 +368,7 @@ impl<const BINS: usize> Repetitive<BINS> {
         }
     }
 
-    /// Bin `i` learns its mean error `mean_m`.
+    /// Bin `i` learns its filtered error `mean_m`.
     #[inline]
     fn learn(&mut self, i: usize, mean_m: f64) {
         let n = self.bins;
@@ -299,13 +412,22 @@ impl<const BINS: usize> Block for Repetitive<BINS> {
         };
         let learning = self.on && self.weight >= 1.0;
         if !learning {
-            // Bins left alone keep last revolution's value: no saved neighbour to prefer.
+            // Bins left alone keep last revolution's value: no saved neighbour to prefer, no
+            // errors to filter.
             self.last_bin = usize::MAX;
+            self.window = Window::EMPTY;
         }
         let bin = self.position(x.angle_rad) as usize;
         if bin != self.bin {
             if learning && self.count > 0 && self.bin < self.bins {
-                self.learn(self.bin, self.sum_m / f64::from(self.count));
+                let n = self.bins;
+                self.window
+                    .push(self.bin, self.sum_m / f64::from(self.count), n);
+                // A bin learns once the bins the filter reads past it are in: 8 bins late,
+                // well before it is read again a revolution on.
+                if let Some((centre, e)) = self.window.filtered(&self.filter, n) {
+                    self.learn(centre, e);
+                }
             }
             self.bin = bin;
             self.sum_m = 0.0;
@@ -321,6 +443,7 @@ impl<const BINS: usize> Block for Repetitive<BINS> {
     /// Forgets the table, the switch and the fault; the configuration is kept.
     fn reset(&mut self) {
         self.table = [0.0; BINS];
+        self.window = Window::EMPTY;
         self.bin = usize::MAX;
         self.sum_m = 0.0;
         self.count = 0;

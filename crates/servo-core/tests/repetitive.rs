@@ -4,7 +4,9 @@
 //! number of ticks or not and while the speed drifts.
 
 use core::f64::consts::TAU;
-use servo_core::{Block, Repetitive, RepetitiveConfig, RepetitiveInput};
+use servo_core::{
+    Block, Repetitive, RepetitiveConfig, RepetitiveInput, LEARNING_IDENTITY, LEARNING_TAPS,
+};
 
 const T: f64 = 1.0 / 199_600.0;
 const BINS: usize = 1024;
@@ -48,6 +50,7 @@ fn config() -> RepetitiveConfig {
         learning_gain: 0.5,
         // The loop's delay at low frequency: 2 ticks of delay + a/(1 − a) of the lag.
         lead_ticks: 3.0,
+        learning_filter: LEARNING_IDENTITY,
         q_neighbour: 0.25,
         limit_m: 1e-6,
         max_speed_rpm: 3000.0,
@@ -230,4 +233,60 @@ fn bad_configurations_are_refused() {
     let mut rc: Repetitive<BINS> = config().try_build(T).unwrap();
     assert!(rc.load(&[0.0; 999]).is_err());
     assert!(rc.load(&[2e-6; 1000]).is_err());
+}
+
+/// The learning filter reads the previous revolution's bin errors at angle offsets: with
+/// `q₁ = 0` and `k_r = 1` a bin learns exactly `Σ L_l·ē[i + l]` — turning either way (the taps
+/// are offsets in angle, not in the order the bins pass).
+#[test]
+fn the_learning_filter_reads_the_neighbouring_bins() {
+    let n = 100;
+    let ticks_per_bin = 10;
+    let g = |i: usize| 1e-9 * (1.0 + ((i * 37) % 11) as f64);
+    let mut filter = [0.0; LEARNING_TAPS];
+    let centre = LEARNING_TAPS / 2;
+    filter[centre] = 0.1;
+    filter[centre + 1] = 0.7;
+    filter[centre - 2] = 0.2;
+    filter[centre + 8] = 0.05;
+    let expected = |i: usize| {
+        let at = |l: isize| g((i as isize + l).rem_euclid(n as isize) as usize);
+        0.1 * at(0) + 0.7 * at(1) + 0.2 * at(-2) + 0.05 * at(8)
+    };
+    for direction in [1.0, -1.0] {
+        let cfg = RepetitiveConfig {
+            bins_per_rev: n,
+            learning_gain: 1.0,
+            lead_ticks: 0.0,
+            learning_filter: filter,
+            q_neighbour: 0.0,
+            limit_m: 1e-6,
+            max_speed_rpm: 1000.0,
+        };
+        let mut rc: Repetitive<BINS> = cfg.try_build(T).unwrap();
+        rc.set_enabled(true);
+        let rate = direction * TAU / (n * ticks_per_bin) as f64;
+        // One revolution to switch on, then one learning, and the 16 bins the filter waits for
+        // (less one: no bin learns twice).
+        for k in 0..(2 * n + 15) * ticks_per_bin {
+            let theta = 1e-4 + rate * k as f64;
+            let bin = (theta.rem_euclid(TAU) / TAU * n as f64) as usize;
+            rc.update(RepetitiveInput {
+                angle_rad: theta,
+                error_m: g(bin),
+                output_angle_rad: theta,
+                rate_rad_per_tick: rate,
+            });
+        }
+        let learned: Vec<usize> = (0..n).filter(|&i| rc.table()[i] != 0.0).collect();
+        assert!(learned.len() >= 95, "{direction}: {} bins", learned.len());
+        for i in learned {
+            let got = rc.table()[i];
+            assert!(
+                (got - expected(i)).abs() < 1e-22,
+                "{direction}: bin {i}: {got:e} vs {:e}",
+                expected(i)
+            );
+        }
+    }
 }

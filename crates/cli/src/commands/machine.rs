@@ -166,7 +166,12 @@ impl MachineCmd {
         if let Some(p) = &plan.repetitive {
             print_repetitive(p, &report);
         }
-        if summary.saturated_ticks > 0 && plan.config.controller.smoothing_hz == 0.0 {
+        if summary.saturated_ticks > 0 && plan.repetitive.is_some() {
+            println!(
+                "  note: the DAC saturated for {} ticks: if the form error grew over the revolutions, the learning law is too fast for this stage (lower scenario.repetitive.learning_gain)",
+                summary.saturated_ticks
+            );
+        } else if summary.saturated_ticks > 0 && plan.config.controller.smoothing_hz == 0.0 {
             println!(
                 "  note: the DAC saturated for {} ticks: the surface has kinks or steps the loop cannot follow; try --smoothing-hz 5000",
                 summary.saturated_ticks
@@ -184,8 +189,14 @@ impl MachineCmd {
 fn print_repetitive(p: &runner::repetitive::RepetitivePlan, report: &FormReport) {
     let c = &p.config;
     let k = &p.convergence;
+    let taps = runner::repetitive::fitted_taps(&c.learning_filter).len();
+    let filter = if taps > 1 {
+        format!(", a {taps}-tap learning filter fitted to the loop")
+    } else {
+        String::new()
+    };
     println!(
-        "  repetitive control: {} bins, learning gain {}, q1 {}, lead {:.2} ticks; slowest harmonic {} ({:.0} Hz): error × {:.3} per revolution",
+        "  repetitive control: {} bins, learning gain {}, q1 {}, lead {:.2} ticks{filter}; slowest harmonic {} ({:.0} Hz): error × {:.3} per revolution",
         c.bins_per_rev, c.learning_gain, c.q_neighbour, c.lead_ticks, k.harmonic, k.frequency_hz, k.factor
     );
     let revs: Vec<String> = report

@@ -22,9 +22,12 @@ pub struct RepetitiveSection {
     /// Robustness filter weight `q₁` on each neighbouring bin, [0, 0.25] (0.25: the binomial
     /// `[¼, ½, ¼]`).
     pub q_neighbour: f64,
-    /// Lead of the learning filter in ticks, [0, 1000]; absent: the lead that makes the
-    /// slowest harmonic converge fastest on the run's sampled loop.
+    /// Lead in ticks, [0, 1000]; absent: the lead that makes the slowest harmonic converge
+    /// fastest on the run's sampled loop.
     pub lead_ticks: Option<f64>,
+    /// Taps of the learning filter on each side, [0, 8] bins: an FIR over neighbouring bins
+    /// fitted to the inverse of the run's sampled loop (with the lead); 0: the lead alone.
+    pub learning_filter_half_taps: usize,
     /// Largest correction in m, (0, 1e-3] (10e-6).
     pub limit_m: f64,
     /// When the correction is switched on, s from the start (0); it ramps in over a revolution.
@@ -44,6 +47,7 @@ impl Default for RepetitiveSection {
             learning_gain: 0.5,
             q_neighbour: 0.25,
             lead_ticks: None,
+            learning_filter_half_taps: 0,
             limit_m: 10e-6,
             on_at_s: 0.0,
             off_at_s: None,
@@ -82,6 +86,13 @@ impl RepetitiveSection {
                 "[0, 1000] ticks",
             )?;
         }
+        let h = self.learning_filter_half_taps;
+        check(
+            "learning_filter_half_taps",
+            h as f64,
+            h <= servo_core::LEARNING_TAPS / 2,
+            "[0, 8] bins",
+        )?;
         let l = self.limit_m;
         check("limit_m", l, l > 0.0 && l <= 1e-3, "(0, 1e-3] m")?;
         let on = self.on_at_s;
