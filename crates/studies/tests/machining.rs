@@ -3,14 +3,12 @@
 
 mod common;
 
-use common::plan;
+use common::{machine, plan};
 use runner::closed_loop::{input, output};
 use runner::config::Machining;
 use runner::config::{FeedforwardKind, Loaded, Scenario};
-use runner::run::RunOptions;
-use runner::stop::StopRequest;
 use std::f64::consts::TAU;
-use studies::form::{run_machining, FormReport};
+use studies::form::FormReport;
 
 /// Three revolutions inward from `outer_m` at 60 rpm with feedforward `ff`.
 fn cfg(outer_m: f64, ff: FeedforwardKind) -> Loaded {
@@ -26,19 +24,8 @@ fn cfg(outer_m: f64, ff: FeedforwardKind) -> Loaded {
     cfg
 }
 
-fn machine(cfg: &Loaded) -> FormReport {
-    let stop = StopRequest::new();
-    let (_, a) = run_machining(
-        &plan(cfg),
-        RunOptions {
-            out: None,
-            stop: &stop,
-            progress: &mut |_, _| {},
-            digest: false,
-        },
-    )
-    .unwrap();
-    a.report()
+fn machined(cfg: &Loaded) -> FormReport {
+    machine(&plan(cfg)).1.report()
 }
 
 /// The X peak-to-valley the loop should machine without feedforward, from the analytic
@@ -95,7 +82,7 @@ fn predicted_pv_x(cfg: &Loaded, r: f64) -> f64 {
 fn edge_of_the_part_overcuts_as_the_loop_gain_predicts_and_zpetc_removes_it() {
     let edge = runner::config::GRID_EDGE_RADIUS_M;
     let plain = cfg(edge, FeedforwardKind::None);
-    let none = machine(&plain);
+    let none = machined(&plain);
     let grid = none.grid.unwrap();
     // The thesis measured 11.18 µm for a 10 µm grid at the edge (§8.5.4): the loop's |T| > 1
     // below its resonance magnifies the motion. Here: the analytic loop's mean gain.
@@ -109,7 +96,7 @@ fn edge_of_the_part_overcuts_as_the_loop_gain_predicts_and_zpetc_removes_it() {
     // §8.5.4: "about 200 Hz at the edge".
     assert!((none.max_motion_frequency_hz.unwrap() - 200.0).abs() < 0.1);
 
-    let zpetc = machine(&cfg(edge, FeedforwardKind::Zpetc));
+    let zpetc = machined(&cfg(edge, FeedforwardKind::Zpetc));
     let g = zpetc.grid.unwrap();
     assert!((g.machined_pv_x_m / 10e-6 - 1.0).abs() < 0.01, "{g:?}");
     assert!((g.machined_pv_y_m / 10e-6 - 1.0).abs() < 0.01, "{g:?}");
@@ -124,7 +111,7 @@ fn edge_of_the_part_overcuts_as_the_loop_gain_predicts_and_zpetc_removes_it() {
     // left of its following error is the noise floor of a loop holding still (0.88 nm RMS in
     // the default hold run; thesis §5.7.4: 0.83 nm) — a tick of misalignment would leave
     // 2π · 200 Hz · 5 µm · 5.01 µs / √2 = 22 nm.
-    let sensor = machine(&cfg(edge, FeedforwardKind::ZpetcSensor));
+    let sensor = machined(&cfg(edge, FeedforwardKind::ZpetcSensor));
     assert!(
         sensor.following_error_m.rms < 1.5e-9,
         "following RMS {} vs {}",
@@ -144,7 +131,7 @@ fn edge_of_the_part_overcuts_as_the_loop_gain_predicts_and_zpetc_removes_it() {
 #[test]
 fn near_the_centre_the_slow_motion_is_machined_true() {
     // 2.5 mm from the axis the grid moves the tool at ≤ 16 Hz (thesis: 10.02 µm at the centre).
-    let centre = machine(&cfg(2.5e-3, FeedforwardKind::None));
+    let centre = machined(&cfg(2.5e-3, FeedforwardKind::None));
     let g = centre.grid.unwrap();
     assert!((g.machined_pv_x_m / 10e-6 - 1.0).abs() < 0.005, "{g:?}");
 }
@@ -163,7 +150,7 @@ fn beam_integrator_transition_overshoot_shrinks_with_smoothed_zpetc() {
         }
         c.config.run.duration_s = 1.0;
         c.config.controller.smoothing_hz = smoothing_hz;
-        machine(&c)
+        machined(&c)
     };
     let none = beam(FeedforwardKind::None, 0.0);
     assert!(

@@ -4,3 +4,19 @@
 pub fn plan(l: &runner::config::Loaded) -> runner::Plan {
     runner::Plan::new(l).unwrap()
 }
+
+/// Runs the machining plan `p` to its end, unrecorded: its summary and form analysis.
+#[allow(dead_code)] // Used by the machining tests, not by every test binary.
+pub fn machine(p: &runner::Plan) -> (runner::summary::Summary, studies::form::FormAnalysis) {
+    let stop = runner::stop::StopRequest::new();
+    studies::form::run_machining(
+        p,
+        runner::run::RunOptions {
+            out: None,
+            stop: &stop,
+            progress: &mut |_, _| {},
+            digest: false,
+        },
+    )
+    .unwrap()
+}
