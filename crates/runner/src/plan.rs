@@ -188,6 +188,16 @@ impl Plan {
         };
         let controller = Controller::build(&config, &origin, ss)?;
         let closed_loop = closed_loop_of(&config, &origin, &sim, &controller)?;
+        if let Some(seed) = config.run.practice_seed {
+            // Drawn here so that a run on it cannot fail later (the backend draws it again).
+            plant_sim::practice::PracticeStage::new(&config.plant, seed).map_err(|e| {
+                origin.invalid(
+                    "run.practice_seed",
+                    seed,
+                    &format!("a seed whose drawn stage simulates ({e})"),
+                )
+            })?;
+        }
         let deployment = Deployment {
             servo_rate_hz: config.plant.timing.servo_rate_hz,
             stage: stage_of(&config),

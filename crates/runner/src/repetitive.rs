@@ -82,15 +82,10 @@ pub fn plan(
         limit_m: s.limit_m,
         max_speed_rpm: m.spindle_rpm * fast,
     };
-    if let Err(e) = block(0.0, LEARNING_IDENTITY).try_build::<MAX_BINS>(period) {
-        return Err(origin
-            .invalid(
-                &key("bins_per_rev"),
-                s.bins_per_rev,
-                &format!("at most the ticks of one revolution at the fastest spindle speed ({e})"),
-            )
-            .into());
-    }
+    // The bins against the fastest speed, before the loop is evaluated at each harmonic.
+    block(0.0, LEARNING_IDENTITY)
+        .try_build::<MAX_BINS>(period)
+        .map_err(|e| refused(origin, e))?;
     let speeds: Vec<f64> =
         [nominal * slow, nominal, nominal * fast]
             .into_iter()
@@ -136,8 +131,22 @@ pub fn plan(
     }
     let lag_ticks = match config.controller.feedforward {
         FeedforwardKind::ZpetcSensor => -1.0,
-        _ => sensor_delay_ticks(cl) - 1.0,
+        _ => {
+            sensor_delay_ticks(cl).ok_or_else(|| {
+                origin.invalid(
+                    "scenario.repetitive",
+                    "(the loop's sensor delay)",
+                    "a loop whose reading and tool responses can be evaluated at 100 Hz",
+                )
+            })? - 1.0
+        }
     };
+    // The block is built from the final law: its lead plus the reference's preview must stay
+    // short of the bins learned this revolution.
+    let preview = (deployment.feedforward.preview() + deployment.smoothing_half()) as f64;
+    block(convergence.lead_ticks + preview, taps)
+        .try_build::<MAX_BINS>(period)
+        .map_err(|e| refused(origin, e))?;
     let table = match &s.table {
         None => None,
         Some(path) => Some(load_table(path, s, inputs, origin)?),
@@ -178,13 +187,48 @@ fn loop_response<'a>(cl: &'a ClosedLoop, deployment: &'a Deployment) -> impl Fn(
 
 /// The measured position's delay behind the tool at low frequency, ticks (the loop model's
 /// tool at a tick's end against the sample the tick starts with).
-fn sensor_delay_ticks(cl: &ClosedLoop) -> f64 {
+fn sensor_delay_ticks(cl: &ClosedLoop) -> Option<f64> {
     let reading = cl.response(output::MEASURED_M, input::REFERENCE_M, LAG_PROBE_HZ);
     let tool = cl.response(output::TOOL_M, input::REFERENCE_M, LAG_PROBE_HZ);
-    match (reading, tool) {
-        (Ok(r), Ok(t)) => -(r / t).arg() / (TAU * LAG_PROBE_HZ * cl.period_s),
-        _ => 0.0,
-    }
+    let ratio = reading.ok()? / tool.ok()?;
+    ratio
+        .is_finite()
+        .then(|| -ratio.arg() / (TAU * LAG_PROBE_HZ * cl.period_s))
+}
+
+/// The block's refusal of the planned law, at the key that sets the refused value.
+fn refused(origin: &Origin, e: servo_core::Error) -> RunError {
+    let (param, value, range) = match e {
+        servo_core::Error::OutOfRange {
+            param,
+            value,
+            min,
+            max,
+        } => (param, value, format!("[{min}, {max}]")),
+        servo_core::Error::NotFinite { param } => (param, f64::NAN, "a finite number".into()),
+        other => ("bins_per_rev", f64::NAN, other.to_string()),
+    };
+    let (key, range) = match param {
+        "learning_filter" => (
+            "learning_filter_half_taps".to_owned(),
+            format!("a filter whose fitted taps stay within {range} (fewer taps)"),
+        ),
+        "lead_ticks" => (
+            param.to_owned(),
+            format!("{range} ticks with the reference's preview added (short of the bins learned this revolution)"),
+        ),
+        "bins_per_rev" => (
+            param.to_owned(),
+            format!("{range}: at most half the ticks of one revolution at the fastest spindle speed"),
+        ),
+        _ => (param.to_owned(), range),
+    };
+    let key = if param == "max_speed_rpm" {
+        "scenario.spindle_rpm".to_owned()
+    } else {
+        format!("scenario.repetitive.{key}")
+    };
+    origin.invalid(&key, value, &range).into()
 }
 
 /// The table of `s.table`: from `inputs` when there (a replay), else read and added.

@@ -51,7 +51,7 @@ impl SimBackend {
             None => Stage::Configured(plan.sim.clone()),
             Some(seed) => Stage::Practice(Box::new(
                 PracticeStage::new(&plan.config.plant, seed)
-                    .expect("the practice stage of a plant the plan built"),
+                    .expect("the plan drew this practice stage without error"),
             )),
         };
         SimBackend {

@@ -8,12 +8,12 @@
 //! bin under it; when the angle leaves a bin, the bin learns:
 //!
 //! ```text
-//! c_{j+1}[i] = q₁·c_j[i−1] + (1 − 2q₁)·c_j[i] + q₁·c_j[i+1] + k_r·ē_j[i]
+//! u[i] = c_j[i] + k_r·ē_j[i],   c_{j+1}[i] = q₁·u[i−1] + (1 − 2q₁)·u[i] + q₁·u[i+1]
 //! ```
 //!
 //! (`j` the revolution, `ē` the bin's mean error, filtered over neighbouring bins by the learning
-//! filter `L` when it is not the identity): a zero-phase robustness filter `Q` over the bins and
-//! the learning gain `k_r`. The correction for an angle is the table interpolated
+//! filter `L` when it is not the identity): the learning gain `k_r`, and a zero-phase
+//! robustness filter `Q` over the bins applied to the table and what it learns alike. The correction for an angle is the table interpolated
 //! linearly between bin centres, read `lead_ticks` ahead of it (a phase lead `z^m` that
 //! compensates the loop's delay). The error converges revolution by revolution at harmonic `n`
 //! (cycles per revolution) when
@@ -49,23 +49,26 @@ use core::f64::consts::TAU;
 /// Configuration of a [`Repetitive`] controller.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RepetitiveConfig {
-    /// Bins per revolution `N`: the table's resolution. At most the capacity `BINS` and the
-    /// ticks of one revolution at `max_speed_rpm` (every bin sees a sample each revolution).
+    /// Bins per revolution `N`: the table's resolution. At least [`MIN_BINS`], at most the
+    /// capacity `BINS` and half the ticks of one revolution at `max_speed_rpm` (every bin sees
+    /// two samples each revolution).
     pub bins_per_rev: usize,
     /// Learning gain `k_r` in (0, 2): the fraction of a revolution's error learned per
     /// revolution (with an exact loop model, `1 − k_r` is the error left after each).
     pub learning_gain: f64,
-    /// Phase lead of the learning filter in ticks, [0, 1000]: the loop's delay from the
-    /// correction to the measured error.
+    /// Phase lead in ticks, [0, 1000] and short of the bins learned this revolution (N − 11
+    /// bins at the fastest speed): the loop's delay from the correction to the measured error.
+    /// The block's caller adds its own read-ahead (`output_angle_rad`) to it.
     pub lead_ticks: f64,
     /// Robustness filter weight `q₁` in [0, 0.25] on each neighbouring bin (`Q = [q₁, 1 − 2q₁,
     /// q₁]`, zero phase): 0 learns every harmonic up to `N/2`; 0.25 is the binomial low-pass
     /// that removes the harmonic `N/2` and keeps learning stable where the loop model is poor.
     pub q_neighbour: f64,
-    /// The learning filter `L`: taps on the bins' mean errors at offsets −8..=8 bins (index
-    /// `8 + l`), each in [−100, 100]: bin `i` learns `k_r·Σ L_l·ē[i + l]` (an FIR over the
-    /// previous revolution, non-causal, fitted to the inverse of the loop by
-    /// `design::repetitive`). [`LEARNING_IDENTITY`]: the bin's own error.
+    /// The learning filter `L`: taps on the bins' mean errors at offsets −8..=8 bins in the
+    /// order the spindle passes them (index `8 + l`; in time, as the lead), each in
+    /// [−100, 100]: bin `i` learns `k_r·Σ L_l·ē[i + l]` (an FIR over the previous revolution,
+    /// non-causal, fitted to the inverse of the loop by `design::repetitive`).
+    /// [`LEARNING_IDENTITY`]: the bin's own error.
     pub learning_filter: [f64; LEARNING_TAPS],
     /// Largest correction in m, (0, 1e-3]: the table is clamped to ±limit.
     pub limit_m: f64,
@@ -136,7 +139,7 @@ impl RepetitiveConfig {
             bins: self.bins_per_rev,
             bins_per_rad: self.bins_per_rev as f64 / TAU,
             gain: check_range("learning_gain", self.learning_gain, 1e-6, 2.0 - 1e-6)?,
-            lead_ticks: check_range("lead_ticks", self.lead_ticks, 0.0, 1000.0)?,
+            lead_ticks: self.lead_ticks,
             q1: check_range("q_neighbour", self.q_neighbour, 0.0, 0.25)?,
             limit_m: check_range("limit_m", self.limit_m, 1e-12, 1e-3)?,
             filter: self.learning_filter,
@@ -145,8 +148,7 @@ impl RepetitiveConfig {
             bin: usize::MAX,
             sum_m: 0.0,
             count: 0,
-            last_bin: usize::MAX,
-            last_old_m: 0.0,
+            pending: Pending::EMPTY,
             last_angle_rad: f64::NAN,
             on: false,
             weight: 0.0,
@@ -182,9 +184,9 @@ impl Window {
     };
 
     /// Adds bin `b`'s mean error (of `n` bins); a bin that does not follow the last starts
-    /// again.
+    /// again (false).
     #[inline]
-    fn push(&mut self, b: usize, mean_m: f64, n: usize) {
+    fn push(&mut self, b: usize, mean_m: f64, n: usize) -> bool {
         let after = self.last_bin < n && b == (self.last_bin + 1) % n;
         let before = self.last_bin < n && b == (self.last_bin + n - 1) % n;
         let follows = match self.len {
@@ -203,9 +205,12 @@ impl Window {
         self.head = (self.head + 1) % LEARNING_TAPS;
         self.len = (self.len + 1).min(LEARNING_TAPS);
         self.last_bin = b;
+        follows
     }
 
-    /// Once full: the middle bin and its filtered error `Σ L_l·ē[i + l]`.
+    /// Once full: the middle bin and its filtered error `Σ L_l·ē[l]`, `l` counted in the
+    /// order the spindle passes the bins (in time, as the lead: turning backwards the filter
+    /// still leads).
     #[inline]
     fn filtered(&self, filter: &[f64; LEARNING_TAPS], n: usize) -> Option<(usize, f64)> {
         if self.len < LEARNING_TAPS {
@@ -216,19 +221,41 @@ impl Window {
         } else {
             (self.last_bin + HALF_TAPS) % n
         };
-        // errors[(head + v) % T] is the v-th oldest; its angle offset is v − K forward,
-        // K − v backward.
-        let sum = (0..LEARNING_TAPS)
-            .map(|v| {
-                let tap = if self.forward {
-                    filter[v]
-                } else {
-                    filter[LEARNING_TAPS - 1 - v]
-                };
-                tap * self.errors[(self.head + v) % LEARNING_TAPS]
-            })
+        // errors[(head + v) % T] is the v-th oldest: pass offset v − K.
+        let sum = filter
+            .iter()
+            .enumerate()
+            .map(|(v, tap)| tap * self.errors[(self.head + v) % LEARNING_TAPS])
             .sum();
         Some((centre, sum))
+    }
+}
+
+/// The last two bins' `c + k_r·L·ē` in the order the spindle passed them.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    bins: [usize; 2],
+    values: [f64; 2],
+    len: usize,
+}
+
+impl Pending {
+    const EMPTY: Pending = Pending {
+        bins: [usize::MAX; 2],
+        values: [0.0; 2],
+        len: 0,
+    };
+
+    /// Adds bin `b`'s value; once the two before it are in, the middle one and
+    /// `(its predecessor, its value, b's value)`.
+    #[inline]
+    fn push(&mut self, b: usize, value: f64) -> Option<(usize, [f64; 3])> {
+        let done =
+            (self.len == 2).then_some((self.bins[1], [self.values[0], self.values[1], value]));
+        self.bins = [self.bins[1], b];
+        self.values = [self.values[1], value];
+        self.len = (self.len + 1).min(2);
+        done
     }
 }
 
@@ -261,9 +288,8 @@ pub struct Repetitive<const BINS: usize> {
     bin: usize,
     sum_m: f64,
     count: u32,
-    /// The bin learned last and its value before (the previous revolution's).
-    last_bin: usize,
-    last_old_m: f64,
+    /// The last bins' `c + k_r·L·ē`, waiting for their successor to apply `Q`.
+    pending: Pending,
     last_angle_rad: f64,
     on: bool,
     weight: f64,
@@ -323,8 +349,8 @@ impl<const BINS: usize> Repetitive<BINS> {
         }
         self.table[..self.bins].copy_from_slice(table);
         self.bin = usize::MAX;
-        self.last_bin = usize::MAX;
         self.window = Window::EMPTY;
+        self.pending = Pending::EMPTY;
         Ok(())
     }
 
@@ -351,35 +377,20 @@ impl<const BINS: usize> Repetitive<BINS> {
         let n = self.bins;
         let i = if below < 0.0 { n - 1 } else { below as usize };
         let j = if i + 1 == n { 0 } else { i + 1 };
-        // The bin learned last is read at its value of the previous revolution: what it learned
-        // acts one revolution later, not half a bin later (a fast inner loop through the
-        // interpolation, which the convergence check does not describe).
-        let (a, b) = (self.previous(i), self.previous(j));
-        a + frac * (b - a)
+        // Bins learn K + 2 bins behind the spindle, so a read ahead of it finds the previous
+        // revolution's value (what a bin learns acts one revolution later).
+        self.table[i] + frac * (self.table[j] - self.table[i])
     }
 
-    /// The table's value of bin `j` one revolution ago.
+    /// The bin the window's middle holds learns: `u = c + k_r·Σ L_l·ē`, and the bin before it
+    /// in pass order takes `Q` of the three latest `u`: `c⁺ = q₁·(u₋ + u₊) + (1 − 2q₁)·u`.
     #[inline]
-    fn previous(&self, j: usize) -> f64 {
-        if j == self.last_bin {
-            self.last_old_m
-        } else {
-            self.table[j]
+    fn learn(&mut self, centre: usize, filtered_m: f64) {
+        let u = self.table[centre] + self.gain * filtered_m;
+        if let Some((i, [before, at, after])) = self.pending.push(centre, u) {
+            let new = self.q1 * (before + after) + (1.0 - 2.0 * self.q1) * at;
+            self.table[i] = new.clamp(-self.limit_m, self.limit_m);
         }
-    }
-
-    /// Bin `i` learns its filtered error `mean_m`.
-    #[inline]
-    fn learn(&mut self, i: usize, mean_m: f64) {
-        let n = self.bins;
-        let left = self.previous(if i == 0 { n - 1 } else { i - 1 });
-        let right = self.previous(if i + 1 == n { 0 } else { i + 1 });
-        let old = self.table[i];
-        let filtered = self.q1 * (left + right) + (1.0 - 2.0 * self.q1) * old;
-        let new = filtered + self.gain * mean_m;
-        self.table[i] = new.clamp(-self.limit_m, self.limit_m);
-        self.last_bin = i;
-        self.last_old_m = old;
     }
 }
 
@@ -412,19 +423,23 @@ impl<const BINS: usize> Block for Repetitive<BINS> {
         };
         let learning = self.on && self.weight >= 1.0;
         if !learning {
-            // Bins left alone keep last revolution's value: no saved neighbour to prefer, no
-            // errors to filter.
-            self.last_bin = usize::MAX;
+            // Bins left alone keep last revolution's value; learning starts afresh.
             self.window = Window::EMPTY;
+            self.pending = Pending::EMPTY;
         }
         let bin = self.position(x.angle_rad) as usize;
         if bin != self.bin {
             if learning && self.count > 0 && self.bin < self.bins {
                 let n = self.bins;
-                self.window
-                    .push(self.bin, self.sum_m / f64::from(self.count), n);
-                // A bin learns once the bins the filter reads past it are in: 8 bins late,
-                // well before it is read again a revolution on.
+                if !self
+                    .window
+                    .push(self.bin, self.sum_m / f64::from(self.count), n)
+                {
+                    self.pending = Pending::EMPTY;
+                }
+                // A bin learns once the bins the filter reads past it are in, and is written
+                // once its successor has learned too (Q): K + 2 bins late, well before it is
+                // read again a revolution on.
                 if let Some((centre, e)) = self.window.filtered(&self.filter, n) {
                     self.learn(centre, e);
                 }
@@ -447,8 +462,7 @@ impl<const BINS: usize> Block for Repetitive<BINS> {
         self.bin = usize::MAX;
         self.sum_m = 0.0;
         self.count = 0;
-        self.last_bin = usize::MAX;
-        self.last_old_m = 0.0;
+        self.pending = Pending::EMPTY;
         self.last_angle_rad = f64::NAN;
         self.on = false;
         self.weight = 0.0;

@@ -235,9 +235,9 @@ fn bad_configurations_are_refused() {
     assert!(rc.load(&[2e-6; 1000]).is_err());
 }
 
-/// The learning filter reads the previous revolution's bin errors at angle offsets: with
-/// `q₁ = 0` and `k_r = 1` a bin learns exactly `Σ L_l·ē[i + l]` — turning either way (the taps
-/// are offsets in angle, not in the order the bins pass).
+/// The learning filter reads the previous revolution's bin errors at offsets in the order the
+/// spindle passes the bins (in time, as the lead): with `q₁ = 0` and `k_r = 1` a bin learns
+/// exactly `Σ L_l·ē[i + l]` turning forwards and `Σ L_l·ē[i − l]` backwards.
 #[test]
 fn the_learning_filter_reads_the_neighbouring_bins() {
     let n = 100;
@@ -249,8 +249,11 @@ fn the_learning_filter_reads_the_neighbouring_bins() {
     filter[centre + 1] = 0.7;
     filter[centre - 2] = 0.2;
     filter[centre + 8] = 0.05;
-    let expected = |i: usize| {
-        let at = |l: isize| g((i as isize + l).rem_euclid(n as isize) as usize);
+    let expected = |i: usize, direction: f64| {
+        let at = |l: isize| {
+            let offset = if direction > 0.0 { l } else { -l };
+            g((i as isize + offset).rem_euclid(n as isize) as usize)
+        };
         0.1 * at(0) + 0.7 * at(1) + 0.2 * at(-2) + 0.05 * at(8)
     };
     for direction in [1.0, -1.0] {
@@ -266,8 +269,8 @@ fn the_learning_filter_reads_the_neighbouring_bins() {
         let mut rc: Repetitive<BINS> = cfg.try_build(T).unwrap();
         rc.set_enabled(true);
         let rate = direction * TAU / (n * ticks_per_bin) as f64;
-        // One revolution to switch on, then one learning, and the 16 bins the filter waits for
-        // (less one: no bin learns twice).
+        // One revolution to switch on, then one learning, and the bins the filter and Q wait
+        // for (less one: no bin learns twice).
         for k in 0..(2 * n + 15) * ticks_per_bin {
             let theta = 1e-4 + rate * k as f64;
             let bin = (theta.rem_euclid(TAU) / TAU * n as f64) as usize;
@@ -282,11 +285,64 @@ fn the_learning_filter_reads_the_neighbouring_bins() {
         assert!(learned.len() >= 95, "{direction}: {} bins", learned.len());
         for i in learned {
             let got = rc.table()[i];
+            let want = expected(i, direction);
             assert!(
-                (got - expected(i)).abs() < 1e-22,
-                "{direction}: bin {i}: {got:e} vs {:e}",
-                expected(i)
+                (got - want).abs() < 1e-22,
+                "{direction}: bin {i}: {got:e} vs {want:e}"
             );
         }
     }
+}
+
+/// Where `Q` is far from 1 the law's factor is the textbook `Q·(1 − k_r·H·G)` (the robustness
+/// filter acts on what is learned as on the table): a disturbance at a quarter of the bins'
+/// rate (`Q = ½`, `H = ¾`) through an exactly led loop (`G = 1`) with `k_r = 1` settles at
+/// `(1 − Q)/(1 − Q·(1 − k_r·H)) = 0.571` of itself. (Filtering only the table, `Q·c + k_r·ē`,
+/// would settle at `(1 − Q)/(1 − Q + k_r·H) = 0.4`.)
+#[test]
+fn the_robustness_filter_acts_on_what_is_learned() {
+    let n = 200;
+    let ticks_per_rev = 2000.0;
+    let harmonic = 50.0;
+    let cfg = RepetitiveConfig {
+        bins_per_rev: n,
+        learning_gain: 1.0,
+        lead_ticks: 0.0,
+        learning_filter: LEARNING_IDENTITY,
+        q_neighbour: 0.25,
+        limit_m: 1e-6,
+        max_speed_rpm: 3000.0,
+    };
+    let mut rc: Repetitive<BINS> = cfg.try_build(T).unwrap();
+    rc.set_enabled(true);
+    let rate = TAU / ticks_per_rev;
+    let delay = 2;
+    let mut given = std::collections::VecDeque::from(vec![0.0; delay]);
+    let revolutions = 40;
+    let mut sq = vec![0.0; revolutions];
+    for k in 0..(revolutions as f64 * ticks_per_rev) as usize {
+        let theta = rate * k as f64;
+        // The correction given `delay` ticks ago for this tick's angle reaches the output now.
+        let applied = given.pop_front().unwrap();
+        let d = 10e-9 * libm::sin(harmonic * theta + 0.2);
+        let error = -(applied + d);
+        let c = rc.update(RepetitiveInput {
+            angle_rad: theta,
+            error_m: error,
+            output_angle_rad: theta + delay as f64 * rate,
+            rate_rad_per_tick: rate,
+        });
+        given.push_back(c);
+        sq[(k as f64 / ticks_per_rev) as usize] += error * error;
+    }
+    let rms: Vec<f64> = sq.iter().map(|s| (s / ticks_per_rev).sqrt()).collect();
+    let q = 1.0 - 2.0 * 0.25 * (1.0 - libm::cos(TAU * harmonic / n as f64));
+    let h = 0.25 * (3.0 + libm::cos(TAU * harmonic / n as f64));
+    let settled = (1.0 - q) / (1.0 - q * (1.0 - h));
+    let ratio = rms[revolutions - 1] / rms[0];
+    assert!((settled - 0.5714).abs() < 1e-3, "{settled}");
+    assert!(
+        (ratio - settled).abs() < 0.02,
+        "{ratio} vs {settled}: {rms:?}"
+    );
 }

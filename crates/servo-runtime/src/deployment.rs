@@ -353,7 +353,7 @@ impl Deployment {
     }
 
     /// Half the smoothing window in ticks (0: no smoothing).
-    pub(crate) fn smoothing_half(&self) -> usize {
+    pub fn smoothing_half(&self) -> usize {
         if self.smoothing_hz > 0.0 {
             libm::round(self.servo_rate_hz / self.smoothing_hz / 2.0) as usize
         } else {

@@ -14,10 +14,11 @@ pub const MAX_BINS: usize = 8192;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct RepetitiveSection {
-    /// Bins per revolution, [8, 8192] and at most the ticks of one revolution (4096).
+    /// Bins per revolution, [68, 8192] and at most half the ticks of one revolution at the
+    /// fastest speed (4096).
     pub bins_per_rev: usize,
-    /// Learning gain `k_r`, (0, 2): the fraction of a revolution's error learned per revolution
-    /// (0.5).
+    /// Learning gain `k_r`, [1e-6, 2 − 1e-6]: the fraction of a revolution's error learned per
+    /// revolution (0.5).
     pub learning_gain: f64,
     /// Robustness filter weight `q₁` on each neighbouring bin, [0, 0.25] (0.25: the binomial
     /// `[¼, ½, ¼]`).
@@ -28,7 +29,7 @@ pub struct RepetitiveSection {
     /// Taps of the learning filter on each side, [0, 8] bins: an FIR over neighbouring bins
     /// fitted to the inverse of the run's sampled loop (with the lead); 0: the lead alone.
     pub learning_filter_half_taps: usize,
-    /// Largest correction in m, (0, 1e-3] (10e-6).
+    /// Largest correction in m, [1e-12, 1e-3] (10e-6).
     pub limit_m: f64,
     /// When the correction is switched on, s from the start (0); it ramps in over a revolution.
     pub on_at_s: f64,
@@ -71,11 +72,16 @@ impl RepetitiveSection {
         check(
             "bins_per_rev",
             n as f64,
-            (8..=MAX_BINS).contains(&n),
-            "[8, 8192] bins",
+            (servo_core::MIN_BINS..=MAX_BINS).contains(&n),
+            "[68, 8192] bins",
         )?;
         let g = self.learning_gain;
-        check("learning_gain", g, g > 0.0 && g < 2.0, "(0, 2)")?;
+        check(
+            "learning_gain",
+            g,
+            (1e-6..=2.0 - 1e-6).contains(&g),
+            "[1e-6, 2 − 1e-6]",
+        )?;
         let q = self.q_neighbour;
         check("q_neighbour", q, (0.0..=0.25).contains(&q), "[0, 0.25]")?;
         if let Some(m) = self.lead_ticks {
@@ -94,7 +100,7 @@ impl RepetitiveSection {
             "[0, 8] bins",
         )?;
         let l = self.limit_m;
-        check("limit_m", l, l > 0.0 && l <= 1e-3, "(0, 1e-3] m")?;
+        check("limit_m", l, (1e-12..=1e-3).contains(&l), "[1e-12, 1e-3] m")?;
         let on = self.on_at_s;
         check("on_at_s", on, (0.0..=1e6).contains(&on), "[0, 1e6] s")?;
         if let Some(off) = self.off_at_s {
