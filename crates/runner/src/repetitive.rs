@@ -3,7 +3,7 @@
 //! the target the measured error is taken against, and the learned table as a file.
 //!
 //! The controller learns from what it measures: the gap sensor on the coil carrier, which
-//! lags the tool by its filter and the sampling (≈ 6 ticks on the default stage). Learned
+//! lags the tool by its filter and the sampling (≈ 4.3 ticks on the default stage). Learned
 //! against the design surface itself, the correction would make the *sensor* follow it and
 //! cut the lag into the part (ZPETC's `zpetc-sensor` case). So unless the feedforward targets
 //! the sensor, the error is taken against the surface `lag_ticks` earlier — the model's delay
