@@ -69,7 +69,6 @@ pub fn plan(
     inputs: &mut Vec<Input>,
 ) -> Result<RepetitivePlan, RunError> {
     let period = cl.period_s;
-    let key = |k: &str| format!("scenario.repetitive.{k}");
     let nominal = m.spindle_rpm / 60.0;
     let slow = 1.0 - m.spindle_drift_fraction + m.spindle_step_fraction.min(0.0);
     let fast = 1.0 + m.spindle_drift_fraction + m.spindle_step_fraction.max(0.0);
@@ -86,15 +85,9 @@ pub fn plan(
     block(0.0, LEARNING_IDENTITY)
         .try_build::<MAX_BINS>(period)
         .map_err(|e| refused(origin, e))?;
-    let speeds: Vec<f64> =
-        [nominal * slow, nominal, nominal * fast]
-            .into_iter()
-            .fold(Vec::new(), |mut v, x| {
-                if !v.contains(&x) {
-                    v.push(x);
-                }
-                v
-            });
+    // Slowest to fastest: equal neighbours (no drift, no step) are evaluated once.
+    let mut speeds = vec![nominal * slow, nominal, nominal * fast];
+    speeds.dedup();
     let response = loop_response(cl, deployment);
     let harmonics = Harmonics::sample(s.bins_per_rev, &speeds, period, &response);
     let mut learning = Learning {
@@ -120,7 +113,7 @@ pub fn plan(
     if convergence.factor.is_nan() || convergence.factor >= 1.0 {
         return Err(origin
             .invalid(
-                &key("learning_gain"),
+                "scenario.repetitive.learning_gain",
                 s.learning_gain,
                 &format!(
                     "a learning law that converges on this loop: at harmonic {} ({:.0} Hz) a revolution multiplies the error by {:.3} with lead {:.2} ticks (must be < 1); lower learning_gain, raise q_neighbour toward 0.25, or leave lead_ticks out to have it chosen",
