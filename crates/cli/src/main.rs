@@ -29,6 +29,7 @@ struct Cli {
 enum Command {
     Run(run::Run),
     Machine(machine::MachineCmd),
+    Toolpath(toolpath::ToolpathCmd),
     Inspect(inspect::InspectCmd),
     Replay(replay::ReplayCmd),
     Export(export::ExportCmd),
@@ -59,6 +60,7 @@ impl Command {
         match self {
             Command::Run(c) => c.exec(),
             Command::Machine(c) => c.exec(),
+            Command::Toolpath(c) => c.exec(),
             Command::Inspect(c) => c.exec(),
             Command::Replay(c) => c.exec(),
             Command::Export(c) => c.exec(),

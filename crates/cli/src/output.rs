@@ -111,7 +111,7 @@ pub const FAILED: u8 = 1;
 
 /// Exit code of bad input: a configuration problem (located by file, line, key and allowed
 /// range), a controller that would make the loop unstable, a host that stalls longer than the
-/// loop survives, a selection that matches nothing.
+/// loop survives, a selection that matches nothing, a tool path beyond the stage.
 pub const BAD_INPUT: u8 = 2;
 
 /// Every exit code: (code, a run's end reason or empty for a command's own, meaning), in

@@ -386,3 +386,28 @@ mod tests {
         assert!(cl.spectral_radius().is_nan());
     }
 }
+
+/// The response of loop output `out` per metre added to the surface reference at `f` Hz,
+/// through the reference path the tick applies (smoothing, feedforward: `deployment`'s) and
+/// the closed loop `cl`; NaN where it cannot be evaluated.
+pub fn reference_path_response<'a>(
+    cl: &'a ClosedLoop,
+    deployment: &'a servo_runtime::Deployment,
+    out: usize,
+) -> impl Fn(f64) -> num_complex::Complex64 + 'a {
+    use num_complex::Complex64 as C;
+    let to_output = |inp: usize| lti::FrequencyResponse::new(&cl.subsystem(&[(out, 1.0)], inp));
+    let reference = to_output(input::REFERENCE_M);
+    let command = to_output(input::CONTROL_DISTURBANCE_V);
+    let period = cl.period_s;
+    move |f| {
+        let path = deployment.reference_path(f);
+        let c = |v: [f64; 2]| C::new(v[0], v[1]);
+        let at = |r: &lti::FrequencyResponse| {
+            r.discrete(f, period)
+                .map(|m| m[(0, 0)])
+                .unwrap_or(C::new(f64::NAN, f64::NAN))
+        };
+        at(&reference) * c(path.reference) + at(&command) * c(path.feedforward_v_per_m)
+    }
+}

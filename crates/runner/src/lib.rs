@@ -45,6 +45,7 @@ pub mod stall;
 pub mod stop;
 pub mod summary;
 pub mod surface;
+pub mod toolpath;
 
 pub use error::RunError;
 pub use plan::Plan;

@@ -27,6 +27,9 @@ pub const CONTROLLER_INPUT: &str = "controller.toml";
 /// Attachment name of the surface image in a recording.
 pub const SURFACE_INPUT: &str = "surface.png";
 
+/// Attachment name of a surface prescription in a recording (resolved to SI, grid included).
+pub const PRESCRIPTION_INPUT: &str = "prescription.json";
+
 /// A run, resolved and built.
 #[derive(Clone)]
 pub struct Plan {
@@ -71,33 +74,8 @@ impl Plan {
             .map_err(|e| plant_error(e, &origin))?;
         let surface = match &config.scenario {
             Scenario::Machine(m) => {
-                let image = match &m.surface {
-                    SurfaceConfig::Image { .. }
-                        if inputs.iter().any(|i| i.name == SURFACE_INPUT) =>
-                    {
-                        inputs
-                            .iter()
-                            .find(|i| i.name == SURFACE_INPUT)
-                            .map(|i| i.data.as_slice())
-                    }
-                    SurfaceConfig::Image { path, .. } => {
-                        let bytes = read_input(path, MAX_IMAGE_BYTES).map_err(|e| {
-                            origin.invalid(
-                                "scenario.surface.path",
-                                path.display(),
-                                &format!("a readable PNG file ({e})"),
-                            )
-                        })?;
-                        inputs.push(Input {
-                            name: SURFACE_INPUT.into(),
-                            media_type: "image/png".into(),
-                            data: bytes,
-                        });
-                        inputs.last().map(|i| i.data.as_slice())
-                    }
-                    _ => None,
-                };
-                Some(LoadedSurface::load(&m.surface, &origin, image)?)
+                let file = surface_file(&m.surface, &origin, &mut inputs)?;
+                Some(LoadedSurface::load(m, &origin, file.as_deref())?)
             }
             _ => None,
         };
@@ -312,6 +290,50 @@ pub fn located_in_run(e: &Invalid, at: &Origin) -> ConfigError {
     at.located(&e)
 }
 
+/// The bytes of the file `surface` names: the recording's embedded copy from `inputs` when
+/// there ([`SURFACE_INPUT`], [`PRESCRIPTION_INPUT`]), else read (an image as it is, a
+/// prescription resolved to SI with its grid, as JSON) and added to `inputs`.
+fn surface_file(
+    surface: &SurfaceConfig,
+    origin: &Origin,
+    inputs: &mut Vec<Input>,
+) -> Result<Option<Vec<u8>>, RunError> {
+    let name = match surface {
+        SurfaceConfig::Image { .. } => SURFACE_INPUT,
+        SurfaceConfig::Prescription { .. } => PRESCRIPTION_INPUT,
+        _ => return Ok(None),
+    };
+    if let Some(i) = inputs.iter().find(|i| i.name == name) {
+        return Ok(Some(i.data.clone()));
+    }
+    let (bytes, media_type) = match surface {
+        SurfaceConfig::Image { path, .. } => {
+            let bytes = read_input(path, MAX_IMAGE_BYTES).map_err(|e| {
+                origin.invalid(
+                    "scenario.surface.path",
+                    path.display(),
+                    &format!("a readable PNG file ({e})"),
+                )
+            })?;
+            (bytes, "image/png")
+        }
+        SurfaceConfig::Prescription { path, .. } => {
+            let p = crate::config::read_prescription(path)?;
+            let json = serde_json::to_vec(&p).map_err(|e| {
+                origin.invalid("scenario.surface.path", path.display(), &e.to_string())
+            })?;
+            (json, "application/json")
+        }
+        _ => return Ok(None),
+    };
+    inputs.push(Input {
+        name: name.into(),
+        media_type: media_type.into(),
+        data: bytes.clone(),
+    });
+    Ok(Some(bytes))
+}
+
 /// Makes the config's relative paths relative to the working directory (they are written
 /// relative to the config file).
 fn resolve_paths(config: &mut RunConfig, at: &Origin) {
@@ -319,7 +341,7 @@ fn resolve_paths(config: &mut RunConfig, at: &Origin) {
         *p = at.resolve(p);
     }
     if let Scenario::Machine(m) = &mut config.scenario {
-        if let SurfaceConfig::Image { path, .. } = &mut m.surface {
+        if let Some(path) = m.surface.path_mut() {
             *path = at.resolve(path);
         }
         if let Some(table) = m.repetitive.as_mut().and_then(|r| r.table.as_mut()) {

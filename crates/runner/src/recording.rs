@@ -201,6 +201,7 @@ impl RunHeader {
     pub fn inputs(&self) -> Vec<recorder::Input> {
         let media = |name: &str| match name {
             crate::plan::SURFACE_INPUT => "image/png",
+            crate::plan::PRESCRIPTION_INPUT => "application/json",
             _ => "application/toml",
         };
         self.inputs

@@ -9,12 +9,11 @@
 //! the sensor, the error is taken against the surface `lag_ticks` earlier — the model's delay
 //! from the tool to the reading at low frequency — and the tool converges to the surface.
 
-use crate::closed_loop::{input, output, ClosedLoop};
+use crate::closed_loop::{input, output, reference_path_response, ClosedLoop};
 use crate::config::Origin;
 use crate::config::{FeedforwardKind, Machining, RepetitiveSection, RunConfig, MAX_BINS};
 use crate::error::RunError;
 use design::repetitive::{Convergence, Harmonics, Learning};
-use num_complex::Complex64 as C;
 use recorder::Input;
 use servo_core::{RepetitiveConfig, LEARNING_IDENTITY, LEARNING_TAPS};
 use servo_runtime::Deployment;
@@ -88,7 +87,7 @@ pub fn plan(
     // Slowest to fastest: equal neighbours (no drift, no step) are evaluated once.
     let mut speeds = vec![nominal * slow, nominal, nominal * fast];
     speeds.dedup();
-    let response = loop_response(cl, deployment);
+    let response = reference_path_response(cl, deployment, output::MEASURED_M);
     let harmonics = Harmonics::sample(s.bins_per_rev, &speeds, period, &response);
     let mut learning = Learning {
         bins_per_rev: s.bins_per_rev,
@@ -154,28 +153,6 @@ pub fn plan(
         table,
         sensitivity_v_per_m: config.plant.capa.sensitivity_v_per_m,
     })
-}
-
-/// `G(f)`: the measured position (m) per metre added to the reference, through the reference
-/// path (smoothing, feedforward) and the closed loop.
-fn loop_response<'a>(cl: &'a ClosedLoop, deployment: &'a Deployment) -> impl Fn(f64) -> C + 'a {
-    let to_reading = |inp: usize| {
-        let siso = cl.subsystem(&[(output::MEASURED_M, 1.0)], inp);
-        lti::FrequencyResponse::new(&siso)
-    };
-    let reference = to_reading(input::REFERENCE_M);
-    let command = to_reading(input::CONTROL_DISTURBANCE_V);
-    let period = cl.period_s;
-    move |f| {
-        let path = deployment.reference_path(f);
-        let c = |v: [f64; 2]| C::new(v[0], v[1]);
-        let at = |r: &lti::FrequencyResponse| {
-            r.discrete(f, period)
-                .map(|m| m[(0, 0)])
-                .unwrap_or(C::new(f64::NAN, f64::NAN))
-        };
-        at(&reference) * c(path.reference) + at(&command) * c(path.feedforward_v_per_m)
-    }
 }
 
 /// The measured position's delay behind the tool at low frequency, ticks (the loop model's

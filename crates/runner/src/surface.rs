@@ -1,6 +1,8 @@
 //! Surfaces ready for the tick: the configured surface checked and its image decoded once.
 
-use crate::config::{ConfigError, Origin, SurfaceConfig};
+use crate::config::{ConfigError, Machining, Origin, SurfaceConfig};
+use design::optics::toolpath::ToolPath;
+use design::optics::Prescription;
 use servo_core::surface::{BeamIntegrator, HeightMap, MicroLenslet, SinusoidalGrid, Surface};
 
 /// Largest height map, pixels (64 M: 64 MB of luminance).
@@ -67,6 +69,8 @@ pub enum LoadedSurface {
     Lenslet(MicroLenslet),
     /// §8.5.5.
     Image(ImageSurface),
+    /// An optical prescription's FTS path (nose-compensated, the Z slide's part removed).
+    Prescription(Box<ToolPath>),
 }
 
 impl Surface for LoadedSurface {
@@ -78,6 +82,7 @@ impl Surface for LoadedSurface {
             LoadedSurface::Beam(s) => s.depth_m(r_m, theta_rad),
             LoadedSurface::Lenslet(s) => s.depth_m(r_m, theta_rad),
             LoadedSurface::Image(s) => s.view().depth_m(r_m, theta_rad),
+            LoadedSurface::Prescription(p) => p.fts_m(r_m, theta_rad),
         }
     }
 
@@ -88,18 +93,18 @@ impl Surface for LoadedSurface {
             LoadedSurface::Beam(s) => s.peak_m(),
             LoadedSurface::Lenslet(s) => s.peak_m(),
             LoadedSurface::Image(s) => s.view().peak_m(),
+            LoadedSurface::Prescription(p) => p.fts_range_m().1,
         }
     }
 }
 
 impl LoadedSurface {
-    /// Checks the values of `config` and decodes its image from `image` (the file's bytes,
-    /// read by the caller: the plan from the resolved path, a reader from the recording).
-    pub fn load(
-        config: &SurfaceConfig,
-        at: &Origin,
-        image: Option<&[u8]>,
-    ) -> Result<Self, ConfigError> {
+    /// Checks the values of `m`'s surface and decodes its file from `file` (the bytes, read
+    /// by the caller: the plan from the resolved path, a reader from the recording — an image
+    /// as it is, a prescription as JSON in SI).
+    pub fn load(m: &Machining, at: &Origin, file: Option<&[u8]>) -> Result<Self, ConfigError> {
+        let config = &m.surface;
+        let image = file;
         let key = |k: &str| format!("scenario.surface.{k}");
         let positive = |k: &str, v: f64, max: f64| {
             if v > 0.0 && v <= max {
@@ -179,6 +184,51 @@ impl LoadedSurface {
                     pixel_m: positive("pixel_m", *pixel_m, 1.0)?,
                     depth_range_m: height("depth_range_m", *depth_range_m)?,
                 })
+            }
+            SurfaceConfig::Prescription {
+                path,
+                nose_compensation,
+                clearance_angle_rad,
+            } => {
+                if !(*clearance_angle_rad > 0.0 && *clearance_angle_rad < 1.5) {
+                    return Err(at.invalid(
+                        &key("clearance_angle_rad"),
+                        clearance_angle_rad,
+                        "(0, 1.5) rad",
+                    ));
+                }
+                let p: Prescription = file
+                    .and_then(|b| serde_json::from_slice(b).ok())
+                    .ok_or_else(|| {
+                        at.invalid(&key("path"), path.display(), "a prescription that was read")
+                    })?;
+                if m.start_radius_m > p.aperture_radius_m {
+                    return Err(at.invalid(
+                        "scenario.start_radius_m",
+                        m.start_radius_m,
+                        &format!(
+                            "(0, {}] m: within the prescription's aperture",
+                            p.aperture_radius_m
+                        ),
+                    ));
+                }
+                let nose = if *nose_compensation {
+                    m.tool_nose_radius_m
+                } else {
+                    0.0
+                };
+                let path = ToolPath::new(p, nose).map_err(|e| {
+                    at.invalid(
+                        "scenario.tool_nose_radius_m",
+                        m.tool_nose_radius_m,
+                        &format!(
+                            "a nose that fits the surface (no contact at r = {:.4} mm, θ = {:.1}°: a concave region tighter than the nose)",
+                            e.radius_m * 1e3,
+                            e.theta_rad.to_degrees()
+                        ),
+                    )
+                })?;
+                LoadedSurface::Prescription(Box::new(path))
             }
         })
     }

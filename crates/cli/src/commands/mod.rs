@@ -22,5 +22,6 @@ pub mod stiffness;
 pub mod study;
 pub mod synth;
 pub mod thesis;
+pub mod toolpath;
 pub mod tune;
 pub mod view;

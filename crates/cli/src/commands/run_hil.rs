@@ -7,7 +7,7 @@ use crate::output::{tick_bar, CliError};
 use daq_io::contract::role;
 use daq_io::ipc::{leaf, take, Endpoint};
 use daq_io::Health;
-use runner::config::{ConfigError, Origin, Role, Scenario, SurfaceConfig};
+use runner::config::{ConfigError, Origin, Role, Scenario};
 use runner::stall::{check_host, survivable, HostStalls};
 use runner::summary::Summary;
 use runner::{Plan, RunError};
@@ -23,7 +23,7 @@ fn write_resolved(plan: &Plan, dir: &Path) -> Result<PathBuf, CliError> {
         c.controller.ss_file = Some(std::fs::canonicalize(p).unwrap_or(p.clone()));
     }
     if let Scenario::Machine(m) = &mut c.scenario {
-        if let SurfaceConfig::Image { path, .. } = &mut m.surface {
+        if let Some(path) = m.surface.path_mut() {
             *path = std::fs::canonicalize(&*path).unwrap_or(path.clone());
         }
     }

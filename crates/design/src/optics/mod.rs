@@ -20,6 +20,7 @@ pub mod conic;
 pub mod grid;
 pub mod nose;
 pub mod polynomial;
+pub mod toolpath;
 pub mod zernike;
 
 pub use conic::Conic;

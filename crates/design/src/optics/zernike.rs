@@ -12,9 +12,6 @@
 use super::Sag;
 use serde::{Deserialize, Serialize};
 
-/// Largest Noll index accepted (radial order 30).
-pub const MAX_STANDARD_TERMS: usize = 496;
-
 /// Fringe terms defined.
 pub const FRINGE_TERMS: usize = 37;
 
@@ -49,23 +46,30 @@ pub fn fringe(j: usize) -> (u32, i32) {
     let k = (j - 1) as i32 - d * d; // position in the group, 0 … 2d
     let m_abs = d - k / 2;
     let n = (2 * d - m_abs) as u32;
-    let m = if m_abs == 0 || k % 2 == 0 { m_abs } else { -m_abs };
+    let m = if m_abs == 0 || k % 2 == 0 {
+        m_abs
+    } else {
+        -m_abs
+    };
     (n, m)
 }
 
-/// `R_n^m(ρ)`, `dR/dρ` and `R/ρ` (finite on the axis for m ≥ 1; 0 when m = 0, unused).
+/// `R_n^m(ρ)`, `dR/dρ` and `R/ρ` (finite on the axis for m ≥ 1; unused for m = 0).
+/// The coefficients `(−1)^k (n−k)! / (k! ((n+m)/2−k)! ((n−m)/2−k)!)` by their ratio.
 fn radial(n: u32, m: u32, rho: f64) -> (f64, f64, f64) {
+    let (a, b) = ((n + m) / 2, (n - m) / 2);
+    // k = 0: n! / (a! b!) = C(n, b).
+    let mut c = (0..b).fold(1.0, |acc, i| acc * f64::from(n - i) / f64::from(i + 1));
     let (mut r, mut dr, mut r_over) = (0.0, 0.0, 0.0);
-    let factorial = |v: u32| (1..=v).map(f64::from).product::<f64>();
-    for k in 0..=(n - m) / 2 {
-        let c = factorial(n - k)
-            / (factorial(k) * factorial((n + m) / 2 - k) * factorial((n - m) / 2 - k));
-        let c = if k % 2 == 0 { c } else { -c };
+    for k in 0..=b {
         let p = (n - 2 * k) as i32;
         r += c * rho.powi(p);
         if p > 0 {
             dr += c * f64::from(p) * rho.powi(p - 1);
             r_over += c * rho.powi(p - 1);
+        }
+        if k < b {
+            c *= -f64::from((a - k) * (b - k)) / f64::from((n - k) * (k + 1));
         }
     }
     (r, dr, r_over)
@@ -122,12 +126,13 @@ impl Zernike {
         }
         let (c, s) = if r > 0.0 { (x / r, y / r) } else { (1.0, 0.0) };
         let theta = y.atan2(x);
-        let (cos_m, sin_m) = (
-            (f64::from(ma) * theta).cos(),
-            (f64::from(ma) * theta).sin(),
-        );
+        let (cos_m, sin_m) = ((f64::from(ma) * theta).cos(), (f64::from(ma) * theta).sin());
         // Angular factor and its θ-derivative divided by |m|.
-        let (a, da) = if m > 0 { (cos_m, -sin_m) } else { (sin_m, cos_m) };
+        let (a, da) = if m > 0 {
+            (cos_m, -sin_m)
+        } else {
+            (sin_m, cos_m)
+        };
         // dz/dρ = N R' a; (1/ρ) dz/dθ = N (R/ρ) |m| da.
         let dz_drho = norm * d_radial * a;
         let dz_dtheta_over_rho = norm * radial_over_rho * f64::from(ma) * da;
@@ -155,17 +160,16 @@ impl Zernike {
     }
 }
 
-/// The ρ² coefficient of `R_n^0` (k = (n − 2)/2 in the sum), 0 for n = 0.
+/// The ρ² coefficient of `R_n^0` (k = n/2 − 1 in the sum; 0 for n = 0): half of `R'(ρ)/ρ`
+/// on the axis.
 fn radial_second(n: u32) -> f64 {
     if n < 2 {
         return 0.0;
     }
-    let factorial = |v: u32| (1..=v).map(f64::from).product::<f64>();
-    let k = (n - 2) / 2;
-    let c = factorial(n - k) / (factorial(k) * factorial(n / 2 - k) * factorial(n / 2 - k));
-    if k % 2 == 0 {
-        c
-    } else {
-        -c
+    let half = n / 2;
+    let mut c = (0..half).fold(1.0, |acc, i| acc * f64::from(n - i) / f64::from(i + 1));
+    for k in 0..half - 1 {
+        c *= -f64::from((half - k) * (half - k)) / f64::from((n - k) * (k + 1));
     }
+    c
 }

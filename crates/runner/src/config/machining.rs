@@ -49,9 +49,44 @@ pub enum SurfaceConfig {
         /// Height of a white pixel in m (Table 8-6: 5 µm).
         depth_range_m: f64,
     },
+    /// An optical prescription (TOML in Zemax's conventions, lengths in mm: a base conic with
+    /// even-asphere terms, Zernike, XY polynomial and sag-grid departures; see the book's
+    /// prescription page), cut as its nose-compensated tool path less the rotationally
+    /// symmetric part the Z slide cuts. `start_radius_m` must lie within its aperture.
+    Prescription {
+        /// Prescription file, relative to the config file.
+        path: PathBuf,
+        /// Offset the tool along the profile's normal by its nose radius (true); false cuts
+        /// with the tool tip on the surface (the error the compensation removes).
+        #[serde(default = "compensate_by_default")]
+        nose_compensation: bool,
+        /// Clearance angle of the tool's flank in rad (★ 0.1222: 7°, a common diamond
+        /// tool's); the surface's slope along the cut must stay below it.
+        #[serde(default = "default_clearance_rad")]
+        clearance_angle_rad: f64,
+    },
+}
+
+fn compensate_by_default() -> bool {
+    true
+}
+
+/// ★ 7° in rad.
+fn default_clearance_rad() -> f64 {
+    7f64.to_radians()
 }
 
 impl SurfaceConfig {
+    /// The file the surface is read from (an image or a prescription), if any.
+    pub fn path_mut(&mut self) -> Option<&mut PathBuf> {
+        match self {
+            SurfaceConfig::Image { path, .. } | SurfaceConfig::Prescription { path, .. } => {
+                Some(path)
+            }
+            _ => None,
+        }
+    }
+
     /// The sinusoidal grid of Table 8-5.
     pub const THESIS_GRID: SurfaceConfig = SurfaceConfig::SinusoidalGrid {
         ax_m: 5e-6,

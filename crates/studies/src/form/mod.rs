@@ -13,7 +13,7 @@ use recorder::Frame;
 use roughness::{Roughness, RoughnessWindow};
 use runner::config::{Machining, RunConfig, Scenario};
 use runner::machining::{SpindleMotion, SpiralCut};
-use runner::plan::SURFACE_INPUT;
+use runner::plan::{PRESCRIPTION_INPUT, SURFACE_INPUT};
 use runner::recording::{FrameSink, RunHeader};
 use runner::run::{run_with, RunOptions};
 use runner::summary::{Acc, Stats, Summary};
@@ -343,8 +343,11 @@ pub struct FormSink {
 impl FrameSink for FormSink {
     fn header(&mut self, h: &RunHeader) -> Result<(), RunError> {
         if let Scenario::Machine(m) = &h.loaded.config.scenario {
-            let image = h.inputs.get(SURFACE_INPUT).map(Vec::as_slice);
-            let surface = LoadedSurface::load(&m.surface, &h.loaded.origin, image)?;
+            let file = [SURFACE_INPUT, PRESCRIPTION_INPUT]
+                .iter()
+                .find_map(|name| h.inputs.get(*name))
+                .map(Vec::as_slice);
+            let surface = LoadedSurface::load(m, &h.loaded.origin, file)?;
             self.analysis = Some(FormAnalysis::new(&h.loaded.config, m, surface));
         }
         Ok(())

@@ -1,0 +1,140 @@
+//! The fast tool servo's share of a prescription's tool path. The nose-compensated tool
+//! height `z_t(r, θ)` ([`super::nose`]) splits into its rotationally symmetric part — the
+//! angular mean at each radius, the least-squares best fit of a function of `r` alone, which
+//! the Z slide cuts as it feeds — and the rest, which the FTS must move at spindle speed.
+
+use super::nose::{contact, Contact};
+use super::Prescription;
+
+/// Radii of the symmetric part's table over the aperture.
+const SYMMETRIC_RADII: usize = 256;
+
+/// Angles averaged per radius of that table.
+const SYMMETRIC_ANGLES: usize = 128;
+
+/// Where a compensated contact could not be found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoContact {
+    /// Radius of the tool, m.
+    pub radius_m: f64,
+    /// Spindle angle, rad.
+    pub theta_rad: f64,
+}
+
+/// A prescription's tool path, split between the Z slide and the FTS.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolPath {
+    prescription: Prescription,
+    /// Nose radius compensated, m (0: the tool tip follows the surface itself).
+    nose_radius_m: f64,
+    /// Symmetric part at `i·step_m`, m toward the tool.
+    symmetric_m: Vec<f64>,
+    step_m: f64,
+    /// Highest and lowest FTS height over the sampled aperture, m.
+    range_m: (f64, f64),
+}
+
+impl ToolPath {
+    /// The path of `prescription` for a nose of radius `nose_radius_m` (m; 0 uncompensated),
+    /// over its aperture; an error where the nose finds no contact (a concave region tighter
+    /// than the nose).
+    pub fn new(prescription: Prescription, nose_radius_m: f64) -> Result<Self, NoContact> {
+        let aperture = prescription.aperture_radius_m;
+        let step_m = aperture / (SYMMETRIC_RADII - 1) as f64;
+        let mut path = ToolPath {
+            prescription,
+            nose_radius_m,
+            symmetric_m: Vec::with_capacity(SYMMETRIC_RADII),
+            step_m,
+            range_m: (f64::INFINITY, f64::NEG_INFINITY),
+        };
+        let mut rings = Vec::with_capacity(SYMMETRIC_RADII);
+        for i in 0..SYMMETRIC_RADII {
+            let r = i as f64 * step_m;
+            let ring = (0..SYMMETRIC_ANGLES)
+                .map(|k| {
+                    let theta = k as f64 * std::f64::consts::TAU / SYMMETRIC_ANGLES as f64;
+                    path.tip_height_m(r, theta).ok_or(NoContact {
+                        radius_m: r,
+                        theta_rad: theta,
+                    })
+                })
+                .collect::<Result<Vec<f64>, NoContact>>()?;
+            path.symmetric_m
+                .push(ring.iter().sum::<f64>() / SYMMETRIC_ANGLES as f64);
+            rings.push(ring);
+        }
+        for (i, ring) in rings.iter().enumerate() {
+            for &z in ring {
+                let fts = z - path.symmetric_m[i];
+                path.range_m = (path.range_m.0.min(fts), path.range_m.1.max(fts));
+            }
+        }
+        Ok(path)
+    }
+
+    /// The prescription.
+    pub fn prescription(&self) -> &Prescription {
+        &self.prescription
+    }
+
+    /// The compensated nose radius, m.
+    pub fn nose_radius_m(&self) -> f64 {
+        self.nose_radius_m
+    }
+
+    /// The nose's contact at tool radius `r_m` (m) and spindle angle `theta_rad` (rad).
+    pub fn contact(&self, r_m: f64, theta_rad: f64) -> Option<Contact> {
+        contact(&self.prescription, self.nose_radius_m, r_m, theta_rad)
+    }
+
+    /// The tool tip's height toward the tool, m (None: no contact).
+    pub fn tip_height_m(&self, r_m: f64, theta_rad: f64) -> Option<f64> {
+        self.contact(r_m, theta_rad).map(|c| c.tip_height_m)
+    }
+
+    /// The rotationally symmetric part at radius `r_m` (m), m: the table interpolated by
+    /// cubic convolution (continuous slope).
+    pub fn symmetric_m(&self, r_m: f64) -> f64 {
+        let n = self.symmetric_m.len() as isize;
+        let u = (r_m / self.step_m).max(0.0);
+        let i0 = u.floor();
+        let t = u - i0;
+        let i0 = i0 as isize;
+        // The table is even in r (a function of r alone): mirror it through the axis.
+        let at = |i: isize| {
+            let i = i.abs();
+            if i < n {
+                self.symmetric_m[i as usize]
+            } else {
+                let last = self.symmetric_m[(n - 1) as usize];
+                last + (last - self.symmetric_m[(n - 2) as usize]) * (i - n + 1) as f64
+            }
+        };
+        let (t2, t3) = (t * t, t * t * t);
+        let w = [
+            0.5 * (-t3 + 2.0 * t2 - t),
+            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+            0.5 * (t3 - t2),
+        ];
+        (0..4).map(|k| w[k] * at(i0 - 1 + k as isize)).sum()
+    }
+
+    /// The FTS's height at `(r_m, theta_rad)`, m toward the tool: the tip height less the
+    /// symmetric part (where no contact settles, the uncompensated surface stands in).
+    pub fn fts_m(&self, r_m: f64, theta_rad: f64) -> f64 {
+        let tip = self.tip_height_m(r_m, theta_rad).unwrap_or_else(|| {
+            -self
+                .prescription
+                .sag(r_m * theta_rad.cos(), r_m * theta_rad.sin())
+                .z_m
+        });
+        tip - self.symmetric_m(r_m)
+    }
+
+    /// The FTS's lowest and highest height over the aperture (sampled), m.
+    pub fn fts_range_m(&self) -> (f64, f64) {
+        self.range_m
+    }
+}

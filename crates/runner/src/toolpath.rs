@@ -1,0 +1,269 @@
+//! Before a prescription is cut: what its tool path asks of the stage, radius band by radius
+//! band, at the configured spindle speed — the FTS stroke, the peak velocity, acceleration
+//! and DAC voltage, the predicted form error through the run's own closed loop and reference
+//! path (feedback alone, or with the configured feedforward), the surface's slope along the
+//! cut against the tool's clearance angle and the concave curvature against the nose — and
+//! the FTS command table a machine's own controller would play (encoder count → height).
+//!
+//! Each band is sampled around whole revolutions at its radii; the path's harmonics `Xₙ` of
+//! the spindle frequency Ω give the velocity `jnΩ·Xₙ`, acceleration `−n²Ω²·Xₙ`, the DAC
+//! voltage `V(jnΩ)·Xₙ` and the tool error `(T(jnΩ) − 1)·Xₙ`, with `V` and `T` the loop's
+//! responses from the surface reference to the DAC command and to the true tool position.
+
+use crate::closed_loop::{output, reference_path_response};
+use crate::config::{Scenario, SurfaceConfig};
+use crate::error::RunError;
+use crate::plan::Plan;
+use crate::surface::LoadedSurface;
+use design::optics::toolpath::ToolPath;
+use num_complex::Complex64 as C;
+use realfft::RealFftPlanner;
+use serde::Serialize;
+use std::f64::consts::TAU;
+
+/// Samples per revolution of each evaluated ring.
+pub const RING_SAMPLES: usize = 2048;
+
+/// Rings evaluated per band (its outer edge first).
+const RINGS_PER_BAND: usize = 4;
+
+/// One radius band's demands.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Band {
+    /// Inner and outer radius, m.
+    pub radius_m: [f64; 2],
+    /// FTS stroke (highest − lowest height), m.
+    pub stroke_m: f64,
+    /// Peak FTS velocity, m/s.
+    pub peak_velocity_m_per_s: f64,
+    /// Peak FTS acceleration, m/s².
+    pub peak_acceleration_m_per_s2: f64,
+    /// Peak DAC command the loop would send to follow it, V.
+    pub peak_voltage_v: f64,
+    /// Frequency below which 99.9 % of the path's motion (mean square) lies, Hz.
+    pub bandwidth_hz: f64,
+    /// Predicted RMS of the tool error (tool − path) at steady state, m.
+    pub predicted_rms_m: f64,
+    /// Steepest slope along the cut (the tool's flank must clear it), rad.
+    pub slope_along_cut_rad: f64,
+    /// Largest nose radius × concave curvature in the radial section (≥ 1: the nose cannot
+    /// reach the bottom).
+    pub nose_tightness: f64,
+}
+
+/// What a prescription's tool path asks of the stage, and what exceeds it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Feasibility {
+    /// Spindle speed, rpm.
+    pub spindle_rpm: f64,
+    /// Compensated nose radius, m (0: uncompensated).
+    pub nose_radius_m: f64,
+    /// Travel of the Z slide over the aperture (the symmetric part's range), m.
+    pub z_slide_travel_m: f64,
+    /// FTS stroke over the whole aperture, m.
+    pub fts_stroke_m: f64,
+    /// The bands, outermost first.
+    pub bands: Vec<Band>,
+    /// DAC full scale, V.
+    pub dac_range_v: f64,
+    /// The tool's clearance angle, rad.
+    pub clearance_angle_rad: f64,
+    /// What exceeds a limit, one sentence each (empty: feasible).
+    pub exceeded: Vec<String>,
+}
+
+/// A ring's samples of the FTS path and its contacts' worst tightness.
+fn ring(path: &ToolPath, r: f64) -> (Vec<f64>, f64) {
+    let mut tight = f64::NEG_INFINITY;
+    let heights = (0..RING_SAMPLES)
+        .map(|k| {
+            let theta = k as f64 * TAU / RING_SAMPLES as f64;
+            if let Some(c) = path.contact(r, theta) {
+                tight = tight.max(c.tightness);
+            } else {
+                tight = f64::INFINITY;
+            }
+            path.fts_m(r, theta)
+        })
+        .collect();
+    (heights, tight)
+}
+
+/// The demands of `plan`'s prescription over `bands` radius bands from its aperture's edge
+/// to the axis; an error when the plan does not cut a prescription.
+pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
+    let not_a_prescription = || {
+        RunError::from(plan.origin.invalid(
+            "scenario.surface.kind",
+            "(not a prescription)",
+            "\"prescription\" for a tool path",
+        ))
+    };
+    let (Scenario::Machine(m), Some(LoadedSurface::Prescription(path))) =
+        (&plan.config.scenario, &plan.surface)
+    else {
+        return Err(not_a_prescription());
+    };
+    let SurfaceConfig::Prescription {
+        clearance_angle_rad: clearance,
+        ..
+    } = m.surface
+    else {
+        return Err(not_a_prescription());
+    };
+    let omega = m.rad_per_s();
+    let spindle_hz = omega / TAU;
+    let half = RING_SAMPLES / 2;
+    let tool = reference_path_response(&plan.closed_loop, &plan.deployment, output::TOOL_M);
+    let dac = reference_path_response(&plan.closed_loop, &plan.deployment, output::CONTROL_V);
+    let responses: Vec<(C, C)> = (0..=half)
+        .map(|n| {
+            let f = n as f64 * spindle_hz;
+            (tool(f) - 1.0, dac(f))
+        })
+        .collect();
+    let mut planner = RealFftPlanner::<f64>::new();
+    let forward = planner.plan_fft_forward(RING_SAMPLES);
+    let inverse = planner.plan_fft_inverse(RING_SAMPLES);
+    // Peak of the waveform whose harmonics are `x` weighted by `w(n)`.
+    let peak = |x: &[C], w: &dyn Fn(usize) -> C| {
+        let mut spec: Vec<C> = x.iter().enumerate().map(|(n, v)| v * w(n)).collect();
+        spec[0].im = 0.0;
+        spec[half].im = 0.0;
+        let mut out = vec![0.0; RING_SAMPLES];
+        // A spectrum with real ends never fails to invert.
+        let _ = inverse.process(&mut spec, &mut out);
+        out.iter().fold(0.0f64, |a, v| a.max(v.abs())) / RING_SAMPLES as f64
+    };
+    let aperture = path.prescription().aperture_radius_m;
+    let mut out_bands = Vec::with_capacity(bands);
+    for b in 0..bands {
+        let outer = aperture * (1.0 - b as f64 / bands as f64);
+        let inner = aperture * (1.0 - (b + 1) as f64 / bands as f64);
+        let mut band = Band {
+            radius_m: [inner, outer],
+            stroke_m: 0.0,
+            peak_velocity_m_per_s: 0.0,
+            peak_acceleration_m_per_s2: 0.0,
+            peak_voltage_v: 0.0,
+            bandwidth_hz: 0.0,
+            predicted_rms_m: 0.0,
+            slope_along_cut_rad: 0.0,
+            nose_tightness: f64::NEG_INFINITY,
+        };
+        for i in 0..RINGS_PER_BAND {
+            let r = outer - (outer - inner) * i as f64 / RINGS_PER_BAND as f64;
+            if r <= 0.0 {
+                continue;
+            }
+            let (mut heights, tight) = ring(path, r);
+            let (lo, hi) = heights
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            let mut x = forward.make_output_vec();
+            let _ = forward.process(&mut heights, &mut x);
+            let w = |n: usize| C::new(0.0, n as f64);
+            band.stroke_m = band.stroke_m.max(hi - lo);
+            band.peak_velocity_m_per_s =
+                band.peak_velocity_m_per_s.max(omega * peak(&x, &|n| w(n)));
+            band.peak_acceleration_m_per_s2 = band
+                .peak_acceleration_m_per_s2
+                .max(omega * omega * peak(&x, &|n| -(n as f64 * n as f64) * C::new(1.0, 0.0)));
+            band.peak_voltage_v = band.peak_voltage_v.max(peak(&x, &|n| responses[n].1));
+            band.slope_along_cut_rad = band
+                .slope_along_cut_rad
+                .max((peak(&x, &|n| w(n)) / r).atan());
+            band.nose_tightness = band.nose_tightness.max(tight);
+            // Mean square of each harmonic (n ≥ 1): 2|Xₙ|²/N² (the Nyquist bin once).
+            let power = |n: usize, v: C| {
+                let k = if n == half { 1.0 } else { 2.0 };
+                k * v.norm_sqr() / (RING_SAMPLES * RING_SAMPLES) as f64
+            };
+            let total: f64 = (1..=half).map(|n| power(n, x[n])).sum();
+            let mut acc = 0.0;
+            let mut top = 0;
+            for n in 1..=half {
+                acc += power(n, x[n]);
+                top = n;
+                if acc >= 0.999 * total {
+                    break;
+                }
+            }
+            band.bandwidth_hz = band.bandwidth_hz.max(top as f64 * spindle_hz);
+            let error: f64 = (1..=half).map(|n| power(n, x[n] * responses[n].0)).sum();
+            band.predicted_rms_m = band.predicted_rms_m.max(error.sqrt());
+        }
+        out_bands.push(band);
+    }
+    let symmetric: Vec<f64> = (0..=64)
+        .map(|i| path.symmetric_m(aperture * i as f64 / 64.0))
+        .collect();
+    let (lo, hi) = path.fts_range_m();
+    let dac_range = plan.config.plant.dac.range_v;
+    let mut f = Feasibility {
+        spindle_rpm: m.spindle_rpm,
+        nose_radius_m: path.nose_radius_m(),
+        z_slide_travel_m: symmetric.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+            - symmetric.iter().cloned().fold(f64::INFINITY, f64::min),
+        fts_stroke_m: hi - lo,
+        bands: out_bands,
+        dac_range_v: dac_range,
+        clearance_angle_rad: clearance,
+        exceeded: Vec::new(),
+    };
+    f.exceeded = exceeded(&f);
+    Ok(f)
+}
+
+/// The limits each band exceeds, in words.
+fn exceeded(f: &Feasibility) -> Vec<String> {
+    let mm = |r: [f64; 2]| format!("{:.2}–{:.2} mm", r[0] * 1e3, r[1] * 1e3);
+    let mut out = Vec::new();
+    for b in &f.bands {
+        if b.peak_voltage_v > f.dac_range_v {
+            out.push(format!(
+                "{}: the loop would command {:.2} V, beyond the DAC's ±{} V (plant.dac.range_v): slow the spindle",
+                mm(b.radius_m), b.peak_voltage_v, f.dac_range_v
+            ));
+        }
+        if b.slope_along_cut_rad > f.clearance_angle_rad {
+            out.push(format!(
+                "{}: the surface rises {:.1}° along the cut, steeper than the tool's {:.1}° clearance (scenario.surface.clearance_angle_rad): the flank would rub",
+                mm(b.radius_m), b.slope_along_cut_rad.to_degrees(), f.clearance_angle_rad.to_degrees()
+            ));
+        }
+        if b.nose_tightness >= 1.0 {
+            out.push(format!(
+                "{}: a concave region tighter than the nose (R·κ = {:.2}; scenario.tool_nose_radius_m)",
+                mm(b.radius_m), b.nose_tightness
+            ));
+        }
+    }
+    out
+}
+
+/// The FTS command table for a machine's own controller: `rings` radii from the aperture's
+/// edge to the axis (rows) × `counts` equally spaced encoder counts of a revolution (columns),
+/// the FTS height in m toward the tool. CSV with a header naming the counts.
+pub fn command_table(path: &ToolPath, rings: usize, counts: usize, pulses_per_rev: u64) -> String {
+    use std::fmt::Write as _;
+    let aperture = path.prescription().aperture_radius_m;
+    let step = pulses_per_rev as f64 / counts as f64;
+    let mut s = String::from("radius_m");
+    for k in 0..counts {
+        let _ = write!(s, ",count_{}", (k as f64 * step).round() as u64);
+    }
+    s.push('\n');
+    for i in 0..rings {
+        let r = aperture * (1.0 - i as f64 / (rings - 1).max(1) as f64);
+        let _ = write!(s, "{r:.9e}");
+        for k in 0..counts {
+            let theta = TAU * (k as f64 * step).round() / pulses_per_rev as f64;
+            let _ = write!(s, ",{:.6e}", path.fts_m(r, theta));
+        }
+        s.push('\n');
+    }
+    s
+}
