@@ -6,8 +6,8 @@
 //! (`x-allowed`). A number no check refuses is marked `x-allowed: null`.
 
 use crate::config::presets::{ImageMap, ScenarioKind, ScenarioValues, SurfacePreset};
-use crate::config::{ConfigError, Loaded, Machining, Origin, RunConfig, Scenario};
-use crate::plan::{Plan, SURFACE_INPUT};
+use crate::config::{ConfigError, Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConfig};
+use crate::plan::{Plan, PRESCRIPTION_INPUT, SURFACE_INPUT};
 use crate::RunError;
 use recorder::Input;
 use serde_json::Value;
@@ -291,6 +291,17 @@ fn base_configs() -> Vec<toml::Value> {
             }),
             ..RunConfig::default()
         }))
+        .chain(std::iter::once(RunConfig {
+            scenario: Scenario::Machine(Machining {
+                surface: SurfaceConfig::Prescription {
+                    path: PRESCRIPTION_INPUT.into(),
+                    nose_compensation: true,
+                    clearance_angle_rad: 0.12,
+                },
+                ..Machining::default()
+            }),
+            ..RunConfig::default()
+        }))
         .chain(std::iter::once(coil_current_loop()))
         .map(|config| toml::Value::try_from(&config).expect("a configuration always serialises"))
         .collect()
@@ -319,8 +330,23 @@ fn probe_image() -> Vec<u8> {
     bytes
 }
 
+/// A prescription as a run embeds it (JSON in SI): 1 µm of Fringe astigmatism over a 40 mm
+/// aperture (the default start radius inside it), the surface the prescription probes cut.
+fn probe_prescription() -> Vec<u8> {
+    let p = design::optics::Prescription {
+        zernike: Some(design::optics::Zernike {
+            order: design::optics::ZernikeOrder::Fringe,
+            norm_radius_m: 0.04,
+            coefficients_m: vec![0.0, 0.0, 0.0, 0.0, 1e-6],
+        }),
+        aperture_radius_m: 0.04,
+        ..Default::default()
+    };
+    serde_json::to_vec(&p).expect("a prescription serialises")
+}
+
 /// The range a run's checks name when `leaf` is NaN in `base`, machining `image` if it cuts
-/// the image surface (None: `base` has no such key, or no check refused it).
+/// the image surface (or [`probe_prescription`] if it cuts a prescription) (None: `base` has no such key, or no check refused it).
 fn probe(base: &toml::Value, leaf: &KeyDoc, image: &[u8]) -> Option<String> {
     let mut doc = base.clone();
     let (parent, name) = leaf.key.rsplit_once('.').unwrap_or(("", &leaf.key));
@@ -351,7 +377,12 @@ fn probe(base: &toml::Value, leaf: &KeyDoc, image: &[u8]) -> Option<String> {
         media_type: "image/png".into(),
         data: image.to_vec(),
     };
-    match Plan::with_inputs(&loaded, vec![image]) {
+    let prescription = Input {
+        name: PRESCRIPTION_INPUT.into(),
+        media_type: "application/json".into(),
+        data: probe_prescription(),
+    };
+    match Plan::with_inputs(&loaded, vec![image, prescription]) {
         Err(RunError::Config(ConfigError::Invalid { key, range, .. })) if key == leaf.key => {
             Some(range)
         }
