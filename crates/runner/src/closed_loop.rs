@@ -362,31 +362,6 @@ pub const SOURCES: [(&str, usize); 7] = [
     ("dac", input::CONTROL_DISTURBANCE_V),
 ];
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A loop whose matrix holds a NaN (coefficients that overflowed) has a NaN radius, which
-    /// no `< 1` check accepts (`f64::max` used to drop it and report 0).
-    #[test]
-    fn a_loop_that_is_not_a_number_has_no_radius_below_one() {
-        let n = 3;
-        let mut a = DMatrix::identity(n, n) * 0.5;
-        a[(1, 2)] = f64::NAN;
-        let cl = ClosedLoop {
-            sys: StateSpace {
-                a,
-                b: DMatrix::zeros(n, 0),
-                c: DMatrix::zeros(0, n),
-                d: DMatrix::zeros(0, 0),
-            },
-            period_s: 1e-5,
-            noise_variance: [0.0; 7],
-        };
-        assert!(cl.spectral_radius().is_nan());
-    }
-}
-
 /// The response of loop output `out` per metre added to the surface reference at `f` Hz,
 /// through the reference path the tick applies (smoothing, feedforward: `deployment`'s) and
 /// the closed loop `cl`; NaN where it cannot be evaluated.
@@ -409,5 +384,30 @@ pub fn reference_path_response<'a>(
                 .unwrap_or(C::new(f64::NAN, f64::NAN))
         };
         at(&reference) * c(path.reference) + at(&command) * c(path.feedforward_v_per_m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A loop whose matrix holds a NaN (coefficients that overflowed) has a NaN radius, which
+    /// no `< 1` check accepts (`f64::max` used to drop it and report 0).
+    #[test]
+    fn a_loop_that_is_not_a_number_has_no_radius_below_one() {
+        let n = 3;
+        let mut a = DMatrix::identity(n, n) * 0.5;
+        a[(1, 2)] = f64::NAN;
+        let cl = ClosedLoop {
+            sys: StateSpace {
+                a,
+                b: DMatrix::zeros(n, 0),
+                c: DMatrix::zeros(0, n),
+                d: DMatrix::zeros(0, 0),
+            },
+            period_s: 1e-5,
+            noise_variance: [0.0; 7],
+        };
+        assert!(cl.spectral_radius().is_nan());
     }
 }

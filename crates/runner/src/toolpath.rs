@@ -174,7 +174,7 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
             band.peak_voltage_v = band.peak_voltage_v.max(peak(&x, &|n| responses[n].1));
             band.slope_along_cut_rad = band
                 .slope_along_cut_rad
-                .max((peak(&x, &|n| w(n)) / r).atan());
+                .max(libm::atan(peak(&x, &|n| w(n)) / r));
             band.nose_tightness = band.nose_tightness.max(tight);
             // Mean square of each harmonic (n ≥ 1): 2|Xₙ|²/N² (the Nyquist bin once).
             let power = |n: usize, v: C| {
@@ -184,8 +184,8 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
             let total: f64 = (1..=half).map(|n| power(n, x[n])).sum();
             let mut acc = 0.0;
             let mut top = 0;
-            for n in 1..=half {
-                acc += power(n, x[n]);
+            for (n, &v) in x.iter().enumerate().take(half + 1).skip(1) {
+                acc += power(n, v);
                 top = n;
                 if acc >= 0.999 * total {
                     break;

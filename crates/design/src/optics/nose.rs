@@ -38,7 +38,7 @@ fn profile(p: &Prescription, r: f64, (c, s): (f64, f64)) -> (f64, f64) {
 /// spindle angle `theta_rad` (rad); None when the contact does not settle (a concave region
 /// tighter than the nose, or a slope of 90°).
 pub fn contact(p: &Prescription, nose_radius_m: f64, r_m: f64, theta_rad: f64) -> Option<Contact> {
-    let dir = (theta_rad.cos(), theta_rad.sin());
+    let dir = (libm::cos(theta_rad), libm::sin(theta_rad));
     let big_r = nose_radius_m;
     // f(r_p) = r_p − R sin α(r_p) − r_t = 0, solved by secant from the fixed-point guess.
     let f = |rp: f64| {

@@ -127,7 +127,7 @@ impl ToolPath {
         let tip = self.tip_height_m(r_m, theta_rad).unwrap_or_else(|| {
             -self
                 .prescription
-                .sag(r_m * theta_rad.cos(), r_m * theta_rad.sin())
+                .sag(r_m * libm::cos(theta_rad), r_m * libm::sin(theta_rad))
                 .z_m
         });
         tip - self.symmetric_m(r_m)

@@ -34,7 +34,7 @@ pub fn noll(j: usize) -> (u32, i32) {
         rest -= n;
     }
     let m = (n % 2 + 2 * ((rest + (n + 1) % 2) / 2)) as i32;
-    (n as u32, if j % 2 == 0 { m } else { -m })
+    (n as u32, if j.is_multiple_of(2) { m } else { -m })
 }
 
 /// Radial order n and signed azimuthal order m of Fringe term `j` (1 ≤ j ≤ 37).
@@ -105,7 +105,7 @@ impl Zernike {
     /// The value of term `j` alone with unit coefficient, and its slopes, at `(x, y)` (m).
     pub fn basis(&self, j: usize, x: f64, y: f64) -> Sag {
         let big_r = self.norm_radius_m;
-        let r = x.hypot(y);
+        let r = libm::hypot(x, y);
         let rho = r / big_r;
         let (n, m, norm) = self.term(j);
         let ma = m.unsigned_abs();
@@ -125,8 +125,11 @@ impl Zernike {
             };
         }
         let (c, s) = if r > 0.0 { (x / r, y / r) } else { (1.0, 0.0) };
-        let theta = y.atan2(x);
-        let (cos_m, sin_m) = ((f64::from(ma) * theta).cos(), (f64::from(ma) * theta).sin());
+        let theta = libm::atan2(y, x);
+        let (cos_m, sin_m) = (
+            libm::cos(f64::from(ma) * theta),
+            libm::sin(f64::from(ma) * theta),
+        );
         // Angular factor and its θ-derivative divided by |m|.
         let (a, da) = if m > 0 {
             (cos_m, -sin_m)

@@ -129,7 +129,7 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
     let aperture = within("aperture_radius_mm", file.aperture_radius_mm, 0.0, 500.0)?;
     finite("decenter_mm", &file.decenter_mm, 1000.0, "mm")?;
     let decenter_m = file.decenter_mm.map(|v| v * M_PER_MM);
-    let reach = aperture + decenter_m[0].hypot(decenter_m[1]);
+    let reach = aperture + libm::hypot(decenter_m[0], decenter_m[1]);
     let base = match file.base {
         None => None,
         Some(b) => {
