@@ -17,9 +17,10 @@ use crate::plan::Plan;
 use crate::surface::LoadedSurface;
 use design::optics::toolpath::ToolPath;
 use num_complex::Complex64 as C;
-use realfft::RealFftPlanner;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::Serialize;
 use std::f64::consts::TAU;
+use std::sync::Arc;
 
 /// Samples per revolution of each evaluated ring.
 pub const RING_SAMPLES: usize = 2048;
@@ -34,6 +35,8 @@ pub struct Band {
     pub radius_m: [f64; 2],
     /// FTS stroke (highest − lowest height), m.
     pub stroke_m: f64,
+    /// Largest |FTS height| from the stroke's centre (the flexure's rest), m.
+    pub peak_height_m: f64,
     /// Peak FTS velocity, m/s.
     pub peak_velocity_m_per_s: f64,
     /// Peak FTS acceleration, m/s².
@@ -66,10 +69,82 @@ pub struct Feasibility {
     pub bands: Vec<Band>,
     /// DAC full scale, V.
     pub dac_range_v: f64,
+    /// Largest |height| the gap sensor reads before its ADC clips (or the protection's
+    /// position limit, if smaller), m.
+    pub measurable_m: f64,
+    /// FTS height where the cut starts (`start_radius_m`, angle 0), m.
+    pub start_height_m: f64,
+    /// The protection's following-error trip, m (0: off).
+    pub following_error_limit_m: f64,
     /// The tool's clearance angle, rad.
     pub clearance_angle_rad: f64,
     /// What exceeds a limit, one sentence each (empty: feasible).
     pub exceeded: Vec<String>,
+}
+
+/// The run's loop at the harmonics of the spindle frequency: what a ring of
+/// [`RING_SAMPLES`] path heights becomes (predicted tool error, DAC command, derivatives).
+pub struct RingLoop {
+    /// `T(jnΩ) − 1`, the tool error per metre of path at harmonic n.
+    tool_error: Vec<C>,
+    /// The DAC command per metre of path at harmonic n, V/m.
+    dac: Vec<C>,
+    forward: Arc<dyn RealToComplex<f64>>,
+    inverse: Arc<dyn ComplexToReal<f64>>,
+}
+
+impl RingLoop {
+    /// The loop of `plan` (its reference path and closed loop) at a spindle turning at
+    /// `spindle_hz` Hz.
+    pub fn new(plan: &Plan, spindle_hz: f64) -> Self {
+        let tool = reference_path_response(&plan.closed_loop, &plan.deployment, output::TOOL_M);
+        let dac = reference_path_response(&plan.closed_loop, &plan.deployment, output::CONTROL_V);
+        let harmonics = 0..=RING_SAMPLES / 2;
+        let mut planner = RealFftPlanner::<f64>::new();
+        RingLoop {
+            tool_error: harmonics
+                .clone()
+                .map(|n| tool(n as f64 * spindle_hz) - 1.0)
+                .collect(),
+            dac: harmonics.map(|n| dac(n as f64 * spindle_hz)).collect(),
+            forward: planner.plan_fft_forward(RING_SAMPLES),
+            inverse: planner.plan_fft_inverse(RING_SAMPLES),
+        }
+    }
+
+    /// The harmonics of a ring's [`RING_SAMPLES`] heights (unnormalised DFT).
+    fn spectrum(&self, ring: &[f64]) -> Vec<C> {
+        let mut input = ring.to_vec();
+        let mut x = self.forward.make_output_vec();
+        // Lengths match the plan by construction.
+        let _ = self.forward.process(&mut input, &mut x);
+        x
+    }
+
+    /// The waveform whose harmonics are `x` weighted by `w(n)`.
+    fn waveform(&self, x: &[C], w: impl Fn(usize) -> C) -> Vec<f64> {
+        let half = RING_SAMPLES / 2;
+        let mut spec: Vec<C> = x.iter().enumerate().map(|(n, v)| v * w(n)).collect();
+        spec[0].im = 0.0;
+        spec[half].im = 0.0;
+        let mut out = vec![0.0; RING_SAMPLES];
+        // A spectrum with real ends never fails to invert.
+        let _ = self.inverse.process(&mut spec, &mut out);
+        out.iter_mut().for_each(|v| *v /= RING_SAMPLES as f64);
+        out
+    }
+
+    /// The predicted tool error (tool − path, m) at each of the ring's samples, at steady
+    /// state.
+    pub fn predicted_error(&self, ring: &[f64]) -> Vec<f64> {
+        let x = self.spectrum(ring);
+        self.waveform(&x, |n| self.tool_error[n])
+    }
+}
+
+/// The largest |value|.
+fn peak(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |a, x| a.max(x.abs()))
 }
 
 /// A ring's samples of the FTS path and its contacts' worst tightness.
@@ -114,27 +189,7 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
     let omega = m.rad_per_s();
     let spindle_hz = omega / TAU;
     let half = RING_SAMPLES / 2;
-    let tool = reference_path_response(&plan.closed_loop, &plan.deployment, output::TOOL_M);
-    let dac = reference_path_response(&plan.closed_loop, &plan.deployment, output::CONTROL_V);
-    let responses: Vec<(C, C)> = (0..=half)
-        .map(|n| {
-            let f = n as f64 * spindle_hz;
-            (tool(f) - 1.0, dac(f))
-        })
-        .collect();
-    let mut planner = RealFftPlanner::<f64>::new();
-    let forward = planner.plan_fft_forward(RING_SAMPLES);
-    let inverse = planner.plan_fft_inverse(RING_SAMPLES);
-    // Peak of the waveform whose harmonics are `x` weighted by `w(n)`.
-    let peak = |x: &[C], w: &dyn Fn(usize) -> C| {
-        let mut spec: Vec<C> = x.iter().enumerate().map(|(n, v)| v * w(n)).collect();
-        spec[0].im = 0.0;
-        spec[half].im = 0.0;
-        let mut out = vec![0.0; RING_SAMPLES];
-        // A spectrum with real ends never fails to invert.
-        let _ = inverse.process(&mut spec, &mut out);
-        out.iter().fold(0.0f64, |a, v| a.max(v.abs())) / RING_SAMPLES as f64
-    };
+    let ring_loop = RingLoop::new(plan, spindle_hz);
     let aperture = path.prescription().aperture_radius_m;
     let mut out_bands = Vec::with_capacity(bands);
     for b in 0..bands {
@@ -143,6 +198,7 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
         let mut band = Band {
             radius_m: [inner, outer],
             stroke_m: 0.0,
+            peak_height_m: 0.0,
             peak_velocity_m_per_s: 0.0,
             peak_acceleration_m_per_s2: 0.0,
             peak_voltage_v: 0.0,
@@ -156,25 +212,25 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
             if r <= 0.0 {
                 continue;
             }
-            let (mut heights, tight) = ring(path, r);
+            let (heights, tight) = ring(path, r);
             let (lo, hi) = heights
                 .iter()
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
                     (a.min(v), b.max(v))
                 });
-            let mut x = forward.make_output_vec();
-            let _ = forward.process(&mut heights, &mut x);
-            let w = |n: usize| C::new(0.0, n as f64);
+            let x = ring_loop.spectrum(&heights);
+            let jn = |n: usize| C::new(0.0, n as f64);
+            let slope = peak(&ring_loop.waveform(&x, jn));
             band.stroke_m = band.stroke_m.max(hi - lo);
-            band.peak_velocity_m_per_s =
-                band.peak_velocity_m_per_s.max(omega * peak(&x, &|n| w(n)));
-            band.peak_acceleration_m_per_s2 = band
-                .peak_acceleration_m_per_s2
-                .max(omega * omega * peak(&x, &|n| -(n as f64 * n as f64) * C::new(1.0, 0.0)));
-            band.peak_voltage_v = band.peak_voltage_v.max(peak(&x, &|n| responses[n].1));
-            band.slope_along_cut_rad = band
-                .slope_along_cut_rad
-                .max(libm::atan(peak(&x, &|n| w(n)) / r));
+            band.peak_height_m = band.peak_height_m.max(hi.abs().max(lo.abs()));
+            band.peak_velocity_m_per_s = band.peak_velocity_m_per_s.max(omega * slope);
+            band.peak_acceleration_m_per_s2 = band.peak_acceleration_m_per_s2.max(
+                omega * omega * peak(&ring_loop.waveform(&x, |n| C::new(-((n * n) as f64), 0.0))),
+            );
+            band.peak_voltage_v = band
+                .peak_voltage_v
+                .max(peak(&ring_loop.waveform(&x, |n| ring_loop.dac[n])));
+            band.slope_along_cut_rad = band.slope_along_cut_rad.max(libm::atan(slope / r));
             band.nose_tightness = band.nose_tightness.max(tight);
             // Mean square of each harmonic (n ≥ 1): 2|Xₙ|²/N² (the Nyquist bin once).
             let power = |n: usize, v: C| {
@@ -192,7 +248,9 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
                 }
             }
             band.bandwidth_hz = band.bandwidth_hz.max(top as f64 * spindle_hz);
-            let error: f64 = (1..=half).map(|n| power(n, x[n] * responses[n].0)).sum();
+            let error: f64 = (1..=half)
+                .map(|n| power(n, x[n] * ring_loop.tool_error[n]))
+                .sum();
             band.predicted_rms_m = band.predicted_rms_m.max(error.sqrt());
         }
         out_bands.push(band);
@@ -210,6 +268,19 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
         fts_stroke_m: hi - lo,
         bands: out_bands,
         dac_range_v: dac_range,
+        measurable_m: (plan.config.plant.adc.range_v / plan.config.plant.capa.sensitivity_v_per_m)
+            .min(
+                plan.config
+                    .protection
+                    .position_limit_m
+                    .unwrap_or(f64::INFINITY),
+            ),
+        start_height_m: path.fts_m(m.start_radius_m, 0.0),
+        following_error_limit_m: if plan.config.protection.enabled {
+            plan.config.protection.following_error_m
+        } else {
+            0.0
+        },
         clearance_angle_rad: clearance,
         exceeded: Vec::new(),
     };
@@ -221,7 +292,20 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
 fn exceeded(f: &Feasibility) -> Vec<String> {
     let mm = |r: [f64; 2]| format!("{:.2}–{:.2} mm", r[0] * 1e3, r[1] * 1e3);
     let mut out = Vec::new();
+    if f.following_error_limit_m > 0.0 && f.start_height_m.abs() > f.following_error_limit_m {
+        out.push(format!(
+            "the cut starts {:.2} µm from the flexure's rest, beyond the {:.1} µm following-error trip (protection.following_error_m): the first tick would trip",
+            f.start_height_m * 1e6,
+            f.following_error_limit_m * 1e6
+        ));
+    }
     for b in &f.bands {
+        if b.peak_height_m > f.measurable_m {
+            out.push(format!(
+                "{}: the FTS must reach ±{:.2} µm, beyond the ±{:.2} µm the gap sensor reads (plant.adc.range_v / plant.capa.sensitivity_v_per_m, protection.position_limit_m)",
+                mm(b.radius_m), b.peak_height_m * 1e6, f.measurable_m * 1e6
+            ));
+        }
         if b.peak_voltage_v > f.dac_range_v {
             out.push(format!(
                 "{}: the loop would command {:.2} V, beyond the DAC's ±{} V (plant.dac.range_v): slow the spindle",

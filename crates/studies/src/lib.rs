@@ -17,6 +17,7 @@
 //! | [`form`] | Ch. 8 | machined form error, grid amplitude, trajectory |
 //! | [`spectrum`] | §5.7.4, Fig 5-15/5-16 | PSD and CAS of a recording beside the budget's prediction |
 //! | [`spindle`] | Appendix D | three-probe spindle error separation |
+//! | [`toolpath`] | §9.3.1 | a prescription's tool path: demands per band, predicted form error, sensitivities |
 //! | [`design_space`] | §6.5, Fig 6-13…6-18 | structural design studies: grids and samples over plant parameters |
 
 pub mod budget;
@@ -35,6 +36,7 @@ pub mod stiffness;
 pub mod sweep;
 pub mod synth;
 pub mod thesis;
+pub mod toolpath;
 pub mod tune;
 
 pub use error::StudyError;

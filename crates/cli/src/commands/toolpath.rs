@@ -1,14 +1,14 @@
 //! `servo toolpath`: what a prescription's tool path asks of the stage, before it is cut.
 
 use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs};
-use crate::output::{print_json, print_written, write_result, CliError, BAD_INPUT};
+use crate::output::{print_json, print_written, CliError, BAD_INPUT};
 use clap::Args;
 use runner::config::Scenario;
 use runner::surface::LoadedSurface;
-use runner::toolpath::{command_table, feasibility};
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use studies::toolpath::report::{self, TableSize};
 
 /// Check a prescription's tool path against the stage before cutting it.
 ///
@@ -16,9 +16,12 @@ use std::process::ExitCode;
 /// nose, leaves the rotationally symmetric part to the Z slide and reports, per radius band at
 /// the spindle speed: the FTS stroke, peak velocity, acceleration and DAC voltage, the
 /// predicted form error through the configured loop and feedforward, the slope along the cut
-/// against the clearance angle and the concave curvature against the nose. Writes
-/// `toolpath.json` and the FTS command table `fts_table.csv` (radius × encoder count → height
-/// in m) into `--out-dir`. Exit 2 when a band exceeds a limit.
+/// against the clearance angle and the concave curvature against the nose; over the aperture,
+/// the predicted form error on the part (PV and RMS after piston and tilt, and power; Zernike
+/// coefficients) and the effect of 1 µm of tool centre height and X offset. Writes
+/// `toolpath.json`, the FTS command table `fts_table.csv` (radius × encoder count → height in
+/// m), `part_error.csv` (the predicted error as a sag grid in mm, to load back as
+/// `[compensation]`) and pictures into `--out-dir`. Exit 2 when a band exceeds a limit.
 /// Example: servo toolpath -c cut.toml --feedforward zpetc
 #[derive(Args, Debug)]
 pub struct ToolpathCmd {
@@ -43,9 +46,6 @@ pub struct ToolpathCmd {
     /// Directory for toolpath.json and fts_table.csv.
     #[arg(long, default_value = "toolpath")]
     out_dir: PathBuf,
-    /// Replace the files if they exist.
-    #[arg(long)]
-    overwrite: bool,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -61,37 +61,27 @@ impl ToolpathCmd {
             crate::args::set(&mut m.spindle_rpm, self.rpm);
         }
         let plan = Plan::new(&l)?;
-        let f = feasibility(&plan, usize::from(self.bands))?;
+        let study = studies::toolpath::study(&plan, usize::from(self.bands))?;
         let (Scenario::Machine(m), Some(LoadedSurface::Prescription(path))) =
             (&plan.config.scenario, &plan.surface)
         else {
-            unreachable!("feasibility accepted the plan's prescription")
+            unreachable!("the study accepted the plan's prescription")
         };
-        let table = command_table(
-            path,
-            usize::from(self.table_radii),
-            usize::from(self.table_counts),
-            m.pulses_per_rev,
-        );
-        let json_path = self.out_dir.join("toolpath.json");
-        let table_path = self.out_dir.join("fts_table.csv");
-        std::fs::create_dir_all(&self.out_dir).map_err(|source| CliError::Write {
-            path: self.out_dir.clone(),
-            source,
-        })?;
-        let json = serde_json::to_string_pretty(&f).unwrap_or_default();
-        write_result(&json_path, &json, self.overwrite)?;
-        write_result(&table_path, &table, self.overwrite)?;
+        let table = TableSize {
+            radii: usize::from(self.table_radii),
+            counts: usize::from(self.table_counts),
+            pulses_per_rev: m.pulses_per_rev,
+        };
+        let title = format!("{} rpm, {}", m.spindle_rpm, plan.controller.description);
+        let written = report::write(&study, path, table, &title, &self.out_dir)
+            .map_err(studies::StudyError::from)?;
         if self.json {
-            print_json(&f);
+            print_json(&study);
         } else {
-            print(&f);
-            print_written(&studies::report::Written {
-                files: vec![json_path, table_path],
-                note: None,
-            });
+            print(&study);
+            print_written(&written);
         }
-        Ok(if f.exceeded.is_empty() {
+        Ok(if study.feasibility.exceeded.is_empty() {
             ExitCode::SUCCESS
         } else {
             ExitCode::from(BAD_INPUT)
@@ -99,8 +89,9 @@ impl ToolpathCmd {
     }
 }
 
-/// The report as a table.
-fn print(f: &runner::toolpath::Feasibility) {
+/// The report as tables.
+fn print(s: &studies::toolpath::ToolpathStudy) {
+    let f = &s.feasibility;
     println!(
         "Tool path at {} rpm, nose {:.3} mm compensated: Z slide travel {:.2} µm, FTS stroke {:.3} µm",
         f.spindle_rpm,
@@ -144,5 +135,22 @@ fn print(f: &runner::toolpath::Feasibility) {
     }
     for e in &f.exceeded {
         println!("  EXCEEDED {e}");
+    }
+    let nm = |r: studies::toolpath::Residual| {
+        format!("{:.2} nm PV, {:.3} nm RMS", r.pv_m * 1e9, r.rms_m * 1e9)
+    };
+    println!(
+        "  predicted form error on the part: {} after piston and tilt; {} after power too",
+        nm(s.form.tilt_removed),
+        nm(s.form.power_removed)
+    );
+    for t in &s.sensitivity {
+        println!(
+            "  a {:.0} µm {}: {} after piston and tilt; {} after power too",
+            t.size_m * 1e6,
+            t.error,
+            nm(t.form.tilt_removed),
+            nm(t.form.power_removed)
+        );
     }
 }

@@ -2,7 +2,8 @@
 //! conventions), evaluated with their slopes: a base conic with even-asphere terms
 //! ([`conic`]), Zernike departures in Noll (Standard) or Fringe order ([`zernike`]), XY
 //! polynomials ([`polynomial`]) and a measured sag grid ([`grid`]), summed, placed off axis,
-//! and the tool-nose compensation that turns them into a tool path ([`nose`]).
+//! less a previous cut's error map; the tool-nose compensation that turns them into a tool
+//! path ([`nose`]) and its split between the Z slide and the FTS ([`toolpath`]).
 //!
 //! Conventions: sag `z(x, y)` in m along +z from the vertex plane (Zemax's sign: a positive
 //! curvature bends the surface toward +z away from the vertex), `x, y` in m in the part's
@@ -63,8 +64,11 @@ pub struct Prescription {
     pub zernike: Option<Zernike>,
     /// XY polynomial departure.
     pub xy: Option<XyPolynomial>,
-    /// Measured or designed sag grid departure.
+    /// Measured or designed sag grid departure (in the parent surface's frame).
     pub grid: Option<SagGrid>,
+    /// The error map of a previous cut (sag of the part minus the design, in the part's frame,
+    /// as an interferometer reports it), subtracted so the next cut compensates it.
+    pub compensation: Option<SagGrid>,
     /// Position of the part's centre in the parent surface's frame, m.
     pub decenter_m: [f64; 2],
     /// Radius of the clear aperture on the part, m.
@@ -102,13 +106,18 @@ impl Prescription {
     /// Sag and slopes at `(x_m, y_m)` in the part's frame (see the type's decentre).
     pub fn sag(&self, x_m: f64, y_m: f64) -> Sag {
         let [dx, dy] = self.decenter_m;
-        let s = self.parent(x_m + dx, y_m + dy);
-        if dx == 0.0 && dy == 0.0 {
-            return s;
+        let mut s = self.parent(x_m + dx, y_m + dy);
+        if dx != 0.0 || dy != 0.0 {
+            s.z_m -= self.parent(dx, dy).z_m;
         }
-        Sag {
-            z_m: s.z_m - self.parent(dx, dy).z_m,
-            ..s
+        if let Some(c) = &self.compensation {
+            let e = c.sag(x_m, y_m);
+            s = Sag {
+                z_m: s.z_m - e.z_m,
+                dz_dx: s.dz_dx - e.dz_dx,
+                dz_dy: s.dz_dy - e.dz_dy,
+            };
         }
+        s
     }
 }

@@ -20,6 +20,9 @@
 //! [grid]                          # "Grid Sag": CSV of sag in mm, row 0 at +y, column 0 at −x
 //! path = "departure.csv"
 //! pitch_mm = [0.25, 0.25]
+//! [compensation]                  # a previous cut's error map (part − design, part frame), subtracted
+//! path = "part_error.csv"
+//! pitch_mm = [0.15625, 0.15625]
 //! ```
 
 use super::{input_file, ConfigError, Origin};
@@ -54,6 +57,7 @@ struct File {
     zernike: Option<ZernikeFile>,
     xy: Option<XyFile>,
     grid: Option<GridFile>,
+    compensation: Option<GridFile>,
 }
 
 #[derive(Deserialize)]
@@ -237,39 +241,72 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
             })
         }
     };
+    let dir = path.parent().unwrap_or(Path::new("."));
     let grid = match file.grid {
         None => None,
-        Some(g) => {
-            let pitch_m = [
-                within("grid.pitch_mm", g.pitch_mm[0], 0.0, 100.0)?,
-                within("grid.pitch_mm", g.pitch_mm[1], 0.0, 100.0)?,
-            ];
-            let grid_path = path.parent().unwrap_or(Path::new(".")).join(&g.path);
-            let grid = read_grid(&grid_path, pitch_m)
-                .map_err(|e| at.invalid("grid.path", grid_path.display(), &e))?;
-            let [hx, hy] = grid.half_extent_m();
-            let [dx, dy] = decenter_m;
-            if dx.abs() + aperture > hx || dy.abs() + aperture > hy {
-                return Err(at.invalid(
-                    "grid.path",
-                    grid_path.display(),
-                    &format!(
-                        "a grid covering the aperture (±{:.4} × ±{:.4} mm about the decentre; this one spans ±{:.4} × ±{:.4} mm)",
-                        (dx.abs() + aperture) / M_PER_MM, (dy.abs() + aperture) / M_PER_MM, hx / M_PER_MM, hy / M_PER_MM
-                    ),
-                ));
-            }
-            Some(grid)
-        }
+        Some(g) => Some(grid_table(&at, dir, "grid", &g, decenter_m, aperture)?),
+    };
+    let compensation = match file.compensation {
+        None => None,
+        Some(g) => Some(grid_table(
+            &at,
+            dir,
+            "compensation",
+            &g,
+            [0.0; 2],
+            aperture,
+        )?),
     };
     Ok(Prescription {
         base,
         zernike,
         xy,
         grid,
+        compensation,
         decenter_m,
         aperture_radius_m: aperture,
     })
+}
+
+/// The grid of table `name` (`grid`: the parent's frame, centred `decenter_m` from the part;
+/// `compensation`: the part's frame), read relative to `dir` and checked to cover the
+/// aperture.
+fn grid_table(
+    at: &Origin,
+    dir: &Path,
+    name: &str,
+    g: &GridFile,
+    decenter_m: [f64; 2],
+    aperture: f64,
+) -> Result<SagGrid, ConfigError> {
+    let key = |k: &str| format!("{name}.{k}");
+    let pitch = |v: f64| {
+        if v > 0.0 && v <= 100.0 {
+            Ok(v * M_PER_MM)
+        } else {
+            Err(at.invalid(&key("pitch_mm"), v, "(0, 100] mm"))
+        }
+    };
+    let pitch_m = [pitch(g.pitch_mm[0])?, pitch(g.pitch_mm[1])?];
+    let grid_path = dir.join(&g.path);
+    let grid = read_grid(&grid_path, pitch_m)
+        .map_err(|e| at.invalid(&key("path"), grid_path.display(), &e))?;
+    let [hx, hy] = grid.half_extent_m();
+    let [dx, dy] = decenter_m;
+    if dx.abs() + aperture > hx || dy.abs() + aperture > hy {
+        return Err(at.invalid(
+            &key("path"),
+            grid_path.display(),
+            &format!(
+                "a grid covering the aperture (±{:.4} × ±{:.4} mm about the part's centre; this one spans ±{:.4} × ±{:.4} mm)",
+                (dx.abs() + aperture) / M_PER_MM,
+                (dy.abs() + aperture) / M_PER_MM,
+                hx / M_PER_MM,
+                hy / M_PER_MM
+            ),
+        ));
+    }
+    Ok(grid)
 }
 
 /// A CSV of sag values in mm (rows of equal length, no header; `#` lines are comments) as a
@@ -322,4 +359,78 @@ fn read_grid(path: &Path, pitch_m: [f64; 2]) -> Result<SagGrid, String> {
         rows,
         sag_m,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> std::path::PathBuf {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn millimetres_become_metres_and_each_table_adds() {
+        let dir = tempfile::tempdir().unwrap();
+        write(
+            &dir,
+            "grid.csv",
+            "# z in mm\n0,0,0,0\n0,0.001,0.001,0\n0,0.001,0.001,0\n0,0,0,0\n",
+        );
+        let p = write(
+            &dir,
+            "p.toml",
+            "aperture_radius_mm = 1.0\ndecenter_mm = [0.5, 0.0]\n[base]\nradius_mm = 100.0\nconic = -1.0\neven_asphere = [0.0, 2e-6]\n[zernike]\norder = \"standard\"\nnorm_radius_mm = 2.0\ncoefficients_mm = [0.0, 0.0, 0.0, 0.001]\n[xy]\nnorm_radius_mm = 2.0\nterms = [{ x = 1, y = 1, coefficient_mm = 0.002 }]\n[grid]\npath = \"grid.csv\"\npitch_mm = [1.0, 1.0]\n",
+        );
+        let rx = read_prescription(&p).unwrap();
+        let b = rx.base.as_ref().unwrap();
+        assert!((b.curvature_per_m - 10.0).abs() < 1e-12);
+        // α₂ r⁴: 2e-6 mm⁻³ = 2e-6 · 1e9 m⁻³.
+        assert!((b.even_asphere[1] - 2e3).abs() < 1e-9);
+        assert_eq!(rx.decenter_m, [0.5e-3, 0.0]);
+        assert!((rx.zernike.as_ref().unwrap().coefficients_m[3] - 1e-6).abs() < 1e-18);
+        assert!((rx.xy.as_ref().unwrap().terms[0].coefficient_m - 2e-6).abs() < 1e-18);
+        let g = rx.grid.as_ref().unwrap();
+        assert_eq!((g.columns, g.rows), (4, 4));
+        assert!((g.sag_m[5] - 1e-6).abs() < 1e-18);
+    }
+
+    #[test]
+    fn errors_name_the_file_and_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = write(
+            &dir,
+            "p.toml",
+            "aperture_radius_mm = 10.0\n[base]\nradius_mm = 5.0\n",
+        );
+        let e = read_prescription(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("p.toml") && e.contains("base.conic") && e.contains("aperture"),
+            "{e}"
+        );
+        let p = write(&dir, "q.toml", "aperture_radius_mm = 1.0\n[zernike]\norder = \"fringe\"\nnorm_radius_mm = 1.0\ncoefficients_mm = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n");
+        let e = read_prescription(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("zernike.coefficients_mm") && e.contains("37"),
+            "{e}"
+        );
+        write(&dir, "small.csv", "0,0,0,0\n0,0,0,0\n0,0,0,0\n0,0,0,0\n");
+        let p = write(
+            &dir,
+            "r.toml",
+            "aperture_radius_mm = 5.0\n[grid]\npath = \"small.csv\"\npitch_mm = [1.0, 1.0]\n",
+        );
+        let e = read_prescription(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("grid.path") && e.contains("covering the aperture"),
+            "{e}"
+        );
+        let p = write(&dir, "s.toml", "aperture_radius_mm = 5.0\nradius = 3\n");
+        assert!(read_prescription(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("s.toml"));
+    }
 }

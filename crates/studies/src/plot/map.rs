@@ -104,3 +104,20 @@ impl Drawing for Map {
         root.present().map_err(|e| e.to_string())
     }
 }
+
+/// A [`Map`] drawn nearly square (a map over a circular aperture, x and y alike in length).
+#[derive(Debug, Clone)]
+pub struct SquareMap(pub Map);
+
+impl Drawing for SquareMap {
+    const SIZE: (u32, u32) = (1060, 760);
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, plotters::coord::Shift>,
+    ) -> Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        self.0.draw_on(root)
+    }
+}

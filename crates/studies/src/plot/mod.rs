@@ -40,7 +40,7 @@ mod ticks;
 
 pub use bars::Bars;
 pub use contour::Contour;
-pub use map::Map;
+pub use map::{Map, SquareMap};
 pub use ticks::plain;
 use ticks::tick_label;
 

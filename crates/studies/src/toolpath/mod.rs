@@ -1,0 +1,272 @@
+//! The part a prescription's tool path would leave, before it is cut: the stage's demands per
+//! radius band (`runner::toolpath`), and over the whole aperture the predicted form error —
+//! the run's loop applied to the FTS path ring by ring, each point of the part taking the
+//! error of the nose that touched it (the envelope of the nose positions, to first order) —
+//! reported as an optician does: PV and RMS after piston and tilt (and after power), Zernike
+//! coefficients, a sag grid that can be loaded back to compensate the next cut; and the
+//! geometric sensitivity to the tool's centre height and X offset.
+
+pub mod report;
+
+use crate::error::StudyError;
+use design::optics::toolpath::ToolPath;
+use design::optics::{Zernike, ZernikeOrder};
+use nalgebra::{DMatrix, DVector};
+use runner::config::Scenario;
+use runner::surface::LoadedSurface;
+use runner::toolpath::{feasibility, Feasibility, RingLoop, RING_SAMPLES};
+use runner::Plan;
+use serde::Serialize;
+use std::f64::consts::TAU;
+
+/// Grid nodes per side of the aperture's maps.
+pub const MAP_NODES: usize = 129;
+
+/// Rings of the predicted error from the edge to the axis.
+const RINGS: usize = 64;
+
+/// Zernike terms fitted to the error (Standard, Noll order, on the aperture).
+pub const FITTED_TERMS: usize = 37;
+
+/// The size of the tool-setting errors whose effect is reported, m.
+pub const SETTING_ERROR_M: f64 = 1e-6;
+
+/// A map over the aperture: `nodes × nodes`, row 0 at +y, column 0 at −x (Zemax's grid
+/// layout), NaN outside the aperture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ApertureMap {
+    /// Nodes per side.
+    pub nodes: usize,
+    /// Node spacing, m.
+    pub pitch_m: f64,
+    /// Row-major values, m.
+    pub values: Vec<f64>,
+}
+
+impl ApertureMap {
+    /// `f(x, y)` at every node inside the aperture of radius `aperture_m`.
+    fn of(aperture_m: f64, f: impl Fn(f64, f64) -> f64) -> Self {
+        let pitch = 2.0 * aperture_m / (MAP_NODES - 1) as f64;
+        let values = (0..MAP_NODES * MAP_NODES)
+            .map(|i| {
+                let (x, y) = node_xy(i, pitch);
+                if libm::hypot(x, y) <= aperture_m * (1.0 + 1e-12) {
+                    f(x, y)
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
+        ApertureMap {
+            nodes: MAP_NODES,
+            pitch_m: pitch,
+            values,
+        }
+    }
+}
+
+/// Position of node `i` of the square grid of `pitch` (m), centred.
+fn node_xy(i: usize, pitch: f64) -> (f64, f64) {
+    let half = (MAP_NODES - 1) as f64 / 2.0;
+    let (row, col) = (i / MAP_NODES, i % MAP_NODES);
+    ((col as f64 - half) * pitch, (half - row as f64) * pitch)
+}
+
+/// PV and RMS of a map with a set of Zernike terms fitted and removed.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Residual {
+    /// Peak-to-valley, m.
+    pub pv_m: f64,
+    /// RMS, m.
+    pub rms_m: f64,
+}
+
+/// A map's form as an optician reports it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Form {
+    /// Piston and tilt removed (Noll 1–3).
+    pub tilt_removed: Residual,
+    /// Piston, tilt and power removed (Noll 1–4).
+    pub power_removed: Residual,
+    /// Standard (Noll, unit-RMS) Zernike coefficients of the map on the aperture, m, term j at
+    /// index j − 1.
+    pub zernike_standard_m: Vec<f64>,
+}
+
+/// One tool-setting error's effect on the part (geometry alone).
+#[derive(Debug, Clone, Serialize)]
+pub struct Sensitivity {
+    /// Which error.
+    pub error: String,
+    /// Its size, m.
+    pub size_m: f64,
+    /// The part's form error it makes.
+    pub form: Form,
+}
+
+/// The whole study.
+#[derive(Debug, Clone, Serialize)]
+pub struct ToolpathStudy {
+    /// The stage's demands per band.
+    pub feasibility: Feasibility,
+    /// The predicted form error on the part (part − design, height toward the tool).
+    pub form: Form,
+    /// Centre height and X offset of the tool.
+    pub sensitivity: Vec<Sensitivity>,
+    /// The FTS path over the aperture, m.
+    #[serde(skip)]
+    pub fts_map: ApertureMap,
+    /// The predicted form error over the aperture, m.
+    #[serde(skip)]
+    pub error_map: ApertureMap,
+}
+
+/// Fits the first `terms` Standard Zernike terms to `map` (on `aperture_m`); the coefficients
+/// and the residual's PV and RMS after removing the first `removed` of them.
+fn fit(map: &ApertureMap, aperture_m: f64, terms: usize) -> (Vec<f64>, Vec<Residual>) {
+    let basis = Zernike {
+        order: ZernikeOrder::Standard,
+        norm_radius_m: aperture_m,
+        coefficients_m: Vec::new(),
+    };
+    let points: Vec<(f64, f64, f64)> = map
+        .values
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.is_finite())
+        .map(|(i, &v)| {
+            let (x, y) = node_xy(i, map.pitch_m);
+            (x, y, v)
+        })
+        .collect();
+    let a = DMatrix::from_fn(points.len(), terms, |i, j| {
+        basis.basis(j + 1, points[i].0, points[i].1).z_m
+    });
+    let b = DVector::from_iterator(points.len(), points.iter().map(|p| p.2));
+    let solve = |k: usize| {
+        let sub = a.columns(0, k).into_owned();
+        sub.clone()
+            .svd(true, true)
+            .solve(&b, 1e-12)
+            .map(|c| (c.clone(), &b - sub * c))
+            .unwrap_or_else(|_| (DVector::zeros(k), b.clone()))
+    };
+    let residual = |r: DVector<f64>| {
+        let n = r.len().max(1) as f64;
+        Residual {
+            pv_m: r.max() - r.min(),
+            rms_m: (r.norm_squared() / n).sqrt(),
+        }
+    };
+    let (all, _) = solve(terms);
+    let residuals = [3, 4].iter().map(|&k| residual(solve(k).1)).collect();
+    (all.iter().copied().collect(), residuals)
+}
+
+/// `map`'s form on the aperture.
+fn form_of(map: &ApertureMap, aperture_m: f64) -> Form {
+    let (zernike, residuals) = fit(map, aperture_m, FITTED_TERMS);
+    Form {
+        tilt_removed: residuals[0],
+        power_removed: residuals[1],
+        zernike_standard_m: zernike,
+    }
+}
+
+/// The predicted error, ring by ring: each ring's contact radii and errors at the
+/// [`RING_SAMPLES`] angles, ring 0 at the aperture's edge.
+fn predicted_rings(path: &ToolPath, ring_loop: &RingLoop) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let aperture = path.prescription().aperture_radius_m;
+    (0..RINGS)
+        .map(|i| {
+            let r = aperture * (1.0 - i as f64 / (RINGS - 1) as f64);
+            let (contacts, heights): (Vec<f64>, Vec<f64>) = (0..RING_SAMPLES)
+                .map(|k| {
+                    let theta = k as f64 * TAU / RING_SAMPLES as f64;
+                    let contact = path
+                        .contact(r, theta)
+                        .map_or(r, |c| c.contact_radius_m.abs());
+                    (contact, path.fts_m(r, theta))
+                })
+                .unzip();
+            (contacts, ring_loop.predicted_error(&heights))
+        })
+        .collect()
+}
+
+/// The error at radius `rho` along angle sample `k`: linear between the rings whose
+/// contacts bracket it (the nearest ring beyond them).
+fn along(rings: &[(Vec<f64>, Vec<f64>)], k: usize, rho: f64) -> f64 {
+    for w in rings.windows(2) {
+        let (outer, inner) = (&w[0], &w[1]);
+        let (ro, ri) = (outer.0[k], inner.0[k]);
+        if rho <= ro && rho >= ri {
+            let t = if ro > ri { (rho - ri) / (ro - ri) } else { 0.0 };
+            return inner.1[k] + t * (outer.1[k] - inner.1[k]);
+        }
+    }
+    if rho > rings[0].0[k] {
+        rings[0].1[k]
+    } else {
+        rings[rings.len() - 1].1[k]
+    }
+}
+
+/// Runs the study on `plan` (a machining run of a prescription) with `bands` radius bands.
+pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
+    let feasibility = feasibility(plan, bands)?;
+    let (Scenario::Machine(m), Some(LoadedSurface::Prescription(path))) =
+        (&plan.config.scenario, &plan.surface)
+    else {
+        unreachable!("feasibility accepted the plan's prescription")
+    };
+    let aperture = path.prescription().aperture_radius_m;
+    let ring_loop = RingLoop::new(plan, m.rad_per_s() / TAU);
+    let rings = predicted_rings(path, &ring_loop);
+    let step = TAU / RING_SAMPLES as f64;
+    let error_map = ApertureMap::of(aperture, |x, y| {
+        let theta = libm::atan2(y, x).rem_euclid(TAU);
+        let rho = libm::hypot(x, y);
+        let u = theta / step;
+        let k = (u.floor() as usize) % RING_SAMPLES;
+        let t = u - u.floor();
+        let next = (k + 1) % RING_SAMPLES;
+        (1.0 - t) * along(&rings, k, rho) + t * along(&rings, next, rho)
+    });
+    let fts_map = ApertureMap::of(aperture, |x, y| {
+        path.fts_m(libm::hypot(x, y), libm::atan2(y, x))
+    });
+    let form = form_of(&error_map, aperture);
+    let tip = |r: f64, theta: f64| path.tip_height_m(r, theta).unwrap_or(f64::NAN);
+    let h = SETTING_ERROR_M;
+    // The tool set `h` above the axis: at X position r it touches the part at radius
+    // √(r² + h²), angle θ + atan(h/r); what it cuts there is what the table commands at r.
+    let centre_height = ApertureMap::of(aperture, |x, y| {
+        let (r, theta) = (libm::hypot(x, y), libm::atan2(y, x));
+        tip(r, theta) - tip(libm::hypot(r, h), theta + libm::atan2(h, r))
+    });
+    // The tool set `h` further out: at X position r it cuts radius r + h.
+    let x_offset = ApertureMap::of(aperture, |x, y| {
+        let (r, theta) = (libm::hypot(x, y), libm::atan2(y, x));
+        tip(r, theta) - tip(r + h, theta)
+    });
+    let sensitivity = vec![
+        Sensitivity {
+            error: "tool centre height".into(),
+            size_m: h,
+            form: form_of(&centre_height, aperture),
+        },
+        Sensitivity {
+            error: "tool X offset".into(),
+            size_m: h,
+            form: form_of(&x_offset, aperture),
+        },
+    ];
+    Ok(ToolpathStudy {
+        feasibility,
+        form,
+        sensitivity,
+        fts_map,
+        error_map,
+    })
+}

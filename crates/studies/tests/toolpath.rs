@@ -1,0 +1,114 @@
+//! A prescription's predicted form error against the simulated cut (the frequency-domain
+//! prediction through the loop model beside the time-domain simulation with its noise and
+//! cutting force), and the predicted error map written as a sag grid, read back as the
+//! prescription's `[compensation]`, removing most of the error of the next cut.
+
+mod common;
+
+use common::machine;
+use runner::config::{Loaded, Machining, Origin, RunConfig, RunSection, Scenario, SurfaceConfig};
+use std::path::Path;
+
+/// The book's gentle freeform: a 500 mm sphere, 3 µm astigmatism, 2 µm coma, 1.5 µm trefoil
+/// (Fringe) over a 20 mm aperture.
+const GENTLE: &str = r#"
+aperture_radius_mm = 10.0
+[base]
+radius_mm = 500.0
+[zernike]
+order = "fringe"
+norm_radius_mm = 10.0
+coefficients_mm = [0.0, 0.0, 0.0, 0.0, 0.003, 0.0, 0.002, 0.0, 0.0, 0.0015]
+"#;
+
+/// A plan cutting the prescription file `path` at 600 rpm from the aperture's edge.
+fn plan(path: &Path, duration_s: f64) -> runner::Plan {
+    let config = RunConfig {
+        run: RunSection {
+            duration_s,
+            ..RunSection::default()
+        },
+        scenario: Scenario::Machine(Machining {
+            surface: SurfaceConfig::Prescription {
+                path: path.to_owned(),
+                nose_compensation: true,
+                clearance_angle_rad: 0.12,
+            },
+            spindle_rpm: 600.0,
+            start_radius_m: 10e-3,
+            ..Machining::default()
+        }),
+        ..RunConfig::default()
+    };
+    common::plan(&Loaded {
+        config,
+        origin: Origin::default(),
+    })
+}
+
+#[test]
+fn the_predicted_band_error_is_the_simulated_cuts() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("gentle.toml");
+    std::fs::write(&file, GENTLE).unwrap();
+    let p = plan(&file, 0.6);
+    let predicted = runner::toolpath::feasibility(&p, 10).unwrap().bands[0].predicted_rms_m;
+    let (_, analysis) = machine(&p);
+    let simulated = analysis.report().form_error_m.rms;
+    // The band 9.95–10 mm against the prediction's 9–10 mm band (its edge the largest).
+    assert!(
+        (simulated - predicted).abs() < 0.1 * predicted,
+        "simulated {simulated:e} m, predicted {predicted:e} m"
+    );
+}
+
+#[test]
+fn the_predicted_error_loaded_back_compensates_the_next_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("gentle.toml");
+    std::fs::write(&file, GENTLE).unwrap();
+    let first = studies::toolpath::study(&plan(&file, 0.6), 4).unwrap();
+    let before = first.form.tilt_removed.rms_m;
+    assert!(before > 3e-9, "the PID loop leaves nanometres: {before:e}");
+    let p = plan(&file, 0.6);
+    let Some(runner::surface::LoadedSurface::Prescription(path)) = &p.surface else {
+        panic!("a prescription")
+    };
+    let table = studies::toolpath::report::TableSize {
+        radii: 4,
+        counts: 8,
+        pulses_per_rev: 80_000,
+    };
+    let out = dir.path().join("first");
+    studies::toolpath::report::write(&first, path, table, "first cut", &out).unwrap();
+    let pitch_mm = first.error_map.pitch_m * 1e3;
+    let compensated = dir.path().join("compensated.toml");
+    std::fs::write(
+        &compensated,
+        format!(
+            "{GENTLE}\n[compensation]\npath = \"first/part_error.csv\"\npitch_mm = [{pitch_mm}, {pitch_mm}]\n"
+        ),
+    )
+    .unwrap();
+    let second = studies::toolpath::study(&plan(&compensated, 0.6), 4).unwrap();
+    // Part = (design − e₁) + e₂ with e₂ the loop's error on the compensated path: what is left
+    // is e₂ − e₁, the loop's error on e₁ itself (|T − 1| of it) and the grid's interpolation.
+    let Some(runner::surface::LoadedSurface::Prescription(path2)) =
+        &plan(&compensated, 0.6).surface
+    else {
+        panic!("a prescription")
+    };
+    let (mut sq, mut n) = (0.0, 0.0);
+    for (&e1, &e2) in first.error_map.values.iter().zip(&second.error_map.values) {
+        if e1.is_finite() {
+            sq += (e2 - e1) * (e2 - e1);
+            n += 1.0;
+        }
+    }
+    let after = (sq / n).sqrt();
+    assert!(path2.prescription().compensation.is_some());
+    assert!(
+        after < 0.2 * before,
+        "after {after:e} m, before {before:e} m"
+    );
+}
