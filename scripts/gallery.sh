@@ -11,6 +11,7 @@ $S budget --sweep --out-dir budget > /dev/null
 $S stiffness --kas 0,0.5,1,4 --out-dir stiffness > /dev/null
 $S machine --no-record --out-dir machine -q > /dev/null
 $S machine --no-record --flat-blank --repetitive --out-dir repetitive > /dev/null
+$S toolpath -c $ROOT/examples/prescriptions/cut-gentle.toml --out-dir toolpath > /dev/null
 $S study $ROOT/examples/studies/moving_mass.toml --out-dir moving_mass > /dev/null
 $S study $ROOT/examples/studies/flexure.toml --out-dir flexure > /dev/null
 $S study $ROOT/examples/studies/motor_constant.toml --out-dir motor_constant > /dev/null
@@ -19,7 +20,7 @@ python3 - "$W" "$ROOT/docs/src/gallery" <<'PY'
 import sys
 from PIL import Image
 src, dst = sys.argv[1], sys.argv[2]
-for f, name in [("frf/bode.png","bode.png"),("budget/budget_psd.png","budget_psd.png"),("budget/budget_cas.png","budget_cas.png"),("budget/sweep.png","sweep.png"),("stiffness/compliance.png","compliance.png"),("machine/form_error_map.png","form_error_map.png"),("machine/trajectory.png","trajectory.png"),("repetitive/repetitive_convergence.png","repetitive_convergence.png"),("repetitive/repetitive_table.png","repetitive_table.png"),("repetitive/form_error_map.png","repetitive_form_error_map.png"),("moving_mass/study.png","study_mass.png"),("flexure/map-h2.png","study_flexure.png"),("motor_constant/sensitivity.png","study_motor_sensitivity.png")]:
+for f, name in [("frf/bode.png","bode.png"),("budget/budget_psd.png","budget_psd.png"),("budget/budget_cas.png","budget_cas.png"),("budget/sweep.png","sweep.png"),("stiffness/compliance.png","compliance.png"),("machine/form_error_map.png","form_error_map.png"),("machine/trajectory.png","trajectory.png"),("repetitive/repetitive_convergence.png","repetitive_convergence.png"),("repetitive/repetitive_table.png","repetitive_table.png"),("repetitive/form_error_map.png","repetitive_form_error_map.png"),("toolpath/fts_path.png","toolpath_fts_path.png"),("toolpath/predicted_form_error.png","toolpath_predicted_form_error.png"),("toolpath/bands.png","toolpath_bands.png"),("moving_mass/study.png","study_mass.png"),("flexure/map-h2.png","study_flexure.png"),("motor_constant/sensitivity.png","study_motor_sensitivity.png")]:
     im = Image.open(f"{src}/{f}").convert("RGB")
     w = 760
     im = im.resize((w, round(im.height * w / im.width)), Image.LANCZOS)

@@ -42,6 +42,19 @@ impl SpiralCut {
     pub fn height_m(&self, theta_rad: f64) -> f64 {
         self.surface.depth_m(self.radius_m(theta_rad), theta_rad)
     }
+
+    /// The cut path's height above the design's at spindle angle `theta_rad`, m: a
+    /// prescription's `[compensation]`, 0 for every other surface (add it to `tool − path`
+    /// for the part against the design).
+    pub fn compensation_m(&self, theta_rad: f64) -> f64 {
+        match &self.surface {
+            LoadedSurface::Prescription(p) => {
+                let r = self.radius_m(theta_rad);
+                p.compensation_m(r * libm::cos(theta_rad), r * libm::sin(theta_rad))
+            }
+            _ => 0.0,
+        }
+    }
 }
 
 /// The spindle's angle over time: the configured speed with its slow sinusoidal drift and its

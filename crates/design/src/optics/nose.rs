@@ -8,12 +8,15 @@
 //! the nose centre: `r_t = r_p − R sin α`, `z_t = h(r_p) + R cos α − R`, `tan α = h'(r_p)`, with
 //! `(r_t, z_t)` the nose's lowest point (the tool position the servo is commanded to). Without
 //! it the part is cut `R(1/cos α − 1)` too deep and `R sin α` off to the side. The contact is
-//! unique while the concave curvature stays below 1/R ([`Contact::tightness`] < 1).
+//! unique while the concave curvature stays below 1/R ([`tightness`] < 1).
 
 use super::Prescription;
 
 /// Largest secant steps per contact.
 const MAX_STEPS: usize = 60;
+
+/// The contact equation is solved to this, m (0.1 pm).
+const TOLERANCE_M: f64 = 1e-13;
 
 /// The nose's contact with the profile at one tool position.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,8 +27,6 @@ pub struct Contact {
     pub contact_radius_m: f64,
     /// Radial slope at the contact, `dh/dr`.
     pub slope: f64,
-    /// `R·κ` at the contact, κ the profile's curvature (positive concave): ≥ 1 gouges.
-    pub tightness: f64,
 }
 
 /// The profile of `p` along the ray at `theta` (rad): `(h, dh/dr)` at signed radius `r` (m).
@@ -47,14 +48,18 @@ pub fn contact(p: &Prescription, nose_radius_m: f64, r_m: f64, theta_rad: f64) -
     };
     let (mut x0, mut f0) = (r_m, f(r_m));
     let mut x1 = r_m - f0;
-    let tol = 1e-15 * (1.0 + r_m.abs());
     for _ in 0..MAX_STEPS {
         let f1 = f(x1);
         if !f1.is_finite() {
             return None;
         }
-        if f1.abs() <= tol {
-            return Some(at_contact(p, big_r, x1, dir));
+        if f1.abs() <= TOLERANCE_M {
+            let (h, d) = profile(p, x1, dir);
+            return Some(Contact {
+                tip_height_m: h + big_r / (1.0 + d * d).sqrt() - big_r,
+                contact_radius_m: x1,
+                slope: d,
+            });
         }
         if f1 == f0 {
             return None;
@@ -65,19 +70,14 @@ pub fn contact(p: &Prescription, nose_radius_m: f64, r_m: f64, theta_rad: f64) -
     None
 }
 
-/// The contact at radius `rp` (m) on the ray `dir`.
-fn at_contact(p: &Prescription, big_r: f64, rp: f64, dir: (f64, f64)) -> Contact {
-    let (h, d) = profile(p, rp, dir);
-    let norm = (1.0 + d * d).sqrt();
-    // Curvature from the slope's central difference (a step far below the nose radius).
-    let step = 1e-6 * big_r.max(1e-6);
-    let (_, d_plus) = profile(p, rp + step, dir);
-    let (_, d_minus) = profile(p, rp - step, dir);
-    let curvature = (d_plus - d_minus) / (2.0 * step) / (norm * norm * norm);
-    Contact {
-        tip_height_m: h + big_r / norm - big_r,
-        contact_radius_m: rp,
-        slope: d,
-        tightness: big_r * curvature,
-    }
+/// `R·κ` at the contact `c` on the ray at `theta_rad` (rad) for a nose of radius
+/// `nose_radius_m` (m): the profile's concave curvature κ (from the slope's central difference,
+/// a step far below the nose radius) times R; ≥ 1 gouges.
+pub fn tightness(p: &Prescription, nose_radius_m: f64, c: &Contact, theta_rad: f64) -> f64 {
+    let dir = (libm::cos(theta_rad), libm::sin(theta_rad));
+    let step = 1e-6 * nose_radius_m.max(1e-6);
+    let (_, d_plus) = profile(p, c.contact_radius_m + step, dir);
+    let (_, d_minus) = profile(p, c.contact_radius_m - step, dir);
+    let norm = (1.0 + c.slope * c.slope).sqrt();
+    nose_radius_m * (d_plus - d_minus) / (2.0 * step) / (norm * norm * norm)
 }

@@ -3,7 +3,7 @@
 //! angular mean at each radius, the least-squares best fit of a function of `r` alone, which
 //! the Z slide cuts as it feeds — and the rest, which the FTS must move at spindle speed.
 
-use super::nose::{contact, Contact};
+use super::nose::{contact, tightness, Contact};
 use super::Prescription;
 
 /// Radii of the symmetric part's table over the aperture.
@@ -88,6 +88,12 @@ impl ToolPath {
         contact(&self.prescription, self.nose_radius_m, r_m, theta_rad)
     }
 
+    /// `R·κ` at the contact `c` found at spindle angle `theta_rad` (rad): ≥ 1, a concave
+    /// region tighter than the nose.
+    pub fn tightness(&self, c: &Contact, theta_rad: f64) -> f64 {
+        tightness(&self.prescription, self.nose_radius_m, c, theta_rad)
+    }
+
     /// The tool tip's height toward the tool, m (None: no contact).
     pub fn tip_height_m(&self, r_m: f64, theta_rad: f64) -> Option<f64> {
         self.contact(r_m, theta_rad).map(|c| c.tip_height_m)
@@ -131,6 +137,15 @@ impl ToolPath {
                 .z_m
         });
         tip - self.symmetric_m(r_m)
+    }
+
+    /// The cut path's height above the design's at `(x_m, y_m)` in the part's frame, m: the
+    /// `compensation` grid's sag (0 without one).
+    pub fn compensation_m(&self, x_m: f64, y_m: f64) -> f64 {
+        self.prescription
+            .compensation
+            .as_ref()
+            .map_or(0.0, |c| c.sag(x_m, y_m).z_m)
     }
 
     /// The FTS's lowest and highest height over the aperture (sampled), m.

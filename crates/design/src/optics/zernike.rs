@@ -54,22 +54,66 @@ pub fn fringe(j: usize) -> (u32, i32) {
     (n, m)
 }
 
-/// `R_n^m(ρ)`, `dR/dρ` and `R/ρ` (finite on the axis for m ≥ 1; unused for m = 0).
-/// The coefficients `(−1)^k (n−k)! / (k! ((n+m)/2−k)! ((n−m)/2−k)!)` by their ratio.
-fn radial(n: u32, m: u32, rho: f64) -> (f64, f64, f64) {
+/// Radial orders whose coefficients are tabled once per process.
+const TABLED_ORDERS: u32 = 40;
+
+/// The coefficients `(−1)^k (n−k)! / (k! ((n+m)/2−k)! ((n−m)/2−k)!)` of `ρ^(n−2k)` in
+/// `R_n^m`, k = 0 … (n−m)/2, by their ratio.
+fn coefficients(n: u32, m: u32) -> Vec<f64> {
     let (a, b) = ((n + m) / 2, (n - m) / 2);
     // k = 0: n! / (a! b!) = C(n, b).
     let mut c = (0..b).fold(1.0, |acc, i| acc * f64::from(n - i) / f64::from(i + 1));
-    let (mut r, mut dr, mut r_over) = (0.0, 0.0, 0.0);
+    let mut out = Vec::with_capacity(b as usize + 1);
     for k in 0..=b {
-        let p = (n - 2 * k) as i32;
-        r += c * rho.powi(p);
-        if p > 0 {
-            dr += c * f64::from(p) * rho.powi(p - 1);
-            r_over += c * rho.powi(p - 1);
-        }
+        out.push(c);
         if k < b {
             c *= -f64::from((a - k) * (b - k)) / f64::from((n - k) * (k + 1));
+        }
+    }
+    out
+}
+
+/// [`coefficients`] for every n ≤ [`TABLED_ORDERS`], m ≤ n, built on first use.
+fn tabled(n: u32, m: u32) -> Option<&'static [f64]> {
+    static TABLE: std::sync::OnceLock<Vec<Vec<f64>>> = std::sync::OnceLock::new();
+    let size = TABLED_ORDERS + 1;
+    if n > TABLED_ORDERS {
+        return None;
+    }
+    let table = TABLE.get_or_init(|| {
+        (0..size * size)
+            .map(|i| {
+                let (n, m) = (i / size, i % size);
+                if m <= n && (n - m) % 2 == 0 {
+                    coefficients(n, m)
+                } else {
+                    Vec::new()
+                }
+            })
+            .collect()
+    });
+    table.get((n * size + m) as usize).map(Vec::as_slice)
+}
+
+/// `R_n^m(ρ)`, `dR/dρ` and `R/ρ` (finite on the axis for m ≥ 1; unused for m = 0), from the
+/// powers `ρ^k` of `p`.
+fn radial(n: u32, m: u32, p: &Polar) -> (f64, f64, f64) {
+    let owned;
+    let cs = match tabled(n, m) {
+        Some(cs) => cs,
+        None => {
+            owned = coefficients(n, m);
+            &owned
+        }
+    };
+    let (mut r, mut dr, mut r_over) = (0.0, 0.0, 0.0);
+    for (k, &c) in cs.iter().enumerate() {
+        let e = n - 2 * k as u32;
+        r += c * p.rho_pow(e);
+        if e > 0 {
+            let below = p.rho_pow(e - 1);
+            dr += c * f64::from(e) * below;
+            r_over += c * below;
         }
     }
     (r, dr, r_over)
@@ -104,12 +148,16 @@ impl Zernike {
 
     /// The value of term `j` alone with unit coefficient, and its slopes, at `(x, y)` (m).
     pub fn basis(&self, j: usize, x: f64, y: f64) -> Sag {
+        self.basis_at(j, &Polar::of(x, y, self.norm_radius_m))
+    }
+
+    /// [`Zernike::basis`] at a point already in polar form.
+    fn basis_at(&self, j: usize, p: &Polar) -> Sag {
         let big_r = self.norm_radius_m;
-        let r = libm::hypot(x, y);
-        let rho = r / big_r;
+        let rho = p.rho;
         let (n, m, norm) = self.term(j);
         let ma = m.unsigned_abs();
-        let (radial, d_radial, radial_over_rho) = radial(n, ma, rho);
+        let (radial, d_radial, radial_over_rho) = radial(n, ma, p);
         if ma == 0 {
             // z = N R(ρ): dz/dx = N R'(ρ) x/(rR); R'(ρ)/ρ is finite (R is even in ρ).
             let d_over_rho = if rho > 0.0 {
@@ -120,16 +168,11 @@ impl Zernike {
             let g = norm * d_over_rho / (big_r * big_r);
             return Sag {
                 z_m: norm * radial,
-                dz_dx: g * x,
-                dz_dy: g * y,
+                dz_dx: g * p.x,
+                dz_dy: g * p.y,
             };
         }
-        let (c, s) = if r > 0.0 { (x / r, y / r) } else { (1.0, 0.0) };
-        let theta = libm::atan2(y, x);
-        let (cos_m, sin_m) = (
-            libm::cos(f64::from(ma) * theta),
-            libm::sin(f64::from(ma) * theta),
-        );
+        let (cos_m, sin_m) = p.harmonic(ma);
         // Angular factor and its θ-derivative divided by |m|.
         let (a, da) = if m > 0 {
             (cos_m, -sin_m)
@@ -139,6 +182,7 @@ impl Zernike {
         // dz/dρ = N R' a; (1/ρ) dz/dθ = N (R/ρ) |m| da.
         let dz_drho = norm * d_radial * a;
         let dz_dtheta_over_rho = norm * radial_over_rho * f64::from(ma) * da;
+        let (c, s) = (p.cos[1], p.sin[1]);
         Sag {
             z_m: norm * radial * a,
             dz_dx: (dz_drho * c - dz_dtheta_over_rho * s) / big_r,
@@ -148,12 +192,13 @@ impl Zernike {
 
     /// Sag and slopes at `(x, y)` (m).
     pub fn sag(&self, x: f64, y: f64) -> Sag {
+        let p = Polar::of(x, y, self.norm_radius_m);
         self.coefficients_m
             .iter()
             .enumerate()
             .filter(|(_, c)| **c != 0.0)
             .fold(Sag::default(), |acc, (i, &c)| {
-                let b = self.basis(i + 1, x, y);
+                let b = self.basis_at(i + 1, &p);
                 acc + Sag {
                     z_m: c * b.z_m,
                     dz_dx: c * b.dz_dx,
@@ -163,16 +208,70 @@ impl Zernike {
     }
 }
 
+/// Angular orders and powers of ρ a [`Polar`] holds (by recurrence, no trigonometry).
+const HARMONICS: usize = 32;
+
+/// A point in polar form on a normalisation radius: ρ and its first [`HARMONICS`] powers,
+/// cos mθ and sin mθ for the first [`HARMONICS`] orders.
+struct Polar {
+    x: f64,
+    y: f64,
+    rho: f64,
+    rho_pow: [f64; HARMONICS],
+    cos: [f64; HARMONICS],
+    sin: [f64; HARMONICS],
+}
+
+impl Polar {
+    fn of(x: f64, y: f64, norm_radius_m: f64) -> Self {
+        let r = libm::hypot(x, y);
+        let rho = r / norm_radius_m;
+        let mut rho_pow = [1.0; HARMONICS];
+        for k in 1..HARMONICS {
+            rho_pow[k] = rho_pow[k - 1] * rho;
+        }
+        // θ = atan2(y, x): 0 on the axis.
+        let (c, s) = if r > 0.0 { (x / r, y / r) } else { (1.0, 0.0) };
+        let (mut cos, mut sin) = ([1.0; HARMONICS], [0.0; HARMONICS]);
+        for k in 1..HARMONICS {
+            cos[k] = cos[k - 1] * c - sin[k - 1] * s;
+            sin[k] = sin[k - 1] * c + cos[k - 1] * s;
+        }
+        Polar {
+            x,
+            y,
+            rho,
+            rho_pow,
+            cos,
+            sin,
+        }
+    }
+
+    /// ρ^k.
+    fn rho_pow(&self, k: u32) -> f64 {
+        match self.rho_pow.get(k as usize) {
+            Some(&v) => v,
+            None => self.rho.powi(k as i32),
+        }
+    }
+
+    /// (cos mθ, sin mθ).
+    fn harmonic(&self, m: u32) -> (f64, f64) {
+        match self.cos.get(m as usize) {
+            Some(&c) => (c, self.sin[m as usize]),
+            None => {
+                let theta = f64::from(m) * libm::atan2(self.y, self.x);
+                (libm::cos(theta), libm::sin(theta))
+            }
+        }
+    }
+}
+
 /// The ρ² coefficient of `R_n^0` (k = n/2 − 1 in the sum; 0 for n = 0): half of `R'(ρ)/ρ`
 /// on the axis.
 fn radial_second(n: u32) -> f64 {
     if n < 2 {
         return 0.0;
     }
-    let half = n / 2;
-    let mut c = (0..half).fold(1.0, |acc, i| acc * f64::from(n - i) / f64::from(i + 1));
-    for k in 0..half - 1 {
-        c *= -f64::from((half - k) * (half - k)) / f64::from((n - k) * (k + 1));
-    }
-    c
+    coefficients(n, 0)[(n / 2 - 1) as usize]
 }

@@ -169,7 +169,8 @@ impl FormAnalysis {
         let theta = self.spindle.angle_rad(t);
         let design = self.cut.height_m(theta);
         let tool = f.truth.tool_m as f64;
-        let e = tool - design;
+        // Against the design, not a compensated path (a prescription's [compensation]).
+        let e = tool - design + self.cut.compensation_m(theta);
         self.form.add(e);
         if let Some(w) = &mut self.roughness {
             w.add(theta, e);

@@ -109,7 +109,8 @@ pub struct Sensitivity {
 pub struct ToolpathStudy {
     /// The stage's demands per band.
     pub feasibility: Feasibility,
-    /// The predicted form error on the part (part − design, height toward the tool).
+    /// The predicted form error on the part (part − design, height toward the tool; with a
+    /// `[compensation]`, against the design without it).
     pub form: Form,
     /// Centre height and X offset of the tool.
     pub sensitivity: Vec<Sensitivity>,
@@ -180,13 +181,14 @@ fn predicted_rings(path: &ToolPath, ring_loop: &RingLoop) -> Vec<(Vec<f64>, Vec<
     (0..RINGS)
         .map(|i| {
             let r = aperture * (1.0 - i as f64 / (RINGS - 1) as f64);
+            let symmetric = path.symmetric_m(r);
             let (contacts, heights): (Vec<f64>, Vec<f64>) = (0..RING_SAMPLES)
                 .map(|k| {
                     let theta = k as f64 * TAU / RING_SAMPLES as f64;
-                    let contact = path
-                        .contact(r, theta)
-                        .map_or(r, |c| c.contact_radius_m.abs());
-                    (contact, path.fts_m(r, theta))
+                    match path.contact(r, theta) {
+                        Some(c) => (c.contact_radius_m.abs(), c.tip_height_m - symmetric),
+                        None => (r, path.fts_m(r, theta)),
+                    }
                 })
                 .unzip();
             (contacts, ring_loop.predicted_error(&heights))
@@ -231,7 +233,8 @@ pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
         let k = (u.floor() as usize) % RING_SAMPLES;
         let t = u - u.floor();
         let next = (k + 1) % RING_SAMPLES;
-        (1.0 - t) * along(&rings, k, rho) + t * along(&rings, next, rho)
+        // The part against the design: a [compensation] moved the path off it.
+        (1.0 - t) * along(&rings, k, rho) + t * along(&rings, next, rho) + path.compensation_m(x, y)
     });
     let fts_map = ApertureMap::of(aperture, |x, y| {
         path.fts_m(libm::hypot(x, y), libm::atan2(y, x))
