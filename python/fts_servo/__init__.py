@@ -40,6 +40,7 @@ __all__ = [
     "models",
     "budget",
     "loop_response",
+    "prescription_sag",
     "resolved_config",
     "tune",
     "synth_h2",
@@ -277,3 +278,18 @@ def identify(
         measured_m_per_v = np.ascontiguousarray(measured_m_per_v, dtype=np.complex128)
     report, model = _native.identify(frf, measured_m_per_v, config, overrides)
     return {**json.loads(report), "model_toml": model}
+
+
+def prescription_sag(
+    path: Union[str, "os.PathLike[str]"], x_m: Sequence[float], y_m: Sequence[float]
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A surface prescription's sag and slopes, as ``servo machine`` and ``servo toolpath``
+    cut it.
+
+    ``path`` is a prescription file (TOML in Zemax's conventions, lengths in mm: the book's
+    "Cutting an optical prescription" page); ``x_m``, ``y_m`` the points in m in the part's
+    frame. Returns the sag z in m (along +z from the vertex plane) and its slopes ∂z/∂x, ∂z/∂y.
+    """
+    x = np.ascontiguousarray(x_m, dtype=np.float64).ravel()
+    y = np.ascontiguousarray(y_m, dtype=np.float64).ravel()
+    return _native.prescription_sag(os.fspath(path), x, y)

@@ -9,6 +9,7 @@ mod config;
 mod design_api;
 mod loop_api;
 mod models;
+mod optics_api;
 mod recording;
 mod simulate;
 mod studies_api;
@@ -42,6 +43,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(design_api::tune, m)?)?;
     m.add_function(wrap_pyfunction!(design_api::synth_h2, m)?)?;
     m.add_function(wrap_pyfunction!(design_api::identify, m)?)?;
+    m.add_function(wrap_pyfunction!(optics_api::prescription_sag, m)?)?;
     m.add_function(wrap_pyfunction!(study_api::study_info, m)?)?;
     m.add_function(wrap_pyfunction!(study_api::study_rows, m)?)?;
     m.add_function(wrap_pyfunction!(study_api::study_open, m)?)?;
