@@ -104,7 +104,6 @@ impl LoadedSurface {
     /// as it is, a prescription as JSON in SI).
     pub fn load(m: &Machining, at: &Origin, file: Option<&[u8]>) -> Result<Self, ConfigError> {
         let config = &m.surface;
-        let image = file;
         let key = |k: &str| format!("scenario.surface.{k}");
         let positive = |k: &str, v: f64, max: f64| {
             if v > 0.0 && v <= max {
@@ -167,7 +166,7 @@ impl LoadedSurface {
                 pixel_m,
                 depth_range_m,
             } => {
-                let bytes = image.ok_or_else(|| {
+                let bytes = file.ok_or_else(|| {
                     at.invalid(&key("path"), path.display(), "an image file that was read")
                 })?;
                 let (pixels, width, height_px) = decode_grey_png(bytes).map_err(|e| {
@@ -197,12 +196,33 @@ impl LoadedSurface {
                         "(0, 1.5) rad",
                     ));
                 }
-                let p: Prescription = file
-                    .and_then(|b| serde_json::from_slice(b).ok())
-                    .ok_or_else(|| {
-                        at.invalid(&key("path"), path.display(), "a prescription that was read")
-                    })?;
-                if m.start_radius_m > p.aperture_radius_m {
+                // A file read by the plan was checked there; a recording's copy is checked here.
+                let p: Prescription = match file.map(serde_json::from_slice::<Prescription>) {
+                    Some(Ok(p)) => p,
+                    Some(Err(e)) => {
+                        return Err(at.invalid(
+                            &key("path"),
+                            path.display(),
+                            &format!("a prescription as a run embeds it ({e})"),
+                        ))
+                    }
+                    None => {
+                        return Err(at.invalid(
+                            &key("path"),
+                            path.display(),
+                            "a prescription that was read",
+                        ))
+                    }
+                };
+                p.validate().map_err(|(part, allowed)| {
+                    at.invalid(
+                        &key("path"),
+                        path.display(),
+                        &format!("a valid prescription ({part}: {allowed})"),
+                    )
+                })?;
+                // The aperture as written in mm may land an ulp below the same radius in m.
+                if m.start_radius_m > p.aperture_radius_m * (1.0 + 1e-12) {
                     return Err(at.invalid(
                         "scenario.start_radius_m",
                         m.start_radius_m,
@@ -222,7 +242,7 @@ impl LoadedSurface {
                         "scenario.tool_nose_radius_m",
                         m.tool_nose_radius_m,
                         &format!(
-                            "a nose that fits the surface (no contact at r = {:.4} mm, θ = {:.1}°: a concave region tighter than the nose)",
+                            "a nose that finds the surface (no contact at r = {:.4} mm, θ = {:.1}°: a concave region tighter than the nose, or a surface undefined there)",
                             e.radius_m * 1e3,
                             e.theta_rad.to_degrees()
                         ),

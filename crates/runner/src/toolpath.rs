@@ -11,7 +11,7 @@
 //! responses from the surface reference to the DAC command and to the true tool position.
 
 use crate::closed_loop::{output, reference_path_response};
-use crate::config::{Scenario, SurfaceConfig};
+use crate::config::{Machining, Scenario, SurfaceConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::surface::LoadedSurface;
@@ -35,7 +35,7 @@ pub struct Band {
     pub radius_m: [f64; 2],
     /// FTS stroke (highest − lowest height), m.
     pub stroke_m: f64,
-    /// Largest |FTS height| from the stroke's centre (the flexure's rest), m.
+    /// Largest |FTS height| from the ring's angular mean (the flexure's rest), m.
     pub peak_height_m: f64,
     /// Peak FTS velocity, m/s.
     pub peak_velocity_m_per_s: f64,
@@ -67,6 +67,8 @@ pub struct Feasibility {
     pub fts_stroke_m: f64,
     /// The bands, outermost first.
     pub bands: Vec<Band>,
+    /// The servo's Nyquist frequency, Hz (path content above it aliases).
+    pub nyquist_hz: f64,
     /// DAC full scale, V.
     pub dac_range_v: f64,
     /// Largest |height| the gap sensor reads before its ADC clips (or the protection's
@@ -142,9 +144,18 @@ impl RingLoop {
     }
 }
 
-/// The largest |value|.
+/// The largest |value| (NaN if any is NaN).
 fn peak(v: &[f64]) -> f64 {
-    v.iter().fold(0.0f64, |a, x| a.max(x.abs()))
+    v.iter().fold(0.0f64, |a, x| worst(a, x.abs()))
+}
+
+/// The larger of `a` and `b`, NaN if either is NaN (a band's worst case must not hide a NaN).
+fn worst(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
+    }
 }
 
 /// A ring's samples of the FTS path and its contacts' worst tightness.
@@ -169,9 +180,9 @@ fn ring(path: &ToolPath, r: f64) -> (Vec<f64>, f64) {
     (heights, tight)
 }
 
-/// The demands of `plan`'s prescription over `bands` radius bands from its aperture's edge
-/// to the axis; an error when the plan does not cut a prescription.
-pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
+/// The machining, tool path and clearance angle (rad) of `plan`, or an error naming
+/// `scenario.surface.kind` when it does not cut a prescription.
+pub fn prescription_of(plan: &Plan) -> Result<(&Machining, &ToolPath, f64), RunError> {
     let not_a_prescription = || {
         RunError::from(plan.origin.invalid(
             "scenario.surface.kind",
@@ -179,18 +190,22 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
             "\"prescription\" for a tool path",
         ))
     };
-    let (Scenario::Machine(m), Some(LoadedSurface::Prescription(path))) =
-        (&plan.config.scenario, &plan.surface)
-    else {
-        return Err(not_a_prescription());
-    };
-    let SurfaceConfig::Prescription {
-        clearance_angle_rad: clearance,
-        ..
-    } = m.surface
-    else {
-        return Err(not_a_prescription());
-    };
+    match (&plan.config.scenario, &plan.surface) {
+        (Scenario::Machine(m), Some(LoadedSurface::Prescription(path))) => match m.surface {
+            SurfaceConfig::Prescription {
+                clearance_angle_rad,
+                ..
+            } => Ok((m, path, clearance_angle_rad)),
+            _ => Err(not_a_prescription()),
+        },
+        _ => Err(not_a_prescription()),
+    }
+}
+
+/// The demands of `plan`'s prescription over `bands` radius bands from its aperture's edge
+/// to the axis; an error when the plan does not cut a prescription.
+pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
+    let (m, path, clearance) = prescription_of(plan)?;
     let omega = m.rad_per_s();
     let spindle_hz = omega / TAU;
     let half = RING_SAMPLES / 2;
@@ -226,17 +241,19 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
             let x = ring_loop.spectrum(&heights);
             let jn = |n: usize| C::new(0.0, n as f64);
             let slope = peak(&ring_loop.waveform(&x, jn));
-            band.stroke_m = band.stroke_m.max(hi - lo);
-            band.peak_height_m = band.peak_height_m.max(hi.abs().max(lo.abs()));
-            band.peak_velocity_m_per_s = band.peak_velocity_m_per_s.max(omega * slope);
-            band.peak_acceleration_m_per_s2 = band.peak_acceleration_m_per_s2.max(
+            band.stroke_m = worst(band.stroke_m, hi - lo);
+            band.peak_height_m = worst(band.peak_height_m, hi.abs().max(lo.abs()));
+            band.peak_velocity_m_per_s = worst(band.peak_velocity_m_per_s, omega * slope);
+            band.peak_acceleration_m_per_s2 = worst(
+                band.peak_acceleration_m_per_s2,
                 omega * omega * peak(&ring_loop.waveform(&x, |n| C::new(-((n * n) as f64), 0.0))),
             );
-            band.peak_voltage_v = band
-                .peak_voltage_v
-                .max(peak(&ring_loop.waveform(&x, |n| ring_loop.dac[n])));
-            band.slope_along_cut_rad = band.slope_along_cut_rad.max(libm::atan(slope / r));
-            band.nose_tightness = band.nose_tightness.max(tight);
+            band.peak_voltage_v = worst(
+                band.peak_voltage_v,
+                peak(&ring_loop.waveform(&x, |n| ring_loop.dac[n])),
+            );
+            band.slope_along_cut_rad = worst(band.slope_along_cut_rad, libm::atan(slope / r));
+            band.nose_tightness = worst(band.nose_tightness, tight);
             // Mean square of each harmonic (n ≥ 1): 2|Xₙ|²/N² (the Nyquist bin once).
             let power = |n: usize, v: C| {
                 let k = if n == half { 1.0 } else { 2.0 };
@@ -252,25 +269,30 @@ pub fn feasibility(plan: &Plan, bands: usize) -> Result<Feasibility, RunError> {
                     break;
                 }
             }
-            band.bandwidth_hz = band.bandwidth_hz.max(top as f64 * spindle_hz);
+            band.bandwidth_hz = worst(band.bandwidth_hz, top as f64 * spindle_hz);
             let error: f64 = (1..=half)
                 .map(|n| power(n, x[n] * ring_loop.tool_error[n]))
                 .sum();
-            band.predicted_rms_m = band.predicted_rms_m.max(error.sqrt());
+            band.predicted_rms_m = worst(band.predicted_rms_m, error.sqrt());
         }
         out_bands.push(band);
     }
     let symmetric: Vec<f64> = (0..=64)
         .map(|i| path.symmetric_m(aperture * i as f64 / 64.0))
         .collect();
-    let (lo, hi) = path.fts_range_m();
     let dac_range = plan.config.plant.dac.range_v;
     let mut f = Feasibility {
         spindle_rpm: m.spindle_rpm,
         nose_radius_m: path.nose_radius_m(),
         z_slide_travel_m: symmetric.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
             - symmetric.iter().cloned().fold(f64::INFINITY, f64::min),
-        fts_stroke_m: hi - lo,
+        // The bands sample every ring at RING_SAMPLES angles (finer than the path's own table).
+        fts_stroke_m: out_bands
+            .iter()
+            .fold(path.fts_range_m().1 - path.fts_range_m().0, |a, b| {
+                a.max(b.stroke_m)
+            }),
+        nyquist_hz: plan.config.plant.timing.servo_rate_hz / 2.0,
         bands: out_bands,
         dac_range_v: dac_range,
         measurable_m: (plan.config.plant.adc.range_v / plan.config.plant.capa.sensitivity_v_per_m)
@@ -305,6 +327,26 @@ fn exceeded(f: &Feasibility) -> Vec<String> {
         ));
     }
     for b in &f.bands {
+        let values = [
+            b.stroke_m,
+            b.peak_velocity_m_per_s,
+            b.peak_acceleration_m_per_s2,
+            b.peak_voltage_v,
+            b.predicted_rms_m,
+            b.slope_along_cut_rad,
+        ];
+        if values.iter().any(|v| !v.is_finite()) {
+            out.push(format!(
+                "{}: the path or the loop's response is not a number there (a surface undefined in the band, or a loop the model cannot evaluate)",
+                mm(b.radius_m)
+            ));
+        }
+        if b.bandwidth_hz > f.nyquist_hz {
+            out.push(format!(
+                "{}: the path moves at up to {:.0} Hz, beyond the servo's Nyquist frequency {:.0} Hz (plant.timing.servo_rate_hz): slow the spindle",
+                mm(b.radius_m), b.bandwidth_hz, f.nyquist_hz
+            ));
+        }
         if b.peak_height_m > f.measurable_m {
             out.push(format!(
                 "{}: the FTS must reach ±{:.2} µm, beyond the ±{:.2} µm the gap sensor reads (plant.adc.range_v / plant.capa.sensitivity_v_per_m, protection.position_limit_m)",
@@ -333,21 +375,22 @@ fn exceeded(f: &Feasibility) -> Vec<String> {
     out
 }
 
-/// The FTS command table for a machine's own controller: `rings` radii from the aperture's
-/// edge to the axis (rows) × `counts` equally spaced encoder counts of a revolution (columns),
-/// the FTS height in m toward the tool. CSV with a header naming the counts.
+/// The command tables for a machine's own controller: `rings` radii from the aperture's edge
+/// to the axis (rows), each with the Z slide's height there (`z_slide_m`), then the FTS height
+/// at `counts` equally spaced encoder counts of a revolution (columns); heights in m toward
+/// the tool, the tool's tip at the sum. CSV with a header naming the counts.
 pub fn command_table(path: &ToolPath, rings: usize, counts: usize, pulses_per_rev: u64) -> String {
     use std::fmt::Write as _;
     let aperture = path.prescription().aperture_radius_m;
     let step = pulses_per_rev as f64 / counts as f64;
-    let mut s = String::from("radius_m");
+    let mut s = String::from("radius_m,z_slide_m");
     for k in 0..counts {
         let _ = write!(s, ",count_{}", (k as f64 * step).round() as u64);
     }
     s.push('\n');
     for i in 0..rings {
         let r = aperture * (1.0 - i as f64 / (rings - 1).max(1) as f64);
-        let _ = write!(s, "{r:.9e}");
+        let _ = write!(s, "{r:.9e},{:.9e}", path.symmetric_m(r));
         for k in 0..counts {
             let theta = TAU * (k as f64 * step).round() / pulses_per_rev as f64;
             let _ = write!(s, ",{:.6e}", path.fts_m(r, theta));

@@ -10,13 +10,15 @@ use runner::config::{Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConf
 use runner::plan::PRESCRIPTION_INPUT;
 use runner::surface::LoadedSurface;
 use runner::toolpath::feasibility;
-use runner::Plan;
+use runner::{Plan, RunError};
 use std::f64::consts::TAU;
 
 const A_M: f64 = 2e-6;
 const NORM_M: f64 = 0.01;
 
-fn plan_of(p: &Prescription, rpm: f64, nose_compensation: bool) -> Plan {
+/// The run of a machining `m` whose surface is the embedded prescription `data` (JSON, as a
+/// recording holds it).
+fn planned(m: Machining, nose_compensation: bool, data: Vec<u8>) -> Result<Plan, RunError> {
     let config = RunConfig {
         scenario: Scenario::Machine(Machining {
             surface: SurfaceConfig::Prescription {
@@ -24,22 +26,29 @@ fn plan_of(p: &Prescription, rpm: f64, nose_compensation: bool) -> Plan {
                 nose_compensation,
                 clearance_angle_rad: 0.12,
             },
-            spindle_rpm: rpm,
-            start_radius_m: p.aperture_radius_m,
-            ..Machining::default()
+            ..m
         }),
         ..RunConfig::default()
     };
     let input = Input {
         name: PRESCRIPTION_INPUT.into(),
         media_type: "application/json".into(),
-        data: serde_json::to_vec(p).unwrap(),
+        data,
     };
     let loaded = Loaded {
         config,
         origin: Origin::default(),
     };
-    Plan::with_inputs(&loaded, vec![input]).expect("the prescription plans")
+    Plan::with_inputs(&loaded, vec![input])
+}
+
+fn plan_of(p: &Prescription, rpm: f64, nose_compensation: bool) -> Plan {
+    let m = Machining {
+        spindle_rpm: rpm,
+        start_radius_m: p.aperture_radius_m,
+        ..Machining::default()
+    };
+    planned(m, nose_compensation, serde_json::to_vec(p).unwrap()).expect("the prescription plans")
 }
 
 fn astigmatism(base_radius_m: Option<f64>) -> Prescription {
@@ -128,32 +137,45 @@ fn a_sphere_goes_to_the_z_slide_and_the_nose_is_compensated() {
 fn a_start_outside_the_aperture_is_refused_at_its_key() {
     let mut p = astigmatism(None);
     p.aperture_radius_m = 0.005;
-    let config = RunConfig {
-        scenario: Scenario::Machine(Machining {
-            surface: SurfaceConfig::Prescription {
-                path: PRESCRIPTION_INPUT.into(),
-                nose_compensation: true,
-                clearance_angle_rad: 0.12,
-            },
-            ..Machining::default()
-        }),
-        ..RunConfig::default()
-    };
-    let input = Input {
-        name: PRESCRIPTION_INPUT.into(),
-        media_type: "application/json".into(),
-        data: serde_json::to_vec(&p).unwrap(),
-    };
-    let loaded = Loaded {
-        config,
-        origin: Origin::default(),
-    };
-    let e = Plan::with_inputs(&loaded, vec![input])
+    let e = planned(Machining::default(), true, serde_json::to_vec(&p).unwrap())
         .err()
         .expect("refused")
         .to_string();
     assert!(
         e.contains("scenario.start_radius_m") && e.contains("aperture"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_damaged_embedded_prescription_is_refused_not_a_panic() {
+    // A recording's copy whose grid holds fewer values than its size says.
+    let mut p = astigmatism(None);
+    p.grid = Some(design::optics::SagGrid {
+        pitch_m: [1e-3, 1e-3],
+        columns: 0,
+        rows: 0,
+        sag_m: vec![0.0; 3],
+    });
+    let m = || Machining {
+        start_radius_m: NORM_M,
+        ..Machining::default()
+    };
+    let e = planned(m(), true, serde_json::to_vec(&p).unwrap())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("scenario.surface.path") && e.contains("grid"),
+        "{e}"
+    );
+    // Not JSON at all.
+    let e = planned(m(), true, b"{ not json".to_vec())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("scenario.surface.path") && e.contains("embeds"),
         "{e}"
     );
 }

@@ -4,7 +4,6 @@ use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs};
 use crate::output::{print_json, print_written, CliError, BAD_INPUT};
 use clap::Args;
 use runner::config::Scenario;
-use runner::surface::LoadedSurface;
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -43,7 +42,7 @@ pub struct ToolpathCmd {
     /// Encoder counts (columns) of the command table per revolution.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u16).range(8..=8192))]
     table_counts: u16,
-    /// Directory for toolpath.json and fts_table.csv.
+    /// Directory for toolpath.json, fts_table.csv, part_error.csv and the pictures.
     #[arg(long, default_value = "toolpath")]
     out_dir: PathBuf,
     /// Print the report as JSON.
@@ -62,11 +61,7 @@ impl ToolpathCmd {
         }
         let plan = Plan::new(&l)?;
         let study = studies::toolpath::study(&plan, usize::from(self.bands))?;
-        let (Scenario::Machine(m), Some(LoadedSurface::Prescription(path))) =
-            (&plan.config.scenario, &plan.surface)
-        else {
-            unreachable!("the study accepted the plan's prescription")
-        };
+        let (m, path, _) = runner::toolpath::prescription_of(&plan)?;
         let table = TableSize {
             radii: usize::from(self.table_radii),
             counts: usize::from(self.table_counts),

@@ -1,5 +1,6 @@
 //! A sag grid (Zemax "Grid Sag": a measured error map or a designed departure): values on a
-//! regular grid centred on the part, row 0 at +y and column 0 at −x as Zemax stores them,
+//! regular grid centred on its frame's origin (the parent surface's vertex for a departure, the
+//! part's centre for a compensation), row 0 at +y and column 0 at −x as Zemax stores them,
 //! interpolated by bicubic convolution (Keys 1981, a = −½, Catmull–Rom): it passes through
 //! every node, its slope is continuous, and it reproduces quadratics exactly away from the
 //! edges. Beyond the edge nodes the grid is extended linearly (ghost node `2z₀ − z₁`).
@@ -22,7 +23,7 @@ pub struct SagGrid {
 
 /// Keys' cubic convolution weights for the four nodes around a fraction `t` ∈ [0, 1), and
 /// their derivatives with respect to `t`.
-fn weights(t: f64) -> ([f64; 4], [f64; 4]) {
+pub(crate) fn weights(t: f64) -> ([f64; 4], [f64; 4]) {
     let (t2, t3) = (t * t, t * t * t);
     (
         [
@@ -47,6 +48,14 @@ impl SagGrid {
             0.5 * (self.columns - 1) as f64 * self.pitch_m[0],
             0.5 * (self.rows - 1) as f64 * self.pitch_m[1],
         ]
+    }
+
+    /// Whether the grid's nodes reach a circle of `radius_m` about `centre_m` (m), to a
+    /// relative 1e-9 (a pitch written in decimal and read back).
+    pub fn covers(&self, centre_m: [f64; 2], radius_m: f64) -> bool {
+        let [hx, hy] = self.half_extent_m();
+        let slack = 1.0 + 1e-9;
+        (centre_m[0].abs() + radius_m) <= hx * slack && (centre_m[1].abs() + radius_m) <= hy * slack
     }
 
     /// Node value at integer column `i` and row-from-bottom `k`, extended linearly beyond

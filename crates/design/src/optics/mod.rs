@@ -75,7 +75,116 @@ pub struct Prescription {
     pub aperture_radius_m: f64,
 }
 
+/// Largest radial order of a Zernike term (Noll 231 terms; higher orders lose digits to
+/// cancellation in the radial polynomial).
+pub const MAX_ZERNIKE_ORDER: u32 = 20;
+
+/// Largest number of even-asphere terms (Zemax's Even Asphere has 8).
+pub const MAX_ASPHERE_TERMS: usize = 16;
+
+/// Largest number of XY terms, and their largest total degree.
+pub const MAX_XY_TERMS: usize = 66;
+
+/// Largest total degree of an XY term.
+pub const MAX_XY_DEGREE: u32 = 20;
+
+/// Largest sag grid, nodes.
+pub const MAX_GRID_NODES: usize = 1 << 22;
+
 impl Prescription {
+    /// Checks what a prescription can hold, as a file or a recording's copy brings it: finite
+    /// values, term counts and orders within the limits above, grids whose node count matches
+    /// their size and that cover the aperture. The error names the part (`base.conic`,
+    /// `grid.sag_m`, …) and what is allowed.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let bad = |key: &str, allowed: &str| Err((key.to_owned(), allowed.to_owned()));
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        if !(self.aperture_radius_m > 0.0 && self.aperture_radius_m <= 0.5) {
+            return bad("aperture_radius_m", "(0, 0.5] m");
+        }
+        if !finite(&self.decenter_m) || self.decenter_m.iter().any(|d| d.abs() > 1.0) {
+            return bad("decenter_m", "finite, within ±1 m");
+        }
+        let reach = self.aperture_radius_m + libm::hypot(self.decenter_m[0], self.decenter_m[1]);
+        if let Some(b) = &self.base {
+            if !finite(&[b.curvature_per_m, b.conic]) || !finite(&b.even_asphere) {
+                return bad("base", "finite curvature, conic and asphere terms");
+            }
+            if b.even_asphere.len() > MAX_ASPHERE_TERMS {
+                return bad(
+                    "base.even_asphere",
+                    &format!("at most {MAX_ASPHERE_TERMS} terms"),
+                );
+            }
+            if b.limit_radius_m() <= reach {
+                return bad("base.conic", "a conic defined out to the aperture's edge");
+            }
+        }
+        if let Some(z) = &self.zernike {
+            let max = match z.order {
+                ZernikeOrder::Standard => {
+                    (MAX_ZERNIKE_ORDER as usize + 1) * (MAX_ZERNIKE_ORDER as usize + 2) / 2
+                }
+                ZernikeOrder::Fringe => zernike::FRINGE_TERMS,
+            };
+            if z.coefficients_m.len() > max {
+                return bad(
+                    "zernike.coefficients",
+                    &format!("at most {max} terms in {:?} order", z.order),
+                );
+            }
+            if !(finite(&z.coefficients_m) && z.norm_radius_m > 0.0 && z.norm_radius_m.is_finite())
+            {
+                return bad(
+                    "zernike",
+                    "finite coefficients and a positive normalisation radius",
+                );
+            }
+        }
+        if let Some(p) = &self.xy {
+            if p.terms.len() > MAX_XY_TERMS {
+                return bad("xy.terms", &format!("at most {MAX_XY_TERMS} terms"));
+            }
+            let degree_ok = |t: &polynomial::XyTerm| {
+                t.x_power <= MAX_XY_DEGREE
+                    && t.y_power <= MAX_XY_DEGREE
+                    && t.x_power + t.y_power <= MAX_XY_DEGREE
+            };
+            if !p
+                .terms
+                .iter()
+                .all(|t| degree_ok(t) && t.coefficient_m.is_finite())
+            {
+                return bad(
+                    "xy.terms",
+                    &format!("finite coefficients of total degree ≤ {MAX_XY_DEGREE}"),
+                );
+            }
+            if !(p.norm_radius_m > 0.0 && p.norm_radius_m.is_finite()) {
+                return bad("xy.norm_radius", "a positive normalisation radius");
+            }
+        }
+        for (name, grid, centre) in [
+            ("grid", &self.grid, self.decenter_m),
+            ("compensation", &self.compensation, [0.0; 2]),
+        ] {
+            let Some(g) = grid else { continue };
+            if g.columns < 4 || g.rows < 4 || g.columns.saturating_mul(g.rows) > MAX_GRID_NODES {
+                return bad(name, &format!("4 × 4 to {MAX_GRID_NODES} nodes"));
+            }
+            if g.sag_m.len() != g.columns * g.rows || !finite(&g.sag_m) {
+                return bad(name, "one finite sag per node");
+            }
+            if !g.pitch_m.iter().all(|p| *p > 0.0 && p.is_finite()) {
+                return bad(name, "a positive pitch");
+            }
+            if !g.covers(centre, self.aperture_radius_m) {
+                return bad(name, "a grid covering the aperture");
+            }
+        }
+        Ok(())
+    }
+
     /// A base conic alone, on axis, its aperture unbounded (the doc example's shape).
     pub fn of_base(base: Conic) -> Self {
         Prescription {

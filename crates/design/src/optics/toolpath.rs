@@ -117,13 +117,7 @@ impl ToolPath {
                 last + (last - self.symmetric_m[(n - 2) as usize]) * (i - n + 1) as f64
             }
         };
-        let (t2, t3) = (t * t, t * t * t);
-        let w = [
-            0.5 * (-t3 + 2.0 * t2 - t),
-            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
-            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
-            0.5 * (t3 - t2),
-        ];
+        let (w, _) = super::grid::weights(t);
         (0..4).map(|k| w[k] * at(i0 - 1 + k as isize)).sum()
     }
 

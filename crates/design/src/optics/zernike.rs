@@ -273,5 +273,9 @@ fn radial_second(n: u32) -> f64 {
     if n < 2 {
         return 0.0;
     }
-    coefficients(n, 0)[(n / 2 - 1) as usize]
+    let k = (n / 2 - 1) as usize;
+    match tabled(n, 0) {
+        Some(cs) => cs[k],
+        None => coefficients(n, 0)[k],
+    }
 }

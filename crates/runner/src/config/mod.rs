@@ -17,7 +17,7 @@ pub mod input_file {
 pub use machining::{Machining, SurfaceConfig, GRID_EDGE_RADIUS_M};
 pub use made_for::{check_made_for, describe_made_for, made_for_plant, plant_toml, sha256_hex};
 pub use plant_file::read_plant_file;
-pub use prescription_file::{read_prescription, MAX_GRID_NODES, MAX_STANDARD_TERMS};
+pub use prescription_file::read_prescription;
 pub use realtime::{RealtimeConfig, Role, WaitKind};
 pub use repetitive::{RepetitiveSection, MAX_BINS};
 pub use servo_runtime::{

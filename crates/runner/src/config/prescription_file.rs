@@ -28,24 +28,22 @@
 use super::{input_file, ConfigError, Origin};
 use design::optics::polynomial::XyTerm;
 use design::optics::zernike::FRINGE_TERMS;
-use design::optics::{Conic, Prescription, SagGrid, XyPolynomial, Zernike, ZernikeOrder};
+use design::optics::{
+    Conic, Prescription, SagGrid, XyPolynomial, Zernike, ZernikeOrder, MAX_ASPHERE_TERMS,
+    MAX_GRID_NODES, MAX_XY_DEGREE, MAX_XY_TERMS, MAX_ZERNIKE_ORDER,
+};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
 /// Metres per millimetre.
 const M_PER_MM: f64 = 1e-3;
 
-/// Largest Noll index read (radial order 20; higher orders lose digits to cancellation).
-pub const MAX_STANDARD_TERMS: usize = 231;
-
-/// Largest sag grid, nodes.
-pub const MAX_GRID_NODES: usize = 1 << 22;
+/// Largest Noll index read (radial order [`MAX_ZERNIKE_ORDER`]).
+const MAX_STANDARD_TERMS: usize =
+    (MAX_ZERNIKE_ORDER as usize + 1) * (MAX_ZERNIKE_ORDER as usize + 2) / 2;
 
 /// Largest sag grid file, bytes.
 const MAX_GRID_BYTES: u64 = 128 << 20;
-
-/// Largest number of even-asphere or XY terms.
-const MAX_TERMS: usize = 66;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -106,7 +104,7 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
     let text = input_file::read_text(path)?;
     let file: File = toml::from_str(&text).map_err(|e| ConfigError::Parse {
         path: path.to_owned(),
-        message: format!("a surface prescription (aperture_radius_mm and [base], [zernike], [xy], [grid] tables): {e}"),
+        message: format!("a surface prescription (aperture_radius_mm and [base], [zernike], [xy], [grid], [compensation] tables): {e}"),
     })?;
     let at = Origin {
         path: Some(path.to_owned()),
@@ -145,14 +143,24 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
                 ));
             }
             finite("base.conic", &[b.conic], 1e3, "")?;
-            if b.even_asphere.len() > MAX_TERMS {
+            if b.even_asphere.len() > MAX_ASPHERE_TERMS {
                 return Err(at.invalid(
                     "base.even_asphere",
                     format!("{} terms", b.even_asphere.len()),
-                    &format!("at most {MAX_TERMS} terms"),
+                    &format!("at most {MAX_ASPHERE_TERMS} terms"),
                 ));
             }
             finite("base.even_asphere", &b.even_asphere, 1e30, "mm^(1−2i)")?;
+            // In m the coefficients must stay finite too (αᵢ × 1000^(2i−1)).
+            if let Some(i) = (0..b.even_asphere.len())
+                .find(|&i| !(b.even_asphere[i] * 1e3f64.powi(2 * i as i32 + 1)).is_finite())
+            {
+                return Err(at.invalid(
+                    &format!("base.even_asphere[{i}]"),
+                    b.even_asphere[i],
+                    "a coefficient finite in m^(1−2i) (|αᵢ| · 1000^(2i−1) below 1.8e308)",
+                ));
+            }
             let conic = Conic {
                 curvature_per_m: if b.radius_mm == 0.0 {
                     0.0
@@ -207,20 +215,20 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
     let xy = match file.xy {
         None => None,
         Some(p) => {
-            if p.terms.len() > MAX_TERMS {
+            if p.terms.len() > MAX_XY_TERMS {
                 return Err(at.invalid(
                     "xy.terms",
                     format!("{} terms", p.terms.len()),
-                    &format!("at most {MAX_TERMS} terms"),
+                    &format!("at most {MAX_XY_TERMS} terms"),
                 ));
             }
             let mut terms = Vec::with_capacity(p.terms.len());
             for (i, t) in p.terms.iter().enumerate() {
-                if t.x + t.y > 20 {
+                if u64::from(t.x) + u64::from(t.y) > u64::from(MAX_XY_DEGREE) {
                     return Err(at.invalid(
                         &format!("xy.terms[{i}]"),
                         format!("x = {}, y = {}", t.x, t.y),
-                        "a total degree x + y ≤ 20",
+                        &format!("a total degree x + y ≤ {MAX_XY_DEGREE}"),
                     ));
                 }
                 finite(
@@ -257,7 +265,7 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
             aperture,
         )?),
     };
-    Ok(Prescription {
+    let p = Prescription {
         base,
         zernike,
         xy,
@@ -265,7 +273,11 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
         compensation,
         decenter_m,
         aperture_radius_m: aperture,
-    })
+    };
+    // What the checks above missed (they name the file's keys; this names the part).
+    p.validate()
+        .map_err(|(key, allowed)| at.invalid(&key, "(this table)", &allowed))?;
+    Ok(p)
 }
 
 /// The grid of table `name` (`grid`: the parent's frame, centred `decenter_m` from the part;
@@ -293,7 +305,7 @@ fn grid_table(
         .map_err(|e| at.invalid(&key("path"), grid_path.display(), &e))?;
     let [hx, hy] = grid.half_extent_m();
     let [dx, dy] = decenter_m;
-    if dx.abs() + aperture > hx || dy.abs() + aperture > hy {
+    if !grid.covers(decenter_m, aperture) {
         return Err(at.invalid(
             &key("path"),
             grid_path.display(),
@@ -427,6 +439,19 @@ mod tests {
             e.contains("grid.path") && e.contains("covering the aperture"),
             "{e}"
         );
+        let p = write(&dir, "t.toml", "aperture_radius_mm = 5.0\n[xy]\nnorm_radius_mm = 5.0\nterms = [{ x = 4294967295, y = 1, coefficient_mm = 0.001 }]\n");
+        let e = read_prescription(&p).unwrap_err().to_string();
+        assert!(e.contains("xy.terms[0]") && e.contains("20"), "{e}");
+        let p = write(
+            &dir,
+            "u.toml",
+            &format!(
+                "aperture_radius_mm = 5.0\n[base]\nradius_mm = 100.0\neven_asphere = [{}]\n",
+                vec!["0.0"; 17].join(", ")
+            ),
+        );
+        let e = read_prescription(&p).unwrap_err().to_string();
+        assert!(e.contains("base.even_asphere") && e.contains("16"), "{e}");
         let p = write(&dir, "s.toml", "aperture_radius_mm = 5.0\nradius = 3\n");
         assert!(read_prescription(&p)
             .unwrap_err()

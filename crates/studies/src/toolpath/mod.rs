@@ -12,9 +12,7 @@ use crate::error::StudyError;
 use design::optics::toolpath::ToolPath;
 use design::optics::{Zernike, ZernikeOrder};
 use nalgebra::{DMatrix, DVector};
-use runner::config::Scenario;
-use runner::surface::LoadedSurface;
-use runner::toolpath::{feasibility, Feasibility, RingLoop, RING_SAMPLES};
+use runner::toolpath::{feasibility, prescription_of, Feasibility, RingLoop, RING_SAMPLES};
 use runner::Plan;
 use serde::Serialize;
 use std::f64::consts::TAU;
@@ -217,11 +215,7 @@ fn along(rings: &[(Vec<f64>, Vec<f64>)], k: usize, rho: f64) -> f64 {
 /// Runs the study on `plan` (a machining run of a prescription) with `bands` radius bands.
 pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
     let feasibility = feasibility(plan, bands)?;
-    let (Scenario::Machine(m), Some(LoadedSurface::Prescription(path))) =
-        (&plan.config.scenario, &plan.surface)
-    else {
-        unreachable!("feasibility accepted the plan's prescription")
-    };
+    let (m, path, _) = prescription_of(plan)?;
     let aperture = path.prescription().aperture_radius_m;
     let ring_loop = RingLoop::new(plan, m.rad_per_s() / TAU);
     let rings = predicted_rings(path, &ring_loop);

@@ -26,7 +26,7 @@ fn sag_grid_csv(map: &ApertureMap) -> String {
     let n = map.nodes;
     let half = (n - 1) as f64 / 2.0;
     let mut s = format!(
-        "# predicted form error of the part as sag (part − design) in mm, row 0 at +y, column 0 at -x, pitch {:.9} mm\n",
+        "# predicted form error of the part as sag (part − design) in mm, row 0 at +y, column 0 at -x, pitch {} mm\n",
         map.pitch_m * 1e3
     );
     for row in 0..n {
