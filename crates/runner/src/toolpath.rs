@@ -161,20 +161,15 @@ fn worst(a: f64, b: f64) -> f64 {
 /// A ring's samples of the FTS path and its contacts' worst tightness.
 fn ring(path: &ToolPath, r: f64) -> (Vec<f64>, f64) {
     let mut tight = f64::NEG_INFINITY;
-    let symmetric = path.symmetric_m(r);
     let heights = (0..RING_SAMPLES)
         .map(|k| {
             let theta = k as f64 * TAU / RING_SAMPLES as f64;
-            match path.contact(r, theta) {
-                Some(c) => {
-                    tight = tight.max(path.tightness(&c, theta));
-                    c.tip_height_m - symmetric
-                }
-                None => {
-                    tight = f64::INFINITY;
-                    path.fts_m(r, theta)
-                }
-            }
+            let (contact, fts) = path.fts_at(r, theta);
+            tight = match contact {
+                Some(c) => tight.max(path.tightness(&c, theta)),
+                None => f64::INFINITY,
+            };
+            fts
         })
         .collect();
     (heights, tight)

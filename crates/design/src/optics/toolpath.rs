@@ -124,13 +124,23 @@ impl ToolPath {
     /// The FTS's height at `(r_m, theta_rad)`, m toward the tool: the tip height less the
     /// symmetric part (where no contact settles, the uncompensated surface stands in).
     pub fn fts_m(&self, r_m: f64, theta_rad: f64) -> f64 {
-        let tip = self.tip_height_m(r_m, theta_rad).unwrap_or_else(|| {
-            -self
-                .prescription
-                .sag(r_m * libm::cos(theta_rad), r_m * libm::sin(theta_rad))
-                .z_m
-        });
-        tip - self.symmetric_m(r_m)
+        self.fts_at(r_m, theta_rad).1
+    }
+
+    /// The contact at `(r_m, theta_rad)` and the FTS height it gives ([`ToolPath::fts_m`]),
+    /// the contact solved once.
+    pub fn fts_at(&self, r_m: f64, theta_rad: f64) -> (Option<Contact>, f64) {
+        let contact = self.contact(r_m, theta_rad);
+        let tip = contact.map_or_else(
+            || {
+                -self
+                    .prescription
+                    .sag(r_m * libm::cos(theta_rad), r_m * libm::sin(theta_rad))
+                    .z_m
+            },
+            |c| c.tip_height_m,
+        );
+        (contact, tip - self.symmetric_m(r_m))
     }
 
     /// The cut path's height above the design's at `(x_m, y_m)` in the part's frame, m: the

@@ -179,14 +179,10 @@ fn predicted_rings(path: &ToolPath, ring_loop: &RingLoop) -> Vec<(Vec<f64>, Vec<
     (0..RINGS)
         .map(|i| {
             let r = aperture * (1.0 - i as f64 / (RINGS - 1) as f64);
-            let symmetric = path.symmetric_m(r);
             let (contacts, heights): (Vec<f64>, Vec<f64>) = (0..RING_SAMPLES)
                 .map(|k| {
-                    let theta = k as f64 * TAU / RING_SAMPLES as f64;
-                    match path.contact(r, theta) {
-                        Some(c) => (c.contact_radius_m.abs(), c.tip_height_m - symmetric),
-                        None => (r, path.fts_m(r, theta)),
-                    }
+                    let (contact, fts) = path.fts_at(r, k as f64 * TAU / RING_SAMPLES as f64);
+                    (contact.map_or(r, |c| c.contact_radius_m.abs()), fts)
                 })
                 .unzip();
             (contacts, ring_loop.predicted_error(&heights))
