@@ -103,6 +103,24 @@ int main(int argc, char **argv) {
            "limit_v out of range");
     EXPECT(strstr(error, "controller.limit_v") && strstr(error, "(0, 10] V"), "message: %s", error);
     free(bad);
+    /* A gain or the stability record edited after the check: refused, naming what changed. */
+    bad = edited(deployment, "kp = ", "kp = 2.0 # ");
+    EXPECT(fts_servo_open_toml(bad, &abi, &h, error, sizeof error) == FTS_SERVO_ERR_CONFIG && h == NULL,
+           "an edited gain");
+    EXPECT(strstr(error, "controller.stability.sha256.controller") && strstr(error, "does not match"),
+           "message: %s", error);
+    free(bad);
+    bad = edited(deployment, "unstable_above = ", "unstable_above = 1000.0 # ");
+    EXPECT(fts_servo_open_toml(bad, &abi, &h, error, sizeof error) == FTS_SERVO_ERR_CONFIG && h == NULL,
+           "an edited stability record");
+    EXPECT(strstr(error, "controller.stability.sha256.record"), "message: %s", error);
+    free(bad);
+    /* Text that is not UTF-8 is the content's fault, not a null pointer's. */
+    bad = edited(deployment, "limit_v = 10.0", "limit_v = 10.0 # \xff");
+    EXPECT(fts_servo_open_toml(bad, &abi, &h, error, sizeof error) == FTS_SERVO_ERR_CONFIG && h == NULL,
+           "not UTF-8");
+    EXPECT(strstr(error, "not UTF-8"), "message: %s", error);
+    free(bad);
     char path[4096];
     snprintf(path, sizeof path, "%s/missing.toml", dir);
     EXPECT(fts_servo_open(path, &abi, &h, error, sizeof error) == FTS_SERVO_ERR_CONFIG, "missing file");
@@ -136,6 +154,22 @@ int main(int argc, char **argv) {
     EXPECT(load_file(h, dir, "unchecked.toml") == FTS_SERVO_ERR_MARGIN, "unchecked: %s", fts_servo_last_error(h));
     EXPECT(strstr(fts_servo_last_error(h), "stability"), "message: %s", fts_servo_last_error(h));
     EXPECT(fts_servo_load(h, (const uint8_t *)"not toml [", 10) == FTS_SERVO_ERR_CONFIG, "not TOML");
+    /* A file beyond what a controller file may be is refused before it is read. */
+    size_t huge_len = 64u << 20;
+    uint8_t *huge = calloc(huge_len, 1);
+    EXPECT(fts_servo_load(h, huge, huge_len) == FTS_SERVO_ERR_CONFIG, "64 MB");
+    EXPECT(strstr(fts_servo_last_error(h), "more than"), "message: %s", fts_servo_last_error(h));
+    free(huge);
+    /* A tuned file whose gain was edited after its check: refused, naming the record. */
+    size_t pid_len;
+    char *pid = slurp(dir, "pid.toml", &pid_len);
+    char *pid_edited = edited(pid, "kp = ", "kp = 2.0 # ");
+    EXPECT(fts_servo_load(h, (const uint8_t *)pid_edited, strlen(pid_edited)) == FTS_SERVO_ERR_MARGIN,
+           "an edited tuned gain: %s", fts_servo_last_error(h));
+    EXPECT(strstr(fts_servo_last_error(h), "controller.stability.sha256.controller"), "message: %s",
+           fts_servo_last_error(h));
+    free(pid_edited);
+    free(pid);
     EXPECT(load_file(h, dir, "pid.toml") == FTS_SERVO_OK, "pid: %s", fts_servo_last_error(h));
     for (uint64_t k = 100; k < 200; k++) {
         s.seq = k;

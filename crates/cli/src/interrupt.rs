@@ -35,6 +35,17 @@ pub fn exit_code(stop: &StopRequest, tripped: bool) -> std::process::ExitCode {
     std::process::ExitCode::from(stop.reason().after_trip(tripped).exit_code())
 }
 
+/// A file size limit (`ulimit -f`, RLIMIT_FSIZE) reached makes the write fail with EFBIG like
+/// any other write error — a run then ends as for a full disk (its recording finished with the
+/// part that fit, exit 4) — instead of SIGXFSZ killing the process (exit 153, the recording
+/// left unfinished, nothing said): the signal is caught and does nothing.
+pub fn write_limits_as_errors() {
+    let _ = flag::register(
+        signal_hook::consts::SIGXFSZ,
+        Arc::new(AtomicBool::new(false)),
+    );
+}
+
 /// Environment variable naming the `servo run --hil` process that started this one.
 pub const PARENT_ENV: &str = "FTS_SERVO_PARENT";
 

@@ -91,6 +91,7 @@ impl Command {
 fn main() -> ExitCode {
     // `servo … | head` must end quietly, not panic on a closed pipe.
     sigpipe::reset();
+    interrupt::write_limits_as_errors();
     interrupt::follow_parent();
     // The exit codes close `servo --help` (computed: they come from the code that sets them).
     let matches = Cli::command()

@@ -94,6 +94,7 @@ impl CliError {
             CliError::Run(r) | CliError::Study(StudyError::Run(r)) if write_failed(r) => {
                 runner::stop::EndReason::WriteFailed.exit_code()
             }
+            CliError::Run(RunError::Stopped(reason)) => reason.exit_code(),
             CliError::Config(_) => BAD_INPUT,
             CliError::Run(r) | CliError::Study(StudyError::Run(r)) if input(r) => BAD_INPUT,
             CliError::Study(StudyError::Config(_)) => BAD_INPUT,

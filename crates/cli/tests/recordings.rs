@@ -263,16 +263,19 @@ fn a_device_is_not_a_recording_target() {
     );
 }
 
-/// The disk filling mid-run (here: a 2 MB file-size limit) ends the run safely with a clear
-/// error naming the target and the partial file (exit 4, no panic), and the unfinished file it
-/// leaves holds every complete 20 ms chunk, recovered by `servo inspect`.
+/// A file-size limit reached mid-run (`ulimit -f`, here 2 MB; its SIGXFSZ left to servo, as a
+/// shell leaves it) ends the run safely with a clear error naming the target (exit 4, no
+/// panic, not killed by the signal), and the recording is finished with the part that fit:
+/// shorter, readable as a whole run whose `end` record says why, holding exactly the start of
+/// the same seeded run.
 #[test]
-fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
+fn a_full_disk_mid_run_ends_the_run_with_a_finished_shorter_file() {
     let dir = tmp("fulldisk");
+    let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("big.mcap");
     let script = format!(
-        "trap '' XFSZ; ulimit -f 4000; exec '{}' run -q --duration 5 --out '{}'",
+        "ulimit -f 4000; exec '{}' run -q --duration 5 --out '{}'",
         env!("CARGO_BIN_EXE_servo"),
         path.display()
     );
@@ -280,38 +283,44 @@ fn a_full_disk_mid_run_ends_the_run_and_leaves_a_recoverable_file() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(4), "{err}");
     assert!(
-        err.contains("big.mcap") && err.contains("too large") && err.contains(".partial"),
+        err.contains("big.mcap")
+            && err.contains("too large")
+            && err.contains("finished with the part that fit"),
         "{err}"
     );
     assert!(!err.contains("panicked"), "{err}");
-    assert!(
-        !path.exists(),
-        "an unfinished file must not take the target's name"
-    );
-    let partial = std::fs::read_dir(&dir)
+    let left: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().path())
-        .find(|p| p.to_string_lossy().ends_with(".partial"))
-        .expect("the unfinished recording is kept");
-    // Unfinished is not a whole run: refused as one, read with --salvage.
-    let plain = servo().arg("inspect").arg(&partial).output().unwrap();
-    assert_eq!(plain.status.code(), Some(1));
-    let read = json(
+        .collect();
+    assert_eq!(left, [path.clone()], "no partial file is left");
+    assert!(std::fs::metadata(&path).unwrap().len() <= 4000 * 512);
+    let read = inspect_json(&path);
+    assert!(
+        read["file"].as_str().unwrap().starts_with("finished"),
+        "{read}"
+    );
+    assert_eq!(read["summary"]["meta"]["end_reason"], "write-failed");
+    let ticks = read["summary"]["ticks"].as_u64().unwrap();
+    assert!(ticks > 10_000, "{read}");
+    let kept = ticks as f64 / 199_600.0;
+    assert!(kept < 1.0, "2 MB cannot hold {kept} s");
+    // Exactly the start of the same run.
+    let whole = dir.join("whole.mcap");
+    let duration = format!("{}", (ticks + 1000) as f64 / 199_600.0);
+    succeeded(
         &servo()
-            .args(["inspect", "--json", "--salvage"])
-            .arg(&partial)
+            .args(["run", "-q", "--duration", &duration, "--out"])
+            .arg(&whole)
             .output()
             .unwrap(),
     );
-    let file = read["file"].as_str().unwrap();
-    assert!(file.starts_with("unfinished"), "{file}");
-    assert!(
-        read["summary"]["ticks"].as_u64().unwrap() > 10_000,
-        "{read}"
+    let (short, whole) = (
+        recorder::read(&path).unwrap().frames,
+        recorder::read(&whole).unwrap().frames,
     );
-    assert_eq!(read["summary"]["meta"]["end_reason"], "unfinished");
-    let recovered = read["summary"]["ticks"].as_f64().unwrap() / 199_600.0;
-    assert!(recovered < 1.0, "2 MB cannot hold {recovered} s");
+    assert_eq!(short.len() as u64, ticks);
+    assert_eq!(short[..], whole[..short.len()]);
 }
 
 /// A run killed with SIGKILL (no handler runs) leaves its `.partial` file: every complete

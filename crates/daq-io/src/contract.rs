@@ -238,12 +238,22 @@ pub struct TruthBlock {
     pub ticks: [Truth; BLOCK_TICKS],
 }
 
-/// A block of records ([`TelemetryBlock`], [`TruthBlock`]) as a sender fills it.
+/// A block of records ([`TelemetryBlock`], [`TruthBlock`]) as a sender fills it and a
+/// receiver reads it ([`Block::records`], [`crate::BlockCheck`]).
 pub trait Block: Copy + Default + core::fmt::Debug + Shareable {
     /// One record.
     type Record: Copy;
     /// Appends a record; returns true when the block is full.
     fn push(&mut self, r: Self::Record) -> bool;
+    /// The records it holds, `ticks[..count]`; None when its count is above [`BLOCK_TICKS`]
+    /// (a peer's count is never taken on trust: see [`crate::BlockCheck`]).
+    fn records(&self) -> Option<&[Self::Record]>;
+    /// The tick sequence number of a record.
+    fn seq(r: &Self::Record) -> u64;
+    /// The block's index in its stream.
+    fn index(&self) -> u64;
+    /// Its record count as sent (what [`Block::records`] checks).
+    fn count(&self) -> u32;
     /// No records held.
     fn is_empty(&self) -> bool;
     /// Sets the block index, flags and run identity before sending.
@@ -273,6 +283,18 @@ macro_rules! block {
                 self.ticks[self.count as usize] = r;
                 self.count += 1;
                 self.count as usize == BLOCK_TICKS
+            }
+            fn records(&self) -> Option<&[$r]> {
+                self.ticks.get(..self.count as usize)
+            }
+            fn seq(r: &$r) -> u64 {
+                r.seq
+            }
+            fn index(&self) -> u64 {
+                self.block
+            }
+            fn count(&self) -> u32 {
+                self.count
             }
             fn is_empty(&self) -> bool {
                 self.count == 0

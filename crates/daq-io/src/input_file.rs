@@ -78,9 +78,28 @@ pub fn read_regular(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// The UTF-8 text of the regular file `path`, at most `limit` bytes.
+/// The UTF-8 text of the regular file `path`, at most `limit` bytes, without the byte-order
+/// mark a spreadsheet or an editor may put first.
 pub fn read_regular_text(path: &Path, limit: u64) -> std::io::Result<String> {
-    String::from_utf8(read_regular(path, limit)?).map_err(|e| Error::new(ErrorKind::InvalidData, e))
+    text_of(read_regular(path, limit)?)
+}
+
+/// `bytes` as UTF-8 text without a leading byte-order mark; the error says where the text
+/// stops being UTF-8.
+pub fn text_of(bytes: Vec<u8>) -> std::io::Result<String> {
+    let mut text = String::from_utf8(bytes).map_err(|e| {
+        Error::new(
+            ErrorKind::InvalidData,
+            format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
+        )
+    })?;
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
 }
 
 #[cfg(test)]
@@ -107,5 +126,21 @@ mod tests {
         std::fs::write(&file, b"12345").unwrap();
         assert_eq!(read_regular(&file, 5).unwrap(), b"12345");
         assert!(read_regular(&file, 4).is_err());
+    }
+
+    /// A spreadsheet's CSV starts with a byte-order mark: the text is read without it; bytes
+    /// that are not UTF-8 are named with their offset.
+    #[test]
+    fn text_without_its_byte_order_mark() {
+        let scratch = tempfile::tempdir().unwrap();
+        let file = scratch.path().join("t.csv");
+        std::fs::write(&file, "\u{feff}freq_hz,gain\n1,2\n").unwrap();
+        assert_eq!(
+            read_regular_text(&file, 100).unwrap(),
+            "freq_hz,gain\n1,2\n"
+        );
+        std::fs::write(&file, b"ok\xff").unwrap();
+        let e = read_regular_text(&file, 100).unwrap_err();
+        assert!(e.to_string().contains("offset 2"), "{e}");
     }
 }

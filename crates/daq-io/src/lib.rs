@@ -22,6 +22,7 @@
 
 #![cfg_attr(not(feature = "std"), no_std)]
 
+mod block_check;
 #[cfg(feature = "std")]
 pub mod clock;
 pub mod contract;
@@ -47,6 +48,7 @@ pub mod serve;
 #[cfg(feature = "std")]
 pub mod watchdog;
 
+pub use block_check::{BadBlock, BlockCheck};
 pub use contract::{
     ack_status, flags, stop_cause, Ack, Command, Control, ControllerLoad, Health, Latency, Sensor,
     Telemetry, TelemetryBlock, Truth, TruthBlock, BLOCK_TICKS, CONTRACT_VERSION, MAX_LOAD_BYTES,

@@ -14,7 +14,7 @@
 //! The continuous problem (SLICOT SB10HD, [`h2syn_continuous`]) is the same with CAREs and a
 //! strictly proper controller: `A_K = A + B2F + LC2`, `B_K = −L`, `C_K = F`.
 
-use lti::riccati::{care, dare, lyap, Mode, Riccati, RiccatiError, Solver};
+use lti::riccati::{care, dare, lyap, Mode, NearBoundary, Riccati, RiccatiError, Solver};
 use lti::{dlyap, StateSpace};
 use nalgebra::DMatrix;
 
@@ -113,6 +113,42 @@ pub struct H2Controller {
     pub h2_norm: f64,
     /// Closed-loop spectral radius.
     pub spectral_radius: f64,
+    /// What the Riccati equations warned of ([`Warning`]).
+    pub warnings: Vec<Warning>,
+}
+
+/// A synthesis's Riccati equation whose solution came with a warning: its closed loop lies
+/// nearer the stability boundary than working precision resolves ([`NearBoundary`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Warning {
+    /// `control` (the state-feedback equation: the penalty on z, C1 and D12) or `filter`
+    /// (the estimator's: the noise w, B1 and D21).
+    pub equation: &'static str,
+    /// What the solver found.
+    pub near_boundary: NearBoundary,
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the {} Riccati equation: {}",
+            self.equation, self.near_boundary
+        )
+    }
+}
+
+/// The warnings of the control equation `x` and the filter equation `y`.
+fn warnings(x: &Riccati, y: &Riccati) -> Vec<Warning> {
+    [("control", x), ("filter", y)]
+        .into_iter()
+        .filter_map(|(equation, r)| {
+            r.near_boundary.map(|near_boundary| Warning {
+                equation,
+                near_boundary,
+            })
+        })
+        .collect()
 }
 
 impl GeneralizedPlant {
@@ -242,6 +278,8 @@ pub struct H2ContinuousController {
     pub h2_norm: f64,
     /// Closed-loop spectral abscissa (largest real part of a pole; < 0: stable).
     pub spectral_abscissa: f64,
+    /// What the Riccati equations warned of ([`Warning`]).
+    pub warnings: Vec<Warning>,
 }
 
 /// H2 norm of a stable, strictly proper continuous system from its controllability gramian
@@ -292,6 +330,7 @@ pub fn h2syn_continuous(original: &GeneralizedPlant) -> Result<H2ContinuousContr
         k,
         h2_norm: h2,
         spectral_abscissa: abscissa,
+        warnings: warnings(&x, &y),
     })
 }
 
@@ -323,6 +362,7 @@ pub fn h2syn_discrete(p: &GeneralizedPlant) -> Result<H2Controller, H2Error> {
         k,
         h2_norm: h2,
         spectral_radius: radius,
+        warnings: warnings(&x, &y),
     })
 }
 

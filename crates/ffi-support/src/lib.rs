@@ -90,19 +90,55 @@ pub unsafe fn copy_message(out: *mut c_char, len: usize, message: &str) {
     }
 }
 
-/// The UTF-8 text of the C string `s`, or why not (null, not UTF-8).
+/// Why a C string was not taken.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum TextError {
+    /// The pointer is null.
+    Null(String),
+    /// Not UTF-8, or longer than allowed: the content is at fault, not the pointer.
+    Content(String),
+}
+
+impl fmt::Display for TextError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TextError::Null(m) | TextError::Content(m) => f.write_str(m),
+        }
+    }
+}
+
+/// The UTF-8 text of the C string `s` of at most `limit` bytes (before its NUL), or why not:
+/// null, longer (only `limit + 1` bytes are ever read), not UTF-8 (the offset named).
 ///
 /// # Safety
 /// `s` is null or points to a NUL-terminated string that stays valid and unchanged while the
 /// returned text is used.
-pub unsafe fn text<'a>(s: *const c_char, what: &str) -> Result<&'a str, String> {
+pub unsafe fn text<'a>(s: *const c_char, what: &str, limit: usize) -> Result<&'a str, TextError> {
     if s.is_null() {
-        return Err(format!("{what} is a null pointer"));
+        return Err(TextError::Null(format!("{what} is a null pointer")));
     }
-    // SAFETY: non-null, and the caller promises a NUL-terminated string that outlives 'a.
-    let c = unsafe { CStr::from_ptr(s) };
-    c.to_str()
-        .map_err(|e| format!("{what} is not UTF-8 text: {e}"))
+    // Its length, looking no further than `limit + 1` bytes.
+    let mut len = 0;
+    // SAFETY: every byte up to and including the NUL is readable (the caller's promise), and
+    // the scan stops at the NUL or one byte past `limit`, whichever comes first.
+    while len <= limit && unsafe { *s.add(len) } != 0 {
+        len += 1;
+    }
+    if len > limit {
+        return Err(TextError::Content(format!(
+            "{what} is longer than the {limit} bytes allowed"
+        )));
+    }
+    // SAFETY: `len` bytes before a NUL, readable and unchanged for 'a (the caller's promise).
+    let c = unsafe {
+        CStr::from_bytes_with_nul_unchecked(std::slice::from_raw_parts(s.cast(), len + 1))
+    };
+    c.to_str().map_err(|e| {
+        TextError::Content(format!(
+            "{what} is not UTF-8 text (invalid byte at offset {})",
+            e.valid_up_to()
+        ))
+    })
 }
 
 /// Writes the pkg-config file `NAME.pc` and the CMake package file `NAME-config.cmake` of the

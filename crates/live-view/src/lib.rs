@@ -81,6 +81,9 @@ pub struct ViewReport {
     pub run_ended: bool,
     /// Connections refused (another Unix user, a missing token, too many clients).
     pub refused: u64,
+    /// Blocks refused as another run's or impossible (a count above capacity, ticks going
+    /// backwards), and the first one's stream and reason ([`runner::join::BadBlocks`]).
+    pub bad_blocks: runner::join::BadBlocks,
 }
 
 /// Live-view errors.
@@ -200,11 +203,11 @@ pub fn serve(
         }
         for b in take_waiting(&tap.truth) {
             got = true;
-            if run_id.is_none() {
-                run_id = Some(b.run_id);
-                operator.set_metadata(metadata(&ep, b.run_id));
-            }
             join.truth(&b);
+        }
+        if let (None, Some(id)) = (run_id, join.run_id()) {
+            run_id = Some(id);
+            operator.set_metadata(metadata(&ep, id));
         }
         if got {
             last_data = Instant::now();
@@ -252,6 +255,7 @@ pub fn serve(
         }
     }
     report.dropped = join.dropped();
+    report.bad_blocks = join.bad_blocks().clone();
     report.applied_gains = operator.applied_gains.clone();
     report.refused = server.refused();
     server.stop();

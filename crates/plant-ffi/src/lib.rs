@@ -61,9 +61,12 @@ pub unsafe extern "C" fn fts_plant_open(
             Ok(Loaded::default())
         } else {
             // SAFETY: a NUL-terminated string (the caller's promise), read before we return.
-            match unsafe { text(config, "config") } {
+            match unsafe { text(config, "config", 4096) } {
                 Ok(path) => Loaded::from_file(path.as_ref()),
-                Err(e) => return fail(FTS_PLANT_ERR_NULL, &e),
+                Err(e @ ffi_support::TextError::Null(_)) => {
+                    return fail(FTS_PLANT_ERR_NULL, &e.to_string())
+                }
+                Err(e) => return fail(FTS_PLANT_ERR_CONFIG, &e.to_string()),
             }
         };
         match loaded

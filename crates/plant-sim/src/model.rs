@@ -274,6 +274,47 @@ pub(crate) fn check(
     }
 }
 
+/// The coil circuit and analog current controller's settings (`actuator.coil.*`).
+fn check_coil(c: &crate::params::CoilParams) -> Result<(), ModelError> {
+    check(
+        "actuator.coil.resistance_ohm",
+        c.resistance_ohm,
+        1e-6,
+        1e3,
+        "[1e-6, 1e3] Ω",
+    )?;
+    check(
+        "actuator.coil.sense_resistance_ohm",
+        c.sense_resistance_ohm,
+        0.0,
+        1e3,
+        "[0, 1e3] Ω",
+    )?;
+    check(
+        "actuator.coil.inductance_h",
+        c.inductance_h,
+        1e-9,
+        10.0,
+        "[1e-9, 10] H",
+    )?;
+    check("actuator.coil.bus_v", c.bus_v, 0.1, 1e4, "[0.1, 1e4] V")?;
+    check("actuator.coil.peak_a", c.peak_a, 1e-3, 1e4, "[1e-3, 1e4] A")?;
+    check(
+        "actuator.coil.loop_bandwidth_hz",
+        c.loop_bandwidth_hz,
+        1.0,
+        1e8,
+        "[1, 1e8] Hz",
+    )?;
+    check(
+        "actuator.coil.substeps",
+        c.substeps as f64,
+        2.0,
+        4096.0,
+        "[2, 4096]",
+    )
+}
+
 impl PlantModel {
     /// Assembles the model of `p`; rejects unphysical parameters with the key and range.
     pub fn new(p: &PlantParams) -> Result<Self, ModelError> {
@@ -402,52 +443,18 @@ impl PlantModel {
             check("adc.anti_alias_hz", aa, 1.0, 1e8, "0 (none) or [1, 1e8] Hz")?;
         }
 
+        // Every current-loop setting is checked, whichever model is selected: a file valid
+        // today stays valid when the model is switched.
+        check_coil(&a.coil)?;
+        let ideal = second_order_lowpass(
+            a.current_bandwidth_hz,
+            a.current_damping,
+            a.current_gain_a_per_v,
+        )?;
         // The `coil` model integrates the electrical loop outside; here the input is the current.
         let current = match a.model {
-            CurrentLoopModel::Ideal => second_order_lowpass(
-                a.current_bandwidth_hz,
-                a.current_damping,
-                a.current_gain_a_per_v,
-            )?,
+            CurrentLoopModel::Ideal => ideal,
             CurrentLoopModel::Coil => {
-                let c = &a.coil;
-                check(
-                    "actuator.coil.resistance_ohm",
-                    c.resistance_ohm,
-                    1e-6,
-                    1e3,
-                    "[1e-6, 1e3] Ω",
-                )?;
-                check(
-                    "actuator.coil.sense_resistance_ohm",
-                    c.sense_resistance_ohm,
-                    0.0,
-                    1e3,
-                    "[0, 1e3] Ω",
-                )?;
-                check(
-                    "actuator.coil.inductance_h",
-                    c.inductance_h,
-                    1e-9,
-                    10.0,
-                    "[1e-9, 10] H",
-                )?;
-                check("actuator.coil.bus_v", c.bus_v, 0.1, 1e4, "[0.1, 1e4] V")?;
-                check("actuator.coil.peak_a", c.peak_a, 1e-3, 1e4, "[1e-3, 1e4] A")?;
-                check(
-                    "actuator.coil.loop_bandwidth_hz",
-                    c.loop_bandwidth_hz,
-                    1.0,
-                    1e8,
-                    "[1, 1e8] Hz",
-                )?;
-                check(
-                    "actuator.coil.substeps",
-                    c.substeps as f64,
-                    2.0,
-                    4096.0,
-                    "[2, 4096]",
-                )?;
                 NamedBlock::gain(
                     "current",
                     DMatrix::from_element(1, 1, 1.0),

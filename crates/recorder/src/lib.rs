@@ -11,26 +11,30 @@
 #[macro_use]
 pub mod frame;
 mod compressors;
+mod error;
 pub mod export;
 mod fields;
 pub mod index;
 pub mod mcap_file;
+mod mcap_mark;
 pub mod overview;
+mod placement;
 pub mod reader;
 mod room;
 mod syncer;
 mod verify;
 pub mod writer;
 
+pub use error::{Kept, RecordError};
 pub use frame::{Frame, Message, Telemetry, Truth};
 pub use index::visit_indexed;
 pub use overview::{Overview, OverviewBin, Signals, OVERVIEW_PERIOD_NS};
+pub use placement::{check_target, create_private, partial_path, partial_path_of, Overwrite};
 pub use reader::{
     fingerprint, read, stream, BadRecord, FileState, ReadError, ReadReport, Recording, Visit,
     ENVIRONMENT_RECORDS,
 };
 pub use writer::{
-    check_target, create_private, partial_path, partial_path_of, Input, Overwrite, RecordError,
-    RecordOptions, RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY,
-    EVERY_KEY, SYNC_INTERVAL, TELEMETRY_KEY, TELEMETRY_READING_USED,
+    Input, RecordOptions, RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS,
+    EPOCH_KEY, EVERY_KEY, SYNC_INTERVAL, TELEMETRY_KEY, TELEMETRY_READING_USED,
 };

@@ -13,6 +13,7 @@
 //! Records follow the MCAP specification (<https://mcap.dev/spec>), little-endian throughout.
 
 use crate::compressors::{gone, Compressors, Job};
+use crate::mcap_mark::{Counts, Mark, Marks};
 use std::collections::{BTreeMap, VecDeque};
 use std::io::{self, Write};
 use std::sync::mpsc::{Receiver, TryRecvError};
@@ -113,21 +114,35 @@ fn record(out: &mut Vec<u8>, opcode: u8, body: impl FnOnce(&mut Vec<u8>)) {
     out[at - 8..at].copy_from_slice(&len.to_le_bytes());
 }
 
-/// Where the bytes go: a file (made durable with `sync_data`) or anything else that writes.
+/// Where the bytes go: a file (made durable with `sync_data`) or a buffer.
 pub trait Sink: Write {
     /// Asks the storage to keep what was written across a power loss.
     fn sync(&mut self) -> io::Result<()> {
         Ok(())
     }
+
+    /// Cuts what was written back to its first `len` bytes; the next write goes there.
+    fn truncate(&mut self, len: u64) -> io::Result<()>;
 }
 
 impl Sink for std::fs::File {
     fn sync(&mut self) -> io::Result<()> {
         self.sync_data()
     }
+
+    fn truncate(&mut self, len: u64) -> io::Result<()> {
+        use std::io::Seek;
+        self.set_len(len)?;
+        self.seek(io::SeekFrom::Start(len)).map(|_| ())
+    }
 }
 
-impl Sink for Vec<u8> {}
+impl Sink for Vec<u8> {
+    fn truncate(&mut self, len: u64) -> io::Result<()> {
+        Vec::truncate(self, usize::try_from(len).unwrap_or(usize::MAX));
+        Ok(())
+    }
+}
 
 /// The messages of the chunk being filled.
 struct OpenChunk {
@@ -152,19 +167,6 @@ impl OpenChunk {
     fn is_empty(&self) -> bool {
         self.records.is_empty()
     }
-}
-
-/// Counts for the statistics record.
-#[derive(Default)]
-struct Counts {
-    messages: u64,
-    attachments: u32,
-    metadata: u32,
-    chunks: u32,
-    start_ns: Option<u64>,
-    end_ns: u64,
-    /// Messages per channel id.
-    per_channel: Vec<u64>,
 }
 
 /// An MCAP file being written. Schemas, channels, metadata and attachments go straight to the
@@ -198,6 +200,8 @@ pub struct McapFile<W: Sink> {
     spare: Vec<(Vec<u8>, Vec<u8>)>,
     /// CRC-32 of everything written so far (the data section's, until its end).
     data_crc: crc32fast::Hasher,
+    /// Where the file can go back to ([`McapFile::rewind`]).
+    marks: Marks,
 }
 
 /// A closed chunk (its records gone to a compressor) waiting for its frame.
@@ -249,7 +253,53 @@ impl<W: Sink> McapFile<W> {
             max_in_flight: compressors + 1,
             spare: Vec::new(),
             data_crc,
+            marks: Marks::default(),
         })
+    }
+
+    /// Remembers the file as written so far as a point [`McapFile::rewind`] can go back to
+    /// (each written chunk is one too).
+    pub fn mark(&mut self) -> io::Result<()> {
+        self.write_pending()?;
+        self.marks.push(Mark {
+            position: self.position,
+            data_crc: self.data_crc.clone(),
+            chunk_indexes: self.chunk_indexes.len(),
+            attachment_indexes: self.attachment_indexes.len(),
+            metadata_indexes: self.metadata_indexes.len(),
+            counts: self.counts.clone(),
+        });
+        Ok(())
+    }
+
+    /// Goes back to the newest mark (forgetting it, so the next call goes further back):
+    /// truncates the file there and drops every message since — chunks open, in flight or
+    /// half written. False when no mark is left (the file is as it was).
+    pub fn rewind(&mut self) -> io::Result<bool> {
+        let Some(m) = self.marks.pop() else {
+            return Ok(false);
+        };
+        self.in_flight.clear();
+        for lane in &mut self.lanes {
+            lane.records.clear();
+            lane.index.clear();
+            lane.start_ns = u64::MAX;
+            lane.end_ns = 0;
+        }
+        self.pending.clear();
+        self.out.truncate(m.position)?;
+        self.position = m.position;
+        self.data_crc = m.data_crc;
+        self.chunk_indexes.truncate(m.chunk_indexes);
+        self.attachment_indexes.truncate(m.attachment_indexes);
+        self.metadata_indexes.truncate(m.metadata_indexes);
+        self.counts = m.counts;
+        Ok(true)
+    }
+
+    /// Log time of the last message the file holds (0 before any).
+    pub fn end_ns(&self) -> u64 {
+        self.counts.end_ns
     }
 
     /// Offset in the file of the next record written.
@@ -485,7 +535,7 @@ impl<W: Sink> McapFile<W> {
         if self.spare.len() <= self.max_in_flight {
             self.spare.push((records, compressed));
         }
-        self.write_pending()
+        self.mark()
     }
 
     fn write_pending(&mut self) -> io::Result<()> {
@@ -500,6 +550,13 @@ impl<W: Sink> McapFile<W> {
     /// statistics, chunk, attachment and metadata indexes, summary offsets) and the footer,
     /// and hands the sink back.
     pub fn finish(mut self) -> io::Result<W> {
+        self.close()?;
+        Ok(self.out)
+    }
+
+    /// [`McapFile::finish`] in place: on failure the file can still [`McapFile::rewind`] and
+    /// close again.
+    pub fn close(&mut self) -> io::Result<()> {
         for lane in 0..self.lanes.len() {
             self.close_chunk(lane)?;
         }
@@ -557,7 +614,6 @@ impl<W: Sink> McapFile<W> {
         self.pending.extend_from_slice(&summary);
         self.write_pending()?;
         self.out.flush()?;
-        self.out.sync()?;
-        Ok(self.out)
+        self.out.sync()
     }
 }

@@ -18,78 +18,21 @@
 //! compressors: one per CPU, up to 4) and what waits in the ring; a power loss at most
 //! [`SYNC_INTERVAL`] and one sync's duration more. The reader recovers the rest.
 
+use crate::error::{Kept, RecordError};
 use crate::frame::{Frame, Message, Telemetry, Truth};
 use crate::mcap_file::McapFile;
 use crate::overview::{Overview, OverviewBin};
+use crate::placement::{check_target, create_private, partial_path, publish, Overwrite};
 use crate::room::Room;
 use crate::syncer::Syncer;
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::num::NonZeroU32;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
-
-/// Recording errors.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum RecordError {
-    /// The output file could not be created or written (a full disk, an I/O error).
-    #[error("cannot write {path}: {source}")]
-    Io {
-        /// Output path.
-        path: PathBuf,
-        /// Cause.
-        source: std::io::Error,
-    },
-    /// Writing failed mid-run (a full disk, a file size limit, an I/O error): the run ends,
-    /// and the file holds everything up to its last complete chunk.
-    #[error(
-        "writing {} failed: {source}; the recording up to its last complete chunk is in {} \
-         (`servo inspect` recovers it)",
-        path.display(),
-        partial.display()
-    )]
-    WriteFailed {
-        /// The target.
-        path: PathBuf,
-        /// The unfinished file.
-        partial: PathBuf,
-        /// Cause.
-        source: std::io::Error,
-    },
-    /// The target exists and [`Overwrite::Refuse`] was asked for.
-    #[error("{} exists: not overwritten (set overwrite to replace it)", path.display())]
-    Exists {
-        /// The target.
-        path: PathBuf,
-    },
-    /// The writer thread stopped early (its error is reported by [`Recorder::finish`]).
-    #[error("the recorder thread stopped")]
-    WriterGone,
-}
-
-/// Whether an existing file at the target may be replaced.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Overwrite {
-    /// Keep it: creating the recording fails with [`RecordError::Exists`].
-    Refuse,
-    /// Replace it when the new recording is finished.
-    Replace,
-}
-
-impl Overwrite {
-    /// From a command's `--overwrite` flag.
-    pub fn from_flag(replace: bool) -> Self {
-        if replace {
-            Overwrite::Replace
-        } else {
-            Overwrite::Refuse
-        }
-    }
-}
 
 /// A file a run depended on, embedded in its recording (MCAP attachment) so the recording
 /// replays and inspects on its own.
@@ -259,17 +202,38 @@ impl Recorder {
         let made = room.clone();
         let (target, overwrite) = (path.to_owned(), options.overwrite);
         let (epoch_ns, every) = (options.epoch_ns, options.every);
+        // The opening records are the first point a failed write goes back to.
+        w.mark().map_err(io)?;
         let thread = std::thread::Builder::new()
             .name("mcap-writer".into())
             .spawn(move || {
-                let result = Drain::new(w, syncer, epoch_ns, every)
-                    .run(consumer, &count, &end_record, &made)
-                    .map_err(|source| RecordError::WriteFailed {
-                        path: target.clone(),
-                        partial: partial.clone(),
+                let drain = Drain::new(w, syncer, epoch_ns, every);
+                let result = match drain.run(consumer, &count, &end_record, &made, &alive) {
+                    Ok(n) => publish(&partial, &target, overwrite).map(|()| n),
+                    Err(Failure {
                         source,
-                    })
-                    .and_then(|n| publish(&partial, &target, overwrite).map(|()| n));
+                        finished: Some(until_s),
+                    }) => publish(&partial, &target, overwrite).and_then(|()| {
+                        Err(RecordError::WriteFailed {
+                            path: target.clone(),
+                            kept: Kept::Finished {
+                                path: target.clone(),
+                                until_s,
+                            },
+                            source,
+                        })
+                    }),
+                    Err(Failure {
+                        source,
+                        finished: None,
+                    }) => Err(RecordError::WriteFailed {
+                        path: target.clone(),
+                        kept: Kept::Unfinished {
+                            partial: partial.clone(),
+                        },
+                        source,
+                    }),
+                };
                 alive.store(false, Ordering::Release);
                 made.made();
                 result
@@ -351,6 +315,13 @@ impl Recorder {
     }
 }
 
+/// Why the writer thread's file did not come out whole: the first write error, and the run
+/// time (s) up to which the file was finished shorter (None: left unfinished).
+struct Failure {
+    source: std::io::Error,
+    finished: Option<f64>,
+}
+
 /// What the writer thread writes after the last frame.
 #[derive(Default)]
 struct Ending {
@@ -414,19 +385,79 @@ impl Drain {
     }
 
     /// Encodes and writes until the producer is gone and the ring is empty, then writes the
-    /// `end` and `timing` records and the summary.
+    /// `end` and `timing` records and the summary. A failed write (a full disk, a file size
+    /// limit, a quota) stops the frames (`alive` goes false: the producer ends the run at its
+    /// next push; what it pushed meanwhile is dropped) and the file is finished with the part
+    /// that fit: cut back to the last chunk written, and to earlier ones while its end records
+    /// still do not fit ([`McapFile::rewind`]).
     fn run(
         mut self,
         mut ring: rtrb::Consumer<Frame>,
         count: &AtomicU64,
         end: &Mutex<Ending>,
         room: &Room,
-    ) -> std::io::Result<u64> {
+        alive: &AtomicBool,
+    ) -> Result<u64, Failure> {
+        let mut failed = self.frames(&mut ring, count, room).err();
+        if failed.is_some() {
+            alive.store(false, Ordering::Release);
+            while !(ring.is_abandoned() && ring.is_empty()) {
+                let n = ring.slots();
+                if let Ok(c) = ring.read_chunk(n) {
+                    c.commit_all();
+                }
+                room.made();
+                std::thread::sleep(IDLE_POLL);
+            }
+        } else if let Some((t, o)) = self.overview.take() {
+            self.overview_message(t, &o);
+        }
+        let mut end = std::mem::take(&mut *end.lock().unwrap_or_else(|e| e.into_inner()));
+        if let Some(e) = &failed {
+            end.record.insert("write_failed".into(), e.to_string());
+            let _ = self.w.rewind();
+        }
+        loop {
+            match self.finish(&end) {
+                Ok(()) => break,
+                Err(e) => {
+                    failed.get_or_insert(e);
+                    if !matches!(self.w.rewind(), Ok(true)) {
+                        let _ = self.syncer.stop();
+                        return Err(Failure {
+                            source: failed.expect("set above"),
+                            finished: None,
+                        });
+                    }
+                }
+            }
+        }
+        let synced = self.syncer.stop();
+        match (failed, synced) {
+            (None, Ok(())) => Ok(self.written),
+            (None, Err(source)) => Err(Failure {
+                source,
+                finished: None,
+            }),
+            (Some(source), _) => Err(Failure {
+                source,
+                finished: Some(self.w.end_ns().saturating_sub(self.epoch_ns) as f64 * 1e-9),
+            }),
+        }
+    }
+
+    /// Encodes and writes the frames until the producer is gone and the ring is empty.
+    fn frames(
+        &mut self,
+        ring: &mut rtrb::Consumer<Frame>,
+        count: &AtomicU64,
+        room: &Room,
+    ) -> std::io::Result<()> {
         loop {
             let available = ring.slots();
             if available == 0 {
                 if ring.is_abandoned() && ring.is_empty() {
-                    break;
+                    return Ok(());
                 }
                 std::thread::sleep(IDLE_POLL);
                 continue;
@@ -445,10 +476,11 @@ impl Drain {
                 self.synced = Instant::now();
             }
         }
-        if let Some((t, o)) = self.overview.take() {
-            self.overview_message(t, &o);
-        }
-        let end = std::mem::take(&mut *end.lock().unwrap_or_else(|e| e.into_inner()));
+    }
+
+    /// Closes the open chunks and writes the attachments taken up during the run, the `end`
+    /// and `timing` records and the summary.
+    fn finish(&mut self, end: &Ending) -> std::io::Result<()> {
         self.w.close_chunk(DATA)?;
         self.w.close_chunk(OVERVIEW)?;
         for (input, at_ns) in &end.attachments {
@@ -465,9 +497,7 @@ impl Drain {
             ),
         ]);
         self.w.metadata("timing", &timing)?;
-        self.syncer.stop()?;
-        self.w.finish()?;
-        Ok(self.written)
+        self.w.close()
     }
 
     /// One tick: its two messages (unless decimated away), its share of the overview; closes
@@ -523,75 +553,5 @@ impl Drain {
         self.w
             .message(OVERVIEW, OVERVIEW_CH, seq, t, |b| o.encode(b));
         self.overview_sequence = seq.wrapping_add(1);
-    }
-}
-
-/// Whether a recording may be written to `path`: a device, a directory or a link is never
-/// replaced; an existing file only with [`Overwrite::Replace`]. [`Recorder::create`] checks
-/// this; a caller that starts other work first (the HIL processes) can check it earlier.
-pub fn check_target(path: &Path, overwrite: Overwrite) -> Result<(), RecordError> {
-    let Ok(existing) = std::fs::symlink_metadata(path) else {
-        return Ok(());
-    };
-    if !existing.is_file() {
-        return Err(RecordError::Io {
-            path: path.to_owned(),
-            source: std::io::Error::other("exists and is not a regular file"),
-        });
-    }
-    if overwrite == Overwrite::Refuse {
-        return Err(RecordError::Exists {
-            path: path.to_owned(),
-        });
-    }
-    Ok(())
-}
-
-/// Creates `path` exclusively (never through an existing file or link), mode 0600: private to
-/// the user, as every file the runtime writes.
-pub fn create_private(path: &Path) -> std::io::Result<File> {
-    use std::os::unix::fs::OpenOptionsExt;
-    File::options()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(path)
-}
-
-/// `<dir>/<name>.<pid>.partial`: the recording while this process writes it.
-pub fn partial_path(path: &Path) -> PathBuf {
-    partial_path_of(path, std::process::id())
-}
-
-/// The `.partial` file process `pid` writes while recording to `path`.
-pub fn partial_path_of(path: &Path, pid: u32) -> PathBuf {
-    let name = path
-        .file_name()
-        .map_or_else(|| "recording".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!("{name}.{pid}.partial"))
-}
-
-/// Moves the finished `partial` file to `target`: without replacing an existing one (a hard
-/// link fails if `target` exists, atomically) unless `overwrite` is `Replace`.
-pub(crate) fn publish(
-    partial: &Path,
-    target: &Path,
-    overwrite: Overwrite,
-) -> Result<(), RecordError> {
-    let io = |source| RecordError::Io {
-        path: target.to_owned(),
-        source,
-    };
-    match overwrite {
-        Overwrite::Replace => std::fs::rename(partial, target).map_err(io),
-        Overwrite::Refuse => match std::fs::hard_link(partial, target) {
-            Ok(()) => std::fs::remove_file(partial).map_err(io),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Err(RecordError::Exists {
-                path: target.to_owned(),
-            }),
-            // Filesystems without hard links: check, then rename.
-            Err(_) if !target.exists() => std::fs::rename(partial, target).map_err(io),
-            Err(e) => Err(io(e)),
-        },
     }
 }

@@ -44,6 +44,10 @@ pub enum RunError {
     /// The controller's service (telemetry, health, control plane) could not start.
     #[error("controller service: {0}")]
     Service(#[from] servo_runtime::ServeError),
+    /// Asked to stop (a signal, a library caller) before the run began: nothing was run or
+    /// recorded.
+    #[error("stopped ({}) before the run began: nothing was recorded", .0.signal_name().unwrap_or("a stop request"))]
+    Stopped(crate::stop::EndReason),
     /// No plant or controller published on the run's services in time.
     #[error("no plant or controller joined run {prefix} within {waited_s} s")]
     NoPeers {
@@ -51,16 +55,6 @@ pub enum RunError {
         prefix: String,
         /// Seconds waited.
         waited_s: f64,
-    },
-    /// Data of another run arrived on the prefix being recorded.
-    #[error("a {what} block of run {got:016x} arrived while recording run {expected:016x}: another process publishes on this prefix; the recording stops")]
-    ForeignRun {
-        /// `telemetry` or `truth`.
-        what: &'static str,
-        /// The run id of the first block.
-        expected: u64,
-        /// The run id of the stray block.
-        got: u64,
     },
     /// The controller lost its plant.
     #[error("{0}; the controller stopped")]

@@ -18,9 +18,10 @@ pub fn checked(plan: &Plan) -> Result<Deployment, RunError> {
     })
 }
 
-/// The stability of `plan`'s loop: its spectral radius and its gain range, by bisection on the
-/// spectral radius of the sampled closed loop with the controller's output scaled (to 1e-6
-/// relative); [`RunError::Unstable`] when the loop is not stable as it is.
+/// The stability of `plan`'s loop, sealed to it ([`Stability::sealed`]): its spectral radius and
+/// its gain range, by bisection on the spectral radius of the sampled closed loop with the
+/// controller's output scaled (to 1e-6 relative); [`RunError::Unstable`] when the loop is not
+/// stable as it is.
 pub fn gain_range(plan: &Plan) -> Result<Stability, RunError> {
     let spectral_radius = plan.check_stable()?;
     let c = &plan.config;
@@ -40,11 +41,14 @@ pub fn gain_range(plan: &Plan) -> Result<Stability, RunError> {
         );
         cl.spectral_radius() < 1.0
     };
+    let d = &plan.deployment;
     Ok(Stability {
         spectral_radius,
         unstable_below: limit(&stable, 0.5, 1e-3).unwrap_or(0.0),
         unstable_above: limit(&stable, 2.0, 1e3).unwrap_or(f64::INFINITY),
-    })
+        sha256: Default::default(),
+    }
+    .sealed(d.servo_rate_hz, &d.stage, &d.controller))
 }
 
 /// From the stable scale 1, steps by `factor` until `stable` fails (or `bound` is passed: None),

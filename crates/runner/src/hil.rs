@@ -167,23 +167,6 @@ pub fn controller(
     })
 }
 
-/// Keeps the recorder to one run: the first block's run id is the run's; a block of another is
-/// an error naming both.
-fn same_run(run: &mut Option<u64>, id: u64, what: &'static str) -> Result<(), RunError> {
-    match *run {
-        None => {
-            *run = Some(id);
-            Ok(())
-        }
-        Some(expected) if expected == id => Ok(()),
-        Some(expected) => Err(RunError::ForeignRun {
-            what,
-            expected,
-            got: id,
-        }),
-    }
-}
-
 /// The control-plane STOP that ends a run for `cause` (a [`daq_io::stop_cause`]).
 fn stop_for(cause: u32) -> Control {
     Control {
@@ -194,12 +177,15 @@ fn stop_for(cause: u32) -> Control {
 }
 
 /// `servo record`: records run `prefix` (telemetry joined with truth, tick by tick) to `out`
-/// and returns the run's summary, with the plant's overruns, latency and faults.
+/// and returns the run's summary, with the plant's overruns, latency and faults. `stop` (a
+/// signal to the recorder, as a service manager sends) asks the plant to end the run, with
+/// the signal as its cause; the recording is finished as for any end.
 pub fn record(
     plan: &Plan,
     prefix: &str,
     out: Option<recording::Target>,
     realtime: bool,
+    stop: &StopRequest,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Summary, RunError> {
     let c = &plan.config;
@@ -217,7 +203,6 @@ pub fn record(
         to.check()?;
     }
     let mut rec: Option<Recorder> = None;
-    let mut run_id: Option<u64> = None;
     let total = c.ticks();
     let mut summary = SummaryBuilder::new(c.run.settle());
     let mut join = Joiner::default();
@@ -234,16 +219,23 @@ pub fn record(
     let mut load_requests: VecDeque<(u64, Vec<u8>)> = VecDeque::new();
     let mut applied: VecDeque<Ack> = VecDeque::new();
     let mut swaps: Vec<(Swap, f64)> = Vec::new();
+    let mut stop_sent = false;
     loop {
+        if stop.is_set() && !stop_sent {
+            let cause = stop.cell().load(std::sync::atomic::Ordering::Relaxed) as u32;
+            stop_sent = stopper.send(stop_for(cause)).is_ok();
+            if last_data.is_none() {
+                // Asked to stop before the run began: nothing to record.
+                return Err(RunError::Stopped(stop.reason()));
+            }
+        }
         let mut got = false;
         for b in take_waiting(&tap.telemetry) {
             got = true;
-            same_run(&mut run_id, b.run_id, "telemetry")?;
             join.telemetry(&b);
         }
         for b in take_waiting(&tap.truth) {
             got = true;
-            same_run(&mut run_id, b.run_id, "truth")?;
             join.truth(&b);
         }
         while let Some(h) = take(&tap.health) {
@@ -278,7 +270,7 @@ pub fn record(
             }
         }
         pair_swaps(&mut applied, &mut load_requests, &mut swaps);
-        if let (None, Some(id), Some(to)) = (&rec, run_id, &out) {
+        if let (None, Some(id), Some(to)) = (&rec, join.run_id(), &out) {
             rec = Some(recording::create(plan, to, id)?);
         }
         let silent = match last_data {
@@ -359,6 +351,8 @@ pub fn record(
         plant_execution: plant_health.execution,
         controller_lateness: controller_health.lateness,
         controller_execution: controller_health.execution,
+        bad_blocks: join.bad_blocks().count,
+        first_bad_block: join.bad_blocks().first.clone(),
     };
     end.extend(hil.record());
     let stats = match rec {
@@ -390,24 +384,5 @@ fn pair_swaps(
         let (_, file) = files.remove(at).expect("found above");
         swaps.push((Swap::new(swaps.len() + 1, a.tick, &file), a.value));
         applied.pop_front();
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_recorder_keeps_to_the_first_blocks_run() {
-        let mut run = None;
-        same_run(&mut run, 7, "truth").unwrap();
-        same_run(&mut run, 7, "telemetry").unwrap();
-        let e = same_run(&mut run, 8, "telemetry").unwrap_err().to_string();
-        assert!(
-            e.contains("telemetry block of run 0000000000000008")
-                && e.contains("recording run 0000000000000007"),
-            "{e}"
-        );
-        assert_eq!(run, Some(7));
     }
 }

@@ -80,13 +80,22 @@ pub fn plan_after_load(plan: &Plan, file: &[u8]) -> Result<Plan, RunError> {
             message,
         })
     };
-    let text = std::str::from_utf8(file).map_err(|e| parse(e.to_string()))?;
-    let table: toml::Table = toml::from_str(text).map_err(|e| parse(e.to_string()))?;
+    let text = std::str::from_utf8(file)
+        .map(|t| t.strip_prefix('\u{feff}').unwrap_or(t))
+        .map_err(|e| {
+            parse(format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.valid_up_to()
+            ))
+        })?;
+    let table: toml::Table =
+        toml::from_str(text).map_err(|e| parse(servo_runtime::toml_message(text, &e)))?;
     let (controller, bytes) = if let Some(fragment) = table.get("controller") {
         // Whether the fragment sets the reference path (a tuning fragment holds gains only).
         let has = |key: &str| fragment.get(key).is_some();
         let (sets_feedforward, sets_smoothing) = (has("feedforward"), has("smoothing_hz"));
-        let config: RunConfig = table.try_into().map_err(|e| parse(e.to_string()))?;
+        let config: RunConfig =
+            toml::from_str(text).map_err(|e| parse(servo_runtime::toml_message(text, &e)))?;
         if config.controller.kind == ControllerKind::Ss {
             return Err(parse(
                 "a [controller] fragment of kind ss names a file: load the file".into(),

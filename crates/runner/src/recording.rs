@@ -333,7 +333,7 @@ pub fn inspect(path: &Path) -> Result<Inspected, RunError> {
 fn embedded_config(path: &Path, text: &str) -> Result<RunConfig, RunError> {
     let config: RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
         path: path.to_owned(),
-        message: e.to_string(),
+        message: servo_runtime::toml_message(text, &e),
     })?;
     config.validate(&Origin {
         path: Some(format!("{} (its configuration)", path.display()).into()),

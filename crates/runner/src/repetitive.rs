@@ -213,15 +213,14 @@ fn load_table(
         Some(i) => String::from_utf8_lossy(&i.data).into_owned(),
         None => {
             let shown = path.display().to_string();
-            let meta = std::fs::metadata(path)
-                .map_err(|e| origin.invalid(key, &shown, &format!("a readable file ({e})")))?;
-            if !meta.is_file() || meta.len() > MAX_TABLE_BYTES {
-                return Err(origin
-                    .invalid(key, &shown, "a regular file of at most 1 MiB")
-                    .into());
-            }
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| origin.invalid(key, &shown, &format!("a UTF-8 CSV file ({e})")))?;
+            let text =
+                daq_io::input_file::read_regular_text(path, MAX_TABLE_BYTES).map_err(|e| {
+                    origin.invalid(
+                        key,
+                        &shown,
+                        &format!("a UTF-8 CSV file, regular, of at most 1 MiB ({e})"),
+                    )
+                })?;
             inputs.push(Input {
                 name: TABLE_INPUT.into(),
                 media_type: "text/csv".into(),
@@ -241,26 +240,37 @@ fn load_table(
     })
 }
 
-/// The correction column of a table written by [`table_csv`]: `bins` rows, each within
-/// ±`limit_m`.
+/// The correction column of a table written by [`table_csv`]: the header `angle_rad,
+/// correction_m`, then `bins` rows of exactly those two columns, each at its bin's centre
+/// angle (rad, to 1e-6) and within ±`limit_m`.
 fn parse_table(text: &str, bins: usize, limit_m: f64) -> Result<Vec<f64>, String> {
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h.trim() == "angle_rad,correction_m" => {}
+        _ => return Err("line 1: the header `angle_rad,correction_m`".into()),
+    }
     let mut out = Vec::with_capacity(bins);
-    for (n, line) in text.lines().enumerate().skip(1) {
+    for (n, line) in lines {
         if line.trim().is_empty() {
             continue;
         }
         if out.len() == bins {
-            return Err(format!("more than {bins} rows"));
+            return Err(format!("line {}: more than {bins} rows", n + 1));
         }
-        let value = line
-            .split(',')
-            .nth(1)
-            .and_then(|v| v.trim().parse::<f64>().ok())
-            .filter(|v| v.abs() <= limit_m)
+        let centre = TAU * (out.len() as f64 + 0.5) / bins as f64;
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let row = match fields[..] {
+            [angle, value] => angle.parse::<f64>().ok().zip(value.parse::<f64>().ok()),
+            _ => None,
+        };
+        let value = row
+            .filter(|(angle, v)| (angle - centre).abs() <= 1e-6 && v.abs() <= limit_m)
+            .map(|(_, v)| v)
             .ok_or_else(|| {
                 format!(
-                    "line {}: `angle_rad,correction_m` with |correction| ≤ {limit_m} m",
-                    n + 1
+                    "line {}: `angle_rad,correction_m`, two columns, the angle {centre:.9} rad (bin {} of {bins}) and |correction| ≤ {limit_m} m",
+                    n + 1,
+                    out.len()
                 )
             })?;
         out.push(value);
@@ -322,9 +332,35 @@ mod tests {
         let table: Vec<f64> = (0..64).map(|i| 1e-9 * f64::from(i) - 3e-8).collect();
         let text = table_csv(&table);
         assert_eq!(parse_table(&text, 64, 1e-6).unwrap(), table);
-        assert!(parse_table(&text, 65, 1e-6)
+        // Too few rows (the angles of 64 bins are not those of 65).
+        let mut short = text.clone();
+        short.truncate(text.trim_end().rfind('\n').unwrap() + 1);
+        assert!(parse_table(&short, 64, 1e-6)
             .unwrap_err()
-            .contains("64 rows"));
+            .contains("63 rows"));
         assert!(parse_table(&text, 64, 1e-8).unwrap_err().contains("line 2"));
+        // An extra column, a table of another bin count, a missing header: refused, located.
+        let extra: String = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i == 1 {
+                    format!("{l},0\n")
+                } else {
+                    format!("{l}\n")
+                }
+            })
+            .collect();
+        assert!(parse_table(&extra, 64, 1e-6)
+            .unwrap_err()
+            .contains("line 2: `angle_rad,correction_m`, two columns"));
+        let other = table_csv(&table[..32]);
+        assert!(parse_table(&other, 32, 1e-6).is_ok());
+        assert!(parse_table(&other, 64, 1e-6)
+            .unwrap_err()
+            .contains("line 2"));
+        assert!(parse_table(&text[23..], 64, 1e-6)
+            .unwrap_err()
+            .contains("line 1: the header"));
     }
 }

@@ -147,8 +147,10 @@ impl EndReason {
                  plant drove zero current and ended the run"
             }
             EndReason::WriteFailed => {
-                "the recording could not be written (a full disk): the run was ended safely; \
-                 the `.partial` file holds every complete chunk"
+                "the recording could not be written (a full disk, a file size limit, a \
+                 quota): the run was ended safely and the recording finished with the part \
+                 that fit, shorter; when even that cannot be written, the `.partial` file holds \
+                 every complete chunk"
             }
             EndReason::Tripped => {
                 "machine protection tripped the loop: it held the safe state, then the run ended"

@@ -417,6 +417,13 @@ impl fmt::Display for Summary {
                     "not acted on", h.truth_only_ticks
                 )?;
             }
+            if let Some(first) = &h.first_bad_block {
+                writeln!(
+                    f,
+                    "  {:<26}{} refused and skipped (impossible counts or ticks: a foreign or faulty publisher); the first: {first}",
+                    "bad blocks", h.bad_blocks
+                )?;
+            }
             if h.realtime {
                 writeln!(f, "  {:<26}{}", "plant lateness", us(&h.plant_lateness))?;
             }
@@ -452,7 +459,7 @@ impl fmt::Display for Summary {
 }
 
 /// What the plant and controller reported about a HIL run (in the summary).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct HilMeta {
     /// Paced to the wall clock (false: lockstep).
     pub realtime: bool,
@@ -472,6 +479,13 @@ pub struct HilMeta {
     pub controller_lateness: Latency,
     /// The controller's sample-to-command time per tick (TET), ns.
     pub controller_execution: Latency,
+    /// Telemetry and truth blocks the recorder refused as impossible (a count above
+    /// capacity, ticks going backwards: a foreign or faulty publisher) and skipped.
+    #[serde(default)]
+    pub bad_blocks: u64,
+    /// The first refused block: its stream and why.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first_bad_block: Option<String>,
 }
 
 impl HilMeta {
@@ -496,6 +510,13 @@ impl HilMeta {
             (
                 "hil.controller.execution".into(),
                 line(&self.controller_execution),
+            ),
+            (
+                "hil.bad_blocks".into(),
+                match &self.first_bad_block {
+                    Some(first) => format!("{} refused; the first: {first}", self.bad_blocks),
+                    None => "0".into(),
+                },
             ),
         ]
     }

@@ -11,8 +11,8 @@
 //! when it is stale) and includes `fts_servo_contract.h` for the sample types.
 
 use daq_io::{flags, Command, Latency, Sensor, Telemetry};
-use ffi_support::{copy_message, guard, text, ErrorText};
-use servo_runtime::{LoadError, Servo};
+use ffi_support::{copy_message, guard, text, ErrorText, TextError};
+use servo_runtime::{LoadError, Servo, MAX_TEXT_BYTES};
 use std::ffi::c_char;
 
 /// The version of this C ABI: the functions and the structs of `fts_servo.h` (the sample
@@ -213,14 +213,15 @@ unsafe fn open(
         return fail(FTS_SERVO_ERR_ABI, &why);
     }
     guard(FTS_SERVO_ERR_INTERNAL, || {
-        let what = match source {
-            Source::File => "path",
-            Source::Toml => "text",
+        let (what, limit) = match source {
+            Source::File => ("path", 4096),
+            Source::Toml => ("text", MAX_TEXT_BYTES as usize),
         };
         // SAFETY: a NUL-terminated string (the caller's promise), read before we return.
-        let arg = match unsafe { text(arg, what) } {
+        let arg = match unsafe { text(arg, what, limit) } {
             Ok(a) => a,
-            Err(e) => return fail(FTS_SERVO_ERR_NULL, &e),
+            Err(e @ TextError::Null(_)) => return fail(FTS_SERVO_ERR_NULL, &e.to_string()),
+            Err(e) => return fail(FTS_SERVO_ERR_CONFIG, &e.to_string()),
         };
         let built = match source {
             Source::File => Servo::from_file(arg),
@@ -433,6 +434,13 @@ pub unsafe extern "C" fn fts_servo_load(h: *mut FtsServo, file: *const u8, len: 
             h.error.set(format_args!("file is a null pointer"));
             return FTS_SERVO_ERR_NULL;
         }
+        if len > daq_io::MAX_LOAD_BYTES {
+            h.error.set(format_args!(
+                "file is {len} bytes, more than the {} a controller file may have",
+                daq_io::MAX_LOAD_BYTES
+            ));
+            return FTS_SERVO_ERR_CONFIG;
+        }
         // SAFETY: `len` readable bytes at `file` (the caller's promise).
         let bytes = unsafe { std::slice::from_raw_parts(file, len) };
         match h.servo.load(bytes) {
@@ -467,10 +475,13 @@ pub unsafe extern "C" fn fts_servo_load(h: *mut FtsServo, file: *const u8, len: 
 pub unsafe extern "C" fn fts_servo_serve(h: *mut FtsServo, prefix: *const c_char) -> i32 {
     let body = |h: &mut FtsServo| {
         // SAFETY: a NUL-terminated string (the caller's promise), read before we return.
-        let prefix = match unsafe { text(prefix, "prefix") } {
+        let prefix = match unsafe { text(prefix, "prefix", 256) } {
             Ok(p) => p,
             Err(e) => {
                 h.error.set(format_args!("{e}"));
+                if matches!(e, TextError::Content(_)) {
+                    return FTS_SERVO_ERR_CONFIG;
+                }
                 return FTS_SERVO_ERR_NULL;
             }
         };

@@ -54,6 +54,8 @@ pub enum Allowed {
     },
     /// Said in words.
     Text(&'static str),
+    /// A digest that must match what it was made from (the words say of what).
+    Digest(&'static str),
 }
 
 impl Allowed {
@@ -78,6 +80,10 @@ impl fmt::Display for Allowed {
             Allowed::OffOrAtLeast { low, unit } => write!(f, "0 (off) or ≥ {low:.0} {unit}"),
             Allowed::PlusMinus { reach, unit } => write!(f, "[-{reach:.3e}, {reach:.3e}] {unit}"),
             Allowed::Text(t) => f.write_str(t),
+            Allowed::Digest(what) => write!(
+                f,
+                "the SHA-256 of {what} as the stability check saw them: they changed since — check the loop again (servo deploy, servo tune or servo synth)"
+            ),
         }
     }
 }

@@ -196,6 +196,56 @@ pub struct Stability {
     /// The loop is unstable at or above this output scale (∞ is written as 1e300: not within
     /// 1000×).
     pub unstable_above: f64,
+    /// What the check was made on, and this record as it made it ([`Stability::sealed`]): a
+    /// loop whose numbers or record no longer match is refused when it is built.
+    #[cfg_attr(feature = "std", serde(default))]
+    pub sha256: Seal,
+}
+
+/// SHA-256 digests binding a [`Stability`] record to the loop it was made on: the servo rate
+/// and [`Stage`] (`stage`), the controller's coefficients its kind uses (`controller`), and the
+/// record itself with both (`record`). Not a signature — anyone can compute them — but an
+/// edited gain, matrix entry or record, or a damaged copy, cannot carry the old check along.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "std", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+#[cfg_attr(feature = "std", serde(deny_unknown_fields))]
+pub struct Seal {
+    /// Of `servo_rate_hz` and `[stage]` (hex in files).
+    #[cfg_attr(feature = "std", serde(with = "hex32"))]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
+    pub stage: [u8; 32],
+    /// Of the controller's kind and the coefficients it uses: the PID gains (with Ka, Kg
+    /// scaling and the acceleration filter for `accel`) or the state-space matrices.
+    #[cfg_attr(feature = "std", serde(with = "hex32"))]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
+    pub controller: [u8; 32],
+    /// Of the two above and the record's three numbers.
+    #[cfg_attr(feature = "std", serde(with = "hex32"))]
+    #[cfg_attr(feature = "schema", schemars(with = "String"))]
+    pub record: [u8; 32],
+}
+
+/// 32 bytes as 64 lowercase hex digits.
+#[cfg(feature = "std")]
+mod hex32 {
+    pub fn serialize<S: serde::Serializer>(v: &[u8; 32], s: S) -> Result<S::Ok, S::Error> {
+        let text: String = v.iter().map(|b| format!("{b:02x}")).collect();
+        s.serialize_str(&text)
+    }
+
+    pub fn deserialize<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[u8; 32], D::Error> {
+        let text = <std::borrow::Cow<'de, str> as serde::Deserialize>::deserialize(d)?;
+        let bad = || serde::de::Error::custom("expected 64 hex digits (a SHA-256)");
+        if text.len() != 64 || !text.is_ascii() {
+            return Err(bad());
+        }
+        let mut out = [0u8; 32];
+        for (i, byte) in out.iter_mut().enumerate() {
+            *byte = u8::from_str_radix(&text[2 * i..2 * i + 2], 16).map_err(|_| bad())?;
+        }
+        Ok(out)
+    }
 }
 
 /// The gain margin every accepted change keeps, as a factor (2 = 6 dB).
@@ -322,7 +372,7 @@ impl Deployment {
     /// deploy`'s.)
     pub fn thesis_prototype() -> Self {
         let (k2, k3, kt) = (21965.0, 5e7, 3.6658);
-        Deployment {
+        let mut d = Deployment {
             servo_rate_hz: 199_600.0,
             stage: Stage {
                 gap_sensitivity_v_per_m: 160_000.0,
@@ -335,16 +385,22 @@ impl Deployment {
                 dc_gain_m_per_v: 1.0 * kt / (k2 * k3 / (k2 + k3) + 0.0),
             },
             controller: ControllerSpec::default(),
-            stability: Some(Stability {
-                spectral_radius: 0.999_998_312_733_224_8,
-                unstable_below: 0.020_341_520_958_003_918,
-                unstable_above: 4.409_486_610_529_839,
-            }),
+            stability: None,
             reference: ReferenceSpec::Hold,
             feedforward: FeedforwardSpec::None,
             smoothing_hz: 0.0,
             protection: ProtectionConfig::default(),
-        }
+        };
+        d.stability = Some(
+            Stability {
+                spectral_radius: 0.999_998_312_733_224_8,
+                unstable_below: 0.020_341_520_958_003_918,
+                unstable_above: 4.409_486_610_529_839,
+                sha256: Seal::default(),
+            }
+            .sealed(d.servo_rate_hz, &d.stage, &d.controller),
+        );
+        d
     }
 
     /// The servo period in s.

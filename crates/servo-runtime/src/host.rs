@@ -27,6 +27,8 @@ pub(crate) struct Host {
     pub(crate) made_for: Option<crate::file::MadeFor>,
     /// The controller the loop runs (a loaded state-space file takes its output limit).
     pub(crate) spec: crate::deployment::ControllerSpec,
+    /// The deployment's servo rate in Hz, as written (what stability records are sealed to).
+    pub(crate) servo_rate_hz: f64,
 }
 
 impl Host {
@@ -40,6 +42,7 @@ impl Host {
             dropped: 0,
             made_for: None,
             spec: d.controller.clone(),
+            servo_rate_hz: d.servo_rate_hz,
         }
     }
 

@@ -54,6 +54,7 @@ mod preview;
 mod protection;
 mod reference;
 mod reference_path;
+mod seal;
 mod servo;
 mod servo_loop;
 mod status;
@@ -72,8 +73,8 @@ pub use check::{Allowed, Invalid};
 pub use controller::{accel_shaping, kg_of, position_pid, Controller};
 pub use deployment::{
     ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ProtectionConfig,
-    ReferenceSpec, SafeState, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN, MAX_PREVIEW,
-    MAX_SS_ORDER, ZPETC_SECTIONS,
+    ReferenceSpec, SafeState, Seal, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN,
+    MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
 };
 pub use protection::TripCause;
 pub use reference::Reference;
@@ -85,9 +86,10 @@ pub use validate::{check_controller, check_reference};
 
 #[cfg(feature = "std")]
 pub use file::{
-    controller_toml, deployment_toml, line_of, matrix, num, parse_controller_file,
-    parse_deployment, read_input, read_text, ConfigError, ControllerFile, DeploymentAndProvenance,
-    MadeFor, Mismatch, Origin, MAX_IMAGE_BYTES, MAX_TEXT_BYTES,
+    controller_toml, deployment_toml, exact_array, exact_arrays, line_of, matrix, num,
+    parse_controller_file, parse_deployment, read_input, read_text, stability_toml, toml_message,
+    ConfigError, ControllerFile, DeploymentAndProvenance, MadeFor, Mismatch, Origin,
+    MAX_IMAGE_BYTES, MAX_TEXT_BYTES,
 };
 #[cfg(feature = "std")]
 pub use host::Timing;

@@ -69,6 +69,8 @@ pub struct CarriedCheck {
     pub made_for: Option<MadeFor>,
     /// The loop's servo rate in Hz.
     pub servo_rate_hz: f64,
+    /// The loop's stage (what a file's stability record must have been made on).
+    pub stage: Stage,
     /// The controller running now (a state-space file takes its output limit).
     pub running: ControllerSpec,
 }
@@ -76,7 +78,14 @@ pub struct CarriedCheck {
 impl Vet for CarriedCheck {
     fn vet(&self, file: &[u8]) -> Result<Vetted, Refusal> {
         let invalid = |e: &dyn fmt::Display| Refusal::new(ack_status::REFUSED_INVALID, e);
-        let text = std::str::from_utf8(file).map_err(|e| invalid(&e))?;
+        let text = std::str::from_utf8(file)
+            .map(|t| t.strip_prefix('\u{feff}').unwrap_or(t))
+            .map_err(|e| {
+                invalid(&format_args!(
+                    "{LOADED_FILE}: not UTF-8 text (invalid byte at offset {})",
+                    e.valid_up_to()
+                ))
+            })?;
         let at = Origin {
             path: Some(LOADED_FILE.into()),
             text: Some(text.to_owned()),
@@ -99,6 +108,16 @@ impl Vet for CarriedCheck {
                 "the file carries no offline check of its loop ([stability]): check it on the plant model first (servo deploy)",
             )
         })?;
+        // The record stands for this controller on this loop only if it was made on them.
+        let table = match f.sample_rate_hz {
+            Some(_) => "stability",
+            None => "controller.stability",
+        };
+        stability
+            .check_seal(self.servo_rate_hz, &self.stage, &f.spec)
+            .map_err(|e| {
+                Refusal::new(ack_status::REFUSED_MARGIN, at.located(&e.in_section(table)))
+            })?;
         Ok(Vetted {
             spec: f.spec,
             stability,

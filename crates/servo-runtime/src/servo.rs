@@ -276,7 +276,8 @@ impl Servo {
         use crate::load::{build, LoadError, Vet, LOADED_FILE};
         let check = crate::CarriedCheck {
             made_for: self.host.made_for.clone(),
-            servo_rate_hz: 1.0 / self.period_s,
+            servo_rate_hz: self.host.servo_rate_hz,
+            stage: self.stage,
             running: self.host.spec.clone(),
         };
         let v = check.vet(file).map_err(LoadError::Refused)?;
@@ -332,7 +333,8 @@ impl Servo {
         let vet = options.vet.unwrap_or_else(|| {
             Box::new(crate::CarriedCheck {
                 made_for: self.host.made_for.clone(),
-                servo_rate_hz: 1.0 / self.period_s,
+                servo_rate_hz: self.host.servo_rate_hz,
+                stage: self.stage,
                 running: self.host.spec.clone(),
             })
         });

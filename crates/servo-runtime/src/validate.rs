@@ -34,7 +34,7 @@ impl Deployment {
         if let Some(s) = &self.stability {
             if !(s.spectral_radius >= 0.0 && s.spectral_radius < 1.0) {
                 return Err(Invalid::new(
-                    "stability",
+                    "controller.stability",
                     "spectral_radius",
                     s.spectral_radius,
                     Allowed::Text("[0, 1): a stable loop"),
@@ -42,7 +42,7 @@ impl Deployment {
             }
             if !(s.unstable_below >= 0.0 && s.unstable_below < 1.0) {
                 return Err(Invalid::new(
-                    "stability",
+                    "controller.stability",
                     "unstable_below",
                     s.unstable_below,
                     Allowed::Text("[0, 1): the loop is stable at scale 1"),
@@ -50,12 +50,15 @@ impl Deployment {
             }
             if s.unstable_above.is_nan() || s.unstable_above <= 1.0 {
                 return Err(Invalid::new(
-                    "stability",
+                    "controller.stability",
                     "unstable_above",
                     s.unstable_above,
                     Allowed::Text("(1, ∞): the loop is stable at scale 1"),
                 ));
             }
+            // The record stands for this loop only if it was made on it, as it is.
+            s.check_seal(rate, &self.stage, &self.controller)
+                .map_err(|e| e.in_section("controller.stability"))?;
         }
         check_reference(&self.reference, nyquist, "reference")?;
         if let FeedforwardSpec::Zpetc(z) = &self.feedforward {

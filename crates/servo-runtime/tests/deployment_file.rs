@@ -23,11 +23,15 @@ fn rich() -> Deployment {
     let mut d = Deployment::thesis_prototype();
     d.controller.kind = ControllerKind::Ss;
     d.controller.ss = SsMatrices::from_fn(29, |_, _| x());
-    d.stability = Some(Stability {
-        spectral_radius: 0.999_983_123_456_789,
-        unstable_below: 0.123_456_789_012_345_67,
-        unstable_above: f64::INFINITY,
-    });
+    d.stability = Some(
+        Stability {
+            spectral_radius: 0.999_983_123_456_789,
+            unstable_below: 0.123_456_789_012_345_67,
+            unstable_above: f64::INFINITY,
+            sha256: Default::default(),
+        }
+        .sealed(d.servo_rate_hz, &d.stage, &d.controller),
+    );
     d.reference = ReferenceSpec::Chirp {
         amplitude_m: 1.234_567_890_123e-6,
         f_start_hz: 100.0,
@@ -119,4 +123,105 @@ fn bad_values_are_named_by_file_line_key_and_range() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("stage"), "{e}");
+}
+
+/// A deployment whose coefficients or stability record were edited after the check (by hand,
+/// or a damaged copy) is refused when opened — from TOML and from the firmware's image —
+/// naming what no longer matches; the intact one opens.
+#[test]
+fn an_edited_deployment_is_refused_at_open() {
+    use servo_runtime::link::image;
+    let at = |t: &str| Origin {
+        path: Some("deploy.toml".into()),
+        text: Some(t.to_owned()),
+    };
+    let d = rich();
+    let text = deployment_toml(&d, None, "t");
+    assert!(Servo::from_toml(&text).is_ok());
+    let entry = d.controller.ss.as_ref().unwrap().entry(3, 4);
+    let written = servo_runtime::num(entry);
+    assert!(text.contains(&written));
+    let edits = [
+        (
+            text.replacen(&written, &servo_runtime::num(entry * 1.001), 1),
+            "controller.stability.sha256.controller",
+        ),
+        (
+            text.lines()
+                .map(|l| match l.starts_with("unstable_below = ") {
+                    true => "unstable_below = 0.01",
+                    false => l,
+                })
+                .collect::<Vec<_>>()
+                .join("\n"),
+            "controller.stability.sha256.record",
+        ),
+        (
+            text.replacen("kt_n_per_a = 3.6658", "kt_n_per_a = 3.7", 1),
+            "controller.stability.sha256.stage",
+        ),
+    ];
+    for (bad, key) in edits {
+        assert_ne!(bad, text, "{key}: the edit did not apply");
+        let e = Servo::from_toml(&bad).err().expect("refused").to_string();
+        assert!(
+            e.contains(key) && e.contains("does not match"),
+            "{key}: {e}"
+        );
+        let e = parse_deployment(&bad, &at(&bad)).unwrap_err().to_string();
+        assert!(e.contains("deploy.toml:") && e.contains(key), "{key}: {e}");
+    }
+    // A PID gain edited in the thesis deployment.
+    let pid = deployment_toml(&Deployment::thesis_prototype(), None, "t");
+    let bad = pid.replacen("kp = 1.65", "kp = 3.3", 1);
+    assert_ne!(bad, pid);
+    let e = Servo::from_toml(&bad).err().expect("refused").to_string();
+    assert!(e.contains("controller.stability.sha256.controller"), "{e}");
+    // What the record does not cover stays editable: protection and the reference.
+    let ok = pid.replacen(
+        "following_error_m = 0.00002",
+        "following_error_m = 0.00001",
+        1,
+    );
+    assert_ne!(ok, pid);
+    assert!(Servo::from_toml(&ok).is_ok());
+
+    // The same in the image the firmware takes: an entry of A changed in its bytes.
+    let mut bytes = vec![0u8; image::MAX_BYTES];
+    let n = image::encode(&d, &mut bytes).unwrap();
+    bytes.truncate(n);
+    assert!(Servo::new(&image::decode(&bytes).unwrap()).is_ok());
+    let old = entry.to_bits().to_le_bytes();
+    let at_entry = bytes.windows(8).position(|w| w == old).unwrap();
+    bytes[at_entry..at_entry + 8].copy_from_slice(&(entry * 1.001).to_bits().to_le_bytes());
+    let e = Servo::new(&image::decode(&bytes).unwrap()).err().unwrap();
+    assert_eq!(
+        (e.section, e.key),
+        ("controller.stability", "sha256.controller"),
+        "{e}"
+    );
+}
+
+/// What a deployment says it was made for is checked at open as at a load: a rate that is not
+/// the loop's is refused, naming the key.
+#[test]
+fn a_deployment_made_for_another_rate_is_refused_at_open() {
+    let made_for = servo_runtime::MadeFor {
+        tool: "fts-servo test".into(),
+        plant_sha256: "ab".repeat(32),
+        stage: "light".into(),
+        servo_rate_hz: 199_600.0,
+    };
+    let d = Deployment::thesis_prototype();
+    let text = deployment_toml(&d, Some(&made_for), "t");
+    assert!(Servo::from_toml(&text).is_ok());
+    let other = servo_runtime::MadeFor {
+        servo_rate_hz: 20_000.0,
+        ..made_for
+    };
+    let e = Servo::from_toml(&deployment_toml(&d, Some(&other), "t"))
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("controller.made_for.servo_rate_hz"), "{e}");
 }

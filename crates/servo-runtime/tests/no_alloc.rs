@@ -15,14 +15,7 @@ use servo_runtime::{
 static ALLOCATOR: CountingAllocator = CountingAllocator::system();
 
 fn deployments() -> Vec<Deployment> {
-    let base = Deployment {
-        stability: Some(Stability {
-            spectral_radius: 0.9999,
-            unstable_below: 0.1,
-            unstable_above: 5.0,
-        }),
-        ..Deployment::thesis_prototype()
-    };
+    let base = Deployment::thesis_prototype();
     let mut accel = base.clone();
     accel.controller.kind = ControllerKind::Accel;
     accel.controller.ka = 1.0;
@@ -49,7 +42,19 @@ fn deployments() -> Vec<Deployment> {
         frequency_hz: 200.0,
     };
     ss.smoothing_hz = 10_000.0;
-    vec![base, accel, ss]
+    let mut all = vec![base, accel, ss];
+    for d in &mut all {
+        d.stability = Some(
+            Stability {
+                spectral_radius: 0.9999,
+                unstable_below: 0.1,
+                unstable_above: 5.0,
+                sha256: Default::default(),
+            }
+            .sealed(d.servo_rate_hz, &d.stage, &d.controller),
+        );
+    }
+    all
 }
 
 /// Ticks `n` samples (timed: each says when it was taken).
@@ -102,7 +107,9 @@ fn a_loaded_controller_is_handed_over_without_allocating_on_the_tick() {
     ticks(&mut servo, 0, 100);
     let mut c = ControllerSpec::default();
     c.pid.kp *= 0.9;
-    let file = controller_toml(&c, Some(&made_for), d.stability.as_ref());
+    // Its own check's record (the deployment's was made on the other gains).
+    let checked = d.stability.map(|s| s.sealed(d.servo_rate_hz, &d.stage, &c));
+    let file = controller_toml(&c, Some(&made_for), checked.as_ref());
     // Parsing and building allocate on the calling thread; the handover happens in the ticks.
     servo.load(file.as_bytes()).unwrap();
     let (_, stats) = measure(|| ticks(&mut servo, 100, 1_000));

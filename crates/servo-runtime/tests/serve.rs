@@ -26,19 +26,27 @@ fn made_for(plant: &str) -> MadeFor {
     }
 }
 
-fn stability() -> Stability {
+/// A stability record for `controller` on the thesis prototype's loop, sealed to it.
+fn stability(controller: &ControllerSpec) -> Stability {
+    let d = Deployment::thesis_prototype();
     Stability {
         spectral_radius: 0.9999,
         unstable_below: 0.1,
         unstable_above: 5.0,
+        sha256: Default::default(),
     }
+    .sealed(d.servo_rate_hz, &d.stage, controller)
 }
 
 /// A `[controller]` file made for `plant`, with or without its offline check.
 fn fragment(plant: &str, checked: bool) -> String {
     let mut c = ControllerSpec::default();
     c.pid.kp *= 0.9;
-    controller_toml(&c, Some(&made_for(plant)), checked.then(stability).as_ref())
+    controller_toml(
+        &c,
+        Some(&made_for(plant)),
+        checked.then(|| stability(&c)).as_ref(),
+    )
 }
 
 /// What `servo ctl` does: send, then wait for the acknowledgement of request `id`.
@@ -117,7 +125,7 @@ impl Peer {
 fn a_served_loop_answers_the_control_plane() {
     let prefix = format!("rt-serve-{}", std::process::id());
     let mut d = Deployment::thesis_prototype();
-    d.stability = Some(stability());
+    d.stability = Some(stability(&d.controller));
     let text = deployment_toml(&d, Some(&made_for("plant-a")), "test");
     let mut servo = Servo::from_toml(&text).unwrap();
     servo.serve(&prefix).unwrap();

@@ -32,6 +32,23 @@ pub struct Design {
     /// The offline check of its loop on the plant (written into the controller file: a running
     /// loop that loads it keeps this gain range), once checked ([`synthesize`]).
     pub stability: Option<Stability>,
+    /// What the design's Riccati equations warned of, each led by the key that set up that
+    /// equation (`effort_weight` the control one, `sensor_noise_scale` the filter one).
+    pub warnings: Vec<String>,
+}
+
+/// The warnings of an H2 synthesis, each led by the key behind its equation.
+fn keyed(warnings: &[design::h2::Warning], filter_key: &str) -> Vec<String> {
+    warnings
+        .iter()
+        .map(|w| {
+            let key = match w.equation {
+                "control" => "effort_weight",
+                _ => filter_key,
+            };
+            format!("{key}: {w}")
+        })
+        .collect()
 }
 
 impl Design {
@@ -67,10 +84,8 @@ impl Design {
             rows(&k.d),
             self.made_for.to_toml("made_for"),
             self.stability.map_or(String::new(), |s| format!(
-                "\n[stability]\nspectral_radius = {}\nunstable_below = {}\nunstable_above = {}\n",
-                servo_runtime::num(s.spectral_radius),
-                servo_runtime::num(s.unstable_below),
-                servo_runtime::num(s.unstable_above)
+                "\n{}",
+                servo_runtime::stability_toml("stability", &s)
             ))
         )
     }
@@ -189,6 +204,7 @@ pub fn h2_design_with(
         spectral_radius: k.spectral_radius,
         made_for: runner::config::made_for_plant(&plan.config.plant),
         stability: None,
+        warnings: keyed(&k.warnings, "sensor_noise_scale"),
     })
 }
 
@@ -252,6 +268,8 @@ pub struct SynthPrediction {
     pub stability: Stability,
     /// Margins of the loop broken at the DAC (None on a plant without a linear tick).
     pub margins: Option<design::loops::Margins>,
+    /// What the design warned of ([`Design::warnings`]).
+    pub warnings: Vec<String>,
 }
 
 /// Designs the H2 controller of `request` for `plan`, reduces it if asked, closes the loop
@@ -338,6 +356,7 @@ pub fn synthesize(plan: &Plan, request: &SynthRequest) -> Result<Synthesis, Stud
         true_rms_m: b.true_rms_m,
         stability,
         margins: crate::margins::loop_margins(&with).ok(),
+        warnings: design.warnings.clone(),
     };
     Ok(Synthesis {
         design,
@@ -482,5 +501,6 @@ pub fn thesis_design(plan: &Plan, w: &ThesisWeights, effort: f64) -> Result<Desi
         spectral_radius: k.spectral_radius,
         made_for: runner::config::made_for_plant(&plan.config.plant),
         stability: None,
+        warnings: keyed(&k.warnings, "the thesis's noise weights (ThesisWeights)"),
     })
 }

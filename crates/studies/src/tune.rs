@@ -76,8 +76,7 @@ impl TuneReport {
              # max|S| {:.3}, closed-loop bandwidth {:.0} Hz, predicted RMS following {:.3} nm / true {:.3} nm.\n\
              # The fragment carries the plant the gains were tuned for: `servo run -c FILE` runs on\n\
              # it, and a run on another plant or rate refuses the gains (controller.made_for).\n\
-             [controller.pid]\nkp = {:e}\nki = {:e}\nkd = {:e}\ntf_s = {:e}\n\n{}\n\
-             [controller.stability]\nspectral_radius = {}\nunstable_below = {}\nunstable_above = {}\n\n{}",
+             [controller.pid]\nkp = {:e}\nki = {:e}\nkd = {:e}\ntf_s = {:e}\n\n{}\n{}\n{}",
             self.ms,
             self.mt,
             self.bandwidth_target_hz,
@@ -90,9 +89,7 @@ impl TuneReport {
             p.kd,
             p.tf_s,
             self.made_for.to_toml("controller.made_for"),
-            servo_runtime::num(self.stability.spectral_radius),
-            servo_runtime::num(self.stability.unstable_below),
-            servo_runtime::num(self.stability.unstable_above),
+            servo_runtime::stability_toml("controller.stability", &self.stability),
             runner::config::plant_toml(&self.plant)
         )
     }

@@ -114,9 +114,10 @@ impl RecordCmd {
         let prefix = self.hil.prefix()?;
         let rec = &self.recording;
         let out = rec.out(DEFAULT_RECORDING.as_ref());
-        // The recorder finishes the file whatever happens: a signal reaches the plant, which
-        // ends the run; the recorder sees the end (or the silence) and closes the file.
-        let _stop = stop_on_signals();
+        // The recorder finishes the file whatever happens: a signal to it asks the plant to
+        // end the run (so does one to the plant or the controller); the recorder sees the end
+        // (or the silence) and closes the file.
+        let stop = stop_on_signals();
         let bar = tick_bar(rec.quiet, "recording");
         let mut progress = |done: u64, total: u64| {
             bar.set_length(total);
@@ -127,6 +128,7 @@ impl RecordCmd {
             &prefix,
             out.clone(),
             self.hil.realtime,
+            &stop,
             &mut progress,
         );
         bar.finish_and_clear();
@@ -135,7 +137,7 @@ impl RecordCmd {
         if let (Some(p), false) = (out, rec.json) {
             println!("  wrote {}", p.path.display());
         }
-        let reason = runner::stop::EndReason::Completed.after_trip(summary.trip.is_some());
-        Ok(ExitCode::from(reason.exit_code()))
+        // Its own signal is how this process ends (128 + it); the run's end otherwise.
+        Ok(crate::interrupt::exit_code(&stop, summary.trip.is_some()))
     }
 }

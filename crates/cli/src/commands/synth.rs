@@ -88,6 +88,9 @@ impl SynthCmd {
         let s = synth::synthesize(&plan, &request)?;
         crate::output::write_result(&self.out, &s.design.to_toml(), self.overwrite)?;
         let p = &s.prediction;
+        for w in &p.warnings {
+            eprintln!("warning: {w}");
+        }
         if self.json {
             print_json(&serde_json::json!({ "prediction": p, "file": self.out }));
             return Ok(ExitCode::SUCCESS);

@@ -98,6 +98,12 @@ impl ViewCmd {
             report.applied_gains,
             report.refused
         );
+        if let Some(first) = &report.bad_blocks.first {
+            eprintln!(
+                "{} blocks refused and skipped (another run's, or impossible counts or ticks: a foreign or faulty publisher); the first: {first}",
+                report.bad_blocks.count
+            );
+        }
         Ok(ExitCode::SUCCESS)
     }
 }

@@ -1,6 +1,9 @@
 //! Why an equation has no stabilising solution, named from its data: a mode the input cannot
 //! move that is not stable (`(A, B)` not stabilisable), a mode on the stability boundary that
-//! the penalty does not see, or (continuous) a Hamiltonian eigenvalue on the imaginary axis.
+//! the penalty does not see, or (continuous, with a penalty that is not semi-definite) a
+//! Hamiltonian eigenvalue on the imaginary axis to working precision. With a semi-definite
+//! penalty the Hamiltonian's eigenvalues on the axis are exactly the first two kinds
+//! ([`resolution`](super::resolution)), so an eigenvalue merely near it is not named as on it.
 
 use super::problem::{Kind, Problem};
 use super::{Mode, RiccatiError};
@@ -68,9 +71,10 @@ fn modes(p: &Problem, boundary_only: bool) -> Option<RiccatiError> {
     None
 }
 
-/// An eigenvalue of the Hamiltonian that cannot be told from the imaginary axis.
+/// An eigenvalue of the Hamiltonian that cannot be told from the imaginary axis, when the
+/// penalty is not semi-definite (when it is, only the boundary modes put one there).
 fn hamiltonian_on_axis(p: &Problem) -> Option<RiccatiError> {
-    (p.kind == Kind::Continuous)
+    (p.kind == Kind::Continuous && !super::resolution::semidefinite_penalty(p))
         .then(|| super::resolution::hamiltonian_on_axis(p))
         .flatten()
         .map(|l| RiccatiError::HamiltonianOnAxis {

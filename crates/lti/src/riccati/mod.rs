@@ -11,17 +11,34 @@
 //! doubling then converges to the smallest solution) or does not converge, the penalty is
 //! regularised to `Q + δI` (every mode seen), whose solution stabilises the loop, and Newton's
 //! method from it converges to the stabilising solution of the original equation (Kleinman 1968,
-//! Hewer 1971: the iterates stay stabilising and fall monotonically to it).
+//! Hewer 1971: the iterates stay stabilising and fall monotonically to it). Its first step is
+//! kept whenever it stabilises: near the boundary, where the iteration is linear with ratio ½,
+//! it can raise the residual on the way.
 //!
-//! A result is returned only when its closed loop is stable by more than its eigenvalues can be
-//! resolved ([`resolution`]: continuous, each eigenvalue's own perturbation bound as an
-//! eigenvalue of the Hamiltonian, so a simple pair a hair from the axis is told from a double
-//! one on it; discrete: rounding, boundary modes being checked before solving) and its
-//! residual, relative to the size of the terms the equation sums, is at most
-//! [`RESIDUAL_BOUND`]. The equation's relative condition number and the forward error it
-//! implies ([`condition`]) are estimated when first asked for ([`Riccati::sensitivity`]: about
-//! twenty Lyapunov solves, which a design that only needs `X` does not pay). Failures name
-//! their reason from the data where it shows one ([`diagnose`]).
+//! A result is returned only when its closed loop is stable and its residual, relative to the
+//! size of the terms the equation sums, is at most [`RESIDUAL_BOUND`]. Each closed-loop
+//! eigenvalue is either resolved from the stability boundary — farther than ten first-order
+//! perturbation bounds from it as an eigenvalue of the Hamiltonian (continuous) or the
+//! symplectic pencil (discrete) ([`resolution`]), as CAREX 14's pair 5·10⁻¹³ from the axis is —
+//! or kept off it by the data's structure where rounding cannot tell: with `Q − SR⁻¹Sᵀ`
+//! positive semi-definite, the Hamiltonian's (pencil's) eigenvalues on the boundary are modes
+//! of `A` on it that the penalty does not see or the input cannot move, and when there are none
+//! the solution from the stable invariant subspace is returned with a warning
+//! ([`Riccati::near_boundary`], a [`NearBoundary`]: the eigenvalue's distance from the boundary,
+//! its first-order perturbation bound, the estimated forward error). Its polish is then Newton's
+//! own steps from the start (a chord step, on an earlier closed loop's Schur form, has that
+//! eigenvalue off by more than its distance and wanders), of which the stable iterate with the
+//! least residual is kept: rounding moves the eigenvalue by up to its bound at each step, to
+//! either side. Refused are what is shown to be on the boundary to working
+//! precision — a mode of `A` there unseen or unmoved ([`RiccatiError::UnseenBoundaryMode`],
+//! [`RiccatiError::Unstabilisable`]); with a penalty that is not semi-definite, an eigenvalue
+//! within ten bounds of it ([`RiccatiError::HamiltonianOnAxis`],
+//! [`RiccatiError::MarginalClosedLoop`]) — and what is shown not to stabilise (the closed loop
+//! computed unstable beyond rounding, [`RiccatiError::NotStabilising`]). The equation's
+//! relative condition number and the forward error it implies ([`condition`]) are estimated
+//! when first asked for ([`Riccati::sensitivity`]: about twenty Lyapunov solves, which a design
+//! that only needs `X` does not pay; a solution returned with a warning has it computed
+//! already). Failures name their reason from the data where it shows one ([`diagnose`]).
 
 mod condition;
 mod continuous;
@@ -107,8 +124,13 @@ pub enum RiccatiError {
         /// The mode.
         mode: Mode,
     },
-    /// The Hamiltonian has an eigenvalue on the imaginary axis: no stabilising solution exists.
-    #[error("the Hamiltonian has the eigenvalue {eigenvalue} on the imaginary axis: no stabilising solution exists")]
+    /// The Hamiltonian has an eigenvalue on the imaginary axis to working precision — within its
+    /// first-order perturbation bound of it, with a penalty `Q − SR⁻¹Sᵀ` that is not
+    /// semi-definite, so that nothing in the data's structure keeps it off (as a double
+    /// eigenvalue on the axis is computed) — and no stabilising solution exists. (With a
+    /// semi-definite penalty an eigenvalue on the axis is a boundary mode of `A`, reported as
+    /// [`RiccatiError::UnseenBoundaryMode`] or [`RiccatiError::Unstabilisable`].)
+    #[error("the Hamiltonian has the eigenvalue {eigenvalue} on the imaginary axis to working precision (within its perturbation bound, and Q is indefinite, so no structure keeps it off): no stabilising solution exists")]
     HamiltonianOnAxis {
         /// The eigenvalue nearest the axis.
         eigenvalue: Mode,
@@ -129,10 +151,12 @@ pub enum RiccatiError {
         /// Its value.
         value: f64,
     },
-    /// The closed loop is stable by less than the data's eigenvalues can be resolved:
-    /// stabilisation cannot be told apart from a mode on the boundary (where no stabilising
-    /// solution exists).
-    #[error("the closed loop's {measure} {value:.3e} is within {resolution:.1e} of the stability boundary, closer than its eigenvalues can be resolved: no stabilising solution can be established")]
+    /// The closed loop is stable by less than the data's eigenvalues can be resolved, and the
+    /// penalty `Q − SR⁻¹Sᵀ` is not semi-definite, so that nothing in the data's structure keeps
+    /// the boundary clear: stabilisation cannot be told apart from a mode on the boundary
+    /// (where no stabilising solution exists). With a semi-definite penalty such a solution is
+    /// returned with [`Riccati::near_boundary`] instead.
+    #[error("the closed loop's {measure} {value:.3e} is within {resolution:.1e} of the stability boundary, closer than its eigenvalues can be resolved, and Q is indefinite: no stabilising solution can be established")]
     MarginalClosedLoop {
         /// Spectral radius (discrete) or abscissa (continuous).
         measure: &'static str,
@@ -160,6 +184,55 @@ pub enum Route {
     Regularised,
 }
 
+/// A warning on a returned solution: a closed-loop eigenvalue nearer the stability boundary
+/// than working precision can tell it from the boundary (within ten times its first-order
+/// perturbation bound). The penalty `Q − SR⁻¹Sᵀ` is positive semi-definite to working precision
+/// and no mode of `A` on the boundary goes unseen by it or unmoved by the input, which keeps
+/// every eigenvalue of the Hamiltonian (continuous) or symplectic pencil (discrete) off the
+/// boundary under any perturbation of the data that keeps the penalties semi-definite: the
+/// solution is the one the stable invariant subspace gives, polished by Newton's method, and its
+/// closed loop is stable — but that eigenvalue, and with it `X`, is only known to the accuracy
+/// given here (see `forward_error` before relying on digits of `X`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NearBoundary {
+    /// The closed-loop eigenvalue nearest the boundary.
+    pub eigenvalue: Mode,
+    /// The boundary: `"imaginary axis"` (continuous) or `"unit circle"` (discrete).
+    pub boundary: &'static str,
+    /// The eigenvalue's distance from the boundary: `−Re λ` (continuous) or `1 − |λ|`
+    /// (discrete).
+    pub distance: f64,
+    /// Its first-order perturbation bound, how far rounding (a relative ε in the data and in the
+    /// computation) can move it: `κ(λ)·ε·‖H‖` as an eigenvalue of the balanced Hamiltonian `H`
+    /// (continuous, `κ = ‖x‖‖y‖/|yᴴx|` Wilkinson's condition number), `κ(λ)·ε·(‖L‖ + |λ|·‖M‖)`
+    /// as an eigenvalue of the symplectic pencil `L − λM` (discrete, `κ = ‖x‖‖y‖/|yᴴMx|`).
+    /// `distance` is at most ten of these.
+    pub bound: f64,
+    /// The solution's estimated relative forward error ([`Sensitivity::forward_error`], as
+    /// [`Riccati::sensitivity`] gives it).
+    pub forward_error: f64,
+}
+
+impl std::fmt::Display for NearBoundary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the closed-loop eigenvalue {} is {:.2e} from the {}, within ten times its \
+             first-order perturbation bound {:.2e}, so working precision cannot tell it from the \
+             {}; the solution returned is the stable invariant subspace's, which a penalty \
+             semi-definite to working precision and no unseen or unmoved mode on the {} keep \
+             off it, with an estimated relative forward error of {:.1e}",
+            self.eigenvalue,
+            self.distance,
+            self.boundary,
+            self.bound,
+            self.boundary,
+            self.boundary,
+            self.forward_error
+        )
+    }
+}
+
 /// A Riccati solution and how far to trust it.
 #[derive(Debug, Clone)]
 pub struct Riccati {
@@ -177,6 +250,10 @@ pub struct Riccati {
     pub newton_steps: usize,
     /// How the solution was reached.
     pub route: Route,
+    /// `Some` when a closed-loop eigenvalue cannot be told from the stability boundary at
+    /// working precision and the solution is returned on the strength of the data's structure
+    /// (see [`NearBoundary`]); `None` when every closed-loop eigenvalue is resolved from it.
+    pub near_boundary: Option<NearBoundary>,
     /// What the sensitivity is estimated from, and the estimate once asked for.
     deferred: Arc<Deferred>,
 }
@@ -257,7 +334,7 @@ type Start = fn(&Problem, &DMatrix<f64>) -> Result<DMatrix<f64>, usize>;
 /// stabilising) are looked for when they can matter: before the regularised route, and after
 /// the direct one when its closed loop comes within [`BOUNDARY_SUSPECT`] of the boundary.
 fn solve(p: Problem, start: Start) -> Result<Riccati, RiccatiError> {
-    let direct = attempt(&p, start, &p.q0, POLISH_STEPS);
+    let direct = attempt(&p, start, &p.q0, Route::Direct);
     if direct
         .as_ref()
         .map_or(true, |f| f.margin <= BOUNDARY_SUSPECT)
@@ -272,7 +349,7 @@ fn solve(p: Problem, start: Start) -> Result<Riccati, RiccatiError> {
     };
     let n = p.n();
     let regularised = &p.q0 + DMatrix::<f64>::identity(n, n) * regularisation(&p);
-    match attempt(&p, start, &regularised, NEWTON_STEPS) {
+    match attempt(&p, start, &regularised, Route::Regularised) {
         Ok(found) => Ok(finish(p, found, Route::Regularised)),
         Err(_) => Err(diagnose::diagnose(&p).unwrap_or(first)),
     }
@@ -287,25 +364,71 @@ struct Found {
     /// How far the closed loop is from the stability boundary, relative: `1 − ρ` (discrete)
     /// or `−α/‖Ā‖` (continuous).
     margin: f64,
+    /// The closed-loop eigenvalue that cannot be told from the boundary, if any (the penalty
+    /// then being semi-definite).
+    unresolved: Option<resolution::Unresolved>,
 }
 
-/// The start with penalty `q`, Newton's refinement (at most `steps`) and the checks: stable,
-/// resolved from the boundary, residual within [`RESIDUAL_BOUND`].
+/// The start with penalty `q`, Newton's refinement (at most [`POLISH_STEPS`] after the direct
+/// start, [`NEWTON_STEPS`] after a regularised one — whose first step is kept when it
+/// stabilises even if it raises the residual; near the boundary with a semi-definite penalty,
+/// Newton's own steps and the stable iterate with the least residual) and the checks: stable;
+/// resolved from the boundary, or the penalty semi-definite (the caller then checks the data's
+/// boundary modes: the closed loop is within [`BOUNDARY_SUSPECT`]); residual within
+/// [`RESIDUAL_BOUND`].
 fn attempt(
     p: &Problem,
     start: Start,
     q: &DMatrix<f64>,
-    steps: usize,
+    route: Route,
 ) -> Result<Found, RiccatiError> {
     let x = start(p, q).map_err(|iterations| RiccatiError::NoConvergence { iterations })?;
-    let m = p.measure(x).ok_or(RiccatiError::SingularR)?;
-    let (m, taken) = p.refine(m, steps);
-    let eigenvalues = m.eigenvalues();
-    let (measure, value, stable) = p.stability(&eigenvalues);
+    let m = p.measure(x.clone()).ok_or(RiccatiError::SingularR)?;
+    let steps = match route {
+        Route::Direct => POLISH_STEPS,
+        Route::Regularised => NEWTON_STEPS,
+    };
+    let (mut m, mut taken) = p.refine(m, steps);
+    // Where the polished sequence starts, and the steps before it.
+    let (mut origin, mut first) = (x, 0);
+    if route == Route::Regularised && taken == 0 && m.relative > RESIDUAL_BOUND {
+        // The first step raised the residual: near the boundary Kleinman's iterates fall
+        // monotonically all the same, so take it when it stabilises and go on from there.
+        if let Some(next) = p.kleinman_step(&m) {
+            origin = next.x.clone();
+            first = 1;
+            (m, taken) = p.refine(next, steps - 1);
+        }
+    }
+    taken += first;
+    let mut eigenvalues = m.eigenvalues();
+    let (mut measure, mut value, mut stable) = p.stability(&eigenvalues);
+    // Near the boundary (an eigenvalue unresolved, or computed unstable by no more than rounding
+    // can move it) with a semi-definite penalty: Newton's own steps from the origin instead, the
+    // stable iterate with the least residual. A chord step solves on an earlier closed loop,
+    // whose eigenvalue there is off by up to its bound — more than its distance — and so
+    // wanders along that direction once the residual is rounding; and rounding can put the
+    // polished closed loop across the boundary.
+    let near = if stable {
+        resolution::closed_loop(p, eigenvalues.clone()).is_some()
+    } else {
+        resolution::instability_unresolved(p, &eigenvalues)
+    };
+    if near && resolution::semidefinite_penalty(p) {
+        if let Some((newton, newton_taken)) = p
+            .measure(origin)
+            .and_then(|start| p.refine_stable(start, steps - first))
+        {
+            (m, taken) = (newton, newton_taken + first);
+            eigenvalues = m.eigenvalues();
+            (measure, value, stable) = p.stability(&eigenvalues);
+        }
+    }
     if !stable {
         return Err(RiccatiError::NotStabilising { measure, value });
     }
-    if let Some(u) = resolution::closed_loop(p, eigenvalues) {
+    let unresolved = resolution::closed_loop(p, eigenvalues);
+    if let Some(u) = unresolved.filter(|_| !resolution::semidefinite_penalty(p)) {
         return Err(RiccatiError::MarginalClosedLoop {
             measure,
             value: match p.kind {
@@ -330,6 +453,7 @@ fn attempt(
         newton_steps: taken,
         closed_loop: value,
         margin,
+        unresolved,
     })
 }
 
@@ -349,20 +473,38 @@ fn regularisation(p: &Problem) -> f64 {
     REGULARISATION * scale
 }
 
-/// The result in the caller's basis, with what its sensitivity is estimated from.
+/// The result in the caller's basis, with what its sensitivity is estimated from (estimated now
+/// when a closed-loop eigenvalue is unresolved: the warning carries it).
 fn finish(p: Problem, found: Found, route: Route) -> Riccati {
     let (x, k) = p.unscaled(&found.solution.x, &found.solution.k);
+    let sensitivity = OnceLock::new();
+    let near_boundary = found.unresolved.map(|u| {
+        let estimate = *sensitivity.get_or_init(|| condition::sensitivity(&p, &found.solution));
+        let l = u.eigenvalue;
+        let (boundary, distance) = match p.kind {
+            Kind::Continuous => ("imaginary axis", -l.re),
+            Kind::Discrete => ("unit circle", 1.0 - l.norm()),
+        };
+        NearBoundary {
+            eigenvalue: Mode::of(l),
+            boundary,
+            distance,
+            bound: u.bound,
+            forward_error: estimate.forward_error,
+        }
+    });
     Riccati {
         residual: found.solution.relative,
         closed_loop: found.closed_loop,
         newton_steps: found.newton_steps,
         route,
+        near_boundary,
         x,
         k,
         deferred: Arc::new(Deferred {
             problem: p,
             solution: found.solution,
-            sensitivity: OnceLock::new(),
+            sensitivity,
         }),
     }
 }
@@ -386,149 +528,4 @@ pub fn lyap(a: &DMatrix<f64>, q: &DMatrix<f64>) -> Result<(DMatrix<f64>, f64), R
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn m(r: usize, c: usize, v: &[f64]) -> DMatrix<f64> {
-        DMatrix::from_row_slice(r, c, v)
-    }
-
-    /// Scalar LQR: 2ax − b²x²/r + q = 0 → x = r(a + √(a² + b²q/r))/b².
-    #[test]
-    fn scalar_care_closed_form() {
-        for (a, b, q, r) in [
-            (1.0, 1.0, 1.0, 1.0),
-            (-2.0, 0.5, 3.0, 0.1),
-            (1e3, 1.0, 1.0, 1.0),
-        ] {
-            let sol = care(
-                &m(1, 1, &[a]),
-                &m(1, 1, &[b]),
-                &m(1, 1, &[q]),
-                &m(1, 1, &[r]),
-                None,
-            )
-            .unwrap();
-            let want = r * (a + (a * a + b * b * q / r).sqrt()) / (b * b);
-            assert!(
-                (sol.x[(0, 0)] - want).abs() < 1e-10 * want,
-                "{} vs {want}",
-                sol.x[(0, 0)]
-            );
-            assert!(sol.residual < 1e-10 && sol.closed_loop < 0.0);
-        }
-    }
-
-    /// Double-integrator LQR (Q = I, R = 1): X = [[√3, 1], [1, √3]], K = [1, √3].
-    #[test]
-    fn double_integrator_care() {
-        let sol = care(
-            &m(2, 2, &[0.0, 1.0, 0.0, 0.0]),
-            &m(2, 1, &[0.0, 1.0]),
-            &DMatrix::identity(2, 2),
-            &m(1, 1, &[1.0]),
-            None,
-        )
-        .unwrap();
-        let s3 = 3f64.sqrt();
-        for (got, want) in sol.x.iter().zip([s3, 1.0, 1.0, s3]) {
-            assert!((got - want).abs() < 1e-12);
-        }
-        assert!((sol.k[(0, 0)] - 1.0).abs() < 1e-12 && (sol.k[(0, 1)] - s3).abs() < 1e-12);
-        assert!(sol.residual < 1e-12);
-    }
-
-    /// Scalar DARE: x = a²x − a²b²x²/(r + b²x) + q, i.e. b²x² + (r − a²r − b²q)x − qr = 0.
-    #[test]
-    fn scalar_dare_closed_form() {
-        for (a, b, q, r) in [
-            (0.9, 1.0, 1.0, 1.0),
-            (1.5, 0.3, 2.0, 0.5),
-            (0.0, 1.0, 1.0, 1.0),
-        ] {
-            let sol = dare(
-                &m(1, 1, &[a]),
-                &m(1, 1, &[b]),
-                &m(1, 1, &[q]),
-                &m(1, 1, &[r]),
-                None,
-            )
-            .unwrap();
-            let (qa, qb, qc) = (b * b, r - a * a * r - b * b * q, -q * r);
-            let want = (-qb + (qb * qb - 4.0 * qa * qc).sqrt()) / (2.0 * qa);
-            assert!((sol.x[(0, 0)] - want).abs() < 1e-12 * want.max(1.0));
-            assert!(sol.residual < 1e-12 && sol.closed_loop < 1.0);
-        }
-    }
-
-    /// Riccati difference iteration X ← AᵀXA − AᵀXB(R + BᵀXB)⁻¹BᵀXA + Q, independent of SDA.
-    fn value_iteration(
-        a: &DMatrix<f64>,
-        b: &DMatrix<f64>,
-        q: &DMatrix<f64>,
-        r: &DMatrix<f64>,
-    ) -> DMatrix<f64> {
-        let mut x = q.clone();
-        for _ in 0..20_000 {
-            let k = (r + b.transpose() * &x * b).try_inverse().unwrap() * b.transpose() * &x * a;
-            x = a.transpose() * &x * a - a.transpose() * &x * b * k + q;
-        }
-        x
-    }
-
-    /// Singular A (a pure two-step delay chain in front of an unstable mode) and a
-    /// cross-term problem: SDA agrees with the difference iteration, residual ≤ 1e-10.
-    #[test]
-    fn dare_with_singular_a_and_cross_term() {
-        let a = m(3, 3, &[1.2, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]);
-        let b = m(3, 1, &[0.0, 0.0, 1.0]);
-        let (q, r) = (DMatrix::identity(3, 3), m(1, 1, &[0.3]));
-        let sol = dare(&a, &b, &q, &r, None).unwrap();
-        assert!(sol.residual < 1e-10, "{}", sol.residual);
-        let vi = value_iteration(&a, &b, &q, &r);
-        assert!((&sol.x - &vi).norm() < 1e-9 * vi.norm());
-        // Cross term: solve with S and compare with the transformed problem's iteration.
-        let s = m(3, 1, &[0.1, 0.0, 0.2]);
-        let sol = dare(&a, &b, &q, &r, Some(&s)).unwrap();
-        assert!(sol.residual < 1e-10, "{}", sol.residual);
-        let ri = r.clone().try_inverse().unwrap();
-        let vi = value_iteration(
-            &(&a - &b * &ri * s.transpose()),
-            &b,
-            &(&q - &s * &ri * s.transpose()),
-            &r,
-        );
-        assert!((&sol.x - &vi).norm() < 1e-9 * vi.norm());
-    }
-
-    /// Unstabilisable pair: an unstable mode the input cannot reach has no stabilising solution.
-    #[test]
-    fn unstabilisable_pairs_are_errors() {
-        let a = m(2, 2, &[1.5, 0.0, 0.0, 0.5]);
-        let b = m(2, 1, &[0.0, 1.0]);
-        assert!(dare(&a, &b, &DMatrix::identity(2, 2), &m(1, 1, &[1.0]), None).is_err());
-        let ac = m(2, 2, &[1.0, 0.0, 0.0, -1.0]);
-        assert!(care(&ac, &b, &DMatrix::identity(2, 2), &m(1, 1, &[1.0]), None).is_err());
-    }
-
-    /// Ill-conditioned CAREX-style case: widely separated time scales (1e-3 … 1e3 rad/s).
-    #[test]
-    fn widely_scaled_care() {
-        let a = m(3, 3, &[-1e-3, 1.0, 0.0, 0.0, -1.0, 1.0, 0.0, 0.0, -1e3]);
-        let b = m(3, 1, &[0.0, 0.0, 1e3]);
-        let sol = care(&a, &b, &DMatrix::identity(3, 3), &m(1, 1, &[1.0]), None).unwrap();
-        assert!(sol.residual < 1e-10, "{}", sol.residual);
-    }
-
-    #[test]
-    fn continuous_lyapunov() {
-        let a = m(2, 2, &[-1.0, 2.0, 0.0, -3.0]);
-        let q = m(2, 2, &[2.0, 0.5, 0.5, 1.0]);
-        let (x, res) = lyap(&a, &q).unwrap();
-        assert!(res < 1e-12, "{res}");
-        // Scalar closed form: 2ax + q = 0.
-        let (x1, _) = lyap(&m(1, 1, &[-0.25]), &m(1, 1, &[3.0])).unwrap();
-        assert!((x1[(0, 0)] - 6.0).abs() < 1e-12);
-        assert!(x.symmetric_eigenvalues().iter().all(|&l| l > 0.0));
-    }
-}
+mod tests;

@@ -286,6 +286,64 @@ impl Problem {
         }
     }
 
+    /// Kleinman's (Hewer's) step from `m`, a stabilising solution of a penalty above this one's,
+    /// kept when its closed loop is stable whatever its residual: from such a start the
+    /// iterates fall monotonically to the stabilising solution and stay stabilising, but near a
+    /// boundary (the Fréchet derivative nearly singular at the solution) the first step can
+    /// raise the residual that [`Problem::refine`] asks to fall.
+    pub fn kleinman_step(&self, m: &Measured) -> Option<Measured> {
+        let own = m.schur()?.clone();
+        self.step(m, &own)
+            .filter(|next| self.stability(&next.eigenvalues()).2)
+    }
+
+    /// Newton's steps from `m` (each on the current closed loop's own Schur form) while they
+    /// lower the relative residual, at most `steps`, and the first that does not; of these
+    /// iterates (`m` included) the one with a stable closed loop and the least residual, and the
+    /// steps taken to it — `None` when none is stable. For a closed-loop eigenvalue that cannot
+    /// be told from the boundary: [`Problem::refine`]'s chord steps, on an earlier closed loop
+    /// whose eigenvalue there is off by more than its distance, wander along that direction once
+    /// the residual is rounding; and each step moves the eigenvalue by up to its perturbation
+    /// bound, to either side, so that a choice by residual alone may land on the wrong one.
+    pub fn refine_stable(&self, m: Measured, steps: usize) -> Option<(Measured, usize)> {
+        let mut best: Option<(Measured, usize)> = None;
+        let mut offer = |candidate: Measured, taken: usize| {
+            if self.stability(&candidate.eigenvalues()).2
+                && best
+                    .as_ref()
+                    .is_none_or(|(b, _)| candidate.relative < b.relative)
+            {
+                best = Some((candidate, taken));
+            }
+        };
+        let mut current = m;
+        let mut taken = 0;
+        loop {
+            let next = if taken < steps {
+                current
+                    .schur()
+                    .cloned()
+                    .and_then(|own| self.step(&current, &own))
+            } else {
+                None
+            };
+            let improves = next.as_ref().is_some_and(|n| n.relative < current.relative);
+            offer(current, taken);
+            match next {
+                Some(n) if improves => {
+                    current = n;
+                    taken += 1;
+                }
+                Some(n) => {
+                    offer(n, taken + 1);
+                    break;
+                }
+                None => break,
+            }
+        }
+        best
+    }
+
     /// Steps from `m` while they lower the relative residual, at most `steps`; the best
     /// candidate and the number of steps that improved it. Steps are taken on the Schur form of
     /// the last closed loop one was computed for (chord steps: a Schur form is as costly as

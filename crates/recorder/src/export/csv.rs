@@ -15,7 +15,7 @@ pub(crate) struct CsvRows {
 impl CsvRows {
     pub(crate) fn create(path: &Path, tables: &[(Table, Vec<Column>)]) -> std::io::Result<Self> {
         let columns = &tables[0].1;
-        let mut out = BufWriter::with_capacity(1 << 20, crate::writer::create_private(path)?);
+        let mut out = BufWriter::with_capacity(1 << 20, crate::placement::create_private(path)?);
         let names: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
         writeln!(out, "{}", names.join(","))?;
         Ok(CsvRows {

@@ -8,10 +8,11 @@
 mod csv;
 mod npz;
 
+use crate::error::RecordError;
 use crate::frame::{Frame, Message, Telemetry, Truth};
 use crate::overview::{Overview, Signals};
+use crate::placement::Overwrite;
 use crate::reader::{stream, ReadError, ReadReport, Visit};
-use crate::writer::{Overwrite, RecordError};
 use std::path::{Path, PathBuf};
 
 /// Export errors.
@@ -193,9 +194,9 @@ pub fn export(
     overwrite: Overwrite,
 ) -> Result<Exported, ExportError> {
     selection.check(format)?;
-    crate::writer::check_target(output, overwrite)?;
+    crate::placement::check_target(output, overwrite)?;
     let columns = selection.columns();
-    let partial = crate::writer::partial_path(output);
+    let partial = crate::placement::partial_path(output);
     let io = |source| RecordError::Io {
         path: output.to_owned(),
         source,
@@ -208,7 +209,7 @@ pub fn export(
         };
         let read = exporter.run(input, &mut *rows)?;
         rows.finish().map_err(io)?;
-        crate::writer::publish(&partial, output, overwrite)?;
+        crate::placement::publish(&partial, output, overwrite)?;
         Ok(Exported {
             path: output.to_owned(),
             rows: exporter.rows,

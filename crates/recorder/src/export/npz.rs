@@ -3,7 +3,7 @@
 //! `.npy` header needs the length), then stored (uncompressed, zip64) into the archive.
 
 use super::{Column, Kind, Rows, Table};
-use crate::writer::create_private;
+use crate::placement::create_private;
 use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::Path;

@@ -301,7 +301,7 @@ impl Loaded {
         let text = input_file::read_text(path)?;
         let config = toml::from_str(&text).map_err(|e| ConfigError::Parse {
             path: path.to_owned(),
-            message: e.to_string(),
+            message: servo_runtime::toml_message(&text, &e),
         })?;
         Ok(Loaded {
             config,

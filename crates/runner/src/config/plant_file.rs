@@ -23,7 +23,10 @@ pub fn read_plant_file(path: &Path) -> Result<PlantParams, ConfigError> {
     let text = input_file::read_text(path)?;
     let file: PlantFile = toml::from_str(&text).map_err(|e| ConfigError::Parse {
         path: path.to_owned(),
-        message: format!("a plant file holds one [plant] table: {e}"),
+        message: format!(
+            "a plant file holds one [plant] table: {}",
+            servo_runtime::toml_message(&text, &e)
+        ),
     })?;
     let at = Origin {
         path: Some(path.to_owned()),

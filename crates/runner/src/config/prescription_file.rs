@@ -49,7 +49,7 @@ const MAX_GRID_BYTES: u64 = 128 << 20;
 #[serde(deny_unknown_fields)]
 struct File {
     aperture_radius_mm: f64,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "servo_runtime::exact_array")]
     decenter_mm: [f64; 2],
     base: Option<BaseFile>,
     zernike: Option<ZernikeFile>,
@@ -95,6 +95,7 @@ struct XyTermFile {
 #[serde(deny_unknown_fields)]
 struct GridFile {
     path: PathBuf,
+    #[serde(deserialize_with = "servo_runtime::exact_array")]
     pitch_mm: [f64; 2],
 }
 
@@ -104,7 +105,10 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
     let text = input_file::read_text(path)?;
     let file: File = toml::from_str(&text).map_err(|e| ConfigError::Parse {
         path: path.to_owned(),
-        message: format!("a surface prescription (aperture_radius_mm and [base], [zernike], [xy], [grid], [compensation] tables): {e}"),
+        message: format!(
+            "a surface prescription (aperture_radius_mm and [base], [zernike], [xy], [grid], [compensation] tables): {}",
+            servo_runtime::toml_message(&text, &e)
+        ),
     })?;
     let at = Origin {
         path: Some(path.to_owned()),
@@ -324,9 +328,8 @@ fn grid_table(
 /// A CSV of sag values in mm (rows of equal length, no header; `#` lines are comments) as a
 /// grid of `pitch_m`.
 fn read_grid(path: &Path, pitch_m: [f64; 2]) -> Result<SagGrid, String> {
-    let bytes = input_file::read_input(path, MAX_GRID_BYTES)
-        .map_err(|e| format!("a readable CSV file ({e})"))?;
-    let text = String::from_utf8(bytes).map_err(|_| "a UTF-8 CSV file".to_owned())?;
+    let text = daq_io::input_file::read_regular_text(path, MAX_GRID_BYTES)
+        .map_err(|e| format!("a readable UTF-8 CSV file ({e})"))?;
     let (mut sag_m, mut columns, mut rows) = (Vec::new(), 0usize, 0usize);
     for (line_no, line) in text.lines().enumerate() {
         let line = line.trim();

@@ -11,9 +11,9 @@
 
 use servo_runtime::link::{image, Boot};
 use servo_runtime::{ControllerKind, Deployment};
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
+mod elf;
 mod meta;
 mod target;
 
@@ -28,9 +28,6 @@ pub const ICOUNT_SHIFT: u32 = 5;
 pub fn instructions_per_count(systick_hz: u32) -> f64 {
     1e9 / (f64::from(1u32 << ICOUNT_SHIFT) * f64::from(systick_hz.max(1)))
 }
-
-/// The most bytes a firmware file may have.
-const MAX_FIRMWARE_BYTES: u64 = 64 << 20;
 
 /// How long the target may take to answer one frame (emulation on a busy host included).
 const ANSWER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(20);
@@ -118,25 +115,12 @@ pub enum PilError {
     Lost(String),
 }
 
-/// Checks that `path` is a regular file of at most 64 MiB (opened as every user-named file is,
-/// [`daq_io::input_file::open_regular`]) holding a 32-bit ARM executable ELF.
+/// Checks that `path` is a complete 32-bit ARM executable ([`elf::check`]) before QEMU sees it.
 fn check_firmware(path: &Path) -> Result<(), PilError> {
-    let bad = |why: String| PilError::Firmware {
+    elf::check(path).map_err(|why| PilError::Firmware {
         path: path.to_owned(),
         why,
-    };
-    let mut head = [0u8; 20];
-    daq_io::input_file::open_regular(path, MAX_FIRMWARE_BYTES)
-        .and_then(|(mut f, _)| f.read_exact(&mut head))
-        .map_err(|e| bad(e.to_string()))?;
-    // ELF, 32-bit, little-endian, an executable (type 2) for machine 40 (ARM).
-    let half = |at: usize| u16::from_le_bytes([head[at], head[at + 1]]);
-    if head[..4] != *b"\x7fELF" || head[4] != 1 || head[5] != 1 || half(16) != 2 || half(18) != 40 {
-        return Err(bad(
-            "not a 32-bit ARM ELF (build it: cd firmware && cargo build --release)".into(),
-        ));
-    }
-    Ok(())
+    })
 }
 
 /// The largest state-space order of `d` (0 for PID and the cascade).
@@ -247,12 +231,8 @@ mod tests {
     }
 
     /// An ELF header QEMU would be given: 32-bit, little-endian, executable, ARM.
-    fn arm_elf_header() -> [u8; 64] {
-        let mut head = [0u8; 64];
-        head[..6].copy_from_slice(b"\x7fELF\x01\x01");
-        head[16] = 2;
-        head[18] = 40;
-        head
+    fn arm_elf_header() -> Vec<u8> {
+        elf::minimal(64)
     }
 
     #[test]

@@ -19,10 +19,11 @@ pub fn read_input(path: &Path, limit: u64) -> Result<Vec<u8>, ConfigError> {
     })
 }
 
-/// The UTF-8 text of the regular file `path` (at most [`MAX_TEXT_BYTES`]).
+/// The UTF-8 text of the regular file `path` (at most [`MAX_TEXT_BYTES`]; a leading byte-order
+/// mark dropped).
 pub fn read_text(path: &Path) -> Result<String, ConfigError> {
-    String::from_utf8(read_input(path, MAX_TEXT_BYTES)?).map_err(|e| ConfigError::Io {
+    daq_io::input_file::read_regular_text(path, MAX_TEXT_BYTES).map_err(|source| ConfigError::Io {
         path: path.to_owned(),
-        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+        source,
     })
 }

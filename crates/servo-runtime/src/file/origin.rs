@@ -40,6 +40,21 @@ pub enum ConfigError {
     },
 }
 
+/// A TOML parser's error as `line L, column C: message` — the position and what was expected,
+/// never the file's content (the parser's own excerpt would echo a line of whatever file the
+/// path turned out to be, a key file behind a symlink included).
+pub fn toml_message(text: &str, e: &toml::de::Error) -> String {
+    match e.span() {
+        Some(span) => {
+            let before = &text[..span.start.min(text.len())];
+            let line = before.matches('\n').count() + 1;
+            let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+            format!("line {line}, column {column}: {}", e.message().trim_end())
+        }
+        None => e.message().trim_end().to_owned(),
+    }
+}
+
 fn location(path: &Option<PathBuf>, line: &Option<usize>) -> String {
     match (path, line) {
         (Some(p), Some(l)) => format!("{}:{l}: ", p.display()),
@@ -74,7 +89,9 @@ impl Origin {
     pub fn located(&self, invalid: &Invalid) -> ConfigError {
         let mut key = String::new();
         let _ = invalid.write_key(&mut key);
-        let value = if invalid.value.is_nan() {
+        let value = if matches!(invalid.allowed, crate::Allowed::Digest(_)) {
+            "(does not match)".to_owned()
+        } else if invalid.value.is_nan() {
             "(not a number, or missing)".to_owned()
         } else {
             invalid.value.to_string()
@@ -105,6 +122,16 @@ pub fn line_of(text: &str, key: &str) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A parse error says where and what, and never quotes the file.
+    #[test]
+    fn parse_errors_name_the_position_not_the_content() {
+        let text = "[run]\nduration_s = 2.0\n-----BEGIN SECRET-----\n";
+        let e = toml::from_str::<toml::Table>(text).unwrap_err();
+        let m = toml_message(text, &e);
+        assert!(m.starts_with("line 3, column "), "{m}");
+        assert!(!m.contains("SECRET"), "{m}");
+    }
 
     #[test]
     fn line_numbers_of_keys() {

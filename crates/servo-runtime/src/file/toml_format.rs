@@ -167,6 +167,7 @@ enum FeedforwardTable {
     Zpetc {
         gain: f64,
         preview_ticks: usize,
+        #[serde(deserialize_with = "super::exact::exact_arrays")]
         sections: Vec<[f64; 5]>,
     },
 }
@@ -197,16 +198,16 @@ pub struct DeploymentAndProvenance {
     pub made_for: Option<MadeFor>,
 }
 
-fn parse_error(at: &Origin, e: impl std::fmt::Display) -> ConfigError {
+fn parse_error(at: &Origin, text: &str, e: toml::de::Error) -> ConfigError {
     ConfigError::Parse {
         path: at.path.clone().unwrap_or_else(|| "(text)".into()),
-        message: e.to_string(),
+        message: super::origin::toml_message(text, &e),
     }
 }
 
 /// Parses the deployment `text` (from `at`), checking every value ([`Deployment::check`]).
 pub fn parse_deployment(text: &str, at: &Origin) -> Result<DeploymentAndProvenance, ConfigError> {
-    let f: DeploymentFile = toml::from_str(text).map_err(|e| parse_error(at, e))?;
+    let f: DeploymentFile = toml::from_str(text).map_err(|e| parse_error(at, text, e))?;
     let feedforward = match f.feedforward {
         FeedforwardTable::None => FeedforwardSpec::None,
         FeedforwardTable::Model => FeedforwardSpec::Model,
@@ -243,6 +244,17 @@ pub fn parse_deployment(text: &str, at: &Origin) -> Result<DeploymentAndProvenan
         protection: f.protection,
     };
     deployment.check().map_err(|e| at.located(&e))?;
+    if let Some(m) = &f.controller.made_for {
+        // What it says it was made for, checked at open as at a load: the rate it runs at.
+        let rate = deployment.servo_rate_hz;
+        if (m.servo_rate_hz - rate).abs() > 1e-6 * rate || m.servo_rate_hz.is_nan() {
+            return Err(at.invalid(
+                "controller.made_for.servo_rate_hz",
+                m.servo_rate_hz,
+                &format!("{rate} Hz: the loop's servo_rate_hz (a controller runs only at the rate it was made for)"),
+            ));
+        }
+    }
     Ok(DeploymentAndProvenance {
         deployment,
         made_for: f.controller.made_for,
@@ -299,15 +311,24 @@ pub fn controller_toml(
         out += &m.to_toml("controller.made_for");
     }
     if let Some(s) = stability {
-        let _ = write!(
-            out,
-            "\n[controller.stability]\nspectral_radius = {}\nunstable_below = {}\nunstable_above = {}\n",
-            num(s.spectral_radius),
-            num(s.unstable_below),
-            num(s.unstable_above)
-        );
+        out += "\n";
+        out += &stability_toml("controller.stability", s);
     }
     out
+}
+
+/// The stability record `s` as the TOML table `[table]`, with its seal as `[table.sha256]`.
+pub fn stability_toml(table: &str, s: &Stability) -> String {
+    let hex = |d: &[u8; 32]| d.iter().map(|b| format!("{b:02x}")).collect::<String>();
+    format!(
+        "[{table}]\nspectral_radius = {}\nunstable_below = {}\nunstable_above = {}\n\n[{table}.sha256]\nstage = \"{}\"\ncontroller = \"{}\"\nrecord = \"{}\"\n",
+        num(s.spectral_radius),
+        num(s.unstable_below),
+        num(s.unstable_above),
+        hex(&s.sha256.stage),
+        hex(&s.sha256.controller),
+        hex(&s.sha256.record)
+    )
 }
 
 /// The deployment `d` (made for `made_for`) as TOML, opened by the comment `header`.
@@ -403,9 +424,11 @@ pub fn parse_controller_file(
     at: &Origin,
     running: &ControllerSpec,
 ) -> Result<ControllerFile, ConfigError> {
-    let table: toml::Table = toml::from_str(text).map_err(|e| parse_error(at, e))?;
+    // Parsed twice: once to see which form it is, then from the text again, so that an error
+    // points at its own line (a table converted afterwards has no positions left).
+    let table: toml::Table = toml::from_str(text).map_err(|e| parse_error(at, text, e))?;
     if table.contains_key("controller") {
-        let f: Fragment = table.try_into().map_err(|e| parse_error(at, e))?;
+        let f: Fragment = toml::from_str(text).map_err(|e| parse_error(at, text, e))?;
         return Ok(ControllerFile {
             spec: f.controller.spec(at)?,
             made_for: f.controller.made_for,
@@ -413,7 +436,7 @@ pub fn parse_controller_file(
             sample_rate_hz: None,
         });
     }
-    let f: SsFile = table.try_into().map_err(|e| parse_error(at, e))?;
+    let f: SsFile = toml::from_str(text).map_err(|e| parse_error(at, text, e))?;
     let m = SsTable {
         a: f.a,
         b: f.b,

@@ -6,7 +6,7 @@
 
 use super::{Reader, Writer};
 use crate::deployment::{
-    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ReferenceSpec,
+    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ReferenceSpec, Seal,
     SsMatrices, Stability, Stage, ZpetcSpec, MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
 };
 use crate::protection::{ProtectionConfig, SafeState};
@@ -14,12 +14,13 @@ use crate::protection::{ProtectionConfig, SafeState};
 /// First bytes of an image.
 pub const MAGIC: [u8; 4] = *b"FTSD";
 /// The layout version this build reads and writes.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
 /// The largest image in bytes (the largest state-space controller and ZPETC filter).
 pub const MAX_BYTES: usize = 6
     + 8 * 9
     + (3 + 8 * 7 + 1 + 8 * (MAX_SS_ORDER + 1) * (MAX_SS_ORDER + 1))
     + 25
+    + 3 * 32
     + 33
     + (1 + 8 + 8 + 8 + 8 * 5 * ZPETC_SECTIONS)
     + 8
@@ -93,6 +94,9 @@ pub fn encode(d: &Deployment, out: &mut [u8]) -> Option<usize> {
             w.f64(st.spectral_radius)?;
             w.f64(st.unstable_below)?;
             w.f64(st.unstable_above)?;
+            for digest in [&st.sha256.stage, &st.sha256.controller, &st.sha256.record] {
+                w.bytes(digest)?;
+            }
         }
     }
     let (tag, fields) = match d.reference {
@@ -237,6 +241,11 @@ pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
             spectral_radius: field!(r, f64, "stability.spectral_radius"),
             unstable_below: field!(r, f64, "stability.unstable_below"),
             unstable_above: field!(r, f64, "stability.unstable_above"),
+            sha256: Seal {
+                stage: field!(r, take, "stability.sha256.stage"),
+                controller: field!(r, take, "stability.sha256.controller"),
+                record: field!(r, take, "stability.sha256.record"),
+            },
         }),
         _ => return Err(ImageError { field: "stability" }),
     };

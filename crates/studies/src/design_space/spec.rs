@@ -223,7 +223,8 @@ impl Study {
             path: path.unwrap_or(Path::new("<study>")).to_owned(),
             message,
         };
-        let mut tree: toml::Table = toml::from_str(text).map_err(|e| parse_error(e.to_string()))?;
+        let mut tree: toml::Table =
+            toml::from_str(text).map_err(|e| parse_error(servo_runtime::toml_message(text, &e)))?;
         let study = tree
             .remove("study")
             .ok_or_else(|| origin.invalid("study", "missing", "a [study] table"))?;
