@@ -297,8 +297,12 @@ fn a_full_disk_mid_run_ends_the_run_with_a_finished_shorter_file() {
     assert!(std::fs::metadata(&path).unwrap().len() <= 4000 * 512);
     let read = inspect_json(&path);
     assert!(
-        read["file"].as_str().unwrap().starts_with("finished"),
+        read["file"].as_str().unwrap().starts_with("complete"),
         "{read}"
+    );
+    assert_eq!(
+        read["end"]["recorded_ticks"],
+        read["summary"]["ticks"].to_string()
     );
     assert_eq!(read["summary"]["meta"]["end_reason"], "write-failed");
     let ticks = read["summary"]["ticks"].as_u64().unwrap();

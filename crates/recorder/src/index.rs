@@ -5,7 +5,7 @@
 //! a `servo ctl load` swapped in) was written after them.
 
 use crate::fields::Fields;
-use crate::mcap_file::{op, MAGIC};
+use crate::mcap_format::{op, MAGIC};
 use crate::reader::{ReadError, Streamer, Visit, MAX_RECORD_BYTES};
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;

@@ -16,6 +16,7 @@ pub mod export;
 mod fields;
 pub mod index;
 pub mod mcap_file;
+mod mcap_format;
 mod mcap_mark;
 pub mod overview;
 mod placement;
@@ -36,5 +37,6 @@ pub use reader::{
 };
 pub use writer::{
     Input, RecordOptions, RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS, DEFAULT_EPOCH_NS,
-    EPOCH_KEY, EVERY_KEY, SYNC_INTERVAL, TELEMETRY_KEY, TELEMETRY_READING_USED,
+    EPOCH_KEY, EVERY_KEY, RECORDED_TICKS_KEY, SYNC_INTERVAL, TELEMETRY_KEY, TELEMETRY_READING_USED,
+    WRITE_FAILED_KEY,
 };

@@ -8,111 +8,20 @@
 //! order the chunks were closed, so the bytes are those of compressing each on the spot.
 //! The file carries everything an indexed reader (Foxglove's `McapIndexedReader`) needs:
 //! message indexes after every chunk, and a summary with schemas, channels, statistics, chunk,
-//! attachment and metadata indexes and summary offsets.
+//! attachment and metadata indexes and summary offsets. After a failed write (a full disk, a
+//! file size limit) the file can go back to its last chunk ([`McapFile::rewind`]) and still be
+//! closed whole, shorter.
 //!
 //! Records follow the MCAP specification (<https://mcap.dev/spec>), little-endian throughout.
 
 use crate::compressors::{gone, Compressors, Job};
+use crate::mcap_format::{record, Put};
 use crate::mcap_mark::{Counts, Mark, Marks};
 use std::collections::{BTreeMap, VecDeque};
 use std::io::{self, Write};
 use std::sync::mpsc::{Receiver, TryRecvError};
 
-/// MCAP magic bytes, at the start and end of a file.
-pub const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
-
-/// The header's `library` of the files written here: every byte is covered by a CRC (the data
-/// section's in the Data End record, the summary's in the footer, each chunk's and
-/// attachment's), so a reader treats a zero CRC in such a file as damage.
-pub const LIBRARY: &str = "fts-servo recorder 2 (every byte CRC-checked)";
-
-/// Record opcodes (MCAP specification).
-pub mod op {
-    /// Header.
-    pub const HEADER: u8 = 0x01;
-    /// Footer.
-    pub const FOOTER: u8 = 0x02;
-    /// Schema.
-    pub const SCHEMA: u8 = 0x03;
-    /// Channel.
-    pub const CHANNEL: u8 = 0x04;
-    /// Message.
-    pub const MESSAGE: u8 = 0x05;
-    /// Chunk.
-    pub const CHUNK: u8 = 0x06;
-    /// Message index.
-    pub const MESSAGE_INDEX: u8 = 0x07;
-    /// Chunk index.
-    pub const CHUNK_INDEX: u8 = 0x08;
-    /// Attachment.
-    pub const ATTACHMENT: u8 = 0x09;
-    /// Attachment index.
-    pub const ATTACHMENT_INDEX: u8 = 0x0A;
-    /// Statistics.
-    pub const STATISTICS: u8 = 0x0B;
-    /// Metadata.
-    pub const METADATA: u8 = 0x0C;
-    /// Metadata index.
-    pub const METADATA_INDEX: u8 = 0x0D;
-    /// Summary offset.
-    pub const SUMMARY_OFFSET: u8 = 0x0E;
-    /// Data end.
-    pub const DATA_END: u8 = 0x0F;
-}
-
-/// Little-endian field encoding into a byte buffer.
-trait Put {
-    fn u8(&mut self, v: u8) -> &mut Self;
-    fn u16(&mut self, v: u16) -> &mut Self;
-    fn u32(&mut self, v: u32) -> &mut Self;
-    fn u64(&mut self, v: u64) -> &mut Self;
-    /// `uint32` length prefix, then the UTF-8 bytes.
-    fn str(&mut self, s: &str) -> &mut Self;
-    /// A length-prefixed group whose byte length is known only after it is written
-    /// (`uint32` for arrays and maps).
-    fn group32(&mut self, body: impl FnOnce(&mut Vec<u8>)) -> &mut Self;
-}
-
-impl Put for Vec<u8> {
-    fn u8(&mut self, v: u8) -> &mut Self {
-        self.push(v);
-        self
-    }
-    fn u16(&mut self, v: u16) -> &mut Self {
-        self.extend_from_slice(&v.to_le_bytes());
-        self
-    }
-    fn u32(&mut self, v: u32) -> &mut Self {
-        self.extend_from_slice(&v.to_le_bytes());
-        self
-    }
-    fn u64(&mut self, v: u64) -> &mut Self {
-        self.extend_from_slice(&v.to_le_bytes());
-        self
-    }
-    fn str(&mut self, s: &str) -> &mut Self {
-        self.u32(s.len() as u32);
-        self.extend_from_slice(s.as_bytes());
-        self
-    }
-    fn group32(&mut self, body: impl FnOnce(&mut Vec<u8>)) -> &mut Self {
-        let at = self.len();
-        self.u32(0);
-        body(self);
-        let len = (self.len() - at - 4) as u32;
-        self[at..at + 4].copy_from_slice(&len.to_le_bytes());
-        self
-    }
-}
-
-/// Appends one record: opcode, `uint64` length, body.
-fn record(out: &mut Vec<u8>, opcode: u8, body: impl FnOnce(&mut Vec<u8>)) {
-    out.u8(opcode).u64(0);
-    let at = out.len();
-    body(out);
-    let len = (out.len() - at) as u64;
-    out[at - 8..at].copy_from_slice(&len.to_le_bytes());
-}
+pub use crate::mcap_format::{op, LIBRARY, MAGIC};
 
 /// Where the bytes go: a file (made durable with `sync_data`) or a buffer.
 pub trait Sink: Write {
@@ -302,6 +211,15 @@ impl<W: Sink> McapFile<W> {
         self.counts.end_ns
     }
 
+    /// Messages the file holds on channel `id` (in chunks written).
+    pub fn messages_on(&self, id: u16) -> u64 {
+        self.counts
+            .per_channel
+            .get(usize::from(id))
+            .copied()
+            .unwrap_or(0)
+    }
+
     /// Offset in the file of the next record written.
     fn offset(&self) -> u64 {
         self.position + self.pending.len() as u64
@@ -413,8 +331,6 @@ impl<W: Sink> McapFile<W> {
         chunk.index[channel].extend_from_slice(&entry);
         chunk.start_ns = chunk.start_ns.min(log_time);
         chunk.end_ns = chunk.end_ns.max(log_time);
-        self.counts.per_channel[channel] += 1;
-        self.counts.messages += 1;
         chunk.records.len()
     }
 
@@ -526,7 +442,13 @@ impl<W: Sink> McapFile<W> {
             b.u64(compressed.len() as u64);
             b.u64(records.len() as u64);
         });
+        // Counted as written (a mark's counts are the file's, not those of chunks still open).
         let c = &mut self.counts;
+        for (channel, entries) in chunk.index.iter().enumerate() {
+            let n = (entries.len() / 16) as u64;
+            c.per_channel[channel] += n;
+            c.messages += n;
+        }
         c.chunks += 1;
         c.start_ns = Some(c.start_ns.map_or(chunk.start_ns, |s| s.min(chunk.start_ns)));
         c.end_ns = c.end_ns.max(chunk.end_ns);
@@ -552,6 +474,11 @@ impl<W: Sink> McapFile<W> {
     pub fn finish(mut self) -> io::Result<W> {
         self.close()?;
         Ok(self.out)
+    }
+
+    /// The sink, as written so far (after [`McapFile::close`]: the finished file).
+    pub fn into_sink(self) -> W {
+        self.out
     }
 
     /// [`McapFile::finish`] in place: on failure the file can still [`McapFile::rewind`] and

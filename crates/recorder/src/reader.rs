@@ -7,7 +7,7 @@
 
 use crate::fields::Fields;
 use crate::frame::{Frame, Message, Telemetry, Truth};
-use crate::mcap_file::{op, MAGIC};
+use crate::mcap_format::{op, MAGIC};
 use crate::overview::Overview;
 use crate::verify::{ChunkIndex, Counts, Ledger};
 use crate::writer::EPOCH_KEY;

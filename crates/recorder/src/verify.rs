@@ -11,7 +11,7 @@
 //! [`Streamer`]: crate::reader::Streamer
 
 use crate::fields::Fields;
-use crate::mcap_file::{op, LIBRARY};
+use crate::mcap_format::{op, LIBRARY};
 use std::collections::BTreeMap;
 
 /// Log time and offset in the chunk's records of each message, per channel id: what the

@@ -331,6 +331,13 @@ struct Ending {
     attachments: Vec<(Input, u64)>,
 }
 
+/// The `end` metadata key a recording whose writing failed carries: the write error.
+pub const WRITE_FAILED_KEY: &str = "write_failed";
+
+/// The `end` metadata key of a recording cut back after a write failure: the ticks it holds
+/// (its `ticks` are the run's).
+pub const RECORDED_TICKS_KEY: &str = "recorded_ticks";
+
 /// The `run` metadata key holding the log-time epoch (ns since the Unix epoch).
 pub const EPOCH_KEY: &str = "log_time_epoch_ns";
 
@@ -414,13 +421,22 @@ impl Drain {
         }
         let mut end = std::mem::take(&mut *end.lock().unwrap_or_else(|e| e.into_inner()));
         if let Some(e) = &failed {
-            end.record.insert("write_failed".into(), e.to_string());
+            end.record.insert(WRITE_FAILED_KEY.into(), e.to_string());
             let _ = self.w.rewind();
         }
         loop {
+            if failed.is_some() {
+                // What the file holds now, beside what the run did.
+                let kept = self.w.messages_on(TELEMETRY_CH);
+                end.record
+                    .insert(RECORDED_TICKS_KEY.into(), kept.to_string());
+            }
             match self.finish(&end) {
                 Ok(()) => break,
                 Err(e) => {
+                    if failed.is_none() {
+                        end.record.insert(WRITE_FAILED_KEY.into(), e.to_string());
+                    }
                     failed.get_or_insert(e);
                     if !matches!(self.w.rewind(), Ok(true)) {
                         let _ = self.syncer.stop();

@@ -260,7 +260,10 @@ impl Inspected {
         if !self.read.is_intact() {
             return Some(self.read.to_string());
         }
-        let claimed = self.end.get("ticks").and_then(|t| t.parse::<u64>().ok());
+        // A recording cut back after a write failure says how many it kept.
+        let claimed = (self.end.get(recorder::RECORDED_TICKS_KEY))
+            .or(self.end.get("ticks"))
+            .and_then(|t| t.parse::<u64>().ok());
         match claimed {
             Some(n) if self.summary.meta.recorded_every.is_none() && n != self.read.frames => {
                 Some(format!(

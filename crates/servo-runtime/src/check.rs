@@ -136,7 +136,10 @@ impl Invalid {
 impl fmt::Display for Invalid {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         self.write_key(f)?;
-        write!(f, " = {}: allowed {}", self.value, self.allowed)
+        match self.allowed {
+            Allowed::Digest(_) => write!(f, " = (does not match): allowed {}", self.allowed),
+            _ => write!(f, " = {}: allowed {}", self.value, self.allowed),
+        }
     }
 }
 

@@ -148,3 +148,25 @@ fn a_rate_the_part_cannot_hold_is_refused_before_the_run() {
     let t = summary.meta.target.unwrap();
     assert_eq!(t.over_budget_ticks, summary.ticks);
 }
+
+#[test]
+#[ignore = "needs the firmware and qemu-system-arm"]
+fn a_deployment_edited_after_its_check_is_refused_by_the_target() {
+    // The checked deployment opens; with one gain changed after the check the target's own
+    // loop build refuses it, naming the digest that no longer matches.
+    let plan = Plan::new(&loaded(0.001)).unwrap();
+    let checked = runner::gain_range::checked(&plan).unwrap();
+    let target = runner::pil::TargetLoop::start(&checked, &firmware()).unwrap();
+    let _ = target.finish();
+    let mut edited = checked;
+    edited.controller.pid.kp *= 2.0;
+    match runner::pil::TargetLoop::start(&edited, &firmware()) {
+        Err(PilError::Refused(why)) => assert!(
+            why.contains("controller.stability.sha256.controller")
+                && why.contains("does not match"),
+            "{why}"
+        ),
+        Err(e) => panic!("refused for another reason: {e}"),
+        Ok(_) => panic!("the target took an edited deployment"),
+    }
+}
