@@ -403,7 +403,11 @@ fn a_full_disk_in_hil_ends_the_run_safely() {
         .unwrap()
         .map(|e| e.unwrap().path())
         .collect();
-    assert_eq!(left, [out.clone()], "only the finished recording is left");
+    assert_eq!(
+        left,
+        std::slice::from_ref(&out),
+        "only the finished recording is left"
+    );
     assert!(std::fs::metadata(&out).unwrap().len() <= 4000 * 512);
     let rec = recorder::read(&out).unwrap();
     assert_eq!(rec.report.unwrap().state, recorder::FileState::Finished);

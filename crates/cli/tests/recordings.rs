@@ -293,7 +293,7 @@ fn a_full_disk_mid_run_ends_the_run_with_a_finished_shorter_file() {
         .unwrap()
         .map(|e| e.unwrap().path())
         .collect();
-    assert_eq!(left, [path.clone()], "no partial file is left");
+    assert_eq!(left, std::slice::from_ref(&path), "no partial file is left");
     assert!(std::fs::metadata(&path).unwrap().len() <= 4000 * 512);
     let read = inspect_json(&path);
     assert!(

@@ -18,8 +18,8 @@
 //! A result is returned only when its closed loop is stable and its residual, relative to the
 //! size of the terms the equation sums, is at most [`RESIDUAL_BOUND`]. Each closed-loop
 //! eigenvalue is either resolved from the stability boundary — farther than ten first-order
-//! perturbation bounds from it as an eigenvalue of the Hamiltonian (continuous) or the
-//! symplectic pencil (discrete) ([`resolution`]), as CAREX 14's pair 5·10⁻¹³ from the axis is —
+//! perturbation bounds from it as an eigenvalue of the Hamiltonian (continuous), or farther
+//! than rounding (discrete) ([`resolution`]), as CAREX 14's pair 5·10⁻¹³ from the axis is —
 //! or kept off it by the data's structure where rounding cannot tell: with `Q − SR⁻¹Sᵀ`
 //! positive semi-definite, the Hamiltonian's (pencil's) eigenvalues on the boundary are modes
 //! of `A` on it that the penalty does not see or the input cannot move, and when there are none
@@ -204,9 +204,8 @@ pub struct NearBoundary {
     pub distance: f64,
     /// Its first-order perturbation bound, how far rounding (a relative ε in the data and in the
     /// computation) can move it: `κ(λ)·ε·‖H‖` as an eigenvalue of the balanced Hamiltonian `H`
-    /// (continuous, `κ = ‖x‖‖y‖/|yᴴx|` Wilkinson's condition number), `κ(λ)·ε·(‖L‖ + |λ|·‖M‖)`
-    /// as an eigenvalue of the symplectic pencil `L − λM` (discrete, `κ = ‖x‖‖y‖/|yᴴMx|`).
-    /// `distance` is at most ten of these.
+    /// (continuous, `κ = ‖x‖‖y‖/|yᴴx|` Wilkinson's condition number), or rounding,
+    /// `10·ε·(1 + ‖A‖)` (discrete). `distance` is at most ten of these.
     pub bound: f64,
     /// The solution's estimated relative forward error ([`Sensitivity::forward_error`], as
     /// [`Riccati::sensitivity`] gives it).

@@ -43,14 +43,15 @@
 //! exact Hamiltonian has its pair on the axis. The solution returned is then that of the
 //! semi-definite data within rounding of them, which the warning's bound covers.
 //!
-//! Discrete: the same with the symplectic pencil `L − λM`, `L = [Ā 0; −Q̄ I]`,
-//! `M = [I G; 0 Āᵀ]` (the costate scaled so that `Q̄` and `G` weigh alike), whose finite
-//! eigenvalues include the closed loop's: the bound `κ·ε·(‖L‖ + |λ|·‖M‖)` with
-//! `κ = ‖x‖‖y‖/|yᴴMx|`, suspects within `√ε·(‖L‖ + ‖M‖)` of the unit circle, and the same
-//! structure (with `Q̄ ≥ 0` the pencil's eigenvalues on the circle are boundary modes of `A`
-//! unseen or unmoved). DAREX 14's lag pole 1 − 2.2·10⁻⁸ (τ = 10⁸: seen, and moved by an input of
-//! 10⁻⁸) is resolved — scaled against `G`, a simple eigenvalue; the hidden mode above in
-//! discrete form (`I + A/2`: at 1 ± 5·10⁻⁹) is not, and is returned with the warning.
+//! Discrete: rounding, `10·ε·(1 + ‖A‖)` (ten of these the resolution) — the closed loop's
+//! eigenvalue taken as known to about what rounding does to `A`, with the same structure when
+//! one is not resolved (with `Q̄ ≥ 0` the symplectic pencil's eigenvalues on the circle are
+//! boundary modes of `A` unseen or unmoved, checked directly). A first-order bound from an
+//! eigenvector condition is no measure here: the closed loop's and the symplectic pencil's
+//! norms follow the penalty's units (an H2 design in nanometres makes them 10¹⁰ and more), and
+//! a stable mode the input cannot move — a noise filter's pole 1.7·10⁻⁵ inside the circle, `A`'s
+//! own eigenvalue, known to rounding — would be called unresolved by 10¹⁸. DAREX 14's lag pole
+//! 1 − 2.2·10⁻⁸ and a hidden mode at 1 ± 5·10⁻⁹ are resolved.
 
 use super::problem::{Kind, Problem};
 use nalgebra::{DMatrix, DVector};
@@ -98,7 +99,7 @@ impl Hamiltonian {
 
     /// `l`'s distance from the axis is within [`BOUNDS`] of its perturbation bounds.
     fn unresolved(&self, l: Complex64) -> Option<Unresolved> {
-        let bound = condition(&self.h, None, l) * f64::EPSILON * self.size;
+        let bound = condition(&self.h, l) * f64::EPSILON * self.size;
         let resolution = BOUNDS * bound;
         (l.re.abs() <= resolution).then_some(Unresolved {
             eigenvalue: l,
@@ -119,61 +120,30 @@ impl Hamiltonian {
     }
 }
 
-/// The symplectic pencil `L − λM`, `L = [Ā 0; −Q̄ I]`, `M = [I G; 0 Āᵀ]` (in the balanced
-/// state basis), whose finite eigenvalues include the discrete closed loop's, and the sum of
-/// their Frobenius norms.
-struct Pencil {
-    l: DMatrix<f64>,
-    m: DMatrix<f64>,
-    size: f64,
-}
+/// A discrete equation's rounding bound on its closed loop's eigenvalues: `10·ε·(1 + ‖A‖)`.
+struct Rounding(f64);
 
-impl Pencil {
+impl Rounding {
     fn of(p: &Problem) -> Self {
-        let n = p.n();
-        // The costate scaled by `s` (`L → diag(I, I/s)·L·diag(I, sI)`, `M` alike: the
-        // eigenvalues stay) so that `Q̄/s` and `sG` weigh alike.
-        let (q, g) = (p.q0.norm(), p.g.norm());
-        let s = if q > 0.0 && g > 0.0 {
-            (q / g).sqrt()
-        } else {
-            1.0
-        };
-        let mut l = DMatrix::zeros(2 * n, 2 * n);
-        l.view_mut((0, 0), (n, n)).copy_from(&p.a0);
-        l.view_mut((n, 0), (n, n)).copy_from(&(&p.q0 * (-1.0 / s)));
-        l.view_mut((n, n), (n, n)).fill_with_identity();
-        let mut m = DMatrix::zeros(2 * n, 2 * n);
-        m.view_mut((0, 0), (n, n)).fill_with_identity();
-        m.view_mut((0, n), (n, n)).copy_from(&(&p.g * s));
-        m.view_mut((n, n), (n, n)).copy_from(&p.a0.transpose());
-        let size = l.norm() + m.norm();
-        Pencil { l, m, size }
+        Rounding(BOUNDS * f64::EPSILON * (1.0 + p.a0.norm()))
     }
 
-    /// `l`'s distance from the unit circle is within [`BOUNDS`] of its perturbation bounds
-    /// (`κ·ε·(‖L‖ + |λ|·‖M‖)`).
+    /// `l`'s distance from the unit circle is within [`BOUNDS`] of the bound.
     fn unresolved(&self, l: Complex64) -> Option<Unresolved> {
-        let bound = condition(&self.l, Some(&self.m), l)
-            * f64::EPSILON
-            * (self.l.norm() + l.norm() * self.m.norm());
-        let resolution = BOUNDS * bound;
+        let resolution = BOUNDS * self.0;
         ((1.0 - l.norm()).abs() <= resolution).then_some(Unresolved {
             eigenvalue: l,
-            bound,
+            bound: self.0,
             resolution,
         })
     }
 
-    /// Of `eigenvalues`, the one nearest the circle that cannot be told from it, if any; only
-    /// those within `√ε·(‖L‖ + ‖M‖)` of it pay for their condition.
+    /// Of `eigenvalues`, the one nearest the circle that cannot be told from it, if any.
     fn nearest_unresolved(&self, eigenvalues: Vec<Complex64>) -> Option<Unresolved> {
-        let mut suspects: Vec<Complex64> = eigenvalues
+        eigenvalues
             .into_iter()
-            .filter(|l| (1.0 - l.norm()).abs() <= f64::EPSILON.sqrt() * self.size)
-            .collect();
-        suspects.sort_by(|x, y| (1.0 - x.norm()).abs().total_cmp(&(1.0 - y.norm()).abs()));
-        suspects.into_iter().find_map(|l| self.unresolved(l))
+            .min_by(|x, y| (1.0 - x.norm()).abs().total_cmp(&(1.0 - y.norm()).abs()))
+            .and_then(|l| self.unresolved(l))
     }
 }
 
@@ -182,7 +152,7 @@ impl Pencil {
 pub(super) fn closed_loop(p: &Problem, eigenvalues: Vec<Complex64>) -> Option<Unresolved> {
     match p.kind {
         Kind::Continuous => Hamiltonian::of(p).nearest_unresolved(eigenvalues),
-        Kind::Discrete => Pencil::of(p).nearest_unresolved(eigenvalues),
+        Kind::Discrete => Rounding::of(p).nearest_unresolved(eigenvalues),
     }
 }
 
@@ -198,11 +168,11 @@ pub(super) fn instability_unresolved(p: &Problem, eigenvalues: &[Complex64]) -> 
                 .all(|&l| h.unresolved(l).is_some())
         }
         Kind::Discrete => {
-            let pencil = Pencil::of(p);
+            let rounding = Rounding::of(p);
             eigenvalues
                 .iter()
                 .filter(|l| l.norm() >= 1.0)
-                .all(|&l| pencil.unresolved(l).is_some())
+                .all(|&l| rounding.unresolved(l).is_some())
         }
     }
 }
@@ -230,31 +200,26 @@ pub(super) fn hamiltonian_on_axis(p: &Problem) -> Option<Complex64> {
         .map(|u| u.eigenvalue)
 }
 
-/// The condition number `‖x‖‖y‖/|yᴴMx|` of the eigenvalue `l` of the pencil `L − λM` (`M = I`
-/// when `None`: Wilkinson's for a matrix), its eigenvectors by inverse iteration on `L − lM`
-/// (infinite when they cannot be found).
-fn condition(lm: &DMatrix<f64>, mm: Option<&DMatrix<f64>>, l: Complex64) -> f64 {
-    let n = lm.nrows();
-    let complex = |m: &DMatrix<f64>| m.map(|v| Complex64::new(v, 0.0));
-    let mass = mm.map_or_else(|| DMatrix::<Complex64>::identity(n, n), complex);
-    let size = lm.norm() + mm.map_or(0.0, |m| m.norm());
+/// Wilkinson's condition number `‖x‖‖y‖/|yᴴx|` of the eigenvalue `l` of `h`, its eigenvectors
+/// by inverse iteration on `h − lI` (infinite when they cannot be found).
+fn condition(h: &DMatrix<f64>, l: Complex64) -> f64 {
+    let n = h.nrows();
     // A hair off `l`, so that the factorisation of a computed eigenvalue is never exactly
     // singular (the eigenvectors do not see it).
-    let shift = l + Complex64::new(f64::EPSILON, f64::EPSILON) * size;
-    let shifted = complex(lm) - &mass * shift;
-    let right = shifted.clone().lu();
-    let left = shifted.adjoint().lu();
+    let shift = l + Complex64::new(f64::EPSILON, f64::EPSILON) * h.norm();
+    let m = h.map(|v| Complex64::new(v, 0.0)) - DMatrix::<Complex64>::identity(n, n) * shift;
+    let right = m.clone().lu();
+    let left = m.adjoint().lu();
     let start = DVector::from_fn(n, |k, _| {
         Complex64::new(
             1.0 + 0.5 * ((k * 7) % 5) as f64,
             0.25 * ((k * 3) % 4) as f64,
         )
     });
-    let iterate = |lu: &nalgebra::LU<Complex64, nalgebra::Dyn, nalgebra::Dyn>,
-                   mass: &DMatrix<Complex64>| {
+    let iterate = |lu: &nalgebra::LU<Complex64, nalgebra::Dyn, nalgebra::Dyn>| {
         let mut v = start.normalize();
         for _ in 0..INVERSE_STEPS {
-            v = lu.solve(&(mass * &v))?;
+            v = lu.solve(&v)?;
             let size = v.norm();
             if !(size.is_finite() && size > 0.0) {
                 return None;
@@ -263,8 +228,8 @@ fn condition(lm: &DMatrix<f64>, mm: Option<&DMatrix<f64>>, l: Complex64) -> f64 
         }
         Some(v)
     };
-    match (iterate(&right, &mass), iterate(&left, &mass.adjoint())) {
-        (Some(x), Some(y)) => 1.0 / y.dotc(&(&mass * x)).norm(),
+    match (iterate(&right), iterate(&left)) {
+        (Some(x), Some(y)) => 1.0 / y.dotc(&x).norm(),
         _ => f64::INFINITY,
     }
 }
