@@ -7,12 +7,14 @@ order, and what a block is shown to print is compared with what it prints.
     python3 scripts/check_docs.py --list [PAGE]   # what would run, and what is not run and why
     python3 scripts/check_docs.py --self-test     # a copy of the README with one shown number
                                                   # changed must fail the check
+    python3 scripts/check_docs.py --jobs N        # pages at once (default: the CPU count)
     python3 scripts/check_docs.py --update [PAGE] # writes what each block printed into its
                                                   # shown output where they differ (blocks
                                                   # with `…` are reported, not rewritten);
                                                   # read the diff before committing it
 
-Each page runs in a fresh folder of its own (blocks of one page follow each other there), with
+Each page runs in a fresh folder of its own (blocks of one page follow each other there; pages
+run side by side, except that two pages naming the same HIL run `--prefix` never run at once), with
 `examples/`, `firmware/` and `scripts/` of the checkout linked into it and this checkout's release binaries first on PATH
 (`servo`; `cargo run --release -p servo-cli --` and `cargo run … --example X --` are rewritten
 to them). Lines that build or install (`cargo build`, `cargo test`, `pip install`, `make -C
@@ -41,7 +43,9 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -195,9 +199,14 @@ class Update:
     failed: list[str] = field(default_factory=list)
 
 
-def run_page(page: Page, stop_after_first_output: bool = False, update: Update | None = None) -> int:
-    """Runs the page's blocks in a fresh folder; exits on the first failure (with `update`,
-    records the differing outputs instead). Blocks run."""
+class PageFailed(Exception):
+    """A block failed: what to print."""
+
+
+def run_page(page: Page, stop_after_first_output: bool = False, update: Update | None = None,
+             log=print) -> int:
+    """Runs the page's blocks in a fresh folder; raises [`PageFailed`] on the first failure
+    (with `update`, records the differing outputs instead). Blocks run."""
     work = Path(tempfile.mkdtemp(prefix="docs-"))
     try:
         (work / "bin").mkdir()
@@ -240,13 +249,13 @@ def run_page(page: Page, stop_after_first_output: bool = False, update: Update |
                         update.failed.append(f"{where}: differs and shows `…`: edit by hand ({diff})")
                     else:
                         update.rewrites.append((block.shown, out if out.endswith("\n") else out + "\n"))
-                        print(f"UPDATE {where}", flush=True)
+                        log(f"UPDATE {where}")
                 elif diff:
                     fail(f"{page.name}:{block.shown.line}", "output differs from the page's",
                          script, out, diff)
             count += 1
             first = script.splitlines()[0][:90]
-            print(f"ok  {where:<48} {took:6.1f} s  {first}", flush=True)
+            log(f"ok  {where:<48} {took:6.1f} s  {first}")
             if stop_after_first_output and block.shown is not None:
                 break
         return count
@@ -267,10 +276,55 @@ def rewrite(page: Page, rewrites: list[tuple[Block, str]]) -> None:
 
 
 def fail(where: str, why: str, script: str, out: str, diff: str = "") -> None:
-    print(f"FAILED {where}: {why}\n--- block\n{script}\n--- printed\n{out[-4000:]}")
+    text = f"FAILED {where}: {why}\n--- block\n{script}\n--- printed\n{out[-4000:]}"
     if diff:
-        print(f"--- first difference, {diff}")
-    sys.exit(1)
+        text += f"\n--- first difference, {diff}"
+    raise PageFailed(text)
+
+
+PREFIX = re.compile(r"--prefix[ =]([A-Za-z0-9_-]+)")
+
+
+def run_pages(pages: list[Page], jobs: int, first_output: bool) -> int:
+    """Runs `pages` `jobs` at a time (pages naming the same `--prefix` one after the other),
+    printing each page's lines when it ends; exits on the first failure. Blocks run."""
+    locks: dict[str, threading.Lock] = {}
+    for page in pages:
+        for b in page.blocks:
+            for name in PREFIX.findall(b.text):
+                locks.setdefault(name, threading.Lock())
+    printing = threading.Lock()
+
+    def one(page: Page) -> int:
+        names = sorted({n for b in page.blocks for n in PREFIX.findall(b.text)})
+        lines: list[str] = []
+        for n in names:
+            locks[n].acquire()
+        try:
+            return run_page(page, first_output, None, lines.append)
+        except PageFailed as e:
+            lines.append(str(e))
+            raise
+        finally:
+            for n in reversed(names):
+                locks[n].release()
+            with printing:
+                print("\n".join(lines), flush=True)
+
+    # The pages with the most runnable blocks first: the long ones do not end up last.
+    order = sorted(pages, key=lambda p: -sum(b.lang in RUNNABLE for b in p.blocks))
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        futures = [pool.submit(one, p) for p in order]
+        total = 0
+        failed = False
+        for f in futures:
+            try:
+                total += f.result()
+            except PageFailed:
+                failed = True
+    if failed:
+        sys.exit(1)
+    return total
 
 
 def self_test() -> None:
@@ -299,7 +353,9 @@ def main() -> None:
     listing = "--list" in args
     first_output = "--first-output" in args
     update = Update() if "--update" in args else None
-    paths = [Path(a) for a in args if not a.startswith("--")] or [ROOT / "README.md", *book_pages()]
+    values = {args[i + 1] for i, a in enumerate(args[:-1]) if a == "--jobs"}
+    paths = [Path(a) for a in args if not a.startswith("--") and a not in values] or [
+        ROOT / "README.md", *book_pages()]
     pages = [parse(p) for p in paths]
     if listing:
         for page in pages:
@@ -311,15 +367,24 @@ def main() -> None:
         return
     if not SERVO.exists():
         sys.exit(f"{SERVO} is missing: cargo build --release -p servo-cli first")
-    total = 0
-    for page in pages:
-        if update is not None:
+    jobs = os.cpu_count() or 1
+    for a in args:
+        if a.startswith("--jobs"):
+            jobs = int(a.split("=", 1)[1]) if "=" in a else int(args[args.index(a) + 1])
+    if update is None:
+        total = run_pages(pages, jobs, first_output)
+    else:
+        total = 0
+        for page in pages:
             update.rewrites = []
-        total += run_page(page, first_output, update)
-        if update is not None and update.rewrites:
-            rewrite(page, update.rewrites)
-    if update is not None and update.failed:
-        sys.exit("not rewritten:\n" + "\n".join(update.failed))
+            try:
+                total += run_page(page, first_output, update)
+            except PageFailed as e:
+                sys.exit(str(e))
+            if update.rewrites:
+                rewrite(page, update.rewrites)
+        if update.failed:
+            sys.exit("not rewritten:\n" + "\n".join(update.failed))
     print(f"{len(pages)} pages: {total} blocks ran, their shown output as printed")
 
 
