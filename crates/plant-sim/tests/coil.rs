@@ -66,3 +66,20 @@ fn reference_is_clamped_at_peak_current() {
     // 30 V × 1 A/V asks for 30 A; the reference stops at 20 A (minus the back-EMF share).
     assert!((last - 20.0).abs() < 0.05, "{last}");
 }
+
+/// Every current-loop setting is checked whichever model is selected: a coil setting out of
+/// range is refused on the ideal model too (a file that passes today does not break when the
+/// model is switched), naming its key.
+#[test]
+fn coil_settings_are_checked_whatever_the_model() {
+    for model in [CurrentLoopModel::Ideal, CurrentLoopModel::Coil] {
+        let mut p = coil_plant();
+        p.actuator.model = model;
+        p.actuator.coil.bus_v = -36.0;
+        let e = Simulator::new(&p, 1, &CuttingProfile::None)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(e.contains("actuator.coil.bus_v"), "{model:?}: {e}");
+    }
+}

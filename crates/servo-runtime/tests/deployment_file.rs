@@ -112,6 +112,20 @@ fn bad_values_are_named_by_file_line_key_and_range() {
             "{key}: {e}"
         );
     }
+    // The stability record's keys are named as the file spells them, with their line.
+    let bad = text.replacen("spectral_radius = ", "spectral_radius = 1.5 # ", 1);
+    let e = parse_deployment(&bad, &at(&bad)).unwrap_err().to_string();
+    let line = bad
+        .lines()
+        .position(|l| l.starts_with("spectral_radius"))
+        .unwrap()
+        + 1;
+    assert!(
+        e.contains(&format!(
+            "deploy.toml:{line}: controller.stability.spectral_radius"
+        )),
+        "{e}"
+    );
     // An unknown key and a missing table are parse errors naming the file.
     let e = parse_deployment(&format!("{text}\n[extra]\nx = 1\n"), &at("")).unwrap_err();
     assert!(
@@ -224,4 +238,25 @@ fn a_deployment_made_for_another_rate_is_refused_at_open() {
         .expect("refused")
         .to_string();
     assert!(e.contains("controller.made_for.servo_rate_hz"), "{e}");
+}
+
+/// A controller fragment's error points at its own line and never quotes the file.
+#[test]
+fn a_fragments_error_is_located_at_its_line() {
+    let text = "# tuned\n[controller]\nkind = \"pid\"\n\n[controller.pid]\nkp = 1.0\nkx = 2.0\n";
+    let at = Origin {
+        path: Some("pid.toml".into()),
+        text: Some(text.to_owned()),
+    };
+    let e = servo_runtime::parse_controller_file(text, &at, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("pid.toml: line 7, column 1: unknown field `kx`"),
+        "{e}"
+    );
+    assert!(
+        !e.contains("kx = 2.0"),
+        "the file's text is not quoted: {e}"
+    );
 }
