@@ -76,10 +76,10 @@ fn coil_settings_are_checked_whatever_the_model() {
         let mut p = coil_plant();
         p.actuator.model = model;
         p.actuator.coil.bus_v = -36.0;
-        let e = Simulator::new(&p, 1, &CuttingProfile::None)
-            .err()
-            .expect("refused")
-            .to_string();
+        let Err(e) = Simulator::new(&p, 1, &CuttingProfile::None) else {
+            panic!("{model:?}: a negative bus voltage was accepted");
+        };
+        let e = e.to_string();
         assert!(e.contains("actuator.coil.bus_v"), "{model:?}: {e}");
     }
 }
