@@ -36,6 +36,9 @@ __all__ = [
     "Recording",
     "Model",
     "run",
+    "run_hil",
+    "qualify_host",
+    "replay",
     "read_recording",
     "models",
     "budget",
@@ -165,6 +168,67 @@ def run(config: Config = None, **tables: Any) -> Run:
     recorded (``servo run --out`` records). Example: ``run(run={"duration_s": 0.2})``.
     """
     return Run(**_run_of(_native.run(*_args(config, tables))))
+
+
+def _servo_binary(servo: Union[None, str, "os.PathLike[str]"]) -> str:
+    """The ``servo`` executable: ``servo``, else ``$FTS_SERVO_BIN``, else ``servo`` on PATH."""
+    import shutil
+
+    found = servo or os.environ.get("FTS_SERVO_BIN") or shutil.which("servo")
+    if not found:
+        raise ServoError("the servo binary: pass servo=..., set FTS_SERVO_BIN or put servo on PATH")
+    return os.fspath(found)
+
+
+def run_hil(
+    config: Config = None,
+    out: Union[None, str, "os.PathLike[str]"] = None,
+    overwrite: bool = False,
+    prefix: Optional[str] = None,
+    realtime: bool = False,
+    servo: Union[None, str, "os.PathLike[str]"] = None,
+    **tables: Any,
+) -> Dict[str, Any]:
+    """Runs ``config`` as ``servo run --hil`` does: plant, controller and recorder as three
+    processes of the ``servo`` binary over shared memory (in lockstep, or paced by the wall
+    clock with ``realtime``), recorded to ``out`` (None: not recorded). Returns the recorder's
+    summary (``servo run --hil --json``); a lockstep run equals :func:`run` bit for bit. A
+    failing process raises :class:`ServoError` naming it and its exit code."""
+    config, overrides = _args(config, tables)
+    path = None if out is None else os.fspath(out)
+    return json.loads(
+        _native.run_hil(_servo_binary(servo), config, overrides, path, overwrite, prefix, realtime)
+    )
+
+
+def qualify_host(
+    config: Config = None, rate_hz: Optional[float] = None, duration_s: float = 5.0, **tables: Any
+) -> Dict[str, Any]:
+    """Qualifies this host for real time as ``servo latency --json`` does: the loop's pacing
+    alone at ``rate_hz`` (default: the configuration's loop rate) for ``duration_s`` with the
+    configuration's ``[realtime]`` settings, its start lateness in ns, the overruns, the stall
+    the configuration's loop survives and whether this host ``holds``. The dict, saved as JSON,
+    is what ``servo run --hil --realtime --qualification`` reads."""
+    config, overrides = _args(config, tables)
+    return json.loads(_native.qualify_host(config, overrides, rate_hz, duration_s))
+
+
+def replay(
+    file: Union[str, "os.PathLike[str]"],
+    out: Union[None, str, "os.PathLike[str]"] = None,
+    overwrite: bool = False,
+    plant: Union[None, str, "os.PathLike[str]"] = None,
+    salvage: bool = False,
+) -> Dict[str, Any]:
+    """Runs a recording again from what it holds, as ``servo replay --json`` does: its
+    configuration, seed and embedded input files — on the plant file ``plant`` when given (a
+    recording of a DAQ daemon or a real stage replays only on a plant model) — recorded to
+    ``out`` (None: not recorded). Returns ``identical`` (the data channels bit for bit, None when
+    the recording holds every n-th tick), ``first_difference_frame``, ``frames_compared`` and the
+    ``recorded`` and ``replayed`` summaries."""
+    path = None if out is None else os.fspath(out)
+    plant_path = None if plant is None else os.fspath(plant)
+    return json.loads(_native.replay(os.fspath(file), path, overwrite, plant_path, salvage))
 
 
 def read_recording(path: Union[str, "os.PathLike[str]"], salvage: bool = False) -> Recording:

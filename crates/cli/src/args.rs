@@ -5,7 +5,7 @@
 use clap::Args;
 use plant_sim::params::NoiseParams;
 use runner::config::presets::{ScenarioKind, ScenarioValues, StagePreset};
-use runner::config::{ConfigError, ControllerKind, FeedforwardKind, Loaded};
+use runner::config::{ConfigError, ControllerConfig, ControllerKind, FeedforwardKind, Loaded};
 use std::num::NonZeroU32;
 use std::path::PathBuf;
 
@@ -113,8 +113,7 @@ pub struct AccelArgs {
 
 impl AccelArgs {
     /// Applies the flags.
-    pub fn apply(&self, l: &mut Loaded) {
-        let c = &mut l.config.controller;
+    pub fn apply(&self, c: &mut ControllerConfig) {
         c.kg_scaling |= self.kg_scaling;
         set(&mut c.accel_filter_hz, self.accel_filter_hz);
         set(&mut c.accel_filter_order, self.accel_filter_order);
@@ -145,15 +144,14 @@ pub struct ControllerArgs {
 
 impl ControllerArgs {
     /// Applies the flags.
-    pub fn apply(&self, l: &mut Loaded) {
-        let c = &mut l.config.controller;
+    pub fn apply(&self, c: &mut ControllerConfig) {
         set(&mut c.kind, self.controller);
         set(&mut c.ka, self.ka);
         if let Some(p) = &self.ss_file {
             c.ss_file = Some(std::env::current_dir().map_or(p.clone(), |d| d.join(p)));
         }
         c.force |= self.force;
-        self.accel.apply(l);
+        self.accel.apply(c);
     }
 }
 
@@ -171,8 +169,7 @@ pub struct FeedforwardArgs {
 
 impl FeedforwardArgs {
     /// Applies the flags.
-    pub fn apply(&self, l: &mut Loaded) {
-        let c = &mut l.config.controller;
+    pub fn apply(&self, c: &mut ControllerConfig) {
         set(&mut c.feedforward, self.feedforward);
         set(&mut c.smoothing_hz, self.smoothing_hz);
     }
@@ -246,8 +243,8 @@ impl RunArgs {
     pub fn load(&self) -> Result<Loaded, ConfigError> {
         let mut l = self.plant.load()?;
         self.length.apply(&mut l);
-        self.controller.apply(&mut l);
-        self.feedforward.apply(&mut l);
+        self.controller.apply(&mut l.config.controller);
+        self.feedforward.apply(&mut l.config.controller);
         self.scenario.apply(&mut l);
         Ok(l)
     }

@@ -4,6 +4,7 @@
 //! (`<name>.<pid>.partial`, recoverable by `servo inspect`).
 
 use nix::sys::signal::Signal;
+use runner::hil::PARENT_ENV;
 use runner::stop::StopRequest;
 use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 use signal_hook::flag;
@@ -45,9 +46,6 @@ pub fn write_limits_as_errors() {
         Arc::new(AtomicBool::new(false)),
     );
 }
-
-/// Environment variable naming the `servo run --hil` process that started this one.
-pub const PARENT_ENV: &str = "FTS_SERVO_PARENT";
 
 /// A HIL child started by `servo run --hil` asks the kernel for SIGTERM when its parent dies
 /// (so it never outlives it), and exits now if the parent is already gone.

@@ -5,7 +5,7 @@
 //! non-finite embedded configuration, fewer ticks than its end record counts — is refused with a non-zero exit by `servo inspect`,
 //! `replay`, `spectrum` and `export`; `--salvage` reads what is intact of a damaged chunk.
 
-mod common;
+use crate::common;
 
 use common::{servo, succeeded, tmp};
 use recorder::mcap_file::{op, McapFile, MAGIC};

@@ -2,7 +2,7 @@
 //! a prefix — here the simulator process — with this process as the controller injecting the
 //! excitation; a plant that ends early or a clip stops the measurement, the plant at 0 V.
 
-mod common;
+use crate::common;
 
 use common::hil::prefix;
 use common::{servo, succeeded, tmp};

@@ -1,7 +1,7 @@
 //! HIL: plant, controller and recorder as separate processes over iceoryx2, as a user runs
 //! them. Each test uses its own run prefix (with the test process id) so tests run in parallel.
 
-mod common;
+use crate::common;
 
 use common::hil::{long_hil_run, prefix, wait_for_ticks};
 use common::{json, servo, tmp};

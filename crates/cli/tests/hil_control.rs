@@ -1,7 +1,7 @@
 //! HIL control: `servo ctl` acknowledged and checked against the loop's margins, a live
 //! prefix refused to a second run, machine protection across processes.
 
-mod common;
+use crate::common;
 
 use common::hil::{long_hil_run, prefix, wait_for_ticks};
 use common::{as_nobody, euid, json, servo, succeeded, tmp};

@@ -3,7 +3,7 @@
 //! controller made for another stage or one that would be unstable is refused with the
 //! reason and the running one stays; the recording notes the swap's tick and file hash.
 
-mod common;
+use crate::common;
 
 use common::hil::{
     assert_bumpless, assert_swapped_in, ctl_load, ctl_stop, long_hil_run, prefix,

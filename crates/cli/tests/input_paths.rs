@@ -4,7 +4,7 @@
 //! to load into a run — are each refused with a message naming what the path is (never
 //! blocking in `open`: a FIFO given to a command that opened it could not hang the test).
 
-mod common;
+use crate::common;
 
 use common::{servo, tmp};
 use std::path::Path;

@@ -1,7 +1,7 @@
 //! `servo latency` as a user runs it: the report's shape and consistency (not its speed: the
 //! numbers depend on the machine), and refusals of settings the host or the ranges do not allow.
 
-mod common;
+use crate::common;
 
 use common::{as_nobody, euid, json, servo, tmp};
 

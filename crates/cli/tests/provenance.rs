@@ -3,7 +3,7 @@
 //! named (`--force` runs them anyway), a suggested command reproduces the design's plant, and
 //! `servo identify` refuses an FRF that is not the plant's.
 
-mod common;
+use crate::common;
 
 use common::{servo, succeeded, tmp};
 

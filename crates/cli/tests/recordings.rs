@@ -1,6 +1,6 @@
 //! Recordings end to end: what a run leaves on disk however it ends, and reading it back.
 
-mod common;
+use crate::common;
 
 use common::{json, servo, succeeded, tmp};
 use std::process::{Command, Stdio};

@@ -3,7 +3,7 @@
 //! made (the same as running it directly); a recording without simulator truth replays only
 //! on an identified model.
 
-mod common;
+use crate::common;
 
 use common::{json, servo, succeeded, tmp, tuned};
 use std::path::Path;

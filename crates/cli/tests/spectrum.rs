@@ -2,7 +2,7 @@
 //! budget of its own configuration — rebuilt from the recording alone — per decade band, and
 //! a decimated recording is analysed without a comparison that aliasing would falsify.
 
-mod common;
+use crate::common;
 
 use common::{assert_bands_agree, json, servo, spectrum, succeeded, tmp, tuned};
 use serde_json::Value;

@@ -2,7 +2,7 @@
 //! for the same plant; shards merged equal the single run byte for byte; bad input is refused
 //! with its file, key and allowed range.
 
-mod common;
+use crate::common;
 
 use common::{json, servo, succeeded, tmp};
 use std::path::Path;

@@ -5,7 +5,7 @@
 //! `foxglove.websocket.v1`, reads and steers; a view beyond loopback refuses a client without
 //! its token; a read-only view offers neither parameters nor services.
 
-mod common;
+use crate::common;
 
 use common::hil::{long_hil_run, prefix};
 use common::{euid, servo, tmp};
@@ -136,7 +136,7 @@ fn the_owner_steers_and_another_user_gets_nothing() {
         let o = std::process::Command::new(std::env::current_exe().unwrap())
             .args([
                 "--exact",
-                "another_users_client",
+                "view_boundary::another_users_client",
                 "--ignored",
                 "--nocapture",
             ])

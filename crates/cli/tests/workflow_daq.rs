@@ -7,7 +7,7 @@
 //! the daemon (`servo controller` + `servo record` on the identified model) bumplessly, and
 //! `servo spectrum` of the recording agrees with the identified model's budget.
 
-mod common;
+use crate::common;
 
 use common::hil::{
     assert_bumpless, assert_swapped_in, ctl_load, ctl_stop, prefix, recorded_commands, swap_tick,

@@ -44,10 +44,10 @@ pub fn measure(
 }
 
 /// One readiness item: what the host has, whether it suits real time, what to change.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Check {
     /// What is checked.
-    pub name: &'static str,
+    pub name: String,
     /// What this host has.
     pub value: String,
     /// Suitable for a 199.6 kHz loop.
@@ -69,7 +69,7 @@ pub fn preemption(realtime_flag: Option<&str>, version: &str) -> Check {
         "no preemption model named (voluntary)"
     };
     Check {
-        name: "kernel preemption",
+        name: "kernel preemption".into(),
         value: value.into(),
         ok: rt,
         advice: if rt {
@@ -85,7 +85,7 @@ pub fn preemption(realtime_flag: Option<&str>, version: &str) -> Check {
 pub fn rt_throttling(runtime_us: &str) -> Check {
     let v: i64 = runtime_us.trim().parse().unwrap_or(0);
     Check {
-        name: "RT throttling",
+        name: "RT throttling".into(),
         value: if v < 0 {
             "off (sched_rt_runtime_us = -1)".into()
         } else {
@@ -107,7 +107,7 @@ pub fn rt_throttling(runtime_us: &str) -> Check {
 pub fn isolated_cores(isolated: &str) -> Check {
     let v = isolated.trim();
     Check {
-        name: "isolated cores",
+        name: "isolated cores".into(),
         value: if v.is_empty() {
             "none".into()
         } else {
@@ -126,7 +126,7 @@ pub fn isolated_cores(isolated: &str) -> Check {
 pub fn governor(governor: Option<&str>) -> Check {
     let v = governor.map(str::trim);
     Check {
-        name: "CPU frequency governor",
+        name: "CPU frequency governor".into(),
         value: v.unwrap_or("not exposed (a VM: the hypervisor decides)").into(),
         ok: v.is_none_or(|g| g == "performance"),
         advice: match v {
@@ -142,7 +142,7 @@ pub fn governor(governor: Option<&str>) -> Check {
 pub fn smt(active: Option<&str>) -> Check {
     let on = active.is_some_and(|a| a.trim() == "1");
     Check {
-        name: "SMT (hyper-threading)",
+        name: "SMT (hyper-threading)".into(),
         value: if on { "active" } else { "off or not reported" }.into(),
         ok: !on,
         advice: if on {
@@ -162,7 +162,7 @@ pub fn memlock(limits: &str) -> Check {
     let ok =
         soft.is_some_and(|s| s == "unlimited" || s.parse::<u64>().is_ok_and(|b| b >= 64 << 20));
     Check {
-        name: "locked-memory limit",
+        name: "locked-memory limit".into(),
         value: match soft {
             Some("unlimited") => "unlimited".into(),
             Some(b) => format!("{b} bytes"),

@@ -5,7 +5,7 @@ use daq_io::ipc::{ControllerLink, Endpoint};
 use daq_io::serve::{serve, Pacing, ServeOptions, ServeReport};
 use daq_io::{flags, Command, Daq, InProcess};
 
-mod common;
+use crate::common;
 use common::{prefix, recorder_tap, truth_until_end, Lag};
 use std::sync::atomic::AtomicUsize;
 use std::time::Duration;

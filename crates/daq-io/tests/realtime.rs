@@ -7,7 +7,7 @@ use daq_io::{flags, Command, Daq};
 use std::sync::atomic::AtomicUsize;
 use std::time::Duration;
 
-mod common;
+use crate::common;
 use common::{prefix, recorder_tap, truth_until_end, Lag};
 
 /// Peer timeout of the test, s: long against any scheduling stall of a busy machine, so only

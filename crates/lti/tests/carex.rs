@@ -4,7 +4,7 @@
 //! but 6 and 20 (their data ship as files), at the default parameters and along the parameter
 //! sweeps toward the ill-conditioned limits. Closed forms where the collection gives them.
 
-mod common;
+use crate::common;
 
 use common::extended::care_reference;
 use common::{chain, diag, m, matches, trusted};

@@ -5,7 +5,7 @@
 //! refused by name), closed forms where the collection gives them; then the cases the loop's
 //! own design meets: delay chains (singular A) and unstable modes the penalty does not see.
 
-mod common;
+use crate::common;
 
 use common::{chain, diag, m, matches, trusted};
 use lti::riccati::{dare, Riccati, RiccatiError, Route};

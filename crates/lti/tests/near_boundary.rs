@@ -12,7 +12,7 @@
 //! (indefinite penalty, closed loop exactly on the axis) and the hidden mode put exactly on the
 //! axis stay refused.
 
-mod common;
+use crate::common;
 
 use common::extended::care_reference;
 use common::random::gaussian;

@@ -1,7 +1,7 @@
 //! Random problems n = 5 … 160, with and without cross terms, continuous and discrete; and the
 //! condition estimate checked against what perturbing the data actually does.
 
-mod common;
+use crate::common;
 
 use common::random::{gaussian, problem, Data};
 use common::{m, trusted};

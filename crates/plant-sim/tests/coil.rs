@@ -1,8 +1,8 @@
 //! The R-L coil + analog PI current loop (§4.6.3–4.6.4): first order at its design bandwidth
 //! when unsaturated, slew-limited by the bus voltage on large steps, clamped at peak current.
 
+use crate::common;
 use plant_sim::cutting::CuttingProfile;
-mod common;
 
 use plant_sim::params::{CurrentLoopModel, PlantParams};
 use plant_sim::Simulator;

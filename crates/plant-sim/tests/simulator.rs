@@ -2,7 +2,7 @@
 //! response of the continuous model with a delayed hold, the analytic current-loop step, and
 //! determinism.
 
-mod common;
+use crate::common;
 
 use num_complex::Complex64 as C;
 use plant_sim::cutting::CuttingProfile;

@@ -2,7 +2,7 @@
 //! `.npy` headers, as NumPy does), the CSV the same rows; window and decimation keep the right
 //! ticks; bad selections and existing outputs are refused with a clear message.
 
-mod common;
+use crate::common;
 
 use common::{frames, tmp, write};
 use recorder::export::{export, Format, Selection};

@@ -2,7 +2,7 @@
 //! bytes flipped, with garbage inserted or a length field blown up, is read without a panic and
 //! in bounded time — frames recovered up to the damage, or a clear error naming the file.
 
-mod common;
+use crate::common;
 
 use common::{frames, tmp, write};
 use proptest::prelude::*;

@@ -3,7 +3,7 @@
 //! record without streaming the frames, the official reader sees the same attachment, and a
 //! file without a summary (a killed run) says so instead of guessing.
 
-mod common;
+use crate::common;
 
 use common::{end, frames, tmp};
 use recorder::{Input, RecordOptions, Recorder, Visit};

@@ -2,11 +2,11 @@
 //! same data bytes; files that end early or carry a corrupt byte are read as far as they are
 //! intact; an existing recording is never replaced unless asked.
 
+use crate::common;
 use recorder::{
     read, FileState, Frame, Overwrite, RecordError, RecordOptions, Recorder, DEFAULT_EPOCH_NS,
     OVERVIEW_PERIOD_NS,
 };
-mod common;
 
 use common::{end, frames, tmp, write};
 use std::collections::BTreeMap;

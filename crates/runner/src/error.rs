@@ -105,6 +105,13 @@ pub enum RunError {
     /// The stall the loop survives could not be predicted (the reason).
     #[error("the survivable stall is not predicted: {0}")]
     StallAnalysis(String),
+    /// The processes of a HIL run could not be started or supervised (what failed).
+    #[error("HIL processes: {0}")]
+    Processes(String),
+    /// A HIL process failed and the recorder gave no summary (the process said why on its
+    /// standard error).
+    #[error("servo {} exited with {}", .0.process, .0.code)]
+    ChildFailed(crate::hil::ChildFailure),
     /// The host stalls longer than the loop survives: a real-time run would fail.
     #[error("{0}")]
     HostTooSlow(Box<crate::stall::verdict::Refusal>),

@@ -4,11 +4,16 @@
 //! two compared: data channels by digest, metrics side by side.
 
 use crate::config::RunConfig;
+use crate::operator_log::OperatorLog;
 use crate::plan::{Plan, CONTROLLER_INPUT};
-use crate::recording::{FrameSink, RunHeader};
+use crate::recording::{inspect_with, FrameSink, RunHeader};
+use crate::run::{run_with, RunOptions};
+use crate::summary::Summary;
 use crate::RunError;
+use plant_sim::PlantParams;
 use recorder::Frame;
 use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
 
 /// Frames per digest block: a difference is located to within this many recorded frames.
 pub const DIGEST_BLOCK: u64 = 4096;
@@ -133,6 +138,120 @@ impl RunHeader {
             .filter(|i| same_controller_file || i.name != CONTROLLER_INPUT)
             .collect();
         Plan::with_inputs(&loaded, inputs)
+    }
+}
+
+/// A recording opened for a replay: what it holds, and the configuration the replay runs —
+/// the recorded one, unless changed through [`Replay::config_mut`] (a controller, a
+/// feedforward) or [`Replay::replace_plant`].
+pub struct Replay {
+    file: PathBuf,
+    header: RunHeader,
+    recorded_digest: FrameDigest,
+    recorded: Summary,
+    recorded_s: f64,
+    has_truth: bool,
+    steered_at: Option<u64>,
+    config: RunConfig,
+    plant_replaced: bool,
+}
+
+/// What a replay found: the data channels compared bit for bit (when every tick was
+/// recorded), the recorded and replayed metrics.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ReplayReport {
+    /// The configuration differs from the recorded one.
+    pub changed: bool,
+    /// Frames whose data channels were compared.
+    pub frames_compared: u64,
+    /// Every compared frame is identical, bit for bit (None: not compared, the recording
+    /// holds every n-th tick).
+    pub identical: Option<bool>,
+    /// The first frame of the first [`DIGEST_BLOCK`] that differs.
+    pub first_difference_frame: Option<u64>,
+    /// The tick of an operator's first change (`servo ctl load / gain`): frames from there on
+    /// are not compared, the replay runs the recorded configuration throughout.
+    pub compared_until_operator_tick: Option<u64>,
+    /// The recording's summary, recomputed from its frames.
+    pub recorded: Summary,
+    /// The replay's summary.
+    pub replayed: Summary,
+    /// The recording's decimation: every n-th tick recorded.
+    #[serde(skip)]
+    pub every: u32,
+    /// The replay's loop rate, Hz.
+    #[serde(skip)]
+    pub rate_hz: f64,
+}
+
+impl Replay {
+    /// Opens the recording at `file` for a replay: read whole and checked (with `salvage`, as
+    /// far as it is intact), its frames digested up to an operator's first change.
+    pub fn open(file: &Path, salvage: bool) -> Result<Replay, RunError> {
+        // A replay runs the configuration alone: an operator's first change (a controller
+        // swap, a gain change) ends the part it can reproduce.
+        let steered_at = OperatorLog::read(file)?.first_tick();
+        let mut rec = Recorded::new(steered_at.unwrap_or(u64::MAX));
+        let inspected = inspect_with(file, &mut rec)?.intact(file, salvage)?;
+        let (Some(header), Some(recorded_digest)) = (rec.header, rec.digest) else {
+            return Err(RunError::NotARun(file.to_owned()));
+        };
+        Ok(Replay {
+            file: file.to_owned(),
+            config: header.loaded.config.clone(),
+            header,
+            recorded_digest,
+            recorded: inspected.summary,
+            recorded_s: inspected.read.last_time_ns.map_or(0.0, |t| t as f64 * 1e-9),
+            has_truth: rec.has_truth,
+            steered_at,
+            plant_replaced: false,
+        })
+    }
+
+    /// The configuration the replay runs, to change its controller or feedforward.
+    pub fn config_mut(&mut self) -> &mut RunConfig {
+        &mut self.config
+    }
+
+    /// Replays on `plant` instead of the recorded stage (a recording of a DAQ daemon or a real
+    /// stage has no simulator truth to re-run: it replays only on a plant model).
+    pub fn replace_plant(&mut self, plant: PlantParams) {
+        self.config.plant = plant;
+        self.plant_replaced = true;
+    }
+
+    /// Runs the replay with `opts` (recording, stop, progress) and compares it with the
+    /// recording.
+    pub fn run(&self, opts: RunOptions<'_>) -> Result<ReplayReport, RunError> {
+        if !self.plant_replaced && !self.has_truth {
+            return Err(RunError::NoTruth(self.file.clone()));
+        }
+        let mut config = self.config.clone();
+        let changed = config != self.header.loaded.config;
+        // As long as the recording: a run stopped early (`servo ctl stop`, a signal) replays
+        // to where it stopped, not to its configured duration.
+        if self.recorded_s > 0.0 && self.recorded_s < config.run.duration_s {
+            config.run.duration_s = self.recorded_s;
+        }
+        let plan = self.header.replan(config)?;
+        let every = self.header.every.get();
+        let frames = self.recorded_digest.frames();
+        let mut digest = FrameDigest::new(frames);
+        let replayed = run_with(&plan, opts, |f| digest.add(f))?;
+        let difference =
+            (every == 1).then(|| self.recorded_digest.clone().first_difference(digest));
+        Ok(ReplayReport {
+            changed,
+            frames_compared: if difference.is_some() { frames } else { 0 },
+            identical: difference.map(|d| d.is_none()),
+            first_difference_frame: difference.flatten(),
+            compared_until_operator_tick: self.steered_at,
+            recorded: self.recorded.clone(),
+            replayed,
+            every,
+            rate_hz: plan.config.plant.timing.servo_rate_hz,
+        })
     }
 }
 

@@ -1,7 +1,7 @@
 //! Property tests: outputs stay within limits for arbitrary finite inputs; a non-finite input
 //! gives output 0 and a latched fault, cleared by `reset`.
 
-mod common;
+use crate::common;
 
 use common::*;
 use proptest::prelude::*;

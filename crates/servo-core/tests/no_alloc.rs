@@ -1,6 +1,6 @@
 //! A counting global allocator proves that 100 000 ticks of every block allocate nothing.
 
-mod common;
+use crate::common;
 
 use common::*;
 use densa_alloc::{is_active, measure, CountingAllocator};

@@ -1,6 +1,6 @@
 //! The error budget (frequency domain, eq 5-13..5-17) against long seeded time-domain runs.
 
-mod common;
+use crate::common;
 
 use common::plan;
 use runner::config::{Loaded, PidGains};

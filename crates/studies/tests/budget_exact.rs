@@ -6,7 +6,7 @@
 //! G, here the budget's own PSD — is below a third of the tolerance, so a 0.5 % disagreement is
 //! a model error, not chance; the seeds are fixed (the run's default seed).
 
-mod common;
+use crate::common;
 
 use common::plan;
 use runner::config::Loaded;

@@ -1,7 +1,7 @@
 //! Identification recovers the simulator's own Table 5-2 parameters (thesis §5.5.3) from an
 //! open-loop FRF measured on the running, noisy simulator by stepped sine, starting 20–40 % off.
 
-mod common;
+use crate::common;
 
 use common::plan;
 use num_complex::Complex64;

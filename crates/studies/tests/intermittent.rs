@@ -2,7 +2,7 @@
 //! PID gains and the default shaping filter Ha (first order, 300 Hz), Table 7-3's force; and
 //! the acceleration loop's stability on default settings.
 
-mod common;
+use crate::common;
 
 use common::plan;
 use runner::closed_loop::{input, output};

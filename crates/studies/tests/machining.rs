@@ -1,7 +1,7 @@
 //! Machining a sinusoidal grid (thesis §8.5.4, Table 8-5) in simulation: the machined
 //! amplitude against the closed loop's analytic response, and what feedforward does to it.
 
-mod common;
+use crate::common;
 
 use common::{machine, plan};
 use runner::closed_loop::{input, output};

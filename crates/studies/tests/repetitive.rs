@@ -3,7 +3,7 @@
 //! check predicts, the learned table returned, and a learning law that would diverge on the
 //! loop refused before the run.
 
-mod common;
+use crate::common;
 
 use common::{machine, plan};
 use runner::config::{FeedforwardKind, Loaded, Machining, RepetitiveSection, Scenario};

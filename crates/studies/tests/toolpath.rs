@@ -3,7 +3,7 @@
 //! cutting force), and the predicted error map written as a sag grid, read back as the
 //! prescription's `[compensation]`, removing most of the error of the next cut.
 
-mod common;
+use crate::common;
 
 use common::machine;
 use runner::config::{Loaded, Machining, Origin, RunConfig, RunSection, Scenario, SurfaceConfig};

@@ -3,7 +3,7 @@
 //! the budget, and with the thesis PID's own robustness the optimiser finds at least its
 //! integral gain (Chapter 7, §7.5.3: Kp 1.65, Ki 562 s⁻¹, Kd 9.5e-4 s).
 
-mod common;
+use crate::common;
 
 use common::plan;
 use runner::config::Loaded;

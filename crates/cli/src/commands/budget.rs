@@ -57,7 +57,7 @@ impl BudgetCmd {
     /// Computes, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let mut l = self.plant.load()?;
-        self.controller.apply(&mut l);
+        self.controller.apply(&mut l.config.controller);
         crate::args::set(&mut l.config.run.seed, self.seed);
         let plan = Plan::new(&l)?;
         let a = studies::budget::analyse(&plan, self.points)?;

@@ -66,7 +66,7 @@ impl FrfCmd {
     /// Measures, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let mut l = self.plant.load()?;
-        self.controller.apply(&mut l);
+        self.controller.apply(&mut l.config.controller);
         crate::args::set(&mut l.config.run.seed, self.seed);
         let plan = Plan::new(&l)?;
         let (pts, measured_on) = match &self.prefix {

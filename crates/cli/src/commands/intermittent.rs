@@ -65,7 +65,7 @@ impl IntermittentCmd {
             l.config.run.duration_s = DEFAULT_DURATION_S;
         }
         self.length.apply(&mut l);
-        self.accel.apply(&mut l);
+        self.accel.apply(&mut l.config.controller);
         let given = ScenarioValues {
             force_n: self.force,
             spindle_rpm: self.rpm,

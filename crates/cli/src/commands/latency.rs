@@ -5,10 +5,8 @@
 use crate::args::RtPolicy;
 use crate::output::{print_json, tick_bar, CliError};
 use clap::Args;
-use daq_io::qualify::{measure, readiness, Check, WallClock};
 use runner::config::{Loaded, Origin, RealtimeConfig, Role, WaitKind};
-use runner::stall::{advice, check_host, survivable, HostStalls, Survivable};
-use runner::{Plan, RunError};
+use runner::stall::{advice, Measurement, Qualification};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -61,64 +59,11 @@ pub struct LatencyCmd {
     quiet: bool,
 }
 
-/// What `servo latency` found.
-#[derive(Debug, serde::Serialize)]
-struct Report {
-    /// This host's name (a qualification holds for the host it was measured on).
-    host: String,
-    /// When it was measured (RFC 3339).
-    measured_at: String,
-    rate_hz: f64,
-    period_ns: u64,
-    ticks: u64,
-    wait: String,
-    /// The policy, priority and CPUs as the kernel reports them after applying the settings.
-    policy: String,
-    priority: Option<i32>,
-    cpus: Vec<usize>,
-    lock_memory: bool,
-    lateness_ns: Percentiles,
-    overruns: u64,
-    overrun_rate: f64,
-    /// A controller-loss timeout no stall of this run reached (4 × the worst lateness, at
-    /// least 1 ms) and within what the stage survives (then at least twice the worst stall),
-    /// in ms; None when no timeout is both.
-    recommended_peer_timeout_ms: Option<f64>,
-    /// An overrun budget this host keeps: burst 2 × the worst stall (at least 2 ms), in ms …
-    recommended_overrun_burst_ms: u64,
-    /// … and sustained rate 2 × the measured overrun rate (at least 1 %).
-    recommended_overrun_rate: f64,
-    /// The longest stall this host made (its worst start lateness), as a run checks it.
-    host_stalls: HostStalls,
-    /// The loop judged.
-    #[serde(rename = "loop")]
-    judged: String,
-    /// The longest stall that loop survives (None: not predicted, see `survivable_note`).
-    survivable: Option<Survivable>,
-    /// The longest stall the loop survives, s.
-    survivable_stall_s: Option<f64>,
-    /// Why the survivable stall was not predicted, or what limits it.
-    survivable_note: String,
-    /// The host's worst stall is within what the loop survives.
-    holds: Option<bool>,
-    readiness: Vec<Check>,
-}
-
-#[derive(Debug, serde::Serialize)]
-struct Percentiles {
-    min: u64,
-    p50: u64,
-    p99: u64,
-    p999: u64,
-    p9999: u64,
-    max: u64,
-}
-
 impl LatencyCmd {
     /// Measures and reports.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let at = Origin::default();
-        let mut judged = match &self.config {
+        let judged = match &self.config {
             Some(p) => Loaded::from_file(p)?,
             None => Loaded::default(),
         };
@@ -136,7 +81,6 @@ impl LatencyCmd {
             };
             return Err(e.into());
         }
-        judged.config.plant.timing.servo_rate_hz = rate_hz;
         if !(self.duration > 0.0 && self.duration <= 600.0) {
             return Err(at.invalid("--duration", self.duration, "(0, 600] s").into());
         }
@@ -159,7 +103,7 @@ impl LatencyCmd {
                 .into());
         }
         // The loop measured is the plant's: its settings as a run would apply them.
-        let rt = RealtimeConfig {
+        let realtime = RealtimeConfig {
             policy,
             priority: self.rt_priority,
             plant_cpu: self.cpu,
@@ -168,80 +112,18 @@ impl LatencyCmd {
             spin_margin_s: self.spin_margin_us * 1e-6,
             ..RealtimeConfig::default()
         };
-        daq_io::realtime::apply(&rt.settings(Role::Plant))
-            .map_err(|e| CliError::Processes(e.to_string()))?;
-        let applied = daq_io::realtime::current();
-        let wait = rt.wait();
-        let period_ns = (1e9 / rate_hz).round() as u64;
-        let ticks = (self.duration * rate_hz).round() as u64;
+        let measurement = Measurement {
+            rate_hz,
+            duration_s: self.duration,
+            realtime,
+            role: Role::Plant,
+        };
         let bar = tick_bar(self.quiet || self.json, "measuring");
-        bar.set_length(ticks);
-        // In slices of 0.1 s on one clock, so the bar moves between them.
-        let slice = ((0.1 * rate_hz) as u64).max(1);
-        let mut clock = WallClock::new(wait);
-        let mut lateness = daq_io::LatencyHistogram::new();
-        let mut overruns = 0;
-        let mut done = 0;
-        while done < ticks {
-            let n = slice.min(ticks - done);
-            let run = measure(&mut clock, period_ns, done..done + n);
-            lateness.merge(&run.lateness);
-            overruns += run.overruns;
-            done += n;
+        let report = Qualification::measure(&judged, &measurement, &mut |done, total| {
+            bar.set_length(total);
             bar.set_position(done);
-        }
+        })?;
         bar.finish_and_clear();
-        let l = lateness.summary();
-        let cpus = daq_io::realtime::current_cpus();
-        let host_stalls = HostStalls {
-            worst_s: l.max_ns as f64 * 1e-9,
-            measured_s: self.duration,
-            rate_hz,
-            source: format!(
-                "servo latency, {} s at {:.1} kHz on {}, CPUs {}, SCHED_{}",
-                self.duration,
-                rate_hz / 1e3,
-                runner::recording::host_name(),
-                daq_io::realtime::list(&cpus),
-                applied.0.name().to_uppercase()
-            ),
-        };
-        let (description, survivable, note) = judge(&judged);
-        let physics_s = survivable.and_then(|s| s.physics_s());
-        let recommended_peer_timeout_ms = recommended_timeout_ms(l.max_ns, physics_s);
-        let report = Report {
-            host: runner::recording::host_name(),
-            measured_at: humantime::format_rfc3339_seconds(std::time::SystemTime::now())
-                .to_string(),
-            rate_hz,
-            period_ns,
-            ticks,
-            wait: wait.describe(),
-            policy: applied.0.name().into(),
-            priority: applied.0.is_realtime().then_some(applied.1),
-            cpus,
-            lock_memory: self.lock_memory,
-            lateness_ns: Percentiles {
-                min: l.min_ns,
-                p50: l.p50_ns,
-                p99: l.p99_ns,
-                p999: l.p999_ns,
-                p9999: lateness.quantile(0.9999),
-                max: l.max_ns,
-            },
-            overruns,
-            overrun_rate: overruns as f64 / ticks as f64,
-            recommended_peer_timeout_ms,
-            recommended_overrun_burst_ms: (2 * l.max_ns).div_ceil(1_000_000).max(2),
-            recommended_overrun_rate: (2.0 * overruns as f64 / ticks as f64).max(0.01),
-            holds: survivable.map(|s| check_host(&s, &host_stalls).is_ok()),
-            survivable_stall_s: survivable.map(|s| s.stall_s()),
-            host_stalls,
-            judged: description,
-            survivable,
-            survivable_note: note,
-            readiness: readiness(),
-        };
         if self.json {
             print_json(&report);
         } else {
@@ -251,7 +133,7 @@ impl LatencyCmd {
     }
 }
 
-fn print_report(r: &Report) {
+fn print_report(r: &Qualification) {
     let us = |ns: u64| ns as f64 * 1e-3;
     let l = &r.lateness_ns;
     println!(
@@ -306,51 +188,8 @@ fn print_report(r: &Report) {
     }
 }
 
-/// The loop of `judged`, the stall it survives (with its own `realtime.peer_timeout_s`), and a
-/// note: what limits it, or why it was not predicted.
-fn judge(judged: &Loaded) -> (String, Option<Survivable>, String) {
-    let c = &judged.config;
-    let what = |controller: &str| {
-        format!(
-            "{controller}, {}, {:.1} kHz",
-            c.scenario.name(),
-            c.plant.timing.servo_rate_hz / 1e3
-        )
-    };
-    let plan = match Plan::new(judged) {
-        Ok(p) => p,
-        Err(e) => return (what("its controller"), None, format!("not predicted: {e}")),
-    };
-    let description = what(&plan.controller.description);
-    match survivable(&plan, c.realtime.peer_timeout_s) {
-        Ok(s) => {
-            let note = s.limit().describe().to_owned();
-            (description, Some(s), note)
-        }
-        Err(RunError::StallAnalysis(why)) => (description, None, format!("not predicted: {why}")),
-        Err(e) => (description, None, format!("not predicted: {e}")),
-    }
-}
-
-/// 4 × the worst stall `worst_ns` (at least 1 ms), in ms — unless the stage survives less
-/// (`physics_s`): then the longest it survives, if that is still [`STALL_MARGIN`] × the worst
-/// stall; None when no timeout is both.
-///
-/// [`STALL_MARGIN`]: runner::stall::STALL_MARGIN
-fn recommended_timeout_ms(worst_ns: u64, physics_s: Option<f64>) -> Option<f64> {
-    let wanted = (4 * worst_ns).div_ceil(1_000_000).max(1) as f64;
-    match physics_s {
-        Some(p) if wanted * 1e-3 > p => {
-            // The longest the stage survives, to 0.1 ms below.
-            let ms = (p * 1e4).floor() / 10.0;
-            (ms * 1e6 >= runner::stall::STALL_MARGIN * worst_ns as f64).then_some(ms)
-        }
-        _ => Some(wanted),
-    }
-}
-
 /// The survivable stall beside the host's, and what to change when the host's is longer.
-fn print_survivable(r: &Report) {
+fn print_survivable(r: &Qualification) {
     let worst_us = r.host_stalls.worst_s * 1e6;
     let Some(s) = &r.survivable else {
         println!(

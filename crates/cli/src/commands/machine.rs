@@ -80,8 +80,8 @@ impl MachineCmd {
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let mut l = self.plant.load()?;
         self.length.apply(&mut l);
-        self.controller.apply(&mut l);
-        self.feedforward.apply(&mut l);
+        self.controller.apply(&mut l.config.controller);
+        self.feedforward.apply(&mut l.config.controller);
         let mut m = match &l.config.scenario {
             Scenario::Machine(m) => m.clone(),
             _ => Machining::default(),

@@ -8,10 +8,8 @@ use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, CliError};
 use clap::Args;
 use runner::config::read_plant_file;
-use runner::replay::{FrameDigest, Recorded};
-use runner::run::run_with;
+use runner::replay::{Replay, ReplayReport};
 use runner::summary::Summary;
-use runner::RunError;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -51,88 +49,40 @@ pub struct ReplayCmd {
 }
 
 /// A replay's result.
-#[derive(serde::Serialize)]
-struct Report<'a> {
-    /// Whether the configuration was changed from the recorded one.
-    changed: bool,
-    /// Frames compared bit for bit (0 when not compared).
-    frames_compared: u64,
-    /// Identical data channels (`None`: not compared — decimated recording).
-    identical: Option<bool>,
-    /// The first recorded frame that may differ.
-    first_difference_frame: Option<u64>,
-    /// The tick an operator first changed the recorded run (`servo ctl load`, `servo ctl
-    /// gain`): the replay runs the recorded configuration throughout, so frames from it on are
-    /// not compared.
-    compared_until_operator_tick: Option<u64>,
-    recorded: &'a Summary,
-    replayed: &'a Summary,
-}
-
 impl ReplayCmd {
     /// Reads, re-runs, compares and prints; the exit code says how the replay ended.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        // A replay runs the configuration alone: an operator's first change (a controller
-        // swap, a gain change) ends the part it can reproduce.
-        let steered_at = runner::operator_log::OperatorLog::read(&self.file)?.first_tick();
-        let mut rec = Recorded::new(steered_at.unwrap_or(u64::MAX));
-        let inspected = runner::recording::inspect_with(&self.file, &mut rec)?
-            .intact(&self.file, self.salvage)?;
-        let (Some(header), Some(recorded_digest)) = (rec.header, rec.digest) else {
-            return Err(RunError::NotARun(self.file.clone()).into());
-        };
-        let mut loaded = header.loaded.clone();
+        let mut replay = Replay::open(&self.file, self.salvage)?;
         if let Some(p) = &self.controller_from {
-            loaded.config.controller = crate::args::controller_from(p)?;
+            replay.config_mut().controller = crate::args::controller_from(p)?;
         }
-        self.controller.apply(&mut loaded);
-        self.feedforward.apply(&mut loaded);
+        self.controller.apply(&mut replay.config_mut().controller);
+        self.feedforward.apply(&mut replay.config_mut().controller);
         if let Some(p) = &self.plant {
-            loaded.config.plant = read_plant_file(p)?;
-        } else if !rec.has_truth {
-            return Err(RunError::NoTruth(self.file.clone()).into());
+            replay.replace_plant(read_plant_file(p)?);
         }
-        let changed = loaded.config != header.loaded.config;
-        // As long as the recording: a run stopped early (`servo ctl stop`, a signal) replays
-        // to where it stopped, not to its configured duration.
-        let recorded_s = inspected.read.last_time_ns.map_or(0.0, |t| t as f64 * 1e-9);
-        if recorded_s > 0.0 && recorded_s < loaded.config.run.duration_s {
-            loaded.config.run.duration_s = recorded_s;
-        }
-        let plan = header.replan(loaded.config)?;
-        let every = header.every.get();
-        let mut digest = FrameDigest::new(recorded_digest.frames());
         let stop = stop_on_signals();
         let out = self.recording.out(DEFAULT_REPLAY.as_ref());
-        let replayed = with_progress(&self.recording, out.clone(), &stop, "replaying", |opts| {
-            run_with(&plan, opts, |f| digest.add(f))
+        let report = with_progress(&self.recording, out.clone(), &stop, "replaying", |opts| {
+            replay.run(opts)
         })?;
-        let compared = (every == 1).then(|| {
-            let frames = recorded_digest.frames();
-            (frames, recorded_digest.first_difference(digest))
-        });
-        let report = Report {
-            changed,
-            frames_compared: compared.map_or(0, |(n, _)| n),
-            identical: compared.map(|(_, d)| d.is_none()),
-            first_difference_frame: compared.and_then(|(_, d)| d),
-            compared_until_operator_tick: steered_at,
-            recorded: &inspected.summary,
-            replayed: &replayed,
-        };
         if self.recording.json {
             print_json(&report);
         } else {
-            print_report(&report, every, plan.config.plant.timing.servo_rate_hz);
+            print_report(&report);
             if let Some(o) = &out {
                 println!("  wrote {}", o.path.display());
             }
         }
-        Ok(crate::interrupt::exit_code(&stop, replayed.trip.is_some()))
+        Ok(crate::interrupt::exit_code(
+            &stop,
+            report.replayed.trip.is_some(),
+        ))
     }
 }
 
-fn print_report(r: &Report, every: u32, rate_hz: f64) {
+fn print_report(r: &ReplayReport) {
+    let (every, rate_hz) = (r.every, r.rate_hz);
     println!(
         "Replay ({}): {}",
         if r.changed { "changed" } else { "as recorded" },
@@ -188,7 +138,7 @@ fn print_report(r: &Report, every: u32, rate_hz: f64) {
             b * k
         );
     };
-    let (a, b) = (r.recorded, r.replayed);
+    let (a, b) = (&r.recorded, &r.replayed);
     row(
         "following error RMS",
         a.following_error_m.rms,

@@ -58,7 +58,7 @@ impl Run {
         let rec = &self.recording;
         let out = rec.out(DEFAULT_RECORDING.as_ref());
         let (summary, code) = if self.hil {
-            let host = super::run_hil::HostCheck {
+            let host = runner::stall::HostCheck {
                 qualification: self.qualification.clone(),
                 force: self.run.controller.force,
             };

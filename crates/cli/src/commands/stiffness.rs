@@ -39,7 +39,7 @@ impl StiffnessCmd {
     /// Computes, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let mut l = self.plant.load()?;
-        self.accel.apply(&mut l);
+        self.accel.apply(&mut l.config.controller);
         let plan = Plan::new(&l)?;
         let kg = plan.config.controller.kg_scaling;
         let freqs = lti::spectral::log_space(10.0, self.to, 200);

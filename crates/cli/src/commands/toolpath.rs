@@ -54,8 +54,8 @@ impl ToolpathCmd {
     /// Plans, checks, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let mut l = self.plant.load()?;
-        self.controller.apply(&mut l);
-        self.feedforward.apply(&mut l);
+        self.controller.apply(&mut l.config.controller);
+        self.feedforward.apply(&mut l.config.controller);
         if let Scenario::Machine(m) = &mut l.config.scenario {
             crate::args::set(&mut m.spindle_rpm, self.rpm);
         }

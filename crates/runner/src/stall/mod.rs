@@ -45,7 +45,9 @@ use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use servo_runtime::TripCause;
 
+mod qualification;
 pub(crate) mod verdict;
+pub use qualification::{preflight, HostCheck, Measurement, Percentiles, Qualification, QUALIFY_S};
 pub use verdict::{advice, HostStalls, Limit, Refusal, Survivable, MAX_STALL_S, STALL_MARGIN};
 
 /// Phases of a sine reference at which a stall is tried (10° apart).

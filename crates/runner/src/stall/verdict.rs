@@ -8,7 +8,7 @@ pub const MAX_STALL_S: f64 = 0.1;
 pub const STALL_MARGIN: f64 = 2.0;
 
 /// What limits a stall.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Limit {
     /// `protection.following_error_m`.
@@ -39,7 +39,7 @@ impl Limit {
 }
 
 /// The stall a loop survives.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Survivable {
     /// The longest stall after which the stage stays within the limits, in ticks (None:
     /// longer than [`MAX_STALL_S`]).

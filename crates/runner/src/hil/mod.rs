@@ -28,6 +28,13 @@ use servo_runtime::{TripCause, SERVICE_TICKS};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
+mod supervise;
+pub use supervise::{supervise, ChildFailure, Supervised, Supervision};
+
+/// Environment variable naming the `servo run --hil` process that started this one (a HIL
+/// child follows its parent: it ends when the parent does).
+pub const PARENT_ENV: &str = "FTS_SERVO_PARENT";
+
 /// Load requests the recorder remembers while waiting for their acknowledgement.
 const MAX_PENDING_LOADS: usize = 16;
 
