@@ -111,7 +111,7 @@ pub enum RunError {
     /// A HIL process failed and the recorder gave no summary (the process said why on its
     /// standard error).
     #[error("servo {} exited with {}", .0.process, .0.code)]
-    ChildFailed(crate::hil::ChildFailure),
+    ChildFailed(ChildFailure),
     /// The host stalls longer than the loop survives: a real-time run would fail.
     #[error("{0}")]
     HostTooSlow(Box<crate::stall::verdict::Refusal>),
@@ -124,4 +124,13 @@ fn readable(radius: f64) -> String {
     } else {
         format!("{radius:.3e}")
     }
+}
+
+/// A child process that failed: it said why on its standard error.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ChildFailure {
+    /// Which process: `plant`, `controller` or `record`.
+    pub process: String,
+    /// Its exit code (-1: ended by a signal it did not handle).
+    pub code: i32,
 }

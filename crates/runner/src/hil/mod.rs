@@ -29,7 +29,8 @@ use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 mod supervise;
-pub use supervise::{supervise, ChildFailure, Supervised, Supervision};
+pub use crate::error::ChildFailure;
+pub use supervise::{supervise, Supervised, Supervision};
 
 /// Environment variable naming the `servo run --hil` process that started this one (a HIL
 /// child follows its parent: it ends when the parent does).

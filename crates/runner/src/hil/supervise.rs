@@ -4,7 +4,7 @@
 
 use super::PARENT_ENV;
 use crate::config::{Role, Scenario};
-use crate::error::RunError;
+use crate::error::{ChildFailure, RunError};
 use crate::plan::Plan;
 use crate::recording::Target;
 use crate::stop::{EndReason, StopRequest};
@@ -32,15 +32,6 @@ pub struct Supervision {
     pub peer_timeout_ms: Option<f64>,
     /// Where the recorder writes (None: no recording, the summary only).
     pub out: Option<Target>,
-}
-
-/// A child process that failed: it said why on its standard error.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ChildFailure {
-    /// Which process: `plant`, `controller` or `record`.
-    pub process: String,
-    /// Its exit code (-1: ended by a signal it did not handle).
-    pub code: i32,
 }
 
 /// How a HIL run ended: the recorder's summary, and the first process that failed.
