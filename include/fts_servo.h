@@ -32,6 +32,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include "fts_servo_contract.h"
+/* The ABI this header was written for: pass &abi with `fts_servo_abi abi = FTS_SERVO_ABI_INIT;`. */
+#define FTS_SERVO_ABI_INIT {FTS_SERVO_ABI_VERSION, sizeof(fts_Sensor), sizeof(fts_Command), sizeof(fts_Telemetry), sizeof(fts_servo_state), 0}
 
 // The version of this C ABI: the functions and the structs of `fts_servo.h` (the sample
 // structs carry their own, `FTS_SERVO_CONTRACT_VERSION`).
@@ -72,6 +74,14 @@
 
 // An open loop (opaque to C).
 typedef struct fts_servo fts_servo;
+
+// The check a loop's controller files pass, taken from its handle (opaque to C): used on any
+// thread while the loop ticks.
+typedef struct fts_servo_loader fts_servo_loader;
+
+// A controller checked and built for a loop, waiting to be swapped in (opaque to C); after
+// the swap it holds the controller it replaced.
+typedef struct fts_servo_prepared fts_servo_prepared;
 
 // What the caller was compiled against, checked by `fts_servo_open`: pass
 // `FTS_SERVO_ABI_INIT`.
@@ -198,16 +208,6 @@ int32_t fts_servo_set_gain(fts_servo *h, double scale);
 // `h` is a live handle used by this thread alone.
 int32_t fts_servo_reset(fts_servo *h);
 
-// Loads the controller file `file[0..len]` (UTF-8 TOML: a `[controller]` table or a
-// state-space file) into the running loop, handed over bumplessly at the next tick — taken
-// only when made for the loop's plant and rate and carrying its offline stability check whose
-// range allows the scale in force. Parses and allocates: not from the real-time thread while
-// it ticks (between ticks, on the thread that ticks, is fine).
-//
-// # Safety
-// `h` is a live handle used by this thread alone; `file` points to `len` readable bytes.
-int32_t fts_servo_load(fts_servo *h, const uint8_t *file, size_t len);
-
 // Serves the loop on run `prefix`: telemetry, health and the control plane over iceoryx2 from
 // a thread of its own (`servo record`, `servo ctl`, `servo view` and Python taps work against
 // it). Call before the first tick.
@@ -237,11 +237,66 @@ const char *fts_servo_last_error(const fts_servo *h);
 // `h` is null or a live handle, not used again.
 void fts_servo_close(fts_servo *h);
 
+// Loads the controller file `file[0..len]` (UTF-8 TOML: a `[controller]` table or a
+// state-space file) into the running loop, handed over bumplessly at the next tick — taken
+// only when made for the loop's plant and rate and carrying its offline stability check whose
+// range allows the scale in force. Parses and allocates: not from the real-time thread while
+// it ticks (between ticks, on the thread that ticks, is fine; or use `fts_servo_prepare` on
+// another thread and `fts_servo_swap` here).
+//
+// # Safety
+// `h` is a live handle used by this thread alone; `file` points to `len` readable bytes.
+int32_t fts_servo_load(fts_servo *h, const uint8_t *file, size_t len);
+
+// The check the loop's controller files pass, as `*out` (free it with
+// `fts_servo_loader_free`): a copy of the rule, independent of the handle, used on any
+// thread — one thread at a time — while the loop ticks. Allocates: call it between ticks.
+//
+// # Safety
+// `h` is a live handle used by this thread alone; `out` points to a writable pointer.
+int32_t fts_servo_loader(fts_servo *h, fts_servo_loader **out);
+
+// Checks and builds the controller file `file[0..len]` with `loader`'s rule (as
+// `fts_servo_load` does) on the calling thread — any thread — into `*out` (swap it in with
+// `fts_servo_swap`, free it with `fts_servo_prepared_free`). On failure `*out` is NULL, the
+// code is `fts_servo_load`'s and the message is copied into `error[0..error_len]` (which may
+// be NULL).
+//
+// # Safety
+// `loader` is a live loader used by this thread alone; `file` points to `len` readable bytes;
+// `out` points to a writable pointer; `error` is NULL or points to `error_len` writable bytes.
+int32_t fts_servo_prepare(const fts_servo_loader *loader,
+                          const uint8_t *file,
+                          size_t len,
+                          fts_servo_prepared **out,
+                          char *error,
+                          size_t error_len);
+
+// Hands the loop to the prepared controller at the next tick, bumplessly. On the ticking
+// thread between ticks: no allocation, parse, lock or free — the controller it replaces moves
+// into `p` (free `p` off the ticking thread). `FTS_SERVO_ERR_MARGIN` when the output scale in
+// force lies outside the prepared loop's stable range, `FTS_SERVO_ERR_STATE` when `p` was
+// swapped in already or prepared by another loop's loader (the message on the handle).
+//
+// # Safety
+// `h` is a live handle used by this thread alone; `p` is a live prepared controller used by
+// this thread alone now.
+int32_t fts_servo_swap(fts_servo *h, fts_servo_prepared *p);
+
+// Frees a prepared controller (and the controller a swap moved into it); NULL is ignored.
+//
+// # Safety
+// `p` is null or a live prepared controller, not used again.
+void fts_servo_prepared_free(fts_servo_prepared *p);
+
+// Frees a loader; NULL is ignored.
+//
+// # Safety
+// `l` is null or a live loader, not used again.
+void fts_servo_loader_free(fts_servo_loader *l);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus
 
 #endif  /* FTS_SERVO_H */
-
-/* The ABI this header was written for: pass &abi with `fts_servo_abi abi = FTS_SERVO_ABI_INIT;`. */
-#define FTS_SERVO_ABI_INIT {FTS_SERVO_ABI_VERSION, sizeof(fts_Sensor), sizeof(fts_Command), sizeof(fts_Telemetry), sizeof(fts_servo_state), 0}

@@ -179,19 +179,53 @@ int main(int argc, char **argv) {
     EXPECT(fts_servo_get_state(h, &state) == FTS_SERVO_OK && state.handovers == 1 && state.gain_scale == 0.8,
            "state after the load");
 
+    /* In two halves: checked and built by a loader (on any thread), swapped in between ticks
+     * without allocating; the replaced controller leaves in the prepared handle. */
+    fts_servo_loader *loader = NULL;
+    fts_servo_prepared *prepared = NULL, *refused = NULL;
+    EXPECT(fts_servo_loader(h, &loader) == FTS_SERVO_OK && loader != NULL, "loader");
+    EXPECT(fts_servo_prepare(loader, (const uint8_t *)"not toml [", 10, &refused, error, sizeof error) ==
+                   FTS_SERVO_ERR_CONFIG &&
+               refused == NULL,
+           "prepare: not TOML");
+    size_t heavy_len;
+    char *heavy = slurp(dir, "heavy.toml", &heavy_len);
+    EXPECT(fts_servo_prepare(loader, (const uint8_t *)heavy, heavy_len, &refused, error, sizeof error) ==
+                   FTS_SERVO_ERR_PROVENANCE,
+           "prepare: another stage: %s", error);
+    EXPECT(strstr(error, "stage heavy"), "message: %s", error);
+    free(heavy);
+    size_t again_len;
+    char *again = slurp(dir, "pid.toml", &again_len);
+    EXPECT(fts_servo_prepare(loader, (const uint8_t *)again, again_len, &prepared, error, sizeof error) ==
+               FTS_SERVO_OK,
+           "prepare: %s", error);
+    free(again);
+    fts_servo_loader_free(loader);
+    EXPECT(fts_servo_swap(h, prepared) == FTS_SERVO_OK, "swap: %s", fts_servo_last_error(h));
+    EXPECT(fts_servo_swap(h, prepared) == FTS_SERVO_ERR_STATE, "a second swap of the same");
+    EXPECT(strstr(fts_servo_last_error(h), "swapped in already"), "message: %s", fts_servo_last_error(h));
+    for (uint64_t k = 200; k < 210; k++) {
+        s.seq = k;
+        fts_servo_tick(h, &s, &c);
+    }
+    fts_servo_prepared_free(prepared);
+    EXPECT(fts_servo_get_state(h, &state) == FTS_SERVO_OK && state.handovers == 2, "state after the swap");
+    EXPECT(fts_servo_swap(h, NULL) == FTS_SERVO_ERR_NULL, "swap of null");
+
     /* A NaN reading trips; the safe state (0 V) holds, tick after tick, until reset. */
-    s.seq = 200;
+    s.seq = 210;
     s.gap_v = NAN;
     EXPECT(fts_servo_tick(h, &s, &c) == FTS_SERVO_TRIPPED && c.dac_v == 0.0, "NaN trips");
     EXPECT(strstr(fts_servo_last_error(h), "non-finite"), "message: %s", fts_servo_last_error(h));
     s.gap_v = 0.0;
-    for (uint64_t k = 201; k < 300; k++) {
+    for (uint64_t k = 211; k < 300; k++) {
         s.seq = k;
         EXPECT(fts_servo_tick(h, &s, &c) == FTS_SERVO_TRIPPED && c.dac_v == 0.0 && (c.flags & FTS_FLAG_TRIPPED),
                "safe state at %llu", (unsigned long long)k);
     }
     EXPECT(fts_servo_get_state(h, &state) == FTS_SERVO_OK && state.trip_cause == FTS_FLAG_TRIP_NOT_FINITE &&
-               state.trip_tick == 200,
+               state.trip_tick == 210,
            "trip in the state");
     EXPECT(fts_servo_reset(h) == FTS_SERVO_OK, "reset");
     s.seq = 300;

@@ -1,9 +1,9 @@
 /*
  * After fts_servo_open, ticking allocates nothing: malloc and its relatives are interposed
  * here (glibc's __libc_* underneath) and counted through 200 000 timed ticks of the
- * deployment.
+ * deployment — with CONTROLLER, prepared before and swapped in halfway (fts_servo_swap).
  *
- *   test_alloc DEPLOYMENT
+ *   test_alloc DEPLOYMENT [CONTROLLER]
  */
 #define _GNU_SOURCE
 #include <fts_servo.h>
@@ -47,7 +47,7 @@ void *aligned_alloc(size_t align, size_t n) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 2) return 2;
+    if (argc != 2 && argc != 3) return 2;
     char error[1024];
     fts_servo_abi abi = FTS_SERVO_ABI_INIT;
     fts_servo *h = NULL;
@@ -55,11 +55,28 @@ int main(int argc, char **argv) {
         fprintf(stderr, "error: %s\n", error);
         return 2;
     }
+    /* With a controller file: prepared before counting, swapped in halfway through. */
+    fts_servo_prepared *prepared = NULL;
+    if (argc == 3) {
+        FILE *f = fopen(argv[2], "rb");
+        static uint8_t file[65536];
+        size_t len = f ? fread(file, 1, sizeof file, f) : 0;
+        if (f) fclose(f);
+        fts_servo_loader *loader = NULL;
+        if (fts_servo_loader(h, &loader) != FTS_SERVO_OK ||
+            fts_servo_prepare(loader, file, len, &prepared, error, sizeof error) != FTS_SERVO_OK) {
+            fprintf(stderr, "error: %s\n", error);
+            return 2;
+        }
+        fts_servo_loader_free(loader);
+    }
+    int swapped = prepared == NULL;
     fts_Sensor s = {0};
     fts_Command c;
     struct timespec now;
     counting = 1;
     for (unsigned long k = 0; k < 200000; k++) {
+        if (k == 100000 && prepared) swapped = fts_servo_swap(h, prepared) == FTS_SERVO_OK;
         clock_gettime(CLOCK_MONOTONIC, &now);
         s.seq = k;
         s.gap_v = 1e-3 * (double)((long)(k % 7) - 3);
@@ -67,7 +84,8 @@ int main(int argc, char **argv) {
         fts_servo_tick(h, &s, &c);
     }
     counting = 0;
+    fts_servo_prepared_free(prepared);
     fts_servo_close(h);
-    printf("%lu heap calls in 200000 ticks\n", calls);
-    return calls == 0 ? 0 : 1;
+    printf("%lu heap calls in 200000 ticks%s\n", calls, argc == 3 ? " and a controller swapped in" : "");
+    return calls == 0 && swapped ? 0 : 1;
 }

@@ -38,6 +38,7 @@ __all__ = [
     "run",
     "run_hil",
     "qualify_host",
+    "control",
     "replay",
     "read_recording",
     "models",
@@ -211,6 +212,22 @@ def qualify_host(
     is what ``servo run --hil --realtime --qualification`` reads."""
     config, overrides = _args(config, tables)
     return json.loads(_native.qualify_host(config, overrides, rate_hz, duration_s))
+
+
+def control(
+    prefix: str,
+    request: str,
+    value: Optional[float] = None,
+    file: Union[None, str, "os.PathLike[str]"] = None,
+    timeout_s: float = 5.0,
+) -> str:
+    """Steers the HIL run on ``prefix`` as ``servo ctl`` does: ``"start"``, ``"stop"``,
+    ``"gain"`` with ``value`` (a scale the controller applies only when the loop keeps its
+    6 dB gain margin) or ``"load"`` with ``file`` (a controller file, checked against the
+    running loop). Returns what the run did; a refusal, no run on the prefix or no answer
+    within ``timeout_s`` raises :class:`ServoError` saying which."""
+    path = None if file is None else os.fspath(file)
+    return _native.control(prefix, request, value, path, timeout_s)
 
 
 def replay(

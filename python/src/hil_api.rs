@@ -79,3 +79,61 @@ pub fn qualify_host(
     let q = py.detach(|| Qualification::measure(&loaded, &m, &mut |_, _| {}).map_err(servo_err))?;
     serde_json::to_string(&q).map_err(servo_err)
 }
+
+/// Sends one control-plane request to the run on `prefix` — `"start"`, `"stop"`, `"gain"`
+/// (with `value`, a dimensionless scale) or `"load"` (with `file`, a controller file) — and
+/// returns what the run did in the words `servo ctl` prints; a refusal raises ServoError.
+#[pyfunction]
+#[pyo3(signature = (prefix, request, value=None, file=None, timeout_s=5.0))]
+pub fn control(
+    py: Python<'_>,
+    prefix: String,
+    request: &str,
+    value: Option<f64>,
+    file: Option<PathBuf>,
+    timeout_s: f64,
+) -> PyResult<String> {
+    use daq_io::control_client::{
+        gain_outcome, load_outcome, plant_outcome, request as ask, Request,
+    };
+    if !(timeout_s > 0.0 && timeout_s <= 60.0) {
+        return Err(servo_err(format!(
+            "timeout_s = {timeout_s}: allowed (0, 60] s"
+        )));
+    }
+    let r = match (request, value, &file) {
+        ("start", None, None) => Request::Start,
+        ("stop", None, None) => Request::Stop,
+        ("gain", Some(v), None) => Request::Gain(v),
+        ("load", None, Some(f)) => Request::Load(
+            runner::config::input_file::read_input(f, daq_io::MAX_LOAD_BYTES as u64)
+                .map_err(servo_err)?,
+        ),
+        _ => return Err(servo_err(
+            "request: \"start\", \"stop\", \"gain\" with value=SCALE, or \"load\" with file=PATH",
+        )),
+    };
+    let ack = py.detach(|| {
+        daq_io::ipc::check_prefix(&prefix)
+            .map_err(|e| servo_err(format!("prefix {prefix:?}: {e}")))?;
+        let ep = daq_io::ipc::Endpoint::open(&prefix, &format!("py-{}", std::process::id()))
+            .map_err(servo_err)?;
+        ask(
+            &ep,
+            &prefix,
+            &r,
+            std::time::Duration::from_secs_f64(timeout_s),
+        )
+        .map_err(servo_err)
+    })?;
+    let outcome = match (&r, &file) {
+        (Request::Gain(v), _) => gain_outcome(*v, &ack),
+        (Request::Load(_), Some(f)) => load_outcome(
+            &f.display().to_string(),
+            &ack,
+            &runner::config::describe_made_for(f).unwrap_or_else(|| "its made_for".into()),
+        ),
+        _ => Ok(plant_outcome(&r, &ack)),
+    };
+    outcome.map_err(servo_err)
+}

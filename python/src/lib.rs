@@ -39,6 +39,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate::run, m)?)?;
     m.add_function(wrap_pyfunction!(hil_api::run_hil, m)?)?;
     m.add_function(wrap_pyfunction!(hil_api::qualify_host, m)?)?;
+    m.add_function(wrap_pyfunction!(hil_api::control, m)?)?;
     m.add_function(wrap_pyfunction!(replay_api::replay, m)?)?;
     m.add_function(wrap_pyfunction!(config::resolved_config, m)?)?;
     m.add_function(wrap_pyfunction!(models::models, m)?)?;

@@ -99,3 +99,37 @@ def test_a_replay_from_python_reproduces_the_recording_bit_for_bit(tmp_path: Pat
     np.testing.assert_array_equal(
         fs.read_recording(tmp_path / "again.mcap").telemetry["control_v"], fs.read_recording(rec).telemetry["control_v"]
     )
+
+
+def test_a_run_is_steered_from_python_as_servo_ctl_steers_it(tmp_path: Path) -> None:
+    prefix = f"py-ctl-{os.getpid()}"
+    run = subprocess.Popen(
+        [SERVO, "run", "--hil", "-q", "--json", "--duration", "60", "--prefix", prefix, "--out", str(tmp_path / "r.mcap")],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        # The run's processes start: bounded, a run that never serves fails the test.
+        for _ in range(300):
+            try:
+                fs.control(prefix, "gain", 1.0)
+                break
+            except fs.ServoError:
+                import time
+
+                time.sleep(0.1)
+        else:
+            raise AssertionError("the run never answered")
+        try:
+            fs.control(prefix, "gain", 100.0)
+        except fs.ServoError as e:
+            assert "refused" in str(e) and "6 dB margin" in str(e), e
+        else:
+            raise AssertionError("an unstable gain was applied")
+        assert fs.control(prefix, "gain", 0.8).startswith("gain ×0.8 applied from tick")
+        assert fs.control(prefix, "stop").startswith("stop applied: the run ends at tick")
+        out, _ = run.communicate(timeout=60)
+    finally:
+        run.kill()
+    summary = json.loads(out)
+    assert summary["ticks"] < 60 * 199_600, summary["ticks"]

@@ -26,6 +26,8 @@ mod block_check;
 #[cfg(feature = "std")]
 pub mod clock;
 pub mod contract;
+#[cfg(feature = "ipc")]
+pub mod control_client;
 mod daq;
 pub mod digest;
 #[cfg(feature = "std")]

@@ -236,7 +236,7 @@ pub fn serve(
             report.run_ended = true;
             ended_at = Some(Instant::now());
         }
-        let (values, problems) = operator.poll();
+        let (values, problems) = operator.poll(&ep);
         if !values.is_empty() {
             server.publish_parameters(&values);
         }

@@ -7,9 +7,9 @@
 
 use crate::ws::protocol::{Parameter, ParameterValue};
 use crate::ws::{Ask, Reply, ServiceReply};
-use daq_io::contract::{ack_status, command};
-use daq_io::ipc::{take, ControlSender, IpcError, Subscriber};
-use daq_io::{Ack, Control};
+use daq_io::contract::ack_status;
+use daq_io::control_client::{gain_outcome, ControlClient, Request};
+use daq_io::ipc::{Endpoint, IpcError};
 use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
@@ -29,8 +29,7 @@ enum Waiting {
 /// The control-plane side: sends requests, pairs acknowledgements by id, answers.
 pub struct Operator {
     asks: Receiver<Ask>,
-    sender: ControlSender,
-    acks: Subscriber<Ack>,
+    client: ControlClient,
     pending: Vec<(u64, Instant, Waiting)>,
     /// The gain scale the run last acknowledged (1 until one was applied).
     gain_scale: f64,
@@ -44,11 +43,10 @@ pub struct Operator {
 
 impl Operator {
     /// Answers the requests of `asks` over run `ep`'s control plane.
-    pub fn new(ep: &daq_io::ipc::Endpoint, asks: Receiver<Ask>) -> Result<Self, IpcError> {
+    pub fn new(ep: &Endpoint, asks: Receiver<Ask>) -> Result<Self, IpcError> {
         Ok(Operator {
             asks,
-            sender: ControlSender::new(ep)?,
-            acks: ep.subscriber::<Ack>(daq_io::ipc::leaf::ACK)?,
+            client: ControlClient::new(ep)?,
             pending: Vec::new(),
             gain_scale: 1.0,
             metadata: Vec::new(),
@@ -66,16 +64,9 @@ impl Operator {
         Parameter::float64(GAIN_SCALE, self.gain_scale)
     }
 
-    fn send(&mut self, command: u32, value: f64, waiting: Waiting) {
-        let id = daq_io::peers::random_id();
-        let c = Control {
-            command,
-            value,
-            id,
-            ..Default::default()
-        };
-        match self.sender.send(c) {
-            Ok(()) => self.pending.push((id, Instant::now(), waiting)),
+    fn send(&mut self, ep: &Endpoint, request: Request, waiting: Waiting) {
+        match self.client.send(ep, &request) {
+            Ok(id) => self.pending.push((id, Instant::now(), waiting)),
             Err(e) => self.answer_failure(waiting, format!("the control plane refused it: {e}")),
         }
     }
@@ -91,9 +82,10 @@ impl Operator {
         }
     }
 
-    /// Handles queued requests and arrived acknowledgements; returns the parameter values
-    /// to publish to every client (a gain the run applied) and the problems to show.
-    pub fn poll(&mut self) -> (Vec<Parameter>, Vec<String>) {
+    /// Handles queued requests (sent over run `ep`'s control plane) and arrived
+    /// acknowledgements; returns the parameter values to publish to every client (a gain the
+    /// run applied) and the problems to show.
+    pub fn poll(&mut self, ep: &Endpoint) -> (Vec<Parameter>, Vec<String>) {
         while let Ok(ask) = self.asks.try_recv() {
             match ask {
                 Ask::Get(names, r) => {
@@ -116,16 +108,16 @@ impl Operator {
                             _ => None,
                         });
                     match value {
-                        Some(v) => self.send(command::SET_GAIN_SCALE, v, Waiting::Gain(v, r)),
+                        Some(v) => self.send(ep, Request::Gain(v), Waiting::Gain(v, r)),
                         // Only gain_scale can be set; the metadata is read-only.
                         None => r.respond(vec![self.gain()]),
                     }
                 }
-                Ask::Call(r) => self.send(command::STOP, 0.0, Waiting::Stop(r)),
+                Ask::Call(r) => self.send(ep, Request::Stop, Waiting::Stop(r)),
             }
         }
         let mut publish = Vec::new();
-        while let Some(a) = take(&self.acks) {
+        for a in self.client.poll() {
             let Some(i) = self.pending.iter().position(|(id, ..)| *id == a.id) else {
                 continue;
             };
@@ -139,11 +131,9 @@ impl Operator {
                 }
                 (Waiting::Gain(v, r), _) => {
                     r.respond(vec![self.gain()]);
-                    self.problems.push(format!(
-                        "gain_scale ×{v} refused by the controller: the loop keeps a 6 dB margin \
-                         only within ×{:.3}–×{:.3} (unstable above ×{:.3})",
-                        a.low, a.high, a.unstable_at
-                    ));
+                    if let Err(why) = gain_outcome(v, &a) {
+                        self.problems.push(why);
+                    }
                 }
                 (Waiting::Stop(r), _) => {
                     r.respond_ok(format!("{{\"stopped_at_tick\": {}}}", a.tick).into_bytes())
@@ -155,7 +145,8 @@ impl Operator {
             .into_iter()
             .partition(|(_, at, _)| now.duration_since(*at) > ACK_TIMEOUT);
         self.pending = waiting;
-        for (_, _, w) in late {
+        for (id, _, w) in late {
+            self.client.forget(id);
             self.answer_failure(w, format!("no acknowledgement within {ACK_TIMEOUT:?}"));
         }
         (publish, std::mem::take(&mut self.problems))

@@ -12,7 +12,7 @@
 
 use daq_io::{flags, Command, Latency, Sensor, Telemetry};
 use ffi_support::{copy_message, guard, text, ErrorText, TextError};
-use servo_runtime::{LoadError, Servo, MAX_TEXT_BYTES};
+use servo_runtime::{Servo, MAX_TEXT_BYTES};
 use std::ffi::c_char;
 
 /// The version of this C ABI: the functions and the structs of `fts_servo.h` (the sample
@@ -99,6 +99,9 @@ pub struct FtsServo {
     servo: Servo,
     error: ErrorText,
 }
+
+mod load;
+pub use load::*;
 
 /// The library's version, `fts-servo 0.1.0` (a static string).
 #[no_mangle]
@@ -246,7 +249,7 @@ unsafe fn open(
 ///
 /// # Safety
 /// `h` is null or a handle from `fts_servo_open` not yet closed, used by no other thread now.
-unsafe fn with(h: *mut FtsServo, f: impl FnOnce(&mut FtsServo) -> i32) -> i32 {
+pub(crate) unsafe fn with(h: *mut FtsServo, f: impl FnOnce(&mut FtsServo) -> i32) -> i32 {
     if h.is_null() {
         return FTS_SERVO_ERR_NULL;
     }
@@ -414,51 +417,6 @@ pub unsafe extern "C" fn fts_servo_reset(h: *mut FtsServo) -> i32 {
         h.servo.reset();
         h.error.clear();
         FTS_SERVO_OK
-    };
-    // SAFETY: the caller's promises about `h`.
-    unsafe { with(h, body) }
-}
-
-/// Loads the controller file `file[0..len]` (UTF-8 TOML: a `[controller]` table or a
-/// state-space file) into the running loop, handed over bumplessly at the next tick — taken
-/// only when made for the loop's plant and rate and carrying its offline stability check whose
-/// range allows the scale in force. Parses and allocates: not from the real-time thread while
-/// it ticks (between ticks, on the thread that ticks, is fine).
-///
-/// # Safety
-/// `h` is a live handle used by this thread alone; `file` points to `len` readable bytes.
-#[no_mangle]
-pub unsafe extern "C" fn fts_servo_load(h: *mut FtsServo, file: *const u8, len: usize) -> i32 {
-    let body = |h: &mut FtsServo| {
-        if file.is_null() {
-            h.error.set(format_args!("file is a null pointer"));
-            return FTS_SERVO_ERR_NULL;
-        }
-        if len > daq_io::MAX_LOAD_BYTES {
-            h.error.set(format_args!(
-                "file is {len} bytes, more than the {} a controller file may have",
-                daq_io::MAX_LOAD_BYTES
-            ));
-            return FTS_SERVO_ERR_CONFIG;
-        }
-        // SAFETY: `len` readable bytes at `file` (the caller's promise).
-        let bytes = unsafe { std::slice::from_raw_parts(file, len) };
-        match h.servo.load(bytes) {
-            Ok(()) => FTS_SERVO_OK,
-            Err(e) => {
-                h.error.set(format_args!("{e}"));
-                match e {
-                    LoadError::Refused(r) if r.status == daq_io::ack_status::REFUSED_PROVENANCE => {
-                        FTS_SERVO_ERR_PROVENANCE
-                    }
-                    LoadError::Refused(r) if r.status == daq_io::ack_status::REFUSED_MARGIN => {
-                        FTS_SERVO_ERR_MARGIN
-                    }
-                    LoadError::Margin { .. } => FTS_SERVO_ERR_MARGIN,
-                    _ => FTS_SERVO_ERR_CONFIG,
-                }
-            }
-        }
     };
     // SAFETY: the caller's promises about `h`.
     unsafe { with(h, body) }

@@ -66,6 +66,8 @@ mod file;
 mod host;
 #[cfg(feature = "std")]
 mod load;
+#[cfg(feature = "std")]
+mod prepared;
 #[cfg(feature = "serve")]
 mod serve;
 
@@ -95,5 +97,7 @@ pub use file::{
 pub use host::Timing;
 #[cfg(feature = "std")]
 pub use load::{CarriedCheck, LoadError, Refusal, Vet, Vetted, LOADED_FILE};
+#[cfg(feature = "std")]
+pub use prepared::{Loader, Prepared};
 #[cfg(feature = "serve")]
 pub use serve::{ServeError, ServeOptions, SERVICE_TICKS};

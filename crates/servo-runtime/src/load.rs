@@ -132,7 +132,8 @@ pub(crate) fn build(v: &Vetted, stage: &Stage, period_s: f64) -> Result<Box<Cont
     Controller::build(&v.spec, stage, period_s).map(Box::new)
 }
 
-/// Why [`crate::Servo::load`] did not take a controller.
+/// Why [`crate::Servo::load`], [`crate::Loader::prepare`] or [`crate::Servo::swap`] did not
+/// take a controller.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum LoadError {
@@ -142,6 +143,12 @@ pub enum LoadError {
     /// It passed the check but does not build for this loop.
     #[error("{0}")]
     Invalid(ConfigError),
+    /// A controller prepared for another loop (another stage or servo rate).
+    #[error("this controller was prepared for another loop (another stage or servo rate): prepare it with this loop's loader")]
+    OtherLoop,
+    /// A prepared controller already swapped in ([`crate::Servo::swap`] takes each once).
+    #[error("this prepared controller was swapped in already: prepare the file again")]
+    Spent,
     /// Stable at scale 1, but not at the output scale in force.
     #[error("the new loop is stable only for output scales {low:.4}..={high:.4}; the scale in force is {scale}")]
     Margin {

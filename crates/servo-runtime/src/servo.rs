@@ -270,36 +270,53 @@ impl Servo {
     /// file as `servo synth` writes it) into the running loop: checked by the deployment's rule
     /// (made for this plant and rate, carrying its offline stability check, whose range allows
     /// the output scale in force), built, and handed over bumplessly at the next tick. Parses
-    /// and allocates on the calling thread: call it between ticks from a thread that may, or
-    /// let [`Servo::serve`] take loads (`servo ctl load`) on its own thread.
+    /// and allocates on the calling thread: call it between ticks from a thread that may — or
+    /// prepare the load on another thread ([`Servo::loader`]) and [`Servo::swap`] it in here,
+    /// or let [`Servo::serve`] take loads (`servo ctl load`) on its own thread.
     pub fn load(&mut self, file: &[u8]) -> Result<(), crate::LoadError> {
-        use crate::load::{build, LoadError, Vet, LOADED_FILE};
-        let check = crate::CarriedCheck {
-            made_for: self.host.made_for.clone(),
-            servo_rate_hz: self.host.servo_rate_hz,
+        let mut prepared = self.loader().prepare(file)?;
+        self.swap(&mut prepared)
+    }
+
+    /// The check this loop's controller files pass, owned: [`crate::Loader::prepare`] it on
+    /// any thread while the loop ticks. Allocates: call it between ticks.
+    pub fn loader(&self) -> crate::Loader {
+        crate::Loader {
+            check: crate::CarriedCheck {
+                made_for: self.host.made_for.clone(),
+                servo_rate_hz: self.host.servo_rate_hz,
+                stage: self.stage,
+                running: self.host.spec.clone(),
+            },
             stage: self.stage,
-            running: self.host.spec.clone(),
-        };
-        let v = check.vet(file).map_err(LoadError::Refused)?;
+            period_s: self.period_s,
+        }
+    }
+
+    /// Hands the loop to the prepared controller at the next tick, bumplessly — on the ticking
+    /// thread between ticks: no allocation, parse, lock or free (the controller it replaces,
+    /// and one a handover not yet taken up held, move into `prepared`; drop it off the ticking
+    /// thread). Refused, `prepared` untouched, when the output scale in force lies outside the
+    /// prepared loop's stable range, when `prepared` was swapped in already, or when it was
+    /// prepared for another loop (another stage or rate).
+    pub fn swap(&mut self, prepared: &mut crate::Prepared) -> Result<(), crate::LoadError> {
+        if prepared.stage != self.stage || prepared.period_s != self.period_s {
+            return Err(crate::LoadError::OtherLoop);
+        }
         let scale = self.status.gain_scale;
-        if !v.stability.allows(scale) {
-            return Err(LoadError::Margin {
+        if !prepared.stability.allows(scale) {
+            return Err(crate::LoadError::Margin {
                 scale,
-                low: v.stability.low(),
-                high: v.stability.high(),
+                low: prepared.stability.low(),
+                high: prepared.stability.high(),
             });
         }
-        let at = crate::Origin {
-            path: Some(LOADED_FILE.into()),
-            text: std::str::from_utf8(file).ok().map(str::to_owned),
+        let Some(controller) = prepared.controller.take() else {
+            return Err(crate::LoadError::Spent);
         };
-        let controller = build(&v, &self.stage, self.period_s)
-            .map_err(|e| LoadError::Invalid(at.located(&e)))?;
-        // The controller the last load replaced is freed here, off the tick.
-        drop(self.core.take_replaced());
-        self.core.hand_over(controller);
-        self.stability = Some(v.stability);
-        self.host.spec = v.spec;
+        prepared.retired = [self.core.take_replaced(), self.core.hand_over(controller)];
+        self.stability = Some(prepared.stability);
+        core::mem::swap(&mut self.host.spec, &mut prepared.spec);
         Ok(())
     }
 

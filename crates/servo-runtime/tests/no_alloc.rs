@@ -1,7 +1,7 @@
 //! Through the front door, the ticking thread allocates nothing: PID, the acceleration cascade
 //! and a 29-state controller with ZPETC, timed ticks, served (telemetry into the service
 //! thread's ring, health every 2048 ticks), a gain change and a controller handed over while
-//! ticking.
+//! ticking (loaded between ticks, or prepared on another thread and swapped in).
 
 use daq_io::Sensor;
 use densa_alloc::{is_active, measure, CountingAllocator};
@@ -115,6 +115,74 @@ fn a_loaded_controller_is_handed_over_without_allocating_on_the_tick() {
     let (_, stats) = measure(|| ticks(&mut servo, 100, 1_000));
     assert_eq!((stats.allocs, stats.deallocs), (0, 0), "{stats:?}");
     assert_eq!(servo.status().handovers, 1);
+}
+
+/// A load in two halves: checked and built on another thread while the loop ticks, swapped in
+/// on the ticking thread without allocating or freeing — the same loop `load` makes, bit for
+/// bit; a prepared controller swaps in once, and only into the loop it was prepared for.
+#[test]
+fn a_controller_prepared_on_another_thread_is_swapped_in_without_allocating() {
+    let d = deployments().remove(0);
+    let made_for = MadeFor {
+        tool: "test".into(),
+        plant_sha256: "p".into(),
+        stage: "light".into(),
+        servo_rate_hz: 199_600.0,
+    };
+    let text = servo_runtime::deployment_toml(&d, Some(&made_for), "t");
+    let mut c = ControllerSpec::default();
+    c.pid.kp *= 0.9;
+    let checked = d.stability.map(|s| s.sealed(d.servo_rate_hz, &d.stage, &c));
+    let file = controller_toml(&c, Some(&made_for), checked.as_ref());
+
+    let mut servo = Servo::from_toml(&text).unwrap();
+    let loader = servo.loader();
+    let (mut prepared, before) = std::thread::scope(|s| {
+        let preparing = s.spawn(|| loader.prepare(file.as_bytes()));
+        let before = ticks(&mut servo, 0, 1_000);
+        (preparing.join().unwrap().unwrap(), before)
+    });
+    let (after, stats) = measure(|| {
+        servo.swap(&mut prepared).unwrap();
+        ticks(&mut servo, 1_000, 1_000)
+    });
+    assert_eq!((stats.allocs, stats.deallocs), (0, 0), "{stats:?}");
+    assert_eq!(servo.status().handovers, 1);
+    assert!(matches!(
+        servo.swap(&mut prepared),
+        Err(servo_runtime::LoadError::Spent)
+    ));
+    drop(prepared);
+
+    // The one-call load, between the same ticks: the same commands.
+    let mut loaded = Servo::from_toml(&text).unwrap();
+    assert_eq!(ticks(&mut loaded, 0, 1_000).to_bits(), before.to_bits());
+    loaded.load(file.as_bytes()).unwrap();
+    assert_eq!(ticks(&mut loaded, 1_000, 1_000).to_bits(), after.to_bits());
+
+    // Prepared for a loop at another rate: refused by this one.
+    let mut other = d.clone();
+    other.servo_rate_hz = 100_000.0;
+    let other_for = MadeFor {
+        servo_rate_hz: 100_000.0,
+        ..made_for.clone()
+    };
+    other.stability = other
+        .stability
+        .map(|s| s.sealed(other.servo_rate_hz, &other.stage, &other.controller));
+    let other_servo = Servo::from_toml(&servo_runtime::deployment_toml(
+        &other,
+        Some(&other_for),
+        "t",
+    ))
+    .unwrap();
+    let checked = d.stability.map(|s| s.sealed(100_000.0, &d.stage, &c));
+    let other_file = controller_toml(&c, Some(&other_for), checked.as_ref());
+    let mut foreign = other_servo.loader().prepare(other_file.as_bytes()).unwrap();
+    assert!(matches!(
+        servo.swap(&mut foreign),
+        Err(servo_runtime::LoadError::OtherLoop)
+    ));
 }
 
 #[cfg(feature = "serve")]

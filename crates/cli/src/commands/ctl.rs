@@ -5,13 +5,15 @@
 
 use crate::output::CliError;
 use clap::{Args, Subcommand};
-use daq_io::contract::{ack_status, command};
-use daq_io::ipc::{leaf, take, ControlSender, Endpoint};
-use daq_io::{Ack, Control, ControllerLoad, MAX_LOAD_BYTES};
+use daq_io::control_client::{
+    gain_outcome, load_outcome, plant_outcome, request as request_ack, Request,
+};
+use daq_io::ipc::Endpoint;
+use daq_io::MAX_LOAD_BYTES;
 use runner::RunError;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// HIL control plane: start, stop, scale gains or load a controller in a running loop
 ///
@@ -63,60 +65,6 @@ enum CtlAction {
     },
 }
 
-impl CtlAction {
-    /// The control-plane message with request id `id`, or the file of a load (sent on its
-    /// own service).
-    fn message(&self, id: u64) -> Result<Control, &std::path::Path> {
-        let (command, value) = match self {
-            CtlAction::Start => (command::START, 0.0),
-            CtlAction::Stop => (command::STOP, 0.0),
-            CtlAction::Gain { scale } => (command::SET_GAIN_SCALE, *scale),
-            CtlAction::Load { file } => return Err(file),
-        };
-        Ok(Control {
-            command,
-            value,
-            id,
-            ..Default::default()
-        })
-    }
-
-    /// The process that acts on it.
-    fn target(&self) -> &'static str {
-        match self {
-            CtlAction::Start | CtlAction::Stop => "plant",
-            CtlAction::Gain { .. } | CtlAction::Load { .. } => "controller",
-        }
-    }
-
-    /// What the run did, as one line.
-    fn report(&self, a: &Ack) -> Result<String, String> {
-        match (self, a.status) {
-            (CtlAction::Load { file }, status) => load_report(file, a, status),
-            (CtlAction::Gain { scale }, ack_status::APPLIED) => Ok(format!(
-                "gain ×{scale} applied from tick {} (allowed ×{:.3}–×{:.3}: the loop goes unstable above ×{:.3}, {:.1} dB of gain margin at ×1)",
-                a.tick,
-                a.low,
-                a.high,
-                a.unstable_at,
-                20.0 * libm::log10(a.unstable_at)
-            )),
-            (CtlAction::Gain { scale }, ack_status::REFUSED_MARGIN) => Err(format!(
-                "gain ×{scale} refused: the loop goes unstable above ×{:.3} (gain margin {:.1} dB at ×1); changes keep a 6 dB margin: allowed ×{:.3}–×{:.3}",
-                a.unstable_at,
-                20.0 * libm::log10(a.unstable_at),
-                a.low,
-                a.high
-            )),
-            (CtlAction::Gain { scale }, _) => {
-                Err(format!("gain ×{scale} refused: not a finite number"))
-            }
-            (CtlAction::Stop, _) => Ok(format!("stop applied: the run ends at tick {}", a.tick)),
-            (CtlAction::Start, _) => Ok("start applied: the plant runs".into()),
-        }
-    }
-}
-
 impl CtlCmd {
     /// Sends one control-plane message to the running run and reports its acknowledgement.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
@@ -125,130 +73,43 @@ impl CtlCmd {
                 .invalid("--timeout-s", self.timeout_s, "(0, 60] s")
                 .into());
         }
-        let id = daq_io::peers::random_id();
         // A file to load is read (and checked: a regular file of bounded size) before the run
         // is looked for, so bad input fails at once whatever the run does.
-        let load = match &self.action {
-            CtlAction::Load { file } => Some(read_load(file, id)?),
-            _ => None,
+        let request = match &self.action {
+            CtlAction::Start => Request::Start,
+            CtlAction::Stop => Request::Stop,
+            CtlAction::Gain { scale } => Request::Gain(*scale),
+            CtlAction::Load { file } => Request::Load(read_load(file)?),
         };
         let prefix = &self.prefix;
         let ep = Endpoint::open(prefix, &format!("ctl-{}", std::process::id()))
             .map_err(RunError::from)?;
-        let target = self.action.target();
-        let start = Instant::now();
         let timeout = Duration::from_secs_f64(self.timeout_s);
-        // No process on the prefix: no run, say so at once. Others of the run there but not
-        // yet the target (a run whose processes are still starting): wait for it as long as
-        // for the answer.
-        loop {
-            let peers = ep.peers();
-            if peers.iter().any(|p| p.role == target) {
-                break;
-            }
-            if peers.is_empty() || start.elapsed() >= timeout {
-                return Err(CliError::Processes(format!(
-                    "no run on prefix {prefix:?}: no live {target} (start one with `servo run --hil --prefix {prefix}`)"
-                )));
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        let acks = ep.subscriber::<Ack>(leaf::ACK).map_err(RunError::from)?;
-        // Sent once the run listens (a process that has just started may not yet: a message
-        // before any subscriber is lost), by a publisher that lives until the answer came
-        // (iceoryx2 takes a sample back from the subscribers when its publisher goes).
-        let listening = |heard: Result<bool, _>, leaf: &str| {
-            if heard.map_err(RunError::from)? {
-                Ok(())
-            } else {
-                Err(CliError::Processes(format!(
-                    "the {target} of run {prefix:?} does not listen on {leaf} (still starting?)"
-                )))
-            }
+        let ack = request_ack(&ep, prefix, &request, timeout)
+            .map_err(|e| CliError::Processes(e.to_string()))?;
+        let outcome = match (&self.action, &request) {
+            (CtlAction::Gain { scale }, _) => gain_outcome(*scale, &ack),
+            (CtlAction::Load { file }, _) => load_outcome(
+                &file.display().to_string(),
+                &ack,
+                &runner::config::describe_made_for(file).unwrap_or_else(|| "its made_for".into()),
+            ),
+            (_, r) => Ok(plant_outcome(r, &ack)),
         };
-        let (_load, _control) = match (self.action.message(id), load) {
-            (Err(_), Some(load)) => {
-                listening(
-                    ep.await_subscriber::<ControllerLoad>(leaf::CONTROLLER_LOAD, timeout),
-                    leaf::CONTROLLER_LOAD,
-                )?;
-                let publisher = ep
-                    .publisher::<ControllerLoad>(leaf::CONTROLLER_LOAD)
-                    .map_err(RunError::from)?;
-                if !daq_io::ipc::send(&publisher, load) {
-                    return Err(CliError::Processes(
-                        "the transport refused the controller load".into(),
-                    ));
-                }
-                (Some(publisher), None)
+        match outcome {
+            Ok(line) => {
+                println!("{line}");
+                Ok(ExitCode::SUCCESS)
             }
-            (Err(_), None) => unreachable!("a load's file is read above"),
-            (Ok(message), _) => {
-                listening(
-                    ep.await_subscriber::<Control>(leaf::CONTROL, timeout),
-                    leaf::CONTROL,
-                )?;
-                let sender = ControlSender::new(&ep).map_err(RunError::from)?;
-                sender.send(message).map_err(RunError::from)?;
-                (None, Some(sender))
-            }
-        };
-        while start.elapsed() < timeout {
-            while let Some(a) = take(&acks) {
-                if a.id == id {
-                    return match self.action.report(&a) {
-                        Ok(line) => {
-                            println!("{line}");
-                            Ok(ExitCode::SUCCESS)
-                        }
-                        Err(why) => Err(CliError::Processes(why)),
-                    };
-                }
-            }
-            std::thread::sleep(Duration::from_millis(2));
+            Err(why) => Err(CliError::Processes(why)),
         }
-        Err(CliError::Processes(format!(
-            "no acknowledgement from the {target} of run {prefix:?} within {} s (is it still running?)",
-            self.timeout_s
-        )))
     }
 }
 
-/// The load request `id` of controller file `path` (at most [`MAX_LOAD_BYTES`]).
-fn read_load(path: &std::path::Path, id: u64) -> Result<ControllerLoad, CliError> {
-    let bytes = runner::config::input_file::read_input(path, MAX_LOAD_BYTES as u64)?;
-    ControllerLoad::new(id, &bytes).ok_or_else(|| {
-        runner::config::Origin::default()
-            .invalid(
-                "load FILE",
-                path.display(),
-                &format!("at most {MAX_LOAD_BYTES} bytes"),
-            )
-            .into()
-    })
-}
-
-/// What the run did with controller `file` (acknowledged with `status`), as one line.
-fn load_report(file: &std::path::Path, a: &Ack, status: u32) -> Result<String, String> {
-    let name = file.display();
-    match status {
-        ack_status::APPLIED => Ok(format!(
-            "controller {name} took the loop at tick {}, bumplessly (the old output fades over 5 ms); closed-loop spectral radius {:.6}; gain scale now allowed ×{:.3}–×{:.3}",
-            a.tick, a.value, a.low, a.high
-        )),
-        ack_status::REFUSED_PROVENANCE => Err(format!(
-            "controller {name} refused: made for another plant or rate than the run's ({}); the controller process names both",
-            runner::config::describe_made_for(file).unwrap_or_else(|| "its made_for".into())
-        )),
-        ack_status::REFUSED_MARGIN if a.value >= 1.0 => Err(format!(
-            "controller {name} refused: the closed loop on the run's model would be unstable (spectral radius {:.6} ≥ 1); the running controller stays",
-            a.value
-        )),
-        ack_status::REFUSED_MARGIN => Err(format!(
-            "controller {name} refused: stable at gain ×1 but not at the run's present gain scale; reset it (`servo ctl gain 1`) and load again"
-        )),
-        _ => Err(format!(
-            "controller {name} refused: not a controller this run can build, a change of feedforward (a load swaps the feedback controller only), or another load is in progress (the controller process says which)"
-        )),
-    }
+/// The controller file at `path`: a regular file of at most [`MAX_LOAD_BYTES`].
+fn read_load(path: &std::path::Path) -> Result<Vec<u8>, CliError> {
+    Ok(runner::config::input_file::read_input(
+        path,
+        MAX_LOAD_BYTES as u64,
+    )?)
 }

@@ -6,7 +6,7 @@ use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, print_summary, print_written, CliError};
 use clap::Args;
 use runner::config::presets::{ImageMap, SurfacePreset};
-use runner::config::{FeedforwardKind, Machining, Scenario, SurfaceConfig};
+use runner::config::{FeedforwardKind, Machining, Scenario};
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -98,18 +98,7 @@ impl MachineCmd {
         crate::args::set(&mut m.spindle_rpm, self.rpm);
         crate::args::set(&mut m.feed_m_per_rev, self.feed);
         let (inner, outer) = match &self.radius_range {
-            // Ten revolutions; the flat face's roughness field (0.27 mm across) needs 150.
-            None => {
-                let turns = if m.surface == SurfaceConfig::Flat {
-                    150.0
-                } else {
-                    10.0
-                };
-                (
-                    m.start_radius_m - turns * m.feed_m_per_rev,
-                    m.start_radius_m,
-                )
-            }
+            None => m.default_band_m(),
             Some(text) => radius_range(text).ok_or_else(|| {
                 l.origin.invalid(
                     "--radius-range",

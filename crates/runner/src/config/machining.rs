@@ -184,6 +184,21 @@ impl Machining {
         }
     }
 
+    /// The band cut when none is asked, `(inner, outer)` radius in m: from `start_radius_m`
+    /// inward, ten revolutions at `feed_m_per_rev` — 150 for the flat face, whose roughness
+    /// field is 0.27 mm across.
+    pub fn default_band_m(&self) -> (f64, f64) {
+        let turns = if self.surface == SurfaceConfig::Flat {
+            150.0
+        } else {
+            10.0
+        };
+        (
+            self.start_radius_m - turns * self.feed_m_per_rev,
+            self.start_radius_m,
+        )
+    }
+
     /// Seconds to cut from `start_radius_m` in to `end_radius_m`.
     pub fn duration_to(&self, end_radius_m: f64) -> f64 {
         (self.start_radius_m - end_radius_m) / self.feed_m_per_rev * 60.0 / self.spindle_rpm
