@@ -254,7 +254,7 @@ int32_t fts_servo_load(fts_servo *h, const uint8_t *file, size_t len);
 //
 // # Safety
 // `h` is a live handle used by this thread alone; `out` points to a writable pointer.
-int32_t fts_servo_loader(fts_servo *h, fts_servo_loader **out);
+int32_t fts_servo_loader_new(fts_servo *h, fts_servo_loader **out);
 
 // Checks and builds the controller file `file[0..len]` with `loader`'s rule (as
 // `fts_servo_load` does) on the calling thread — any thread — into `*out` (swap it in with

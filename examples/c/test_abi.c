@@ -183,7 +183,7 @@ int main(int argc, char **argv) {
      * without allocating; the replaced controller leaves in the prepared handle. */
     fts_servo_loader *loader = NULL;
     fts_servo_prepared *prepared = NULL, *refused = NULL;
-    EXPECT(fts_servo_loader(h, &loader) == FTS_SERVO_OK && loader != NULL, "loader");
+    EXPECT(fts_servo_loader_new(h, &loader) == FTS_SERVO_OK && loader != NULL, "loader");
     EXPECT(fts_servo_prepare(loader, (const uint8_t *)"not toml [", 10, &refused, error, sizeof error) ==
                    FTS_SERVO_ERR_CONFIG &&
                refused == NULL,

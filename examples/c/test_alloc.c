@@ -63,7 +63,7 @@ int main(int argc, char **argv) {
         size_t len = f ? fread(file, 1, sizeof file, f) : 0;
         if (f) fclose(f);
         fts_servo_loader *loader = NULL;
-        if (fts_servo_loader(h, &loader) != FTS_SERVO_OK ||
+        if (fts_servo_loader_new(h, &loader) != FTS_SERVO_OK ||
             fts_servo_prepare(loader, file, len, &prepared, error, sizeof error) != FTS_SERVO_OK) {
             fprintf(stderr, "error: %s\n", error);
             return 2;

@@ -1,5 +1,5 @@
 //! Controller loads: in one call between ticks (`fts_servo_load`), or in two halves — checked
-//! and built on any thread (`fts_servo_loader`, `fts_servo_prepare`), swapped in on the ticking
+//! and built on any thread (`fts_servo_loader_new`, `fts_servo_prepare`), swapped in on the ticking
 //! thread without allocating (`fts_servo_swap`).
 
 use crate::{
@@ -97,7 +97,10 @@ pub unsafe extern "C" fn fts_servo_load(h: *mut FtsServo, file: *const u8, len: 
 /// # Safety
 /// `h` is a live handle used by this thread alone; `out` points to a writable pointer.
 #[no_mangle]
-pub unsafe extern "C" fn fts_servo_loader(h: *mut FtsServo, out: *mut *mut FtsServoLoader) -> i32 {
+pub unsafe extern "C" fn fts_servo_loader_new(
+    h: *mut FtsServo,
+    out: *mut *mut FtsServoLoader,
+) -> i32 {
     if out.is_null() {
         return FTS_SERVO_ERR_NULL;
     }
@@ -212,7 +215,7 @@ pub unsafe extern "C" fn fts_servo_prepared_free(p: *mut FtsServoPrepared) {
 #[no_mangle]
 pub unsafe extern "C" fn fts_servo_loader_free(l: *mut FtsServoLoader) {
     if !l.is_null() {
-        // SAFETY: from `Box::into_raw` in `fts_servo_loader`, not freed before.
+        // SAFETY: from `Box::into_raw` in `fts_servo_loader_new`, not freed before.
         drop(unsafe { Box::from_raw(l) });
     }
 }
