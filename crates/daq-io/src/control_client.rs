@@ -83,12 +83,12 @@ pub enum ControlError {
     Ipc(#[from] IpcError),
 }
 
-/// Sends requests over a run's control plane and pairs the acknowledgements with them.
+/// Sends requests over a run's control plane and hears the acknowledgements (each carries the
+/// id of the request it answers).
 pub struct ControlClient {
     control: ControlSender,
     load: Option<Publisher<ControllerLoad>>,
     acks: Subscriber<Ack>,
-    pending: Vec<u64>,
 }
 
 impl ControlClient {
@@ -98,7 +98,6 @@ impl ControlClient {
             control: ControlSender::new(ep)?,
             load: None,
             acks: ep.subscriber::<Ack>(leaf::ACK)?,
-            pending: Vec::new(),
         })
     }
 
@@ -120,7 +119,6 @@ impl ControlClient {
                 if !crate::ipc::send(publisher, load) {
                     return Err(ControlError::LoadRefused);
                 }
-                self.pending.push(id);
                 return Ok(id);
             }
         };
@@ -130,25 +128,12 @@ impl ControlClient {
             id,
             ..Default::default()
         })?;
-        self.pending.push(id);
         Ok(id)
     }
 
-    /// The acknowledgements that arrived for this client's requests (others are skipped).
-    pub fn poll(&mut self) -> Vec<Ack> {
-        let mut answered = Vec::new();
-        while let Some(a) = take(&self.acks) {
-            if let Some(i) = self.pending.iter().position(|id| *id == a.id) {
-                self.pending.swap_remove(i);
-                answered.push(a);
-            }
-        }
-        answered
-    }
-
-    /// Forgets a request that will not be waited for any longer.
-    pub fn forget(&mut self, id: u64) {
-        self.pending.retain(|p| *p != id);
+    /// The next acknowledgement heard on the run (of any client's request: match its `id`).
+    pub fn next_ack(&self) -> Option<Ack> {
+        take(&self.acks)
     }
 }
 
@@ -189,10 +174,12 @@ pub fn request(
             leaf: r.leaf(),
         });
     }
-    client.send(ep, r)?;
+    let id = client.send(ep, r)?;
     while start.elapsed() < timeout {
-        if let Some(a) = client.poll().into_iter().next() {
-            return Ok(a);
+        while let Some(a) = client.next_ack() {
+            if a.id == id {
+                return Ok(a);
+            }
         }
         std::thread::sleep(Duration::from_millis(2));
     }

@@ -117,7 +117,7 @@ impl Operator {
             }
         }
         let mut publish = Vec::new();
-        for a in self.client.poll() {
+        while let Some(a) = self.client.next_ack() {
             let Some(i) = self.pending.iter().position(|(id, ..)| *id == a.id) else {
                 continue;
             };
@@ -145,8 +145,7 @@ impl Operator {
             .into_iter()
             .partition(|(_, at, _)| now.duration_since(*at) > ACK_TIMEOUT);
         self.pending = waiting;
-        for (id, _, w) in late {
-            self.client.forget(id);
+        for (_, _, w) in late {
             self.answer_failure(w, format!("no acknowledgement within {ACK_TIMEOUT:?}"));
         }
         (publish, std::mem::take(&mut self.problems))

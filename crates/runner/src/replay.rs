@@ -223,11 +223,11 @@ impl Replay {
 
     /// Runs the replay with `opts` (recording, stop, progress) and compares it with the
     /// recording.
-    pub fn run(&self, opts: RunOptions<'_>) -> Result<ReplayReport, RunError> {
+    pub fn run(self, opts: RunOptions<'_>) -> Result<ReplayReport, RunError> {
         if !self.plant_replaced && !self.has_truth {
-            return Err(RunError::NoTruth(self.file.clone()));
+            return Err(RunError::NoTruth(self.file));
         }
-        let mut config = self.config.clone();
+        let mut config = self.config;
         let changed = config != self.header.loaded.config;
         // As long as the recording: a run stopped early (`servo ctl stop`, a signal) replays
         // to where it stopped, not to its configured duration.
@@ -247,7 +247,7 @@ impl Replay {
             identical: difference.map(|d| d.is_none()),
             first_difference_frame: difference.flatten(),
             compared_until_operator_tick: self.steered_at,
-            recorded: self.recorded.clone(),
+            recorded: self.recorded,
             replayed,
             every,
             rate_hz: plan.config.plant.timing.servo_rate_hz,
