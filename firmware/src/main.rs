@@ -4,7 +4,7 @@
 //!
 //! At reset the firmware sends a BOOT frame (what it is), then waits for the deployment image
 //! the host sends (the same deployment `servo run` builds from the configuration; see
-//! `servo_runtime::link::image`). It builds the loop, measures a probe of quiet ticks, builds
+//! `servo_link::image`). It builds the loop, measures a probe of quiet ticks, builds
 //! the loop again from scratch and answers READY (or REFUSED with the reason). From then on each
 //! SAMPLE frame is the tick's "ADC conversion": it pends TIMER0, whose handler runs the tick and
 //! times it with SysTick; the main loop sends the TICK reply. On a board the same handler is
@@ -21,8 +21,9 @@ use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
 use cortex_m_rt::entry;
 use critical_section::Mutex;
 use daq_io::Sensor;
-use servo_runtime::link::{self, image, kind, Boot, FrameReader, Ready, Report, TickReply};
-use servo_runtime::{Deployment, Servo, MAX_SS_ORDER};
+use servo_link::{self as link, image, kind, Boot, FrameReader, Ready, Report, TickReply};
+use servo_runtime::deployment::MAX_SS_ORDER;
+use servo_runtime::{Deployment, Servo};
 use uart::Uart;
 
 /// The MPS2 board's processor clock in Hz (SysTick counts it; 25 MHz on the FPGA image QEMU

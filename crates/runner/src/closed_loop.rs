@@ -367,7 +367,7 @@ pub const SOURCES: [(&str, usize); 7] = [
 /// the closed loop `cl`; NaN where it cannot be evaluated.
 pub fn reference_path_response<'a>(
     cl: &'a ClosedLoop,
-    deployment: &'a servo_runtime::Deployment,
+    deployment: &'a servo_config::Deployment,
     out: usize,
 ) -> impl Fn(f64) -> num_complex::Complex64 + 'a {
     use num_complex::Complex64 as C;
@@ -376,7 +376,7 @@ pub fn reference_path_response<'a>(
     let command = to_output(input::CONTROL_DISTURBANCE_V);
     let period = cl.period_s;
     move |f| {
-        let path = deployment.reference_path(f);
+        let path = servo_config::reference_path(deployment, f);
         let c = |v: [f64; 2]| C::new(v[0], v[1]);
         let at = |r: &lti::FrequencyResponse| {
             r.discrete(f, period)

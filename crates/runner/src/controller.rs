@@ -4,8 +4,8 @@
 
 use crate::config::{ConfigError, ControllerKind, Origin, RunConfig};
 use nalgebra::{DMatrix, SMatrix};
+use servo_config::{accel_shaping, kg_of, position_pid, ControllerSpec, SsMatrices, Stage};
 use servo_core::IirCoeffs;
-use servo_runtime::{accel_shaping, kg_of, position_pid, ControllerSpec, SsMatrices, Stage};
 
 /// A run's controller: what the runtime runs, and its linear model.
 #[derive(Debug, Clone)]

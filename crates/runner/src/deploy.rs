@@ -6,7 +6,7 @@ use crate::config::made_for_plant;
 use crate::error::RunError;
 use crate::gain_range::checked;
 use crate::plan::Plan;
-use servo_runtime::{deployment_toml, Deployment};
+use servo_config::{deployment_toml, Deployment};
 
 /// The checked deployment of `plan` and its file text.
 pub fn deployment_file(plan: &Plan) -> Result<(Deployment, String), RunError> {

@@ -7,7 +7,7 @@ use crate::closed_loop::{input, output, ClosedLoop};
 use crate::config::{FeedforwardKind, RunConfig};
 use design::zpetc::{design, ZpetcDesign, ZpetcError};
 use lti::StateSpace;
-use servo_runtime::{FeedforwardSpec, ZpetcSpec, MAX_PREVIEW, ZPETC_SECTIONS};
+use servo_config::{FeedforwardSpec, ZpetcSpec, MAX_PREVIEW, ZPETC_SECTIONS};
 
 /// Largest reduced order tried.
 const MAX_ORDER: usize = 2 * ZPETC_SECTIONS - 4;

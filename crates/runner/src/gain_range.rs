@@ -2,13 +2,13 @@
 //! sampled closed loop with the controller's output multiplied by k is stable for k strictly
 //! between two limits (the loop is conditionally stable: too little gain lets the suspension
 //! resonance go unstable, too much the high-frequency crossover). A change is allowed only if
-//! it leaves [`servo_runtime::GAIN_MARGIN`] of gain margin on each side.
+//! it leaves [`servo_config::GAIN_MARGIN`] of gain margin on each side.
 
 use crate::closed_loop::ClosedLoop;
 use crate::controller::LinearController;
 use crate::error::RunError;
 use crate::plan::{linear_tick_of, Plan};
-use servo_runtime::{Deployment, Stability};
+use servo_config::{Deployment, Stability};
 
 /// The plan's deployment with its loop checked: its spectral radius and gain range added.
 pub fn checked(plan: &Plan) -> Result<Deployment, RunError> {

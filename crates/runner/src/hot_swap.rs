@@ -4,7 +4,7 @@
 //! fragment as `servo tune` writes it), checks what it was made for and the new closed loop's
 //! stability on the run's plant model, and hands the runtime the controller with its gain
 //! range. A daemon without the model takes only files that carry that check
-//! ([`servo_runtime::CarriedCheck`]).
+//! ([`servo_config::CarriedCheck`]).
 
 use crate::config::{ConfigError, ControllerConfig, ControllerKind, RunConfig};
 use crate::error::RunError;
@@ -14,7 +14,7 @@ use daq_io::ack_status;
 use servo_runtime::{Refusal, Vet, Vetted};
 use std::path::PathBuf;
 
-pub use servo_runtime::LOADED_FILE;
+pub use servo_config::LOADED_FILE;
 
 /// The check of a loaded controller against the run's plant model.
 pub struct PlanCheck {
@@ -89,13 +89,13 @@ pub fn plan_after_load(plan: &Plan, file: &[u8]) -> Result<Plan, RunError> {
             ))
         })?;
     let table: toml::Table =
-        toml::from_str(text).map_err(|e| parse(servo_runtime::toml_message(text, &e)))?;
+        toml::from_str(text).map_err(|e| parse(servo_config::toml_message(text, &e)))?;
     let (controller, bytes) = if let Some(fragment) = table.get("controller") {
         // Whether the fragment sets the reference path (a tuning fragment holds gains only).
         let has = |key: &str| fragment.get(key).is_some();
         let (sets_feedforward, sets_smoothing) = (has("feedforward"), has("smoothing_hz"));
         let config: RunConfig =
-            toml::from_str(text).map_err(|e| parse(servo_runtime::toml_message(text, &e)))?;
+            toml::from_str(text).map_err(|e| parse(servo_config::toml_message(text, &e)))?;
         if config.controller.kind == ControllerKind::Ss {
             return Err(parse(
                 "a [controller] fragment of kind ss names a file: load the file".into(),

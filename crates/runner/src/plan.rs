@@ -20,7 +20,7 @@ use plant_sim::params::CurrentLoopModel;
 use plant_sim::sim::SimError;
 use plant_sim::Simulator;
 use recorder::Input;
-use servo_runtime::{Deployment, Invalid, ReferenceSpec, SsMatrices};
+use servo_config::{Deployment, Invalid, ReferenceSpec, SsMatrices};
 
 /// Attachment name of the controller file in a recording.
 pub const CONTROLLER_INPUT: &str = "controller.toml";
@@ -255,14 +255,14 @@ fn read_ss_file(
     text: &str,
     path: &std::path::Path,
     config: &RunConfig,
-    run: &servo_runtime::MadeFor,
+    run: &servo_config::MadeFor,
 ) -> Result<SsMatrices, ConfigError> {
     let at = Origin {
         path: Some(path.to_owned()),
         text: Some(text.to_owned()),
     };
     let running = config.controller.spec(None);
-    let f = servo_runtime::parse_controller_file(text, &at, &running)?;
+    let f = servo_config::parse_controller_file(text, &at, &running)?;
     f.check_rate(
         config.plant.timing.servo_rate_hz,
         &at,

@@ -336,7 +336,7 @@ pub fn inspect(path: &Path) -> Result<Inspected, RunError> {
 fn embedded_config(path: &Path, text: &str) -> Result<RunConfig, RunError> {
     let config: RunConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
         path: path.to_owned(),
-        message: servo_runtime::toml_message(text, &e),
+        message: servo_config::toml_message(text, &e),
     })?;
     config.validate(&Origin {
         path: Some(format!("{} (its configuration)", path.display()).into()),

@@ -15,8 +15,8 @@ use crate::config::{FeedforwardKind, Machining, RepetitiveSection, RunConfig, MA
 use crate::error::RunError;
 use design::repetitive::{Convergence, Harmonics, Learning};
 use recorder::Input;
+use servo_config::Deployment;
 use servo_core::{RepetitiveConfig, LEARNING_IDENTITY, LEARNING_TAPS};
-use servo_runtime::Deployment;
 use std::f64::consts::TAU;
 use std::fmt::Write as _;
 use std::path::Path;

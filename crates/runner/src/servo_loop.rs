@@ -7,7 +7,8 @@ use crate::config::{ConfigError, Scenario};
 use crate::machining::SurfaceReference;
 use crate::plan::{located_in_run, Plan};
 use daq_io::{flags, Command, Sensor, Telemetry};
-use servo_runtime::{Deployment, Servo, TripCause};
+use servo_config::Deployment;
+use servo_runtime::{Servo, TripCause};
 
 /// The runtime's loop with the run's trajectory.
 pub struct ServoLoop {

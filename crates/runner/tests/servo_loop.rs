@@ -72,7 +72,7 @@ fn a_nan_reading_trips_to_the_configured_safe_state() {
 fn the_runtime_thesis_prototype_is_the_default_deployment() {
     let plan = Plan::new(&Loaded::default()).unwrap();
     let (deployed, _) = runner::deploy::deployment_file(&plan).unwrap();
-    let preset = servo_runtime::Deployment::thesis_prototype();
+    let preset = servo_config::Deployment::thesis_prototype();
     let (a, b) = (deployed.stability.unwrap(), preset.stability.unwrap());
     for (x, y) in [
         (a.spectral_radius, b.spectral_radius),
@@ -82,11 +82,11 @@ fn the_runtime_thesis_prototype_is_the_default_deployment() {
         assert!((x - y).abs() <= 1e-9 * y, "{x} vs {y}");
     }
     assert_eq!(
-        servo_runtime::Deployment {
+        servo_config::Deployment {
             stability: None,
             ..deployed
         },
-        servo_runtime::Deployment {
+        servo_config::Deployment {
             stability: None,
             ..preset
         }

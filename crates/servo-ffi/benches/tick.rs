@@ -9,7 +9,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use daq_io::{Command, Sensor};
-use servo_runtime::{deployment_toml, ControllerKind, Deployment, Servo, SsMatrices};
+use servo_config::{deployment_toml, ControllerKind, Deployment, SsMatrices};
+use servo_runtime::Servo;
 use std::ffi::CString;
 use std::hint::black_box;
 

@@ -12,7 +12,8 @@
 
 use daq_io::{flags, Command, Latency, Sensor, Telemetry};
 use ffi_support::{copy_message, guard, text, ErrorText, TextError};
-use servo_runtime::{Servo, MAX_TEXT_BYTES};
+use servo_config::MAX_TEXT_BYTES;
+use servo_runtime::Servo;
 use std::ffi::c_char;
 
 /// The version of this C ABI: the functions and the structs of `fts_servo.h` (the sample

@@ -1,9 +1,9 @@
 //! The feedforward of a loop, evaluated per tick from the previewed reference: the stage-model
 //! inverse on finite differences, or a ZPETC filter whose coefficients were designed offline.
 
-use crate::check::{Allowed, Invalid};
-use crate::deployment::{FeedforwardSpec, Stage, ZPETC_SECTIONS};
 use crate::preview::Window;
+use servo_config::{Allowed, Invalid};
+use servo_config::{FeedforwardSpec, Stage, ZPETC_SECTIONS};
 use servo_core::{Block, Limits, Setpoint, Zpetc};
 
 /// A feedforward ready to run.

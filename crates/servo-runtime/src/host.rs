@@ -24,9 +24,9 @@ pub(crate) struct Host {
     /// Telemetry dropped by services that have ended.
     #[cfg(feature = "serve")]
     pub(crate) dropped: u64,
-    pub(crate) made_for: Option<crate::file::MadeFor>,
+    pub(crate) made_for: Option<servo_config::MadeFor>,
     /// The controller the loop runs (a loaded state-space file takes its output limit).
-    pub(crate) spec: crate::deployment::ControllerSpec,
+    pub(crate) spec: servo_config::ControllerSpec,
     /// The deployment's servo rate in Hz, as written (what stability records are sealed to).
     pub(crate) servo_rate_hz: f64,
 }

@@ -3,7 +3,7 @@
 //! The fast-tool-servo controller a lab embeds in its own real-time loop — a C/C++ or Rust DAQ
 //! daemon, a machine controller's servo thread, a microcontroller. Everything that runs per
 //! tick: the reference with its preview and smoothing, the feedforward, the feedback controller
-//! (PID, state space up to [`MAX_SS_ORDER`] = 40, the acceleration cascade), machine protection
+//! (PID, state space up to [`deployment::MAX_SS_ORDER`] = 40, the acceleration cascade), machine protection
 //! and its safe states, bumpless controller swap, output-scale changes checked against the
 //! loop's stored stability range, tick statistics — behind one front door, [`Servo`].
 //!
@@ -35,8 +35,17 @@
 //!   [`Servo::status`], [`Servo::set_gain`], [`Servo::reset`], [`Servo::load`],
 //!   [`Servo::timing`]; with feature `serve`, [`Servo::serve`], [`Servo::serve_with`] and
 //!   [`Servo::close`].
-//! - [`Deployment`] and its parts, [`Invalid`] (a value out of range, named by its key),
-//!   [`ConfigError`] (the same located in a file), [`TripCause`].
+//! - [`Deployment`] and its parts ([`deployment`]), [`Invalid`] (a value out of range, named
+//!   by its key, with what is [`Allowed`]), [`ConfigError`] (the same located in a file),
+//!   [`Status`], [`Trip`], [`TripCause`], [`GainRefused`], [`Timing`].
+//! - Loading a controller while running: [`Servo::load`], or in two phases off the ticking
+//!   thread ([`Servo::loader`] → [`Loader::prepare`] → [`Servo::swap`] with a [`Prepared`]);
+//!   [`LoadError`]. A host with its own check of a loaded file implements [`Vet`] ([`Vetted`],
+//!   [`Refusal`]) and passes it in [`ServeOptions`].
+//!
+//! The whole public surface is listed in `public-api.txt` beside this crate's manifest (a test
+//! keeps the listing true). The configuration plumbing our own tools share (TOML helpers, the
+//! controller law alone, the reference path's response) is in the `servo-config` crate.
 //!
 //! ## Features
 //! - default `std`: deployments and controller files from TOML, loads, tick timing.
@@ -45,23 +54,14 @@
 //!   [`Servo::tick`] and the rest of the per-tick core, for a microcontroller.
 #![cfg_attr(not(feature = "std"), no_std)]
 
-mod check;
-mod controller;
-mod deployment;
 mod feedforward;
-pub mod link;
 mod preview;
 mod protection;
 mod reference;
-mod reference_path;
-mod seal;
 mod servo;
 mod servo_loop;
 mod status;
-mod validate;
 
-#[cfg(feature = "std")]
-mod file;
 #[cfg(feature = "std")]
 mod host;
 #[cfg(feature = "std")]
@@ -71,33 +71,37 @@ mod prepared;
 #[cfg(feature = "serve")]
 mod serve;
 
-pub use check::{Allowed, Invalid};
-pub use controller::{accel_shaping, kg_of, position_pid, Controller};
-pub use deployment::{
-    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ProtectionConfig,
-    ReferenceSpec, SafeState, Seal, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN,
-    MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
-};
+/// The parts of a [`Deployment`]: every number of the loop, in SI units, checked by
+/// [`Deployment::check`] (see each type for its keys and ranges).
+pub mod deployment {
+    pub use servo_config::{
+        ControllerKind, ControllerSpec, FeedforwardSpec, PidGains, ProtectionConfig, ReferenceSpec,
+        SafeState, Seal, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN, MAX_PREVIEW,
+        MAX_SS_ORDER, ZPETC_SECTIONS,
+    };
+    #[cfg(feature = "std")]
+    pub use servo_config::{MadeFor, Mismatch};
+}
+
 pub use protection::TripCause;
 pub use reference::Reference;
-pub use reference_path::{Complex, PathResponse};
 pub use servo::Servo;
-pub use servo_loop::HANDOVER_TIME_CONSTANT_S;
+pub use servo_config::{Allowed, Deployment, Invalid};
 pub use status::{GainRefused, Status, Trip};
-pub use validate::{check_controller, check_reference};
 
-#[cfg(feature = "std")]
-pub use file::{
-    controller_toml, deployment_toml, exact_array, exact_arrays, line_of, matrix, num,
-    parse_controller_file, parse_deployment, read_input, read_text, stability_toml, toml_message,
-    ConfigError, ControllerFile, DeploymentAndProvenance, MadeFor, Mismatch, Origin,
-    MAX_IMAGE_BYTES, MAX_TEXT_BYTES,
-};
 #[cfg(feature = "std")]
 pub use host::Timing;
 #[cfg(feature = "std")]
-pub use load::{CarriedCheck, LoadError, Refusal, Vet, Vetted, LOADED_FILE};
+pub use load::{LoadError, Refusal, Vet, Vetted};
 #[cfg(feature = "std")]
 pub use prepared::{Loader, Prepared};
 #[cfg(feature = "serve")]
-pub use serve::{ServeError, ServeOptions, SERVICE_TICKS};
+pub use serve::{ServeError, ServeOptions};
+#[cfg(feature = "std")]
+pub use servo_config::ConfigError;
+
+// Paths the crate's modules use as `crate::…`.
+#[cfg(feature = "std")]
+use load::CarriedCheck;
+#[cfg(feature = "std")]
+use servo_config::{parse_deployment, read_text, Origin};

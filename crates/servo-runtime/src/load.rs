@@ -7,15 +7,12 @@
 //! whose range allows the output scale in force. A host that has the plant model (our own
 //! simulated runs) checks with the model instead ([`Vet`]).
 
-use crate::check::Invalid;
-use crate::controller::Controller;
-use crate::deployment::{ControllerSpec, Stability, Stage};
-use crate::file::{parse_controller_file, ConfigError, MadeFor, Origin};
 use daq_io::ack_status;
+use servo_config::Controller;
+use servo_config::Invalid;
+use servo_config::{parse_controller_file, ConfigError, MadeFor, Origin, LOADED_FILE};
+use servo_config::{ControllerSpec, Stability, Stage};
 use std::fmt;
-
-/// The name a loaded file takes in messages.
-pub const LOADED_FILE: &str = "controller loaded into the running loop";
 
 /// Why a controller was not taken.
 #[derive(Debug, Clone, PartialEq)]
@@ -128,7 +125,7 @@ impl Vet for CarriedCheck {
 /// A vetted controller built for the loop (`stage`, `period_s`), boxed to cross threads (and
 /// so that the one it replaces is freed off the ticking thread).
 pub(crate) fn build(v: &Vetted, stage: &Stage, period_s: f64) -> Result<Box<Controller>, Invalid> {
-    crate::validate::check_controller(&v.spec, 1.0 / period_s)?;
+    servo_config::check_controller(&v.spec, 1.0 / period_s)?;
     Controller::build(&v.spec, stage, period_s).map(Box::new)
 }
 

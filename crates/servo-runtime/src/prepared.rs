@@ -3,10 +3,11 @@
 //! parsing or freeing — the controller it replaces leaves in the [`Prepared`], to be dropped
 //! off the ticking thread.
 
-use crate::deployment::{ControllerSpec, Stability, Stage};
-use crate::file::Origin;
-use crate::load::{build, CarriedCheck, LoadError, Vet, LOADED_FILE};
+use crate::load::{build, CarriedCheck, LoadError, Vet};
 use crate::servo_loop::Slot;
+use servo_config::Origin;
+use servo_config::LOADED_FILE;
+use servo_config::{ControllerSpec, Stability, Stage};
 
 /// The check a loop's controller files pass, taken from the loop ([`crate::Servo::loader`]):
 /// owned, so it is used on any thread while the loop ticks.

@@ -3,7 +3,7 @@
 //! kinks or steps — beam-integrator cell edges, image pixels — that no loop can follow and
 //! whose inverse would saturate the actuator). Fixed capacity: the tick never allocates.
 
-use crate::deployment::MAX_PREVIEW;
+use servo_config::{hann_weights, MAX_PREVIEW};
 
 const LEN: usize = 2 * MAX_PREVIEW + 2;
 
@@ -74,19 +74,6 @@ impl Window {
         }
         acc
     }
-}
-
-/// Normalised Hann weights `w[|i|]` over `2·half + 1` taps (endpoints, zero, excluded):
-/// `w[0] + 2·Σ w[i] = 1`. `half` ≤ [`MAX_PREVIEW`].
-pub(crate) fn hann_weights(half: usize) -> [f64; MAX_PREVIEW + 1] {
-    let mut weights = [0.0; MAX_PREVIEW + 1];
-    let n = (2 * half + 2) as f64;
-    for (i, w) in weights.iter_mut().enumerate().take(half + 1) {
-        *w = 0.5 + 0.5 * libm::cos(core::f64::consts::TAU * i as f64 / n);
-    }
-    let sum = weights[0] + 2.0 * weights[1..=half].iter().sum::<f64>();
-    weights.iter_mut().for_each(|w| *w /= sum);
-    weights
 }
 
 #[cfg(test)]

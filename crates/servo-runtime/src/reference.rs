@@ -2,9 +2,9 @@
 //! own trajectory (a machine's tool path, a spindle-synchronised surface) through the
 //! [`Reference`] trait.
 
-use crate::check::{Allowed, Invalid};
-use crate::deployment::ReferenceSpec;
 use daq_io::Sensor;
+use servo_config::ReferenceSpec;
+use servo_config::{Allowed, Invalid};
 use servo_core::{Block, Chirp, ChirpConfig, Sine, SineConfig, Step, StepConfig, Sweep};
 
 /// A desired trajectory (m, positive away from the workpiece), read ahead by the loop's

@@ -1,13 +1,13 @@
 //! The front door: one [`Servo`] a daemon holds and ticks.
 
-use crate::check::Invalid;
-#[cfg(feature = "std")]
-use crate::deployment::Stage;
-use crate::deployment::{Deployment, Stability};
 use crate::reference::{Generator, Reference};
 use crate::servo_loop::ServoLoop;
 use crate::status::{GainRefused, Status, Trip};
 use daq_io::{flags, Command, Sensor, Telemetry};
+use servo_config::Invalid;
+#[cfg(feature = "std")]
+use servo_config::Stage;
+use servo_config::{Deployment, Stability};
 
 /// The controller a daemon embeds: reference with preview, feedforward, the feedback
 /// controller, machine protection and its safe state, bumpless controller swap and checked gain

@@ -2,14 +2,14 @@
 //! controller → command and telemetry, machine protection on every sample, bumpless handover
 //! of a new controller and bumpless re-arm after a trip. Allocation-free, `no_std`.
 
-use crate::check::{Allowed, Invalid};
-use crate::controller::Controller;
-use crate::deployment::{Deployment, MAX_PREVIEW};
 use crate::feedforward::Feedforward;
 use crate::preview::Window;
 use crate::protection::{Observation, Protection, TripCause};
 use crate::reference::Reference;
 use daq_io::{flags, Command, Sensor, Telemetry};
+use servo_config::Controller;
+use servo_config::{Allowed, Invalid};
+use servo_config::{Deployment, MAX_PREVIEW};
 
 /// A controller on its way into the loop: boxed with the standard library (it crosses threads
 /// and the one it replaces is freed off the ticking thread), by value without.
@@ -23,7 +23,7 @@ pub(crate) type Slot = Controller;
 /// Time constant of a bumpless handover (s): the difference between the old and the new
 /// controller's output at the swap tick fades with it (5 ms: slower than the loop's 1–3 kHz
 /// bandwidth, so the new controller's own states take over without a kick).
-pub const HANDOVER_TIME_CONSTANT_S: f64 = 5e-3;
+pub(crate) const HANDOVER_TIME_CONSTANT_S: f64 = 5e-3;
 
 /// The controller's half of a tick: reads tick k's sample, returns tick k's command and its
 /// telemetry (the tick's reference with the reading it acted on). A non-finite reading latches
@@ -212,7 +212,7 @@ impl ServoLoop {
             gap_clipped: s.flags & flags::GAP_CLIPPED != 0,
             // The previous command: at its limit, or clipped at the DAC (this sample's bit).
             saturated: s.seq > 0
-                && (libm::fabs(self.last_u) >= self.controller.limit_v
+                && (libm::fabs(self.last_u) >= self.controller.limit_v()
                     || s.flags & flags::DAC_CLIPPED != 0),
         };
         self.protection.watch(s.seq, &seen, self.last_u);
@@ -236,7 +236,7 @@ impl ServoLoop {
         self.last_trip_flags = self.protection.flags();
         let controller_flags =
             if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.last_trip_flags;
-        let saturated = libm::fabs(u) >= self.controller.limit_v;
+        let saturated = libm::fabs(u) >= self.controller.limit_v();
         let telemetry = Telemetry {
             seq: s.seq,
             time_s: s.time_s,
@@ -293,7 +293,7 @@ impl ServoLoop {
         }
         let handover = self.handover_v;
         self.handover_v *= self.handover_decay;
-        let limit = self.controller.limit_v;
+        let limit = self.controller.limit_v();
         (
             (raw * self.gain_scale + handover + u_ff).clamp(-limit, limit),
             reference,

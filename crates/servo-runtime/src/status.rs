@@ -11,7 +11,7 @@ pub struct Trip {
     pub tick: u64,
 }
 
-/// What a [`Servo`] has done so far ([`crate::Servo::status`]).
+/// What a [`crate::Servo`] has done so far ([`crate::Servo::status`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Status {
     /// Ticks run (commands given).

@@ -1,10 +1,11 @@
 //! The deployment file: written in shortest round-trip form, so a file read back is the loop
 //! that was written, bit for bit; every bad value named by file, line, key and allowed range.
 
-use servo_runtime::{
+use servo_config::{
     deployment_toml, parse_deployment, ControllerKind, Deployment, FeedforwardSpec, Origin,
-    ReferenceSpec, SafeState, Servo, SsMatrices, Stability, ZpetcSpec, ZPETC_SECTIONS,
+    ReferenceSpec, SafeState, SsMatrices, Stability, ZpetcSpec, ZPETC_SECTIONS,
 };
+use servo_runtime::Servo;
 
 /// Deterministic numbers spanning many decades and both signs (xorshift).
 fn numbers(seed: u64) -> impl FnMut() -> f64 {
@@ -144,7 +145,7 @@ fn bad_values_are_named_by_file_line_key_and_range() {
 /// naming what no longer matches; the intact one opens.
 #[test]
 fn an_edited_deployment_is_refused_at_open() {
-    use servo_runtime::link::image;
+    use servo_link::image;
     let at = |t: &str| Origin {
         path: Some("deploy.toml".into()),
         text: Some(t.to_owned()),
@@ -153,11 +154,11 @@ fn an_edited_deployment_is_refused_at_open() {
     let text = deployment_toml(&d, None, "t");
     assert!(Servo::from_toml(&text).is_ok());
     let entry = d.controller.ss.as_ref().unwrap().entry(3, 4);
-    let written = servo_runtime::num(entry);
+    let written = servo_config::num(entry);
     assert!(text.contains(&written));
     let edits = [
         (
-            text.replacen(&written, &servo_runtime::num(entry * 1.001), 1),
+            text.replacen(&written, &servo_config::num(entry * 1.001), 1),
             "controller.stability.sha256.controller",
         ),
         (
@@ -220,7 +221,7 @@ fn an_edited_deployment_is_refused_at_open() {
 /// the loop's is refused, naming the key.
 #[test]
 fn a_deployment_made_for_another_rate_is_refused_at_open() {
-    let made_for = servo_runtime::MadeFor {
+    let made_for = servo_config::MadeFor {
         tool: "fts-servo test".into(),
         plant_sha256: "ab".repeat(32),
         stage: "light".into(),
@@ -229,7 +230,7 @@ fn a_deployment_made_for_another_rate_is_refused_at_open() {
     let d = Deployment::thesis_prototype();
     let text = deployment_toml(&d, Some(&made_for), "t");
     assert!(Servo::from_toml(&text).is_ok());
-    let other = servo_runtime::MadeFor {
+    let other = servo_config::MadeFor {
         servo_rate_hz: 20_000.0,
         ..made_for
     };
@@ -248,7 +249,7 @@ fn a_fragments_error_is_located_at_its_line() {
         path: Some("pid.toml".into()),
         text: Some(text.to_owned()),
     };
-    let e = servo_runtime::parse_controller_file(text, &at, &Default::default())
+    let e = servo_config::parse_controller_file(text, &at, &Default::default())
         .unwrap_err()
         .to_string();
     assert!(

@@ -3,5 +3,6 @@
 
 mod deployment_file;
 mod no_alloc;
+mod public_api;
 mod serve;
 mod skipped_samples;

@@ -5,10 +5,11 @@
 
 use daq_io::Sensor;
 use densa_alloc::{is_active, measure, CountingAllocator};
-use servo_runtime::{
-    controller_toml, ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, MadeFor, Servo,
+use servo_config::{
+    controller_toml, ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, MadeFor,
     SsMatrices, Stability, ZpetcSpec, ZPETC_SECTIONS,
 };
+use servo_runtime::Servo;
 
 /// Counts per thread: the test harness's own threads never enter a measurement.
 #[global_allocator]
@@ -37,7 +38,7 @@ fn deployments() -> Vec<Deployment> {
         sections,
         sections_used: 1,
     });
-    ss.reference = servo_runtime::ReferenceSpec::Sine {
+    ss.reference = servo_config::ReferenceSpec::Sine {
         amplitude_m: 1e-6,
         frequency_hz: 200.0,
     };
@@ -102,7 +103,7 @@ fn a_loaded_controller_is_handed_over_without_allocating_on_the_tick() {
         stage: "light".into(),
         servo_rate_hz: 199_600.0,
     };
-    let text = servo_runtime::deployment_toml(&d, Some(&made_for), "t");
+    let text = servo_config::deployment_toml(&d, Some(&made_for), "t");
     let mut servo = Servo::from_toml(&text).unwrap();
     ticks(&mut servo, 0, 100);
     let mut c = ControllerSpec::default();
@@ -129,7 +130,7 @@ fn a_controller_prepared_on_another_thread_is_swapped_in_without_allocating() {
         stage: "light".into(),
         servo_rate_hz: 199_600.0,
     };
-    let text = servo_runtime::deployment_toml(&d, Some(&made_for), "t");
+    let text = servo_config::deployment_toml(&d, Some(&made_for), "t");
     let mut c = ControllerSpec::default();
     c.pid.kp *= 0.9;
     let checked = d.stability.map(|s| s.sealed(d.servo_rate_hz, &d.stage, &c));
@@ -170,7 +171,7 @@ fn a_controller_prepared_on_another_thread_is_swapped_in_without_allocating() {
     other.stability = other
         .stability
         .map(|s| s.sealed(other.servo_rate_hz, &other.stage, &other.controller));
-    let other_servo = Servo::from_toml(&servo_runtime::deployment_toml(
+    let other_servo = Servo::from_toml(&servo_config::deployment_toml(
         &other,
         Some(&other_for),
         "t",

@@ -8,9 +8,10 @@
 use daq_io::contract::command;
 use daq_io::ipc::{leaf, take, take_waiting, ControlSender, Endpoint, Tap};
 use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Sensor};
-use servo_runtime::{
-    controller_toml, deployment_toml, ControllerSpec, Deployment, MadeFor, Servo, Stability,
+use servo_config::{
+    controller_toml, deployment_toml, ControllerSpec, Deployment, MadeFor, Stability,
 };
+use servo_runtime::Servo;
 use std::time::Duration;
 
 /// The bound `await_subscriber` asks for: an hour, so a busy machine never meets it (a test

@@ -2,7 +2,8 @@
 //! built-in trajectory stays on the plant's time — the reference of a sample is the trajectory
 //! at that sample's tick, however many ticks were skipped before it.
 
-use servo_runtime::{Deployment, ReferenceSpec, Servo};
+use servo_config::{Deployment, ReferenceSpec};
+use servo_runtime::Servo;
 use std::f64::consts::TAU;
 
 /// Without preview and with a smoothing window that reads the trajectory 50 ticks ahead: skips

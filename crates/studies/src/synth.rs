@@ -13,7 +13,7 @@ use nalgebra::DMatrix;
 use plant_sim::sampled_noise::SampledNoise;
 use runner::config::{ControllerConfig, ControllerKind, MadeFor, Origin};
 use runner::Plan;
-use servo_runtime::{Stability, MAX_SS_ORDER};
+use servo_config::{Stability, MAX_SS_ORDER};
 
 /// The designed controller in the form `servo run --controller ss` loads (input: position
 /// error `r − gap` in sensor volts, output: command in V) and what the design predicts.
@@ -85,7 +85,7 @@ impl Design {
             self.made_for.to_toml("made_for"),
             self.stability.map_or(String::new(), |s| format!(
                 "\n{}",
-                servo_runtime::stability_toml("stability", &s)
+                servo_config::stability_toml("stability", &s)
             ))
         )
     }

@@ -61,7 +61,7 @@ pub struct TuneReport {
     pub made_for: runner::config::MadeFor,
     /// The offline check of the fragment's loop (a PID with these gains on this plant): the
     /// output scales a running loop that loads it may take.
-    pub stability: servo_runtime::Stability,
+    pub stability: servo_config::Stability,
     /// The plant they were tuned for (written into the fragment, so `servo run -c` runs it).
     #[serde(skip)]
     pub plant: plant_sim::PlantParams,
@@ -89,7 +89,7 @@ impl TuneReport {
             p.kd,
             p.tf_s,
             self.made_for.to_toml("controller.made_for"),
-            servo_runtime::stability_toml("controller.stability", &self.stability),
+            servo_config::stability_toml("controller.stability", &self.stability),
             runner::config::plant_toml(&self.plant)
         )
     }

@@ -1,12 +1,12 @@
 //! What a result was made for (provenance), as the run sees it: the plant's hash of its
 //! parameters as TOML, its stage name, the servo rate and the tool version
-//! ([`servo_runtime::MadeFor`]); checked where a run loads a result, a mismatch refused with
+//! ([`servo_config::MadeFor`]); checked where a run loads a result, a mismatch refused with
 //! both sides named unless the configuration accepts it (`controller.force`).
 
 use super::{presets::StagePreset, ConfigError, Origin};
 use plant_sim::PlantParams;
 use serde::Serialize;
-use servo_runtime::MadeFor;
+use servo_config::MadeFor;
 use sha2::{Digest, Sha256};
 
 /// Lower-case hex SHA-256 of `data`.

@@ -11,7 +11,7 @@ mod repetitive;
 
 /// Reading the files a run depends on, bounded (the runtime's, shared).
 pub mod input_file {
-    pub use servo_runtime::{read_input, read_text, MAX_IMAGE_BYTES, MAX_TEXT_BYTES};
+    pub use servo_config::{read_input, read_text, MAX_IMAGE_BYTES, MAX_TEXT_BYTES};
 }
 
 pub use machining::{Machining, SurfaceConfig, GRID_EDGE_RADIUS_M};
@@ -20,7 +20,7 @@ pub use plant_file::read_plant_file;
 pub use prescription_file::read_prescription;
 pub use realtime::{RealtimeConfig, Role, WaitKind};
 pub use repetitive::{RepetitiveSection, MAX_BINS};
-pub use servo_runtime::{
+pub use servo_config::{
     line_of, ConfigError, ControllerKind, MadeFor, Origin, PidGains, ProtectionConfig, SafeState,
 };
 
@@ -141,8 +141,8 @@ impl Scenario {
 
     /// The runtime's reference generator for this scenario over a run of `duration_s` (None
     /// for a machining scenario, whose reference the run supplies from the surface).
-    pub fn reference(&self, duration_s: f64) -> Option<servo_runtime::ReferenceSpec> {
-        use servo_runtime::ReferenceSpec as R;
+    pub fn reference(&self, duration_s: f64) -> Option<servo_config::ReferenceSpec> {
+        use servo_config::ReferenceSpec as R;
         Some(match *self {
             Scenario::Hold | Scenario::IntermittentCut { .. } => R::Hold,
             Scenario::Sine {
@@ -219,7 +219,7 @@ pub struct ControllerConfig {
     pub made_for: Option<MadeFor>,
     /// The offline check of the gains' loop (written by `servo tune`): what a running loop
     /// that loads this fragment keeps as its gain range. A run checks its own loop again.
-    pub stability: Option<servo_runtime::Stability>,
+    pub stability: Option<servo_config::Stability>,
     /// Run a controller made for another plant or rate anyway (`--force`).
     pub force: bool,
     /// Zero-phase smoothing of the previewed trajectory before the controller and the
@@ -232,8 +232,8 @@ pub struct ControllerConfig {
 impl ControllerConfig {
     /// The runtime's controller of this configuration, with the matrices of a state-space
     /// controller when `ss` holds them (read from `ss_file`).
-    pub fn spec(&self, ss: Option<servo_runtime::SsMatrices>) -> servo_runtime::ControllerSpec {
-        servo_runtime::ControllerSpec {
+    pub fn spec(&self, ss: Option<servo_config::SsMatrices>) -> servo_config::ControllerSpec {
+        servo_config::ControllerSpec {
             kind: self.kind,
             pid: self.pid,
             ka: self.ka,
@@ -301,7 +301,7 @@ impl Loaded {
         let text = input_file::read_text(path)?;
         let config = toml::from_str(&text).map_err(|e| ConfigError::Parse {
             path: path.to_owned(),
-            message: servo_runtime::toml_message(&text, &e),
+            message: servo_config::toml_message(&text, &e),
         })?;
         Ok(Loaded {
             config,
@@ -340,7 +340,7 @@ impl RunConfig {
         let nyquist = rate / 2.0;
         match (&self.scenario, self.scenario.reference(r.duration_s)) {
             (_, Some(reference)) => {
-                servo_runtime::check_reference(&reference, nyquist, "scenario")
+                servo_config::check_reference(&reference, nyquist, "scenario")
                     .map_err(|e| at.located(&e))?;
                 if let Scenario::Step { at_s, .. } = self.scenario {
                     if !(at_s >= 0.0 && at_s < r.duration_s) {
@@ -364,7 +364,7 @@ impl RunConfig {
             }
         }
         let c = &self.controller;
-        servo_runtime::check_controller(&c.spec(None), rate).map_err(|e| at.located(&e))?;
+        servo_config::check_controller(&c.spec(None), rate).map_err(|e| at.located(&e))?;
         if !(c.smoothing_hz == 0.0 || (c.smoothing_hz > 0.0 && c.smoothing_hz < nyquist)) {
             return Err(at.invalid(
                 "controller.smoothing_hz",

@@ -25,7 +25,7 @@ pub fn read_plant_file(path: &Path) -> Result<PlantParams, ConfigError> {
         path: path.to_owned(),
         message: format!(
             "a plant file holds one [plant] table: {}",
-            servo_runtime::toml_message(&text, &e)
+            servo_config::toml_message(&text, &e)
         ),
     })?;
     let at = Origin {

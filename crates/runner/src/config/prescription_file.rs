@@ -49,7 +49,7 @@ const MAX_GRID_BYTES: u64 = 128 << 20;
 #[serde(deny_unknown_fields)]
 struct File {
     aperture_radius_mm: f64,
-    #[serde(default, deserialize_with = "servo_runtime::exact_array")]
+    #[serde(default, deserialize_with = "servo_config::exact_array")]
     decenter_mm: [f64; 2],
     base: Option<BaseFile>,
     zernike: Option<ZernikeFile>,
@@ -95,7 +95,7 @@ struct XyTermFile {
 #[serde(deny_unknown_fields)]
 struct GridFile {
     path: PathBuf,
-    #[serde(deserialize_with = "servo_runtime::exact_array")]
+    #[serde(deserialize_with = "servo_config::exact_array")]
     pitch_mm: [f64; 2],
 }
 
@@ -107,7 +107,7 @@ pub fn read_prescription(path: &Path) -> Result<Prescription, ConfigError> {
         path: path.to_owned(),
         message: format!(
             "a surface prescription (aperture_radius_mm and [base], [zernike], [xy], [grid], [compensation] tables): {}",
-            servo_runtime::toml_message(&text, &e)
+            servo_config::toml_message(&text, &e)
         ),
     })?;
     let at = Origin {

@@ -24,7 +24,7 @@ use daq_io::ipc::{leaf, take, take_waiting, ControlSender, ControllerLink, Endpo
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Daq, Health};
 use recorder::{Frame, Recorder};
-use servo_runtime::{TripCause, SERVICE_TICKS};
+use servo_runtime::TripCause;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -155,7 +155,11 @@ pub fn controller(
         if servo.run_over() && !stop_sent {
             stop_sent = stopper.send(stop_for(daq_io::stop_cause::TRIPPED)).is_ok();
         }
-        if s.seq.is_multiple_of(SERVICE_TICKS) && stop.is_set() && !stop_sent {
+        if s.seq
+            .is_multiple_of(servo_runtime::ServeOptions::SERVICE_TICKS)
+            && stop.is_set()
+            && !stop_sent
+        {
             let cause = stop.cell().load(std::sync::atomic::Ordering::Relaxed) as u32;
             stop_sent = stopper.send(stop_for(cause)).is_ok();
         }

@@ -2,15 +2,15 @@
 //! under QEMU's `mps2-an500` — closed against the simulated stage on the host, one sample and
 //! one command per tick in lockstep over the board's UART (QEMU's stdio).
 //!
-//! The plan's [`servo_runtime::Deployment`] goes to the target as an image at start (one
+//! The plan's [`servo_config::Deployment`] goes to the target as an image at start (one
 //! firmware runs every loop up to its order; nothing is rebuilt per controller). QEMU runs
 //! with `-icount` ([`ICOUNT_SHIFT`]): every guest instruction takes the same time of the
 //! emulated clock, so the firmware's SysTick counts instructions ([`instructions_per_count`]).
 //! Time on a real part is estimated from those counts by [`TargetModel`], whose assumptions
 //! are stated: QEMU models no pipeline, cache or FPU latency.
 
-use servo_runtime::link::{image, Boot};
-use servo_runtime::{ControllerKind, Deployment};
+use servo_config::{ControllerKind, Deployment};
+use servo_link::{image, Boot};
 use std::path::{Path, PathBuf};
 
 mod elf;
@@ -177,7 +177,7 @@ fn check_rate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use servo_runtime::SsMatrices;
+    use servo_config::SsMatrices;
 
     fn boot(max_order: u16) -> Boot {
         Boot {

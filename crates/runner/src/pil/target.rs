@@ -5,9 +5,9 @@ use super::{
     check_boot, check_firmware, check_rate, instructions_per_count, PilError, PilOptions,
     TargetMeta, ANSWER_TIMEOUT, ICOUNT_SHIFT,
 };
-use servo_runtime::link::TickReply;
-use servo_runtime::link::{self, image, kind, Boot, BootError, FrameReader, Ready, Report};
-use servo_runtime::Deployment;
+use servo_config::Deployment;
+use servo_link::TickReply;
+use servo_link::{self as link, image, kind, Boot, BootError, FrameReader, Ready, Report};
 use std::io::{Read, Write};
 use std::os::fd::AsFd;
 use std::os::unix::process::CommandExt;

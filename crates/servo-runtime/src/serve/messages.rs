@@ -1,9 +1,9 @@
 //! The messages between a served loop's ticking thread and its service thread, over
 //! lock-free single-producer rings (fixed size, moved by value; a controller crosses boxed).
 
-use crate::controller::Controller;
-use crate::deployment::Stability;
 use crate::host::Timing;
+use servo_config::Controller;
+use servo_config::Stability;
 
 /// Service thread → ticking thread.
 pub(crate) enum Request {

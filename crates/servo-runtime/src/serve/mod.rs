@@ -11,7 +11,6 @@
 mod messages;
 mod service;
 
-use crate::deployment::{Stability, Stage};
 use crate::host::Host;
 use crate::load::Vet;
 use crate::servo_loop::ServoLoop;
@@ -21,6 +20,7 @@ use daq_io::{Sensor, Telemetry};
 use messages::{Event, Request};
 use rtrb::{Consumer, Producer, RingBuffer};
 use service::{Service, IDLE};
+use servo_config::{Stability, Stage};
 use std::sync::mpsc;
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -28,7 +28,7 @@ use std::time::Duration;
 pub(crate) use messages::End;
 
 /// Ticks between two health reports (10 ms at 199.6 kHz).
-pub const SERVICE_TICKS: u64 = 2048;
+pub(crate) const SERVICE_TICKS: u64 = 2048;
 
 /// Telemetry records the ring to the service thread holds (0.66 s at 199.6 kHz).
 const TELEMETRY_RING: usize = 1 << 17;
@@ -40,13 +40,19 @@ pub struct ServeOptions {
     /// records (the command it applied; a daemon knows no simulator truth). False: the
     /// controller process of a HIL run whose plant is another process.
     pub serves_plant: bool,
-    /// The check a loaded controller passes (None: the deployment's own rule,
-    /// [`crate::CarriedCheck`]: made for this plant and carrying its offline stability check).
+    /// The check a loaded controller passes (None: the deployment's own rule — the file must
+    /// be made for this plant and carry its offline stability check, `[stability]`).
     pub vet: Option<Box<dyn Vet>>,
     /// Wait up to this long for the run's recorder to listen before `serve` returns (0: do not).
     pub wait_for_recorder: Duration,
     /// After the run, how long to wait for subscribers to take the last records.
     pub linger: Duration,
+}
+
+impl ServeOptions {
+    /// Ticks between two services of the control plane and two health reports (10 ms at
+    /// 199.6 kHz): a request is answered within this many ticks.
+    pub const SERVICE_TICKS: u64 = SERVICE_TICKS;
 }
 
 impl Default for ServeOptions {

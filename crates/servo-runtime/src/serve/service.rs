@@ -3,8 +3,6 @@
 //! checked and built, STOP and START for a daemon that is the plant).
 
 use super::messages::{End, Event, Request};
-use crate::controller::Controller;
-use crate::deployment::{Stability, Stage};
 use crate::host::Timing;
 use crate::load::{self, Refusal, Vet};
 use daq_io::contract::{command, role, state};
@@ -13,6 +11,8 @@ use daq_io::{
     ack_status, Ack, Control, ControllerLoad, Health, Telemetry, TelemetryBlock, Truth, TruthBlock,
 };
 use rtrb::{Consumer, Producer};
+use servo_config::Controller;
+use servo_config::{Stability, Stage};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 

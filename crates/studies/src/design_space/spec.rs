@@ -224,7 +224,7 @@ impl Study {
             message,
         };
         let mut tree: toml::Table =
-            toml::from_str(text).map_err(|e| parse_error(servo_runtime::toml_message(text, &e)))?;
+            toml::from_str(text).map_err(|e| parse_error(servo_config::toml_message(text, &e)))?;
         let study = tree
             .remove("study")
             .ok_or_else(|| origin.invalid("study", "missing", "a [study] table"))?;

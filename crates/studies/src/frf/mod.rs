@@ -206,7 +206,7 @@ pub fn simulated(plan: &Plan) -> SimBackend {
 /// Plant, controller and model of one measurement, and the drive tick.
 struct Rig<'p> {
     plant: &'p mut dyn FrfPlant,
-    ctrl: servo_runtime::Controller,
+    ctrl: servo_config::Controller,
     model: ClosedLoop,
     which: FrfLoop,
     sample: Sensor,
@@ -217,7 +217,7 @@ impl<'p> Rig<'p> {
     /// The rig of `plan`'s controller and model driving `plant`.
     fn new(plan: &Plan, which: FrfLoop, plant: &'p mut dyn FrfPlant) -> Result<Self, StudyError> {
         let c = &plan.config;
-        let ctrl = servo_runtime::Controller::build(
+        let ctrl = servo_config::Controller::build(
             &plan.controller.spec,
             &plan.deployment.stage,
             plan.period_s(),

@@ -17,7 +17,7 @@ use runner::closed_loop::{input, output};
 use runner::config::{ControllerConfig, ControllerKind};
 use runner::Plan;
 use serde::Serialize;
-use servo_runtime::accel_shaping;
+use servo_config::accel_shaping;
 use std::f64::consts::{PI, SQRT_2};
 
 /// One Ka's compliance curves.

@@ -27,3 +27,6 @@ pub fn read_text(path: &Path) -> Result<String, ConfigError> {
         source,
     })
 }
+
+/// The name a controller file loaded into a running loop takes in messages (it has no path).
+pub const LOADED_FILE: &str = "controller loaded into the running loop";

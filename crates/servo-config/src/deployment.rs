@@ -1,9 +1,9 @@
-//! What a [`crate::Servo`] runs: every number of the loop, in SI units, made offline (`servo
+//! What a `servo_runtime::Servo` runs: every number of the loop, in SI units, made offline (`servo
 //! deploy` writes it from a run configuration after checking the loop on the plant model) and
 //! checked once by [`Deployment::check`]. Plain data: no allocation, so a microcontroller build
 //! can hold one in a `static`.
 
-pub use crate::protection::{ProtectionConfig, SafeState};
+use crate::protection::ProtectionConfig;
 
 /// Largest state-space controller order a loop runs (the thesis's full order is 27; `servo
 /// synth` writes up to 29 with the loop delay).
@@ -29,8 +29,8 @@ pub struct Deployment {
     /// What the offline check of the loop found (None: not checked — gain changes and loads
     /// are refused).
     pub stability: Option<Stability>,
-    /// The built-in reference generator ([`crate::Servo::tick`]; a host's own trajectory goes
-    /// through [`crate::Servo::tick_with`]).
+    /// The built-in reference generator (`servo_runtime::Servo::tick`; a host's own trajectory goes
+    /// through `servo_runtime::Servo::tick_with`).
     pub reference: ReferenceSpec,
     /// The feedforward from the reference.
     pub feedforward: FeedforwardSpec,

@@ -1,9 +1,9 @@
 //! The per-tick payloads of the link and the target's boot and end-of-run reports.
 
 use super::{Reader, Writer};
-use crate::protection::TripCause;
-use crate::status::Trip;
 use daq_io::{Command, Sensor, Telemetry};
+use servo_runtime::Trip;
+use servo_runtime::TripCause;
 
 /// Bytes of an encoded [`Sensor`].
 pub const SENSOR_BYTES: usize = 64;

@@ -1,5 +1,5 @@
 //! The TOML forms of a loop: the deployment file (`servo deploy` writes it, a daemon's
-//! [`crate::Servo::from_file`] reads it), and the controller files a running loop loads — a
+//! `servo_runtime::Servo::from_file` reads it), and the controller files a running loop loads — a
 //! `[controller]` table (as `servo tune` writes it) or a state-space file (as `servo synth`
 //! writes it). Numbers are written in shortest round-trip form, so a file read back is the
 //! loop that was written, bit for bit.
@@ -7,9 +7,10 @@
 use super::made_for::MadeFor;
 use super::origin::{ConfigError, Origin};
 use crate::deployment::{
-    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ProtectionConfig,
-    ReferenceSpec, SsMatrices, Stability, Stage, ZpetcSpec, MAX_SS_ORDER, ZPETC_SECTIONS,
+    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ReferenceSpec,
+    SsMatrices, Stability, Stage, ZpetcSpec, MAX_SS_ORDER, ZPETC_SECTIONS,
 };
+use crate::protection::ProtectionConfig;
 use serde::{Deserialize, Serialize};
 use std::fmt::Write;
 

@@ -1,9 +1,12 @@
-//! The serial link between a host and a [`crate::Servo`] on a microcontroller: framed messages
+//! # servo-link
+//!
+//! The serial link between a host and a [`servo_runtime::Servo`] on a microcontroller: framed messages
 //! (sync byte, kind, length, payload, CRC-32) and the byte layouts of what they carry — the
-//! [`crate::Deployment`] sent once at start ([`image`]), one [`daq_io::Sensor`] per tick in and
+//! [`servo_config::Deployment`] sent once at start ([`image`]), one [`daq_io::Sensor`] per tick in and
 //! one [`TickReply`] per tick out. `no_std`, no allocation: the firmware (`firmware/`) and the
-//! host's processor-in-the-loop driver (`servo run --pil`) share this module, so both ends
+//! host's processor-in-the-loop driver (`servo run --pil`) share this crate, so both ends
 //! agree on every byte. All numbers little-endian.
+#![cfg_attr(not(test), no_std)]
 
 pub mod image;
 mod payload;

@@ -2,14 +2,14 @@
 //! firmware runs any loop `servo deploy` / `servo synth` made (up to [`MAX_SS_ORDER`]) without
 //! being rebuilt. Every field in a fixed order, little-endian, after a magic and a version; a
 //! state-space controller carries only its `(order + 1)²` used entries. Decoding checks the
-//! layout; [`crate::Servo::new`] then checks the values as it does for a TOML deployment.
+//! layout; [`servo_runtime::Servo::new`] then checks the values as it does for a TOML deployment.
 
 use super::{Reader, Writer};
-use crate::deployment::{
+use servo_config::{
     ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ReferenceSpec, Seal,
     SsMatrices, Stability, Stage, ZpetcSpec, MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
 };
-use crate::protection::{ProtectionConfig, SafeState};
+use servo_config::{ProtectionConfig, SafeState};
 
 /// First bytes of an image.
 pub const MAGIC: [u8; 4] = *b"FTSD";
@@ -165,7 +165,7 @@ fn flag(v: u8, key: &'static str) -> Result<bool, ImageError> {
     }
 }
 
-/// The deployment an image holds (its values still to be checked by [`crate::Servo::new`]).
+/// The deployment an image holds (its values still to be checked by [`servo_runtime::Servo::new`]).
 pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
     let mut r = Reader::new(bytes);
     if r.take::<4>() != Some(MAGIC) {

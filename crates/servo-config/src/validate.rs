@@ -9,7 +9,7 @@ use crate::deployment::{
 
 impl Deployment {
     /// Checks every value (the keys as a deployment file names them); the blocks' own checks
-    /// follow when a [`crate::Servo`] is built.
+    /// follow when a `servo_runtime::Servo` is built.
     pub fn check(&self) -> Result<(), Invalid> {
         let rate = self.servo_rate_hz;
         if !(1e2..=2e6).contains(&rate) {

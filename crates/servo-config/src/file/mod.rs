@@ -1,4 +1,4 @@
-//! Files (standard library only): the deployment a daemon's [`crate::Servo`] is built from,
+//! Files (standard library only): the deployment a daemon's `servo_runtime::Servo` is built from,
 //! the controller files it loads while running, what they were made for, and errors that name
 //! the file, line, key and allowed range.
 
@@ -9,7 +9,7 @@ mod origin;
 mod toml_format;
 
 pub use exact::{exact_array, exact_arrays};
-pub use input_file::{read_input, read_text, MAX_IMAGE_BYTES, MAX_TEXT_BYTES};
+pub use input_file::{read_input, read_text, LOADED_FILE, MAX_IMAGE_BYTES, MAX_TEXT_BYTES};
 pub use made_for::{MadeFor, Mismatch};
 pub use origin::{line_of, toml_message, ConfigError, Origin};
 pub use toml_format::{

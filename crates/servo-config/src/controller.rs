@@ -103,7 +103,7 @@ enum Kind {
 }
 
 /// The feedback law of a loop alone, in its running state: position error and accelerometer
-/// reading in V → command in V (what [`crate::Servo`] runs inside its tick, for a host that
+/// reading in V → command in V (what `servo_runtime::Servo` runs inside its tick, for a host that
 /// closes a loop of its own — a frequency-response measurement with an injection added to the
 /// command). Plain data: moving it copies it, dropping it frees nothing.
 ///
@@ -119,7 +119,7 @@ enum Kind {
 pub struct Controller {
     kind: Kind,
     /// Output limit in V.
-    pub(crate) limit_v: f64,
+    limit_v: f64,
 }
 
 /// The acceleration shaping filter Ha of `c` (None: no filter): a first-order low pass or a
@@ -254,6 +254,11 @@ impl Controller {
             kind,
             limit_v: c.limit_v,
         })
+    }
+
+    /// The output limit in V (the command is clipped to ±this).
+    pub fn limit_v(&self) -> f64 {
+        self.limit_v
     }
 
     /// The controller latched a fault (a non-finite input or state): its output is 0 V until
