@@ -3,14 +3,13 @@
 //! Offline controller design and identification on top of [`lti`]: H2 synthesis
 //! ([`h2`]), PID tuning by convex-concave programming ([`tune`], clarabel LPs), grey-box
 //! identification ([`identify`]), stability margins ([`loops`]), ZPETC feedforward
-//! ([`zpetc`]), repetitive control's convergence ([`repetitive`]) and three-probe spindle error separation ([`spindle`], thesis Appendix D) and optical
-//! surface prescriptions with tool-nose compensation ([`optics`]).
+//! ([`zpetc`]), repetitive control's convergence ([`repetitive`]) and three-probe spindle
+//! error separation ([`spindle`], thesis Appendix D).
 
 pub mod h2;
 pub mod identify;
 pub mod loops;
 mod lp;
-pub mod optics;
 pub mod repetitive;
 pub mod spindle;
 pub mod tune;

@@ -4,6 +4,5 @@
 mod h2_assumptions;
 mod h2_continuous;
 mod identify;
-mod optics;
 mod tune;
 mod zpetc;

@@ -333,9 +333,9 @@ fn probe_image() -> Vec<u8> {
 /// A prescription as a run embeds it (JSON in SI): 1 µm of Fringe astigmatism over a 40 mm
 /// aperture (the default start radius inside it), the surface the prescription probes cut.
 fn probe_prescription() -> Vec<u8> {
-    let p = design::optics::Prescription {
-        zernike: Some(design::optics::Zernike {
-            order: design::optics::ZernikeOrder::Fringe,
+    let p = optics::Prescription {
+        zernike: Some(optics::Zernike {
+            order: optics::ZernikeOrder::Fringe,
             norm_radius_m: 0.04,
             coefficients_m: vec![0.0, 0.0, 0.0, 0.0, 1e-6],
         }),

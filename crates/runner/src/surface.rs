@@ -1,8 +1,8 @@
 //! Surfaces ready for the tick: the configured surface checked and its image decoded once.
 
 use crate::config::{ConfigError, Machining, Origin, SurfaceConfig};
-use design::optics::toolpath::ToolPath;
-use design::optics::Prescription;
+use optics::toolpath::ToolPath;
+use optics::Prescription;
 use servo_core::surface::{BeamIntegrator, HeightMap, MicroLenslet, SinusoidalGrid, Surface};
 
 /// Largest height map, pixels (64 M: 64 MB of luminance).

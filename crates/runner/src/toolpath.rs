@@ -15,7 +15,7 @@ use crate::config::{Machining, Scenario, SurfaceConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::surface::LoadedSurface;
-use design::optics::toolpath::ToolPath;
+use optics::toolpath::ToolPath;
 use num_complex::Complex64 as C;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use serde::Serialize;

@@ -4,7 +4,7 @@
 //! the spindle frequency — and the predicted error is `|T(2Ω) − 1|` times its RMS. The sphere
 //! goes entirely to the Z slide. A file that is not a prescription is refused with its key.
 
-use design::optics::{Prescription, Zernike, ZernikeOrder};
+use optics::{Prescription, Zernike, ZernikeOrder};
 use recorder::Input;
 use runner::config::{Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConfig};
 use runner::plan::PRESCRIPTION_INPUT;
@@ -53,7 +53,7 @@ fn plan_of(p: &Prescription, rpm: f64, nose_compensation: bool) -> Plan {
 
 fn astigmatism(base_radius_m: Option<f64>) -> Prescription {
     Prescription {
-        base: base_radius_m.map(|r| design::optics::Conic {
+        base: base_radius_m.map(|r| optics::Conic {
             curvature_per_m: 1.0 / r,
             conic: 0.0,
             even_asphere: vec![],
@@ -151,7 +151,7 @@ fn a_start_outside_the_aperture_is_refused_at_its_key() {
 fn a_damaged_embedded_prescription_is_refused_not_a_panic() {
     // A recording's copy whose grid holds fewer values than its size says.
     let mut p = astigmatism(None);
-    p.grid = Some(design::optics::SagGrid {
+    p.grid = Some(optics::SagGrid {
         pitch_m: [1e-3, 1e-3],
         columns: 0,
         rows: 0,

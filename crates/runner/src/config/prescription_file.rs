@@ -1,6 +1,6 @@
 //! A surface prescription file (TOML) as an optical designer writes it: Zemax's conventions —
 //! sag along +z from the vertex plane, a positive radius bending the surface toward +z,
-//! lengths in **mm** — converted to SI (`design::optics`) when read. Every table is optional
+//! lengths in **mm** — converted to SI (`optics`) when read. Every table is optional
 //! and the present ones add up (a base conic plus freeform departures):
 //!
 //! ```toml
@@ -26,9 +26,9 @@
 //! ```
 
 use super::{input_file, ConfigError, Origin};
-use design::optics::polynomial::XyTerm;
-use design::optics::zernike::FRINGE_TERMS;
-use design::optics::{
+use optics::polynomial::XyTerm;
+use optics::zernike::FRINGE_TERMS;
+use optics::{
     Conic, Prescription, SagGrid, XyPolynomial, Zernike, ZernikeOrder, MAX_ASPHERE_TERMS,
     MAX_GRID_NODES, MAX_XY_DEGREE, MAX_XY_TERMS, MAX_ZERNIKE_ORDER,
 };

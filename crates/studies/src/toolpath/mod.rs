@@ -9,8 +9,8 @@
 pub mod report;
 
 use crate::error::StudyError;
-use design::optics::toolpath::ToolPath;
-use design::optics::{Zernike, ZernikeOrder};
+use optics::toolpath::ToolPath;
+use optics::{Zernike, ZernikeOrder};
 use nalgebra::{DMatrix, DVector};
 use runner::toolpath::{feasibility, prescription_of, Feasibility, RingLoop, RING_SAMPLES};
 use runner::Plan;

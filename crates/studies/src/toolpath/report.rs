@@ -5,7 +5,7 @@
 use super::{ApertureMap, ToolpathStudy};
 use crate::plot::{self, Figure, Map, Series, SquareMap};
 use crate::report::{plots, to_json, write_files, ReportError, Written};
-use design::optics::toolpath::ToolPath;
+use optics::toolpath::ToolPath;
 use std::path::Path;
 
 /// The FTS command table's size: radii (rows) × encoder counts (columns).

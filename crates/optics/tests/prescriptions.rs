@@ -4,10 +4,10 @@
 //! quadratic, an off-axis segment, and the nose compensation on spheres against the offset
 //! sphere's exact geometry.
 
-use design::optics::nose::{contact, tightness};
-use design::optics::polynomial::XyTerm;
-use design::optics::zernike::{fringe, noll, FRINGE_TERMS};
-use design::optics::{Conic, Prescription, SagGrid, XyPolynomial, Zernike, ZernikeOrder};
+use optics::nose::{contact, tightness};
+use optics::polynomial::XyTerm;
+use optics::zernike::{fringe, noll, FRINGE_TERMS};
+use optics::{Conic, Prescription, SagGrid, XyPolynomial, Zernike, ZernikeOrder};
 
 fn close(a: f64, b: f64, rel: f64) -> bool {
     (a - b).abs() <= rel * b.abs().max(1e-300)

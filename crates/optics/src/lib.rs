@@ -1,3 +1,5 @@
+//! # optics
+//!
 //! Optical surface prescriptions as an optical designer hands them over (Zemax / CODE V
 //! conventions), evaluated with their slopes: a base conic with even-asphere terms
 //! ([`conic`]), Zernike departures in Noll (Standard) or Fringe order ([`zernike`]), XY
@@ -10,7 +12,7 @@
 //! frame on the spindle axis. Every term returns the sag and its two slopes `∂z/∂x, ∂z/∂y`.
 //!
 //! ```
-//! use design::optics::{Conic, Prescription};
+//! use optics::{Conic, Prescription};
 //! // A sphere of radius 100 mm: sag at r = 10 mm is R − √(R² − r²).
 //! let p = Prescription::of_base(Conic { curvature_per_m: 10.0, conic: 0.0, even_asphere: vec![] });
 //! let s = p.sag(0.01, 0.0);
