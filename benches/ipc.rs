@@ -19,7 +19,7 @@ use daq_io::ipc::{leaf, poll_held, ControllerLink, Endpoint, Sender};
 use daq_io::realtime::{apply, RtSettings};
 use daq_io::{Command, Daq, LatencyHistogram, Sensor};
 use iceoryx2::prelude::*;
-use runner::config::Loaded;
+use run_config::Loaded;
 use std::io::{Read, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::process::{Child, Command as Process};

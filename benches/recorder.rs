@@ -11,7 +11,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use recorder::{Frame, Message, Overwrite, RecordOptions, Recorder};
-use runner::config::Loaded;
+use run_config::Loaded;
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::num::NonZeroU32;

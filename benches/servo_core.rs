@@ -152,10 +152,10 @@ fn surface(c: &mut Criterion) {
 /// The ZPETC of the default loop (12 sections, as `servo run --feedforward zpetc` runs it);
 /// baseline in the same run: one biquad (`biquad/servo_core`).
 fn zpetc(c: &mut Criterion) {
-    let cfg = runner::config::Loaded {
-        config: runner::config::RunConfig {
-            controller: runner::config::ControllerConfig {
-                feedforward: runner::config::FeedforwardKind::Zpetc,
+    let cfg = run_config::Loaded {
+        config: run_config::RunConfig {
+            controller: run_config::ControllerConfig {
+                feedforward: run_config::FeedforwardKind::Zpetc,
                 ..Default::default()
             },
             ..Default::default()
@@ -163,11 +163,10 @@ fn zpetc(c: &mut Criterion) {
         ..Default::default()
     };
     let plan = runner::Plan::new(&cfg).unwrap();
-    let mut z =
-        runner::feedforward::zpetc(&plan.closed_loop, runner::config::FeedforwardKind::Zpetc)
-            .unwrap()
-            .build()
-            .unwrap();
+    let mut z = runner::feedforward::zpetc(&plan.closed_loop, run_config::FeedforwardKind::Zpetc)
+        .unwrap()
+        .build()
+        .unwrap();
     let mut y = 0.0;
     c.bench_function("zpetc/12_sections", |b| {
         b.iter(|| {

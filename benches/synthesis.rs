@@ -7,7 +7,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use lti::riccati::dare;
 use nalgebra::DMatrix;
-use runner::config::Loaded;
+use run_config::Loaded;
 
 fn synthesis(c: &mut Criterion) {
     let mut cfg = Loaded::default();

@@ -4,7 +4,7 @@
 use crate::servo_err;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
-use runner::config::{ConfigError, Loaded, Origin, RunConfig};
+use run_config::{ConfigError, Loaded, Origin, RunConfig};
 use std::path::PathBuf;
 use toml::{Table, Value};
 
@@ -78,7 +78,7 @@ pub fn load(
             let path: PathBuf = c.extract().map_err(|_| {
                 servo_err("config: a path to a TOML file, a dict, or None (the thesis defaults)")
             })?;
-            let text = runner::config::input_file::read_text(&path).map_err(servo_err)?;
+            let text = run_config::input_file::read_text(&path).map_err(servo_err)?;
             let table = toml::from_str::<Table>(&text).map_err(|e| {
                 servo_err(ConfigError::Parse {
                     path: path.clone(),

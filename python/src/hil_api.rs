@@ -5,7 +5,7 @@ use crate::config::{built, load};
 use crate::servo_err;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use runner::config::{RealtimeConfig, Role};
+use run_config::{RealtimeConfig, Role};
 use runner::hil::{supervise, Supervision};
 use runner::recording::Target;
 use runner::stall::{Measurement, Qualification};
@@ -106,7 +106,7 @@ pub fn control(
         ("stop", None, None) => Request::Stop,
         ("gain", Some(v), None) => Request::Gain(v),
         ("load", None, Some(f)) => Request::Load(
-            runner::config::input_file::read_input(f, daq_io::MAX_LOAD_BYTES as u64)
+            run_config::input_file::read_input(f, daq_io::MAX_LOAD_BYTES as u64)
                 .map_err(servo_err)?,
         ),
         _ => return Err(servo_err(
@@ -131,7 +131,7 @@ pub fn control(
         (Request::Load(_), Some(f)) => load_outcome(
             &f.display().to_string(),
             &ack,
-            &runner::config::describe_made_for(f).unwrap_or_else(|| "its made_for".into()),
+            &run_config::describe_made_for(f).unwrap_or_else(|| "its made_for".into()),
         ),
         _ => Ok(plant_outcome(&r, &ack)),
     };

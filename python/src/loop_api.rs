@@ -7,7 +7,7 @@ use crate::servo_err;
 use daq_io::{Backend, Sensor};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use runner::SimBackend;
+use run_config::SimBackend;
 use servo_runtime::Servo as Runtime;
 
 /// The controller a daemon embeds, from a deployment (`servo deploy`).
@@ -122,7 +122,7 @@ impl Plant {
     ) -> PyResult<Self> {
         let plan = built(&load(config, overrides)?)?;
         Ok(Plant {
-            stage: SimBackend::for_run(&plan),
+            stage: plan.stage(),
             seq: 0,
             ticks: plan.ticks(),
         })

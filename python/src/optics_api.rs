@@ -20,7 +20,7 @@ pub fn prescription_sag<'py>(
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<f64>>,
 )> {
-    let p = runner::config::read_prescription(&path).map_err(servo_err)?;
+    let p = run_config::read_prescription(&path).map_err(servo_err)?;
     let (x, y) = (x_m.as_slice()?, y_m.as_slice()?);
     if x.len() != y.len() {
         return Err(servo_err(format!(

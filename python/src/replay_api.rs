@@ -3,7 +3,7 @@
 
 use crate::servo_err;
 use pyo3::prelude::*;
-use runner::config::read_plant_file;
+use run_config::read_plant_file;
 use runner::recording::Target;
 use runner::replay::Replay;
 use runner::run::RunOptions;

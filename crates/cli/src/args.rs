@@ -4,8 +4,8 @@
 
 use clap::Args;
 use plant_sim::params::NoiseParams;
-use runner::config::presets::{ScenarioKind, ScenarioValues, StagePreset};
-use runner::config::{ConfigError, ControllerConfig, ControllerKind, FeedforwardKind, Loaded};
+use run_config::presets::{ScenarioKind, ScenarioValues, StagePreset};
+use run_config::{ConfigError, ControllerConfig, ControllerKind, FeedforwardKind, Loaded};
 use std::num::NonZeroU32;
 use std::path::PathBuf;
 
@@ -62,7 +62,7 @@ impl PlantArgs {
         };
         let c = &mut l.config;
         if let Some(p) = &self.plant {
-            c.plant = runner::config::read_plant_file(p)?;
+            c.plant = run_config::read_plant_file(p)?;
         }
         set(&mut c.plant.timing.servo_rate_hz, self.rate);
         if let Some(m) = self.mass {
@@ -212,7 +212,7 @@ impl ScenarioArgs {
             };
             c.scenario = kind.scenario(&values, c.run.duration_s);
         }
-        if let runner::config::Scenario::Machine(m) = &mut c.scenario {
+        if let run_config::Scenario::Machine(m) = &mut c.scenario {
             set(&mut m.spindle_rpm, self.rpm);
         }
     }
@@ -254,7 +254,7 @@ impl RunArgs {
 /// `servo tune` writes), its controller file resolved against the file's folder.
 pub fn controller_from(
     path: &std::path::Path,
-) -> Result<runner::config::ControllerConfig, ConfigError> {
+) -> Result<run_config::ControllerConfig, ConfigError> {
     let l = Loaded::from_file(path)?;
     let mut c = l.config.controller;
     c.ss_file = c.ss_file.map(|f| l.origin.resolve(&f));
@@ -437,7 +437,7 @@ pub struct RealtimeArgs {
     pub lock_memory: bool,
     /// How plant and controller wait for each tick.
     #[arg(long, value_enum)]
-    pub wait: Option<runner::config::WaitKind>,
+    pub wait: Option<run_config::WaitKind>,
     /// With --wait sleep-spin: spin this long before each tick, µs.
     #[arg(value_parser = crate::args::finite, long)]
     pub spin_margin_us: Option<f64>,
@@ -496,7 +496,7 @@ impl HilArgs {
     /// The run prefix a HIL process joins (required there).
     pub fn prefix(&self) -> Result<String, ConfigError> {
         self.prefix.clone().ok_or_else(|| {
-            runner::config::Origin::default().invalid(
+            run_config::Origin::default().invalid(
                 "--prefix",
                 "(missing)",
                 "the run's service prefix, e.g. --prefix bench",
@@ -518,11 +518,9 @@ impl PeerTimeoutArgs {
     /// The timeout, checked.
     pub fn timeout(&self) -> Result<Option<std::time::Duration>, ConfigError> {
         match self.peer_timeout_ms {
-            Some(t) if !(t > 0.0 && t < 1e7) => Err(runner::config::Origin::default().invalid(
-                "--peer-timeout-ms",
-                t,
-                "0 < t < 1e7 ms",
-            )),
+            Some(t) if !(t > 0.0 && t < 1e7) => {
+                Err(run_config::Origin::default().invalid("--peer-timeout-ms", t, "0 < t < 1e7 ms"))
+            }
             t => Ok(t.map(|t| std::time::Duration::from_secs_f64(t * 1e-3))),
         }
     }

@@ -2,7 +2,7 @@
 //! command ended, JSON, progress bars, the files a study wrote, margins.
 
 use indicatif::{ProgressBar, ProgressStyle};
-use runner::config::ConfigError;
+use run_config::ConfigError;
 use runner::RunError;
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -83,7 +83,7 @@ fn a_controller_loaded_into_the_running_loop_takes_over_bumplessly() {
     assert_eq!(replay["frames_compared"], swap as u64, "{replay}");
     assert_eq!(replay["identical"], true, "{replay}");
     let noted = &end["controller_load.1"];
-    let sha = runner::config::sha256_hex(&std::fs::read(&pid).unwrap());
+    let sha = run_config::sha256_hex(&std::fs::read(&pid).unwrap());
     assert!(
         noted.starts_with(&format!("tick {swap}:")) && noted.contains(&sha),
         "{noted}"

@@ -75,7 +75,7 @@ fn tuned_gains_carry_their_plant_and_refuse_another() {
     succeeded(&dump);
     let heavy_m2 = format!(
         "m2_kg = {}",
-        runner::config::presets::StagePreset::Heavy.params().m2_kg
+        run_config::presets::StagePreset::Heavy.params().m2_kg
     );
     assert!(
         String::from_utf8_lossy(&dump.stdout).contains(&heavy_m2),
@@ -177,9 +177,9 @@ fn an_identified_model_is_a_plant_the_other_commands_take() {
         text.contains("quantity P") && text.contains("SHA-256"),
         "{text}"
     );
-    let loaded = runner::config::Loaded::from_file(&model).unwrap();
+    let loaded = run_config::Loaded::from_file(&model).unwrap();
     let s = loaded.config.plant.stage;
-    let truth = runner::config::presets::StagePreset::Heavy.params();
+    let truth = run_config::presets::StagePreset::Heavy.params();
     let moving = |s: &plant_sim::params::StageParams| s.m1_kg + s.m2_kg;
     assert!(
         (moving(&s) / moving(&truth) - 1.0).abs() < 0.01,

@@ -118,7 +118,7 @@ fn a_replay_with_another_controller_is_the_run_that_controller_makes() {
 #[test]
 fn a_recording_without_truth_replays_only_on_an_identified_model() {
     let file = tmp("no-truth.mcap");
-    let plan = runner::Plan::new(&runner::config::Loaded::default()).unwrap();
+    let plan = runner::Plan::new(&run_config::Loaded::default()).unwrap();
     let plan = plan.with_duration(0.01).unwrap();
     let mut rec =
         runner::recording::create(&plan, &runner::recording::Target::new(&file), 1).unwrap();
@@ -146,7 +146,7 @@ fn a_recording_without_truth_replays_only_on_an_identified_model() {
     assert_eq!(out.status.code(), Some(2), "{e}");
     assert!(e.contains("no-truth.mcap") && e.contains("--plant"), "{e}");
     let model = tmp("no-truth-model.toml");
-    std::fs::write(&model, runner::config::plant_toml(&plan.config.plant)).unwrap();
+    std::fs::write(&model, run_config::plant_toml(&plan.config.plant)).unwrap();
     let r = replay(&file, &["--plant", model.to_str().unwrap()]);
     assert_eq!(r["identical"], false);
     assert!(r["replayed"]["true_error_m"]["rms"].as_f64().unwrap() > 0.0);

@@ -8,8 +8,7 @@
 
 use daq_io::{Backend, Sensor, Truth};
 use ffi_support::{copy_message, guard, text, ErrorText};
-use runner::config::Loaded;
-use runner::{Plan, SimBackend};
+use run_config::{simulated_stage, Loaded, SimBackend};
 use std::ffi::c_char;
 
 /// Success.
@@ -69,15 +68,15 @@ pub unsafe extern "C" fn fts_plant_open(
                 Err(e) => return fail(FTS_PLANT_ERR_CONFIG, &e.to_string()),
             }
         };
-        match loaded
-            .map_err(runner::RunError::from)
-            .and_then(|l| Plan::new(&l))
-        {
-            Ok(plan) => {
+        let built = loaded
+            .map_err(run_config::StageError::from)
+            .and_then(|l| Ok((simulated_stage(&l)?, l.config.ticks())));
+        match built {
+            Ok((stage, ticks)) => {
                 let handle = Box::new(FtsPlant {
-                    stage: SimBackend::for_run(&plan),
+                    stage,
                     next_seq: 0,
-                    ticks: plan.ticks(),
+                    ticks,
                     error: ErrorText::default(),
                 });
                 // SAFETY: non-null and writable (checked above).

@@ -2,8 +2,8 @@
 //! pre-run stability check, its description, and the runtime's [`ControllerSpec`] it runs as
 //! (built and ticked by `servo_runtime`).
 
-use crate::config::{ConfigError, ControllerKind, Origin, RunConfig};
 use nalgebra::{DMatrix, SMatrix};
+use run_config::{ConfigError, ControllerKind, Origin, RunConfig};
 use servo_config::{accel_shaping, kg_of, position_pid, ControllerSpec, SsMatrices, Stage};
 use servo_core::IirCoeffs;
 

@@ -2,10 +2,10 @@
 //! runtime needs — the ZPETC designed, the stability checked on the plant model — written as
 //! the TOML `servo_runtime::Servo::from_file` reads, with what it was made for.
 
-use crate::config::made_for_plant;
 use crate::error::RunError;
 use crate::gain_range::checked;
 use crate::plan::Plan;
+use run_config::made_for_plant;
 use servo_config::{deployment_toml, Deployment};
 
 /// The checked deployment of `plan` and its file text.

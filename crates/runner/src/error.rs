@@ -1,7 +1,7 @@
 //! What can stop a run from being built or from running, each failure named.
 
-use crate::config::ConfigError;
 use crate::feedforward::FeedforwardError;
+use run_config::ConfigError;
 use std::path::PathBuf;
 
 /// Run errors.
@@ -133,4 +133,13 @@ pub struct ChildFailure {
     pub process: String,
     /// Its exit code (-1: ended by a signal it did not handle).
     pub code: i32,
+}
+
+impl From<run_config::StageError> for RunError {
+    fn from(e: run_config::StageError) -> Self {
+        match e {
+            run_config::StageError::Config(c) => RunError::Config(c),
+            run_config::StageError::Sim(s) => RunError::Sim(s),
+        }
+    }
 }

@@ -4,9 +4,9 @@
 //! runtime as coefficients.
 
 use crate::closed_loop::{input, output, ClosedLoop};
-use crate::config::{FeedforwardKind, RunConfig};
 use design::zpetc::{design, ZpetcDesign, ZpetcError};
 use lti::StateSpace;
+use run_config::{FeedforwardKind, RunConfig};
 use servo_config::{FeedforwardSpec, ZpetcSpec, MAX_PREVIEW, ZPETC_SECTIONS};
 
 /// Largest reduced order tried.

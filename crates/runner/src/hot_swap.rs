@@ -6,11 +6,11 @@
 //! range. A daemon without the model takes only files that carry that check
 //! ([`servo_config::CarriedCheck`]).
 
-use crate::config::{ConfigError, ControllerConfig, ControllerKind, RunConfig};
 use crate::error::RunError;
 use crate::gain_range::gain_range;
 use crate::plan::Plan;
 use daq_io::ack_status;
+use run_config::{ConfigError, ControllerConfig, ControllerKind, RunConfig};
 use servo_runtime::{Refusal, Vet, Vetted};
 use std::path::PathBuf;
 

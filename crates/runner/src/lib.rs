@@ -1,15 +1,16 @@
 //! # runner
 //!
 //! The closed-loop runtime as a library, built once from a resolved [`Plan`]: the
-//! configuration (TOML, thesis defaults, located errors), the controller from servo-core, the
-//! simulated stage from plant-sim behind daq-io's `Backend`, a pre-run stability check on the
+//! configuration and the simulated stage it describes (the `run-config` crate), the controller
+//! from servo-core, a pre-run stability check on the
 //! exact sampled loop, the recording (MCAP) and the summary — in one process ([`run`]) or as
 //! the plant, controller and recorder processes of a HIL run ([`hil`]), and a recording re-run
 //! from what it holds ([`replay`]). The offline studies
 //! live in the `studies` crate; the `servo` binary is a thin shell over both.
 //!
 //! ```no_run
-//! use runner::{config::Loaded, run::{run, RunOptions}, stop::StopRequest, Plan};
+//! use run_config::Loaded;
+//! use runner::{run::{run, RunOptions}, stop::StopRequest, Plan};
 //! // thesis prototype, Chapter 7 PID, hold position, 1 s
 //! let plan = Plan::new(&Loaded::default())?;
 //! let stop = StopRequest::new();
@@ -20,7 +21,6 @@
 //! ```
 
 pub mod closed_loop;
-pub mod config;
 pub mod controller;
 pub mod deploy;
 mod error;
@@ -40,14 +40,11 @@ pub mod replay;
 pub mod run;
 pub mod schema;
 pub mod servo_loop;
-pub mod sim_backend;
 pub mod stall;
 pub mod stop;
 pub mod summary;
-pub mod surface;
 pub mod toolpath;
 
 pub use error::RunError;
 pub use plan::Plan;
 pub use servo_loop::ServoLoop;
-pub use sim_backend::SimBackend;

@@ -4,10 +4,10 @@
 //! gain`) with its tick and scale — so a recording of a run that was steered still says, on its
 //! own, which controller ran when and at what gain.
 
-use crate::config::sha256_hex;
 use crate::error::RunError;
 use crate::recording::input_key;
 use recorder::{Input, Recorder, Visit};
+use run_config::sha256_hex;
 use std::collections::BTreeMap;
 use std::path::Path;
 

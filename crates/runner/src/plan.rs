@@ -5,21 +5,20 @@
 //! raw configuration.
 
 use crate::closed_loop::ClosedLoop;
-use crate::config::input_file::{read_input, read_text, MAX_IMAGE_BYTES};
-use crate::config::{
-    check_made_for, made_for_plant, ConfigError, ControllerConfig, ControllerKind, Loaded, Origin,
-    RunConfig, Scenario, SurfaceConfig,
-};
 use crate::controller::{stage_of, Controller};
 use crate::error::RunError;
 use crate::feedforward::feedforward_spec;
 use crate::repetitive::RepetitivePlan;
-use crate::surface::LoadedSurface;
-use plant_sim::model::ModelError;
 use plant_sim::params::CurrentLoopModel;
-use plant_sim::sim::SimError;
 use plant_sim::Simulator;
 use recorder::Input;
+use run_config::input_file::read_text;
+use run_config::surface::LoadedSurface;
+use run_config::SimBackend;
+use run_config::{
+    check_made_for, made_for_plant, ConfigError, ControllerConfig, ControllerKind, Loaded, Origin,
+    RunConfig, Scenario, SurfaceConfig,
+};
 use servo_config::{Deployment, Invalid, ReferenceSpec, SsMatrices};
 
 /// Attachment name of the controller file in a recording.
@@ -69,9 +68,8 @@ impl Plan {
         let origin = loaded.origin.clone();
         let mut config = loaded.config.clone();
         config.validate(&origin)?;
-        resolve_paths(&mut config, &origin);
-        let sim = Simulator::new(&config.plant, config.run.seed, &config.scenario.cutting())
-            .map_err(|e| plant_error(e, &origin))?;
+        config.resolve_paths(&origin);
+        let sim = run_config::simulator(&config, &origin)?;
         let surface = match &config.scenario {
             Scenario::Machine(m) => {
                 let file = surface_file(&m.surface, &origin, &mut inputs)?;
@@ -167,14 +165,8 @@ impl Plan {
         let controller = Controller::build(&config, &origin, ss)?;
         let closed_loop = closed_loop_of(&config, &origin, &sim, &controller)?;
         if let Some(seed) = config.run.practice_seed {
-            // Drawn here so that a run on it cannot fail later (the backend draws it again).
-            plant_sim::practice::PracticeStage::new(&config.plant, seed).map_err(|e| {
-                origin.invalid(
-                    "run.practice_seed",
-                    seed,
-                    &format!("a seed whose drawn stage simulates ({e})"),
-                )
-            })?;
+            // Drawn here so that a run on it cannot fail later (its stage draws it again).
+            run_config::practice_stage(&config, &origin, seed)?;
         }
         let deployment = Deployment {
             servo_rate_hz: config.plant.timing.servo_rate_hz,
@@ -246,6 +238,18 @@ impl Plan {
     pub fn period_s(&self) -> f64 {
         self.config.plant.period_s()
     }
+
+    /// The simulated stage of this run as a daq-io backend: its seeded simulator (or the
+    /// practice stage), the scenario's cutting profile and the part of a machining scenario.
+    pub fn stage(&self) -> SimBackend {
+        SimBackend::for_run(
+            &self.config,
+            &self.origin,
+            self.sim.clone(),
+            self.surface.clone(),
+        )
+        .expect("the plan drew this stage without error")
+    }
 }
 
 /// The state-space controller file `text` named by `controller.ss_file` (at `path`): its
@@ -306,58 +310,15 @@ fn surface_file(
     if let Some(i) = inputs.iter().find(|i| i.name == name) {
         return Ok(Some(i.data.clone()));
     }
-    let (bytes, media_type) = match surface {
-        SurfaceConfig::Image { path, .. } => {
-            let bytes = read_input(path, MAX_IMAGE_BYTES).map_err(|e| {
-                origin.invalid(
-                    "scenario.surface.path",
-                    path.display(),
-                    &format!("a readable PNG file ({e})"),
-                )
-            })?;
-            (bytes, "image/png")
-        }
-        SurfaceConfig::Prescription { path, .. } => {
-            let p = crate::config::read_prescription(path)?;
-            let json = serde_json::to_vec(&p).map_err(|e| {
-                origin.invalid("scenario.surface.path", path.display(), &e.to_string())
-            })?;
-            (json, "application/json")
-        }
-        _ => return Ok(None),
+    let Some(file) = run_config::surface_file(surface, origin)? else {
+        return Ok(None);
     };
     inputs.push(Input {
         name: name.into(),
-        media_type: media_type.into(),
-        data: bytes.clone(),
+        media_type: file.media_type.into(),
+        data: file.bytes.clone(),
     });
-    Ok(Some(bytes))
-}
-
-/// Makes the config's relative paths relative to the working directory (they are written
-/// relative to the config file).
-fn resolve_paths(config: &mut RunConfig, at: &Origin) {
-    if let Some(p) = &mut config.controller.ss_file {
-        *p = at.resolve(p);
-    }
-    if let Scenario::Machine(m) = &mut config.scenario {
-        if let Some(path) = m.surface.path_mut() {
-            *path = at.resolve(path);
-        }
-        if let Some(table) = m.repetitive.as_mut().and_then(|r| r.table.as_mut()) {
-            *table = at.resolve(table);
-        }
-    }
-}
-
-/// Plant parameter errors located at their `plant.…` key in the config file.
-pub fn plant_error(e: SimError, at: &Origin) -> RunError {
-    match e {
-        SimError::Model(ModelError::Parameter { key, value, range }) => {
-            at.invalid(&format!("plant.{key}"), value, &range).into()
-        }
-        other => RunError::Sim(other),
-    }
+    Ok(Some(file.bytes))
 }
 
 /// The exact linear tick of `sim` (the `coil` current model is linearised as the ideal loop
@@ -373,7 +334,7 @@ pub fn linear_tick_of(
             let mut ideal = config.plant;
             ideal.actuator.model = CurrentLoopModel::Ideal;
             Simulator::new(&ideal, 0, &Default::default())
-                .map_err(|e| plant_error(e, at))?
+                .map_err(|e| run_config::plant_error(e, at))?
                 .linear_tick()
                 .expect("ideal model")
         }

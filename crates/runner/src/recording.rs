@@ -5,13 +5,13 @@
 //! themselves are attachments. A recording is therefore self-contained: reading it never
 //! opens a path named inside it.
 
-use crate::config::sha256_hex;
-use crate::config::{ConfigError, Loaded, Origin, RunConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::stop::EndReason;
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use recorder::{FileState, Frame, Overwrite, ReadReport, RecordOptions, Recorder, Visit};
+use run_config::sha256_hex;
+use run_config::{ConfigError, Loaded, Origin, RunConfig};
 use std::collections::BTreeMap;
 use std::num::NonZeroU32;
 use std::path::{Path, PathBuf};

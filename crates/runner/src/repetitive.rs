@@ -10,11 +10,11 @@
 //! from the tool to the reading at low frequency — and the tool converges to the surface.
 
 use crate::closed_loop::{input, output, reference_path_response, ClosedLoop};
-use crate::config::Origin;
-use crate::config::{FeedforwardKind, Machining, RepetitiveSection, RunConfig, MAX_BINS};
 use crate::error::RunError;
 use design::repetitive::{Convergence, Harmonics, Learning};
 use recorder::Input;
+use run_config::Origin;
+use run_config::{FeedforwardKind, Machining, RepetitiveSection, RunConfig, MAX_BINS};
 use servo_config::Deployment;
 use servo_core::{RepetitiveConfig, LEARNING_IDENTITY, LEARNING_TAPS};
 use std::f64::consts::TAU;

@@ -3,7 +3,6 @@
 //! replaced controller, feedforward or plant, to show what the run would have been — and the
 //! two compared: data channels by digest, metrics side by side.
 
-use crate::config::RunConfig;
 use crate::operator_log::OperatorLog;
 use crate::plan::{Plan, CONTROLLER_INPUT};
 use crate::recording::{inspect_with, FrameSink, RunHeader};
@@ -12,6 +11,7 @@ use crate::summary::Summary;
 use crate::RunError;
 use plant_sim::PlantParams;
 use recorder::Frame;
+use run_config::RunConfig;
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 

@@ -7,7 +7,6 @@ use crate::pil::{PilError, PilOptions, TargetLoop};
 use crate::plan::Plan;
 use crate::recording;
 use crate::servo_loop::ServoLoop;
-use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use daq_io::{Backend, Daq, InProcess};
@@ -103,7 +102,7 @@ fn run_side(
     mut on_frame: impl FnMut(&Frame),
 ) -> Result<Summary, RunError> {
     let c = &plan.config;
-    let backend = SimBackend::for_run(plan);
+    let backend = plan.stage();
     let description = plan.controller.description.clone();
     let on_target = match &servo {
         Side::Target(t) => t.describe(),

@@ -5,11 +5,11 @@
 //! to NaN in a run of each scenario kind and surface in turn, and the refusal names the range
 //! (`x-allowed`). A number no check refuses is marked `x-allowed: null`.
 
-use crate::config::presets::{ImageMap, ScenarioKind, ScenarioValues, SurfacePreset};
-use crate::config::{ConfigError, Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConfig};
 use crate::plan::{Plan, PRESCRIPTION_INPUT, SURFACE_INPUT};
 use crate::RunError;
 use recorder::Input;
+use run_config::presets::{ImageMap, ScenarioKind, ScenarioValues, SurfacePreset};
+use run_config::{ConfigError, Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConfig};
 use serde_json::Value;
 
 /// The JSON Schema (draft 2020-12) of a run configuration, with `x-allowed` on every number

@@ -3,10 +3,10 @@
 //! tracked from each sample's encoder count). Shared by the in-process run and the HIL
 //! controller process so both compute bit-identical results.
 
-use crate::config::{ConfigError, Scenario};
 use crate::machining::SurfaceReference;
 use crate::plan::{located_in_run, Plan};
 use daq_io::{flags, Command, Sensor, Telemetry};
+use run_config::{ConfigError, Scenario};
 use servo_config::Deployment;
 use servo_runtime::{Servo, TripCause};
 

@@ -1,9 +1,9 @@
 //! The run summary a precision engineer reads at a glance, computed from the recorded frames
 //! (so `servo inspect` recomputes exactly the same numbers from the file).
 
-use crate::config::RunConfig;
 use daq_io::Latency;
 use recorder::Frame;
+use run_config::RunConfig;
 use serde::{Deserialize, Serialize};
 use servo_runtime::TripCause;
 use std::fmt;

@@ -11,13 +11,13 @@
 //! responses from the surface reference to the DAC command and to the true tool position.
 
 use crate::closed_loop::{output, reference_path_response};
-use crate::config::{Machining, Scenario, SurfaceConfig};
 use crate::error::RunError;
 use crate::plan::Plan;
-use crate::surface::LoadedSurface;
-use optics::toolpath::ToolPath;
 use num_complex::Complex64 as C;
+use optics::toolpath::ToolPath;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use run_config::surface::LoadedSurface;
+use run_config::{Machining, Scenario, SurfaceConfig};
 use serde::Serialize;
 use std::f64::consts::TAU;
 use std::sync::Arc;

@@ -2,7 +2,7 @@
 //! `examples/prescriptions/` parses, validates (its prescription read and its tool path
 //! planned) and builds a stable loop, as `servo run -c` would.
 
-use runner::config::Loaded;
+use run_config::Loaded;
 use runner::Plan;
 use std::path::Path;
 

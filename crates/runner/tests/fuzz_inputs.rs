@@ -4,7 +4,7 @@
 //! never a panic.
 
 use proptest::prelude::*;
-use runner::config::{Loaded, Origin, RunConfig};
+use run_config::{Loaded, Origin, RunConfig};
 use runner::Plan;
 use std::path::Path;
 
@@ -160,7 +160,7 @@ proptest! {
     #[test]
     fn controller_files_are_read_or_refused_with_the_file_named(text in controller_text()) {
         let path = Path::new("fuzz-controller.toml");
-        let at = runner::config::Origin { path: Some(path.into()), text: Some(text.clone()) };
+        let at = run_config::Origin { path: Some(path.into()), text: Some(text.clone()) };
         let running = servo_config::ControllerSpec::default();
         match servo_config::parse_controller_file(&text, &at, &running)
             .and_then(|f| f.check_rate(199_600.0, &at, "the rate").map(|()| f))

@@ -3,9 +3,9 @@
 
 use daq_io::{Backend, Sensor};
 use densa_alloc::{is_active, measure, CountingAllocator};
-use runner::config::{FeedforwardKind, Loaded, Scenario};
-use runner::config::{Machining, SurfaceConfig};
-use runner::{Plan, ServoLoop, SimBackend};
+use run_config::{FeedforwardKind, Loaded, Scenario};
+use run_config::{Machining, SurfaceConfig};
+use runner::{Plan, ServoLoop};
 
 /// Counts per thread: the test harness's own threads never enter a measurement.
 #[global_allocator]
@@ -26,7 +26,7 @@ fn machining_tick_allocates_nothing() {
         cfg.config.controller.feedforward = ff;
         let plan = Plan::new(&cfg).unwrap();
         let mut servo = ServoLoop::new(&plan).unwrap();
-        let mut plant = SimBackend::for_run(&plan);
+        let mut plant = plan.stage();
         let mut sample = Sensor::default();
         // Warm up past the first tick (which fills the preview window).
         for _ in 0..10 {

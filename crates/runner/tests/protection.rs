@@ -7,7 +7,7 @@
 
 use daq_io::flags;
 use recorder::Frame;
-use runner::config::{Loaded, ProtectionConfig, SafeState, Scenario};
+use run_config::{Loaded, ProtectionConfig, SafeState, Scenario};
 use runner::run::run_to_end_with;
 use runner::summary::Summary;
 use runner::Plan;

@@ -3,7 +3,7 @@
 //! command and the telemetry say so.
 
 use daq_io::{flags, Sensor};
-use runner::config::{Loaded, SafeState};
+use run_config::{Loaded, SafeState};
 use runner::{Plan, ServoLoop};
 use servo_runtime::TripCause;
 

@@ -4,7 +4,7 @@
 //! phase of the reference; one half as long again is not. And a host that stalls longer than
 //! a loop survives is refused, naming both.
 
-use runner::config::{Loaded, RunConfig, Scenario};
+use run_config::{Loaded, RunConfig, Scenario};
 use runner::stall::{check_host, simulate, survivable, HostStalls, Limit, MAX_STALL_S};
 use runner::{Plan, RunError};
 

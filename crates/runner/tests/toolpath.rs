@@ -6,9 +6,9 @@
 
 use optics::{Prescription, Zernike, ZernikeOrder};
 use recorder::Input;
-use runner::config::{Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConfig};
+use run_config::surface::LoadedSurface;
+use run_config::{Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConfig};
 use runner::plan::PRESCRIPTION_INPUT;
-use runner::surface::LoadedSurface;
 use runner::toolpath::feasibility;
 use runner::{Plan, RunError};
 use std::f64::consts::TAU;

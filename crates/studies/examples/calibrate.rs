@@ -15,7 +15,7 @@
 //! `cargo run --release -p studies --example calibrate`
 
 use plant_sim::params::{NoiseParams, StageParams};
-use runner::config::Loaded;
+use run_config::Loaded;
 use runner::run::run_to_end;
 use runner::Plan;
 use studies::budget::Budget;

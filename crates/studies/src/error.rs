@@ -1,6 +1,6 @@
 //! What can make a study fail, naming the part that failed.
 
-use runner::config::ConfigError;
+use run_config::ConfigError;
 use runner::RunError;
 use std::path::PathBuf;
 

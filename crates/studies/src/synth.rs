@@ -11,7 +11,7 @@ use design::h2::{h2syn_discrete, GeneralizedPlant};
 use lti::StateSpace;
 use nalgebra::DMatrix;
 use plant_sim::sampled_noise::SampledNoise;
-use runner::config::{ControllerConfig, ControllerKind, MadeFor, Origin};
+use run_config::{ControllerConfig, ControllerKind, MadeFor, Origin};
 use runner::Plan;
 use servo_config::{Stability, MAX_SS_ORDER};
 
@@ -202,7 +202,7 @@ pub fn h2_design_with(
         sample_rate_hz: c.plant.timing.servo_rate_hz,
         h2_norm: k.h2_norm,
         spectral_radius: k.spectral_radius,
-        made_for: runner::config::made_for_plant(&plan.config.plant),
+        made_for: run_config::made_for_plant(&plan.config.plant),
         stability: None,
         warnings: keyed(&k.warnings, "sensor_noise_scale"),
     })
@@ -499,7 +499,7 @@ pub fn thesis_design(plan: &Plan, w: &ThesisWeights, effort: f64) -> Result<Desi
         sample_rate_hz: fs,
         h2_norm: k.h2_norm,
         spectral_radius: k.spectral_radius,
-        made_for: runner::config::made_for_plant(&plan.config.plant),
+        made_for: run_config::made_for_plant(&plan.config.plant),
         stability: None,
         warnings: keyed(&k.warnings, "the thesis's noise weights (ThesisWeights)"),
     })

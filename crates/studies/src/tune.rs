@@ -9,8 +9,8 @@ use design::tune::{PidTuned, PidTuning};
 use lti::StateSpace;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
+use run_config::PidGains;
 use runner::closed_loop::ClosedLoop;
-use runner::config::PidGains;
 use runner::controller::dm;
 use runner::Plan;
 use servo_core::PidConfig;
@@ -58,7 +58,7 @@ pub struct TuneReport {
     /// The tuned gains (`[controller.pid]` of a run config).
     pub pid: PidGains,
     /// The plant and rate they were tuned for.
-    pub made_for: runner::config::MadeFor,
+    pub made_for: run_config::MadeFor,
     /// The offline check of the fragment's loop (a PID with these gains on this plant): the
     /// output scales a running loop that loads it may take.
     pub stability: servo_config::Stability,
@@ -90,7 +90,7 @@ impl TuneReport {
             p.tf_s,
             self.made_for.to_toml("controller.made_for"),
             servo_config::stability_toml("controller.stability", &self.stability),
-            runner::config::plant_toml(&self.plant)
+            run_config::plant_toml(&self.plant)
         )
     }
 }
@@ -240,7 +240,7 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
         kd: gains[2],
         tf_s: plan.config.controller.pid.tf_s,
     };
-    let fragment = plan.with_controller(runner::config::ControllerConfig {
+    let fragment = plan.with_controller(run_config::ControllerConfig {
         pid,
         feedforward: plan.config.controller.feedforward,
         smoothing_hz: plan.config.controller.smoothing_hz,
@@ -255,7 +255,7 @@ pub fn tune(plan: &Plan, bandwidth_hz: f64, ms: f64, mt: f64) -> Result<TuneRepo
         tuned,
         reference,
         pid,
-        made_for: runner::config::made_for_plant(&plan.config.plant),
+        made_for: run_config::made_for_plant(&plan.config.plant),
         stability,
         plant: plan.config.plant,
     })

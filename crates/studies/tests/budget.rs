@@ -3,7 +3,7 @@
 use crate::common;
 
 use common::plan;
-use runner::config::{Loaded, PidGains};
+use run_config::{Loaded, PidGains};
 use runner::run::run_to_end;
 use studies::budget::Budget;
 
@@ -274,7 +274,7 @@ fn h2_at_20_khz_beats_the_pid() {
     let file = dir.path().join("h2.toml");
     std::fs::write(&file, design.to_toml()).unwrap();
     let mut h2 = base.clone();
-    h2.config.controller.kind = runner::config::ControllerKind::Ss;
+    h2.config.controller.kind = run_config::ControllerKind::Ss;
     h2.config.controller.ss_file = Some(file);
     let cl = plan(&h2).closed_loop;
     let bw = cl.bandwidth_hz().unwrap();
@@ -409,7 +409,7 @@ fn thesis_weighted_h2_stabilises_the_exact_loop() {
         let f = dir.path().join(format!("thesis_{effort}.toml"));
         std::fs::write(&f, d.to_toml()).unwrap();
         let mut run_cfg = cfg.clone();
-        run_cfg.config.controller.kind = runner::config::ControllerKind::Ss;
+        run_cfg.config.controller.kind = run_config::ControllerKind::Ss;
         run_cfg.config.controller.ss_file = Some(f);
         let cl = plan(&run_cfg).closed_loop;
         assert!(cl.spectral_radius() < 1.0, "ρ {effort}: unstable");
@@ -434,7 +434,7 @@ fn thesis_weighted_h2_stabilises_the_exact_loop() {
 fn gain_margin_with_acceleration_feedback_predicts_the_stability_limit() {
     let mut cfg = heavy_468();
     let c = &mut cfg.config.controller;
-    c.kind = runner::config::ControllerKind::Accel;
+    c.kind = run_config::ControllerKind::Accel;
     c.pid = PidGains {
         kp: c.pid.kp * 3.0,
         ki: c.pid.ki * 3.0,

@@ -9,7 +9,7 @@
 use crate::common;
 
 use common::plan;
-use runner::config::Loaded;
+use run_config::Loaded;
 use runner::run::run_to_end;
 use studies::budget::{total_psd, Budget};
 

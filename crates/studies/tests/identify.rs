@@ -5,7 +5,7 @@ use crate::common;
 
 use common::plan;
 use num_complex::Complex64;
-use runner::config::Loaded;
+use run_config::Loaded;
 use studies::frf::{stepped_sine, FrfLoop, FrfSettings};
 use studies::identify::{identify, table_5_2, with_table_5_2};
 

@@ -5,8 +5,8 @@
 use crate::common;
 
 use common::plan;
+use run_config::{ControllerKind, Loaded, Scenario};
 use runner::closed_loop::{input, output};
-use runner::config::{ControllerKind, Loaded, Scenario};
 use studies::intermittent::study;
 
 fn cfg() -> Loaded {

@@ -4,9 +4,9 @@
 use crate::common;
 
 use common::{machine, plan};
+use run_config::Machining;
+use run_config::{FeedforwardKind, Loaded, Scenario};
 use runner::closed_loop::{input, output};
-use runner::config::Machining;
-use runner::config::{FeedforwardKind, Loaded, Scenario};
 use std::f64::consts::TAU;
 use studies::form::FormReport;
 
@@ -80,7 +80,7 @@ fn predicted_pv_x(cfg: &Loaded, r: f64) -> f64 {
 
 #[test]
 fn edge_of_the_part_overcuts_as_the_loop_gain_predicts_and_zpetc_removes_it() {
-    let edge = runner::config::GRID_EDGE_RADIUS_M;
+    let edge = run_config::GRID_EDGE_RADIUS_M;
     let plain = cfg(edge, FeedforwardKind::None);
     let none = machined(&plain);
     let grid = none.grid.unwrap();
@@ -145,7 +145,7 @@ fn beam_integrator_transition_overshoot_shrinks_with_smoothed_zpetc() {
     let beam = |ff: FeedforwardKind, smoothing_hz: f64| {
         let mut c = cfg(25e-3, ff);
         if let Scenario::Machine(m) = &mut c.config.scenario {
-            m.surface = runner::config::SurfaceConfig::THESIS_BEAM;
+            m.surface = run_config::SurfaceConfig::THESIS_BEAM;
             m.spindle_rpm = 120.0;
         }
         c.config.run.duration_s = 1.0;

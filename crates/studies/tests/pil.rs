@@ -11,7 +11,7 @@
 //!     cargo test --release -p studies --test pil -- --ignored
 
 use recorder::Frame;
-use runner::config::{Loaded, Scenario};
+use run_config::{Loaded, Scenario};
 use runner::pil::{PilError, PilOptions};
 use runner::run::{run_on_target, run_with, RunOptions};
 use runner::stop::StopRequest;

@@ -6,7 +6,7 @@
 use crate::common;
 
 use common::{machine, plan};
-use runner::config::{FeedforwardKind, Loaded, Machining, RepetitiveSection, Scenario};
+use run_config::{FeedforwardKind, Loaded, Machining, RepetitiveSection, Scenario};
 use runner::{Plan, RunError};
 
 /// Six revolutions of the grid from a flat blank at 60 rpm (the force swings 0–0.5 N at

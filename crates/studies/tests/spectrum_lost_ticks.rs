@@ -2,7 +2,7 @@
 //! the controller's telemetry for a tick never came) is refused by the spectrum with where:
 //! a missing tick is a step in every signal, and a spectrum across it is not the loop's.
 
-use runner::config::{Loaded, Origin, RunConfig};
+use run_config::{Loaded, Origin, RunConfig};
 use runner::recording::{FrameSink, RunHeader};
 use std::collections::BTreeMap;
 use std::num::NonZeroU32;

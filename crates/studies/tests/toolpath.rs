@@ -6,7 +6,7 @@
 use crate::common;
 
 use common::machine;
-use runner::config::{Loaded, Machining, Origin, RunConfig, RunSection, Scenario, SurfaceConfig};
+use run_config::{Loaded, Machining, Origin, RunConfig, RunSection, Scenario, SurfaceConfig};
 use std::path::Path;
 
 /// The book's gentle freeform: a 500 mm sphere, 3 µm astigmatism, 2 µm coma, 1.5 µm trefoil
@@ -73,7 +73,7 @@ fn the_predicted_error_loaded_back_compensates_the_next_cut() {
     let before = first.form.tilt_removed.rms_m;
     assert!(before > 3e-9, "the PID loop leaves nanometres: {before:e}");
     let p = plan(&file, 0.6);
-    let Some(runner::surface::LoadedSurface::Prescription(path)) = &p.surface else {
+    let Some(run_config::surface::LoadedSurface::Prescription(path)) = &p.surface else {
         panic!("a prescription")
     };
     let table = studies::toolpath::report::TableSize {

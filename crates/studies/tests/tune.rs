@@ -6,7 +6,7 @@
 use crate::common;
 
 use common::plan;
-use runner::config::Loaded;
+use run_config::Loaded;
 use runner::run::run_to_end;
 use studies::tune::tune;
 

@@ -69,7 +69,7 @@ impl CtlCmd {
     /// Sends one control-plane message to the running run and reports its acknowledgement.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         if !(self.timeout_s > 0.0 && self.timeout_s <= 60.0) {
-            return Err(runner::config::Origin::default()
+            return Err(run_config::Origin::default()
                 .invalid("--timeout-s", self.timeout_s, "(0, 60] s")
                 .into());
         }
@@ -92,7 +92,7 @@ impl CtlCmd {
             (CtlAction::Load { file }, _) => load_outcome(
                 &file.display().to_string(),
                 &ack,
-                &runner::config::describe_made_for(file).unwrap_or_else(|| "its made_for".into()),
+                &run_config::describe_made_for(file).unwrap_or_else(|| "its made_for".into()),
             ),
             (_, r) => Ok(plant_outcome(r, &ack)),
         };
@@ -108,7 +108,7 @@ impl CtlCmd {
 
 /// The controller file at `path`: a regular file of at most [`MAX_LOAD_BYTES`].
 fn read_load(path: &std::path::Path) -> Result<Vec<u8>, CliError> {
-    Ok(runner::config::input_file::read_input(
+    Ok(run_config::input_file::read_input(
         path,
         MAX_LOAD_BYTES as u64,
     )?)

@@ -78,7 +78,7 @@ impl FrfCmd {
         };
         let curve = frf::model_curve(&plan, self.which, self.from, self.to, 600)?;
         let title = format!("{:?}-loop FRF", self.which);
-        let made_for = runner::config::made_for_plant(&plan.config.plant);
+        let made_for = run_config::made_for_plant(&plan.config.plant);
         let provenance = frf::report::Provenance {
             which: self.which,
             made_for: &made_for,

@@ -5,7 +5,7 @@
 use crate::args::RtPolicy;
 use crate::output::{print_json, tick_bar, CliError};
 use clap::Args;
-use runner::config::{Loaded, Origin, RealtimeConfig, Role, WaitKind};
+use run_config::{Loaded, Origin, RealtimeConfig, Role, WaitKind};
 use runner::stall::{advice, Measurement, Qualification};
 use std::path::PathBuf;
 use std::process::ExitCode;

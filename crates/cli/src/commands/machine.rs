@@ -5,8 +5,8 @@ use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs, RecordingArgs, Run
 use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, print_summary, print_written, CliError};
 use clap::Args;
-use runner::config::presets::{ImageMap, SurfacePreset};
-use runner::config::{FeedforwardKind, Machining, Scenario};
+use run_config::presets::{ImageMap, SurfacePreset};
+use run_config::{FeedforwardKind, Machining, Scenario};
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -7,7 +7,7 @@ use crate::args::{ControllerArgs, FeedforwardArgs, RecordingArgs};
 use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, CliError};
 use clap::Args;
-use runner::config::read_plant_file;
+use run_config::read_plant_file;
 use runner::replay::{Replay, ReplayReport};
 use runner::summary::Summary;
 use std::path::PathBuf;

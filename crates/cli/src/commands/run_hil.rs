@@ -4,7 +4,7 @@
 use crate::args::{HilArgs, PeerTimeoutArgs, RecordingArgs};
 use crate::interrupt::stop_on_signals;
 use crate::output::{tick_bar, CliError};
-use runner::config::Origin;
+use run_config::Origin;
 use runner::hil::{supervise, Supervision};
 use runner::stall::{preflight, HostCheck};
 use runner::summary::Summary;

@@ -3,7 +3,7 @@
 
 use crate::output::{print_json, print_written, CliError};
 use clap::Args;
-use runner::config::Origin;
+use run_config::Origin;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::spectrum::{BandRms, SpectrumOptions, SpectrumSink, RESOLUTION_RANGE_HZ};

@@ -77,12 +77,12 @@ impl StudyCmd {
         let study = Study::from_file(file)?;
         let shard = match &self.shard {
             Some(s) => Shard::parse(s)
-                .map_err(|range| runner::config::Origin::default().invalid("--shard", s, &range))?,
+                .map_err(|range| run_config::Origin::default().invalid("--shard", s, &range))?,
             None => Shard::ALL,
         };
         let jobs = match self.jobs {
             Some(0) => {
-                return Err(runner::config::Origin::default()
+                return Err(run_config::Origin::default()
                     .invalid("--jobs", 0, "1 or more threads")
                     .into())
             }

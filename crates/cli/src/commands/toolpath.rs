@@ -3,7 +3,7 @@
 use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs};
 use crate::output::{print_json, print_written, CliError, BAD_INPUT};
 use clap::Args;
-use runner::config::Scenario;
+use run_config::Scenario;
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -46,7 +46,7 @@ impl ViewCmd {
     /// Serves until the run ends or a signal.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         if !(1..=1000).contains(&self.every) {
-            return Err(runner::config::Origin::default()
+            return Err(run_config::Origin::default()
                 .invalid("--every", self.every, "1..=1000 bins")
                 .into());
         }

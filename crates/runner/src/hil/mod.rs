@@ -8,7 +8,6 @@
 //! and the gap is counted as dropped frames); a lost controller puts the plant in the safe
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
-use crate::config::Role;
 use crate::error::RunError;
 use crate::hot_swap::PlanCheck;
 use crate::join::Joiner;
@@ -16,7 +15,6 @@ use crate::operator_log::{GainChange, Swap};
 use crate::plan::Plan;
 use crate::recording;
 use crate::servo_loop::ServoLoop;
-use crate::sim_backend::SimBackend;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
 use daq_io::contract::{command, role};
@@ -24,6 +22,7 @@ use daq_io::ipc::{leaf, take, take_waiting, ControlSender, ControllerLink, Endpo
 use daq_io::serve::{serve, Pacing, ServeOptions};
 use daq_io::{ack_status, flags, Ack, Control, ControllerLoad, Daq, Health};
 use recorder::{Frame, Recorder};
+use run_config::Role;
 use servo_runtime::TripCause;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -91,7 +90,7 @@ pub fn plant(
     stop: &StopRequest,
 ) -> Result<daq_io::serve::ServeReport, RunError> {
     daq_io::realtime::apply(&plan.config.realtime.settings(Role::Plant))?;
-    let mut backend = SimBackend::for_run(plan);
+    let mut backend = plan.stage();
     let opts = serve_options(plan, p);
     let ep = Endpoint::open(prefix, "plant")?;
     Ok(serve(&ep, &mut backend, &opts, stop.cell())?)

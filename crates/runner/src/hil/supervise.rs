@@ -3,7 +3,6 @@
 //! recorder's summary returned.
 
 use super::PARENT_ENV;
-use crate::config::{Role, Scenario};
 use crate::error::{ChildFailure, RunError};
 use crate::plan::Plan;
 use crate::recording::Target;
@@ -12,6 +11,7 @@ use crate::summary::Summary;
 use daq_io::contract::role;
 use daq_io::ipc::{leaf, take, Endpoint};
 use daq_io::Health;
+use run_config::{Role, Scenario};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -65,7 +65,7 @@ pub fn supervise(
         .clone()
         .unwrap_or_else(|| format!("run-{}", std::process::id()));
     daq_io::ipc::check_prefix(&prefix)
-        .map_err(|e| crate::config::Origin::default().invalid("prefix", &prefix, &e))?;
+        .map_err(|e| run_config::Origin::default().invalid("prefix", &prefix, &e))?;
     // Joining first refuses a prefix a live run holds (naming it) before anything is made.
     // Subscribe before the children start: a subscriber joining mid-run makes the publishers
     // set up a connection inside a send, a sub-millisecond stall a real-time loop would feel.

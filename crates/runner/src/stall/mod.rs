@@ -32,17 +32,16 @@
 //! command (its state is then a tick further on).
 
 use crate::closed_loop::{input, output, ClosedLoop, SOURCES};
-use crate::config::Scenario;
 use crate::error::RunError;
 use crate::hil::{serve_options, PlantOptions};
 use crate::plan::{linear_tick_of, Plan};
 use crate::servo_loop::ServoLoop;
-use crate::sim_backend::SimBackend;
 use daq_io::serve::Pacing;
 use daq_io::watchdog::{Verdict, Watchdog};
 use daq_io::{Backend, Sensor};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
+use run_config::Scenario;
 use servo_runtime::TripCause;
 
 mod qualification;
@@ -187,7 +186,7 @@ impl Trajectory {
 impl Cases {
     /// The worst starts the scenario of `plan` offers.
     fn of(plan: &Plan) -> Result<Self, RunError> {
-        if plan.config.controller.feedforward != crate::config::FeedforwardKind::None {
+        if plan.config.controller.feedforward != run_config::FeedforwardKind::None {
             return Err(RunError::StallAnalysis(
                 "a loop with feedforward (controller.feedforward): the model is the feedback loop's".into(),
             ));
@@ -458,7 +457,7 @@ pub fn simulate(
     stall_ticks: u64,
     peer_timeout_s: f64,
 ) -> Result<StallRun, RunError> {
-    let mut backend = SimBackend::for_run(plan);
+    let mut backend = plan.stage();
     let mut servo = ServoLoop::new(plan)?;
     let mut watchdog = Watchdog::new(policy(plan, peer_timeout_s));
     let period_ns = period_ns(plan);

@@ -4,14 +4,14 @@
 //! back through [`Qualification::read`] and checks its host before it starts ([`preflight`]).
 
 use super::{check_host, survivable, HostStalls, Survivable, STALL_MARGIN};
-use crate::config::input_file::read_text;
-use crate::config::{ConfigError, Loaded, Origin, RealtimeConfig, Role};
 use crate::error::RunError;
 use crate::plan::Plan;
 use crate::recording::host_name;
 use daq_io::qualify::{measure, readiness, Check, WallClock};
 use daq_io::realtime::RtSettings;
 use daq_io::LatencyHistogram;
+use run_config::input_file::read_text;
+use run_config::{ConfigError, Loaded, Origin, RealtimeConfig, Role};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 

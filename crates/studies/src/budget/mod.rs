@@ -167,7 +167,7 @@ pub struct Analysis {
     /// `controller, stage mass` for titles.
     pub title: String,
     /// The plant and rate it was computed for.
-    pub made_for: runner::config::MadeFor,
+    pub made_for: run_config::MadeFor,
 }
 
 /// The budget of `plan`'s loop on `points` log-spaced frequencies (at least 16), with its
@@ -184,6 +184,6 @@ pub fn analyse(plan: &runner::Plan, points: usize) -> Result<Analysis, crate::St
             plan.controller.description,
             stage.m1_kg + stage.m2_kg
         ),
-        made_for: runner::config::made_for_plant(&plan.config.plant),
+        made_for: run_config::made_for_plant(&plan.config.plant),
     })
 }

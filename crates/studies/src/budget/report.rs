@@ -11,7 +11,7 @@ use std::path::Path;
 /// controller) and the loop's stability margins.
 #[derive(serde::Serialize)]
 struct BudgetFile<'a> {
-    made_for: &'a runner::config::MadeFor,
+    made_for: &'a run_config::MadeFor,
     controller: &'a str,
     margins: Option<&'a design::loops::Margins>,
     #[serde(flatten)]
@@ -24,7 +24,7 @@ struct BudgetFile<'a> {
 pub fn write(
     b: &Budget,
     title: &str,
-    (made_for, controller): (&runner::config::MadeFor, &str),
+    (made_for, controller): (&run_config::MadeFor, &str),
     margins: Option<&design::loops::Margins>,
     dir: &Path,
 ) -> Result<Written, ReportError> {

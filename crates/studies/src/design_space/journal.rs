@@ -7,7 +7,7 @@ use super::evaluate::Point;
 use super::spec::Study;
 use super::table::{header, parse_row, row};
 use crate::error::StudyError;
-use runner::config::sha256_hex;
+use run_config::sha256_hex;
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -110,7 +110,7 @@ pub(super) fn foreign(path: &Path, what: String) -> StudyError {
 pub fn claim(study: &Study, dir: &Path) -> Result<(), StudyError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let path = dir.join(DESCRIPTION);
-    match daq_io::input_file::read_regular(&path, runner::config::input_file::MAX_TEXT_BYTES) {
+    match daq_io::input_file::read_regular(&path, run_config::input_file::MAX_TEXT_BYTES) {
         Ok(held) if sha256_hex(&held) == study.sha256 => Ok(()),
         Ok(held) => Err(foreign(
             &path,

@@ -26,7 +26,7 @@
 //! The whole text is the study: a worker given it (a shard, a Ray task) builds every point
 //! from it alone, and its SHA-256 names the study in every result file.
 
-use runner::config::{sha256_hex, ConfigError, Origin, RunConfig};
+use run_config::{sha256_hex, ConfigError, Origin, RunConfig};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -209,7 +209,7 @@ pub struct Study {
 impl Study {
     /// Reads and checks the study file `path`.
     pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
-        let text = runner::config::input_file::read_text(path)?;
+        let text = run_config::input_file::read_text(path)?;
         Self::parse(&text, Some(path))
     }
 

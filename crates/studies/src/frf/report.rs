@@ -13,7 +13,7 @@ pub struct Provenance<'a> {
     /// Which loop, hence which quantity.
     pub which: super::FrfLoop,
     /// The configured plant and rate.
-    pub made_for: &'a runner::config::MadeFor,
+    pub made_for: &'a run_config::MadeFor,
     /// Where it was measured (`the simulated stage, seed 1`, `the plant serving fts-servo/lab`).
     pub measured_on: &'a str,
 }
@@ -37,7 +37,7 @@ struct FrfFile<'a> {
     quantity: &'static str,
     description: &'static str,
     unit: &'static str,
-    made_for: &'a runner::config::MadeFor,
+    made_for: &'a run_config::MadeFor,
     measured_on: &'a str,
     points: &'a [super::FrfPoint],
 }

@@ -115,9 +115,9 @@ impl Identified {
                 r.pole_hz, r.pole_zeta, r.zero_hz, r.zero_zeta, r.peak_db
             );
         }
-        let made_for = runner::config::made_for_plant(&plant);
+        let made_for = run_config::made_for_plant(&plant);
         out += &format!("# made for {}; {}\n", made_for.describe(), made_for.tool);
-        out + &runner::config::plant_toml(&plant)
+        out + &run_config::plant_toml(&plant)
     }
 }
 
@@ -136,17 +136,17 @@ pub const MIN_CREDIBLE_FIT_PERCENT: f64 = 70.0;
 /// How an identified model names the FRF file it was fitted to: its path and the SHA-256 of
 /// its bytes (the model file quotes it).
 pub fn frf_source(path: &Path) -> String {
-    let bytes = daq_io::input_file::read_regular(path, runner::config::input_file::MAX_TEXT_BYTES)
+    let bytes = daq_io::input_file::read_regular(path, run_config::input_file::MAX_TEXT_BYTES)
         .unwrap_or_default();
     format!(
         "{} (SHA-256 {})",
         path.display(),
-        runner::config::sha256_hex(&bytes)
+        run_config::sha256_hex(&bytes)
     )
 }
 
 /// Reads an FRF CSV with columns `freq_hz`, `magnitude_m_per_v`, `phase_deg` (others ignored;
-/// rows with `clipped = true` skipped; at most [`runner::config::input_file::MAX_TEXT_BYTES`]).
+/// rows with `clipped = true` skipped; at most [`run_config::input_file::MAX_TEXT_BYTES`]).
 /// Every row must have every column; values must be finite, frequencies strictly increasing
 /// and below `nyquist_hz`, magnitudes those of a plant (0 < |G| ≤
 /// [`MAX_PLANT_MAGNITUDE_M_PER_V`]). Errors name the file and line.
@@ -154,7 +154,7 @@ pub fn read_frf_csv(
     path: &Path,
     nyquist_hz: f64,
 ) -> Result<(Vec<f64>, Vec<Complex64>), StudyError> {
-    let text = runner::config::input_file::read_text(path)?;
+    let text = run_config::input_file::read_text(path)?;
     let bad = |line: usize, what: &str| StudyError::DataFile {
         path: path.to_owned(),
         line,

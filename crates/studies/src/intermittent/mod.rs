@@ -7,7 +7,7 @@
 pub mod report;
 
 use crate::error::StudyError;
-use runner::config::{ControllerConfig, ControllerKind, Scenario};
+use run_config::{ControllerConfig, ControllerKind, Scenario};
 use runner::run::run_to_end_with;
 use runner::Plan;
 use serde::Serialize;

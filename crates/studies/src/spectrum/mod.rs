@@ -14,8 +14,8 @@ use crate::StudyError;
 use lti::spectral::{Psd, Welch, WelchConfig};
 use lti::welch_statistics::{expected_welch, BandScatter};
 use recorder::Frame;
+use run_config::MadeFor;
 use runner::closed_loop::{output, SOURCES};
-use runner::config::MadeFor;
 use runner::operator_log::Swap;
 use runner::recording::{FrameSink, RunHeader};
 use runner::RunError;
@@ -120,7 +120,7 @@ pub struct SpectrumOptions {
     /// Analysis end, s of run time (None: the end of the recording).
     pub to_s: Option<f64>,
     /// Predict with this controller instead of the one in the loop at the window's start.
-    pub controller: Option<runner::config::ControllerConfig>,
+    pub controller: Option<run_config::ControllerConfig>,
     /// The controllers swapped into the run (`servo ctl load`), as its recording keeps them
     /// ([`runner::operator_log::OperatorLog::read`]): the default window starts after the last one, and the
     /// prediction is for the controller in the loop at the window's start.
@@ -196,7 +196,7 @@ impl FrameSink for SpectrumSink {
         let from_s = o
             .from_s
             .unwrap_or_else(|| config.run.settle() + o.swaps.last().map_or(0.0, swap_s));
-        let at = runner::config::Origin::default();
+        let at = run_config::Origin::default();
         if !(from_s >= 0.0 && from_s.is_finite()) {
             return Err(at.invalid("from_s", from_s, "≥ 0 s").into());
         }
@@ -221,14 +221,14 @@ impl FrameSink for SpectrumSink {
             lost: None,
         });
         self.header = Some((
-            runner::config::made_for_plant(&config.plant),
+            run_config::made_for_plant(&config.plant),
             h.controller.clone(),
             from_s,
         ));
         // The controller in the loop at the window's start, and any swap inside the window.
         let running = o.swaps.iter().rev().find(|w| swap_s(w) <= from_s);
         let to_s = o.to_s.unwrap_or(f64::INFINITY);
-        let moving = !matches!(config.scenario, runner::config::Scenario::Hold);
+        let moving = !matches!(config.scenario, run_config::Scenario::Hold);
         let window_note = o
             .swaps
             .iter()
@@ -257,7 +257,7 @@ impl FrameSink for SpectrumSink {
             ))
         } else {
             match (&o.controller, running) {
-                (Some(c), _) => h.replan(runner::config::RunConfig {
+                (Some(c), _) => h.replan(run_config::RunConfig {
                     controller: c.clone(),
                     ..config.clone()
                 }),
@@ -318,7 +318,7 @@ impl SpectrumSink {
         if e.samples < e.welch.segment_len as u64 {
             let segment_s = e.welch.segment_len as f64 / e.fs_hz;
             let end_s = e.last_ns as f64 * 1e-9;
-            return Err(runner::config::Origin::default()
+            return Err(run_config::Origin::default()
                 .invalid(
                     "from_s",
                     from_s,
@@ -332,7 +332,7 @@ impl SpectrumSink {
                 .into());
         }
         if let Some((ticks, at_s)) = e.lost {
-            return Err(runner::config::Origin::default()
+            return Err(run_config::Origin::default()
                 .invalid(
                     "from_s",
                     from_s,

@@ -8,7 +8,7 @@ use design::spindle::{
     harmonic_weighting, modify, separate, synchronous, synthesise, Separation, THESIS_ANGLE_SETS,
 };
 use plant_sim::metrology::{Harmonics, ProbeRig};
-use runner::config::{ConfigError, Origin};
+use run_config::{ConfigError, Origin};
 use serde::Serialize;
 
 /// The simulated measurement (defaults: Appendix D.3 and D.4).

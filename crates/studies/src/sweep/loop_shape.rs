@@ -7,7 +7,7 @@
 use super::Plan;
 use crate::error::StudyError;
 use crate::tune::{pid_basis, plant_response};
-use runner::config::PidGains;
+use run_config::PidGains;
 use std::f64::consts::PI;
 
 /// Integrator zero below the crossover (factor).

@@ -12,7 +12,7 @@ pub mod report;
 use crate::budget::Budget;
 use crate::error::StudyError;
 use plant_sim::params::StageParams;
-use runner::config::PidGains;
+use run_config::PidGains;
 use runner::run::run_to_end;
 use runner::Plan;
 use serde::Serialize;
@@ -320,7 +320,7 @@ pub fn thesis_sweeps(
         .iter()
         .enumerate()
         .map(|(i, (label, stage))| {
-            let mut loaded = runner::config::Loaded {
+            let mut loaded = run_config::Loaded {
                 config: plan.config.clone(),
                 origin: plan.origin.clone(),
             };

@@ -9,7 +9,7 @@ use super::nm;
 use crate::error::StudyError;
 use crate::intermittent::study;
 use crate::sweep::scaled;
-use runner::config::{ControllerConfig, ControllerKind, Loaded};
+use run_config::{ControllerConfig, ControllerKind, Loaded};
 use runner::Plan;
 use serde::Serialize;
 

@@ -13,8 +13,8 @@ use crate::error::StudyError;
 use crate::form::run_machining;
 use crate::sweep::{scale_for_bandwidth, scaled, thesis_sweeps, SweepTuning};
 use plant_sim::params::StageParams;
-use runner::config::presets::SurfacePreset;
-use runner::config::{ControllerKind, Loaded, Machining, Scenario};
+use run_config::presets::SurfacePreset;
+use run_config::{ControllerKind, Loaded, Machining, Scenario};
 use runner::run::RunOptions;
 use runner::stop::StopRequest;
 use runner::Plan;
@@ -242,7 +242,7 @@ pub fn comparison(progress: &mut dyn FnMut(usize, usize)) -> Result<Comparison, 
     cut.config.plant.noise.accel = true;
     cut.config.controller.kg_scaling = true;
     cut.config.scenario =
-        runner::config::presets::ScenarioKind::IntermittentCut.scenario(&Default::default(), 0.0);
+        run_config::presets::ScenarioKind::IntermittentCut.scenario(&Default::default(), 0.0);
     cut.config.run.duration_s = crate::intermittent::DEFAULT_DURATION_S;
     let ka = crate::intermittent::study(&Plan::new(&cut)?, &[0.0, 4.0])?;
     let (k0, k4) = (&ka[0], &ka[1]);
@@ -323,7 +323,7 @@ pub fn comparison(progress: &mut dyn FnMut(usize, usize)) -> Result<Comparison, 
     let mut flat = Loaded::default();
     let preset = SurfacePreset::Flat;
     let m = Machining {
-        surface: runner::config::SurfaceConfig::Flat,
+        surface: run_config::SurfaceConfig::Flat,
         spindle_rpm: preset.spindle_rpm(),
         feed_m_per_rev: preset.feed_m_per_rev(),
         start_radius_m: 20e-3,

@@ -9,9 +9,9 @@
 pub mod report;
 
 use crate::error::StudyError;
+use nalgebra::{DMatrix, DVector};
 use optics::toolpath::ToolPath;
 use optics::{Zernike, ZernikeOrder};
-use nalgebra::{DMatrix, DVector};
 use runner::toolpath::{feasibility, prescription_of, Feasibility, RingLoop, RING_SAMPLES};
 use runner::Plan;
 use serde::Serialize;

@@ -5,7 +5,7 @@
 //! for what a host allows.
 
 use super::Origin;
-use crate::config::ConfigError;
+use crate::ConfigError;
 use daq_io::clock::Wait;
 use daq_io::realtime::{online_cpus, Policy, RtSettings};
 use serde::{Deserialize, Serialize};

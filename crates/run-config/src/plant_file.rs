@@ -48,7 +48,7 @@ pub fn read_plant_file(path: &Path) -> Result<PlantParams, ConfigError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::plant_toml;
+    use crate::plant_toml;
 
     /// `text` as file `name` in `dir` (a private folder of the test's own).
     fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> std::path::PathBuf {

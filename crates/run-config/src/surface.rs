@@ -1,6 +1,6 @@
 //! Surfaces ready for the tick: the configured surface checked and its image decoded once.
 
-use crate::config::{ConfigError, Machining, Origin, SurfaceConfig};
+use crate::{ConfigError, Machining, Origin, SurfaceConfig};
 use optics::toolpath::ToolPath;
 use optics::Prescription;
 use servo_core::surface::{BeamIntegrator, HeightMap, MicroLenslet, SinusoidalGrid, Surface};

@@ -1,9 +1,9 @@
-//! The simulated stage (plant-sim) behind daq-io's [`Backend`]: what the in-process run and
-//! `servo plant` serve, so both compute bit-identical ticks.
+//! The simulated stage (plant-sim) behind daq-io's [`Backend`]: what the in-process run,
+//! `servo plant` and libfts_plant serve, so all compute bit-identical ticks.
 
-use crate::config::Scenario;
-use crate::machining::Workpiece;
-use crate::plan::Plan;
+use crate::surface::LoadedSurface;
+use crate::workpiece::Workpiece;
+use crate::{ConfigError, Origin, RunConfig, Scenario};
 use daq_io::{Backend, Sensor, Truth};
 use plant_sim::practice::PracticeStage;
 use plant_sim::Simulator;
@@ -38,28 +38,31 @@ impl SimBackend {
         }
     }
 
-    /// The stage of the run `plan`: its seeded simulator with the scenario's cutting profile,
-    /// and the spindle and part of a machining scenario.
-    pub fn for_run(plan: &Plan) -> Self {
-        let workpiece = match (&plan.config.scenario, &plan.surface) {
+    /// The stage of the run `config` (its checked values at `at`): the seeded simulator `sim`
+    /// with the scenario's cutting profile, the practice stage of `run.practice_seed` instead
+    /// when set, and the spindle and part of a machining scenario cut along `surface`.
+    pub fn for_run(
+        config: &RunConfig,
+        at: &Origin,
+        sim: Simulator,
+        surface: Option<LoadedSurface>,
+    ) -> Result<Self, ConfigError> {
+        let workpiece = match (&config.scenario, surface) {
             (Scenario::Machine(m), Some(surface)) => {
-                Some(Workpiece::new(m, surface.clone(), plan.period_s()))
+                Some(Workpiece::new(m, surface, config.plant.period_s()))
             }
             _ => None,
         };
-        let stage = match plan.config.run.practice_seed {
-            None => Stage::Configured(plan.sim.clone()),
-            Some(seed) => Stage::Practice(Box::new(
-                PracticeStage::new(&plan.config.plant, seed)
-                    .expect("the plan drew this practice stage without error"),
-            )),
+        let stage = match config.run.practice_seed {
+            None => Stage::Configured(sim),
+            Some(seed) => Stage::Practice(Box::new(practice_stage(config, at, seed)?)),
         };
-        SimBackend {
+        Ok(SimBackend {
             stage,
             truth: Truth::default(),
             workpiece,
             tick: 0,
-        }
+        })
     }
 
     /// The simulator (of the drawn stage, for the practice stage).
@@ -107,4 +110,20 @@ impl Backend for SimBackend {
     fn truth(&self) -> Option<Truth> {
         Some(self.truth)
     }
+}
+
+/// The practice stage of `seed` drawn around the plant of `config`, its error at
+/// `run.practice_seed`.
+pub fn practice_stage(
+    config: &RunConfig,
+    at: &Origin,
+    seed: u64,
+) -> Result<PracticeStage, ConfigError> {
+    PracticeStage::new(&config.plant, seed).map_err(|e| {
+        at.invalid(
+            "run.practice_seed",
+            seed,
+            &format!("a seed whose drawn stage simulates ({e})"),
+        )
+    })
 }

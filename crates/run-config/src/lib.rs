@@ -1,5 +1,10 @@
-//! The one configuration of a run (TOML), every default the thesis prototype, and errors that
-//! name the file, line, key and allowed range.
+//! # run-config
+//!
+//! The one configuration of a run (TOML), every default the thesis prototype, errors that name
+//! the file, line, key and allowed range — and the stage it describes: the surface of a
+//! machining scenario ([`surface`]), the part on the spindle ([`workpiece`]) and the seeded
+//! simulated stage behind daq-io's `Backend` ([`SimBackend`], [`simulated_stage`]). What the run
+//! planner (`runner`) builds a run from and what libfts_plant serves, without the design tools.
 
 mod machining;
 mod made_for;
@@ -8,6 +13,10 @@ mod prescription_file;
 pub mod presets;
 mod realtime;
 mod repetitive;
+mod sim_backend;
+mod stage;
+pub mod surface;
+pub mod workpiece;
 
 /// Reading the files a run depends on, bounded (the runtime's, shared).
 pub mod input_file {
@@ -23,6 +32,8 @@ pub use repetitive::{RepetitiveSection, MAX_BINS};
 pub use servo_config::{
     line_of, ConfigError, ControllerKind, MadeFor, Origin, PidGains, ProtectionConfig, SafeState,
 };
+pub use sim_backend::{practice_stage, SimBackend};
+pub use stage::{plant_error, simulated_stage, simulator, surface_file, StageError, SurfaceFile};
 
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::PlantParams;
@@ -322,6 +333,22 @@ impl RunConfig {
     /// The resolved configuration as TOML.
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("the configuration always serialises")
+    }
+
+    /// Makes the configuration's relative paths (controller file, surface, repetitive table)
+    /// relative to the working directory: they are written relative to the file at `at`.
+    pub fn resolve_paths(&mut self, at: &Origin) {
+        if let Some(p) = &mut self.controller.ss_file {
+            *p = at.resolve(p);
+        }
+        if let Scenario::Machine(m) = &mut self.scenario {
+            if let Some(path) = m.surface.path_mut() {
+                *path = at.resolve(path);
+            }
+            if let Some(table) = m.repetitive.as_mut().and_then(|r| r.table.as_mut()) {
+                *table = at.resolve(table);
+            }
+        }
     }
 
     /// Checks the run-level values (plant and controller values are checked when built).
