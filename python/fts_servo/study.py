@@ -5,8 +5,9 @@ A study is the TOML file ``servo study`` reads: a run configuration (the operati
 point indices and returns their table rows, computed by the same Rust code as ``servo study``
 (so the table is the same, bit for bit, whichever engine computed it). Rows go into the study
 folder's journal as tasks finish — the journal ``servo study`` itself resumes — so an
-interrupted run, Ray or not, continues where it stopped, and the finished table, Parquet file,
-summary and plots are written by the same code as ``servo study merge``.
+interrupted run, Ray or not, continues where it stopped, and the finished table, Parquet file
+and summary are written by the same code as ``servo study merge`` (the plots too come from
+``servo study merge OUT_DIR --out-dir OUT_DIR``; the package draws none).
 
 Every node of the cluster needs ``fts_servo`` installed (``pip install ./python``, or a Ray
 ``runtime_env``).
@@ -57,7 +58,7 @@ def run_study_ray(
     balance better). Rows are appended to the folder's journal as tasks finish; points already
     there (an interrupted run's) are not computed again. ``progress(done, total)`` is called as
     rows arrive. Returns the paths written (``study.csv``, ``study.parquet``, ``study.json``,
-    ``sensitivity.csv``, plots).
+    ``sensitivity.csv``; ``servo study merge out_dir --out-dir out_dir`` adds the plots).
     """
     import ray
 

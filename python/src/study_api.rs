@@ -1,7 +1,7 @@
 //! Design-space studies from Python: the pieces a distributed run needs — the study's size,
 //! the rows of any set of points (what a Ray task computes), the study folder's journal to
-//! append them to (resumable, shared with `servo study`), and the finish that writes the table,
-//! summary and plots from the folders' journals (as `servo study merge`).
+//! append them to (resumable, shared with `servo study`), and the finish that writes the table
+//! and summary from the folders' journals (as `servo study merge`, which draws the plots too).
 
 use crate::servo_err;
 use pyo3::prelude::*;

@@ -28,7 +28,6 @@ pub mod frf;
 pub mod identify;
 pub mod intermittent;
 pub mod margins;
-pub mod plot;
 pub mod report;
 pub mod spectrum;
 pub mod spindle;

@@ -1,8 +1,6 @@
-//! How every study writes its results: data first (CSV with a header naming column and
-//! unit, JSON), pictures second (PNG + SVG), all in one output directory. Each study's own
-//! `report` module decides what goes in them.
+//! How every study writes its results: data (CSV with a header naming column and unit, JSON),
+//! all in one output directory, the pictures beside them (PNG + SVG, the `reports` crate).
 
-use crate::plot::{self, Figure};
 use std::path::{Path, PathBuf};
 
 /// Report errors.
@@ -19,7 +17,8 @@ pub enum ReportError {
     },
 }
 
-pub(crate) fn write_file(path: PathBuf, text: &str) -> Result<PathBuf, ReportError> {
+/// Writes `text` to `path`; the path written.
+pub fn write_file(path: PathBuf, text: &str) -> Result<PathBuf, ReportError> {
     std::fs::write(&path, text).map_err(|source| ReportError::Io {
         path: path.clone(),
         source,
@@ -28,7 +27,7 @@ pub(crate) fn write_file(path: PathBuf, text: &str) -> Result<PathBuf, ReportErr
 }
 
 /// Creates `dir` and writes `files` (file name, contents) into it.
-pub(crate) fn write_files(dir: &Path, files: &[(&str, &str)]) -> Result<Written, ReportError> {
+pub fn write_files(dir: &Path, files: &[(&str, &str)]) -> Result<Written, ReportError> {
     std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
         path: dir.to_owned(),
         source,
@@ -55,7 +54,7 @@ struct Metadata<'a> {
 
 /// Pretty JSON of an analysis result `value` (what it is: `what`), opened by its
 /// [`Metadata`]; a result that is a list goes under `key`.
-pub(crate) fn to_json<T: serde::Serialize + ?Sized>(what: &str, key: &str, value: &T) -> String {
+pub fn to_json<T: serde::Serialize + ?Sized>(what: &str, key: &str, value: &T) -> String {
     let metadata = Metadata {
         what,
         written_utc: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
@@ -77,7 +76,7 @@ pub(crate) fn to_json<T: serde::Serialize + ?Sized>(what: &str, key: &str, value
 }
 
 /// Creates `dir` and writes the data files `<stem>.csv` and `<stem>.json` (of `what`).
-pub(crate) fn data<T: serde::Serialize + ?Sized>(
+pub fn data<T: serde::Serialize + ?Sized>(
     dir: &Path,
     stem: &str,
     what: &str,
@@ -91,32 +90,6 @@ pub(crate) fn data<T: serde::Serialize + ?Sized>(
             (&format!("{stem}.json"), &to_json(what, stem, json)),
         ],
     )
-}
-
-/// Writes the plots, or returns the reason they were skipped (no font) as a note.
-pub(crate) fn plots(
-    figs: &[(Figure, &str)],
-    dir: &Path,
-    written: &mut Vec<PathBuf>,
-) -> Option<String> {
-    figs.iter()
-        .find_map(|(fig, stem)| plot(fig, &dir.join(stem), written))
-}
-
-/// Writes one drawing as `stem.png` and `stem.svg` (their paths go to `written`), or returns
-/// the reason it was skipped as a note.
-pub(crate) fn plot<D: plot::Drawing>(
-    item: &D,
-    stem: &Path,
-    written: &mut Vec<PathBuf>,
-) -> Option<String> {
-    match plot::write(item, stem) {
-        Ok(paths) => {
-            written.extend(paths);
-            None
-        }
-        Err(e) => Some(e.to_string()),
-    }
 }
 
 /// Files written, and a note if plots were skipped.

@@ -76,13 +76,13 @@ fn the_predicted_error_loaded_back_compensates_the_next_cut() {
     let Some(run_config::surface::LoadedSurface::Prescription(path)) = &p.surface else {
         panic!("a prescription")
     };
-    let table = studies::toolpath::report::TableSize {
+    let table = studies::toolpath::TableSize {
         radii: 4,
         counts: 8,
         pulses_per_rev: 80_000,
     };
     let out = dir.path().join("first");
-    studies::toolpath::report::write(&first, path, table, "first cut", &out).unwrap();
+    studies::toolpath::write_data(&first, path, table, &out).unwrap();
     // The pitch as the file states it (its first line), as a user would copy it.
     let text = std::fs::read_to_string(out.join("part_error.csv")).unwrap();
     let header = text.lines().next().unwrap();

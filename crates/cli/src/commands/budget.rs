@@ -63,9 +63,8 @@ impl BudgetCmd {
         let a = studies::budget::analyse(&plan, self.points)?;
         let (b, title) = (&a.budget, &a.title);
         let made = (&a.made_for, plan.controller.description.as_str());
-        let written =
-            studies::budget::report::write(b, title, made, a.margins.as_ref(), &self.out_dir)
-                .map_err(StudyError::from)?;
+        let written = reports::budget::write(b, title, made, a.margins.as_ref(), &self.out_dir)
+            .map_err(StudyError::from)?;
         let sweeps = if self.sweep {
             Some(self.sweeps(&plan)?)
         } else {
@@ -79,7 +78,7 @@ impl BudgetCmd {
         print_written(&written);
         if let Some(s) = &sweeps {
             print_sweeps(s, self.validate.is_some());
-            print_written(&sweep::report::write(s, &self.out_dir).map_err(StudyError::from)?);
+            print_written(&reports::sweep::write(s, &self.out_dir).map_err(StudyError::from)?);
         }
         Ok(ExitCode::SUCCESS)
     }

@@ -79,12 +79,12 @@ impl FrfCmd {
         let curve = frf::model_curve(&plan, self.which, self.from, self.to, 600)?;
         let title = format!("{:?}-loop FRF", self.which);
         let made_for = run_config::made_for_plant(&plan.config.plant);
-        let provenance = frf::report::Provenance {
+        let provenance = reports::frf::Provenance {
             which: self.which,
             made_for: &made_for,
             measured_on: &measured_on,
         };
-        let written = frf::report::write(&pts, &curve, &title, &provenance, &self.out_dir)
+        let written = reports::frf::write(&pts, &curve, &title, &provenance, &self.out_dir)
             .map_err(StudyError::from)?;
         if self.json {
             print_json(&pts);

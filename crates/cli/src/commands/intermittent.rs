@@ -85,7 +85,7 @@ impl IntermittentCmd {
         let kas = self.kas.clone().unwrap_or(THESIS_KAS.to_vec());
         let rows = intermittent::study(&plan, &kas)?;
         let written =
-            intermittent::report::write(&rows, &self.out_dir).map_err(StudyError::from)?;
+            reports::intermittent::write(&rows, &self.out_dir).map_err(StudyError::from)?;
         if self.json {
             print_json(&rows);
             return Ok(ExitCode::SUCCESS);

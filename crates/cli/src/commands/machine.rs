@@ -142,7 +142,7 @@ impl MachineCmd {
             }
         );
         let learned = summary.meta.repetitive_table_m.as_deref();
-        let written = form::report::write(&analysis, &title, learned, &self.out_dir)
+        let written = reports::form::write(&analysis, &title, learned, &self.out_dir)
             .map_err(studies::StudyError::from)?;
         let report = analysis.report();
         let code = crate::interrupt::exit_code(&stop, summary.trip.is_some());

@@ -80,8 +80,8 @@ impl SpectrumCmd {
             .file
             .file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-        let written = studies::spectrum::report::write(&s, &title, &self.out_dir)
-            .map_err(StudyError::from)?;
+        let written =
+            reports::spectrum::write(&s, &title, &self.out_dir).map_err(StudyError::from)?;
         if self.json {
             print_json(&s);
             return Ok(ExitCode::SUCCESS);

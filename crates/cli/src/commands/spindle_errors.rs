@@ -62,7 +62,7 @@ impl SpindleErrorsCmd {
         };
         s.validate()?;
         let (report, profiles) = spindle::study(&s);
-        let written = spindle::report::write(&report, &profiles, s.max_harmonic, &self.out_dir)
+        let written = reports::spindle::write(&report, &profiles, s.max_harmonic, &self.out_dir)
             .map_err(StudyError::from)?;
         if self.json {
             print_json(&report);

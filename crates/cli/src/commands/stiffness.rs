@@ -45,7 +45,8 @@ impl StiffnessCmd {
         let freqs = lti::spectral::log_space(10.0, self.to, 200);
         let kas = self.kas.clone().unwrap_or(THESIS_KAS.to_vec());
         let curves = stiffness::compliance(&plan, &kas, kg, &freqs)?;
-        let written = stiffness::report::write(&curves, &self.out_dir).map_err(StudyError::from)?;
+        let written =
+            reports::stiffness::write(&curves, &self.out_dir).map_err(StudyError::from)?;
         if self.json {
             print_json(&curves);
             return Ok(ExitCode::SUCCESS);

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use studies::design_space::evaluate::Point;
 use studies::design_space::journal::{claim, Shard};
 use studies::design_space::spec::Study;
-use studies::design_space::{execute, finish, gather, report};
+use studies::design_space::{axis_label, execute, finish, gather};
 
 /// Design-space study over plant parameters and controller families (thesis §6.5).
 ///
@@ -161,7 +161,8 @@ fn report_finished(
     let bar = points_bar(n as usize, "sensitivities", "loops");
     let done = finish(study, points, dir, jobs, &mut |d, _| bar.set_position(d));
     bar.finish_and_clear();
-    let (found, written) = done?;
+    let (found, mut written) = done?;
+    reports::design_space::plots(study, points, &found, dir, &mut written);
     if json {
         print_json(&serde_json::json!({
             "points": found.points, "failures": found.failures, "optima": found.optima,
@@ -186,7 +187,7 @@ fn report_finished(
         let at: Vec<String> = o
             .values
             .iter()
-            .map(|(k, v)| format!("{} = {v:.4e}", report::axis_label(k)))
+            .map(|(k, v)| format!("{} = {v:.4e}", axis_label(k)))
             .collect();
         println!(
             "  optimum ({}): following {:.3} nm, true {:.3} nm, bandwidth {:.0} Hz at {}",
@@ -202,7 +203,7 @@ fn report_finished(
             None => println!(
                 "  sensitivity ({}) d ln e / d ln {}: following {:+.3}, true {:+.3}",
                 s.controller.name(),
-                report::axis_label(&s.key),
+                axis_label(&s.key),
                 s.following,
                 s.true_error
             ),

@@ -7,7 +7,7 @@ use run_config::Scenario;
 use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use studies::toolpath::report::{self, TableSize};
+use studies::toolpath::TableSize;
 
 /// Check a prescription's tool path against the stage before cutting it.
 ///
@@ -68,7 +68,7 @@ impl ToolpathCmd {
             pulses_per_rev: m.pulses_per_rev,
         };
         let title = format!("{} rpm, {}", m.spindle_rpm, plan.controller.description);
-        let written = report::write(&study, path, table, &title, &self.out_dir)
+        let written = reports::toolpath::write(&study, path, table, &title, &self.out_dir)
             .map_err(studies::StudyError::from)?;
         if self.json {
             print_json(&study);

@@ -2,8 +2,6 @@
 //! following error and of the true error, their CAS, and exact RMS values from the discrete
 //! Lyapunov equation of the sampled closed loop.
 
-pub mod report;
-
 use lti::spectral::cas;
 use lti::{dlyap, LtiError, StateSpace};
 use nalgebra::DMatrix;

@@ -10,13 +10,14 @@
 //! - [`journal`]: the study folder, shards and their journals;
 //! - [`merge`](gather): shards joined into the table a single run gives;
 //! - [`sensitivity`]: elasticities at the operating point;
-//! - [`report`]: CSV, Parquet, JSON and the plots of Fig 6-14 and 6-17.
+//! - [`findings`](Findings): what a finished study found; its CSV, Parquet and JSON (the plots
+//!   of Fig 6-14 and 6-17 are the `reports` crate's).
 
 pub mod columnar;
 pub mod evaluate;
 pub mod execute;
+mod findings;
 pub mod journal;
-pub mod report;
 pub mod sampling;
 pub mod sensitivity;
 pub mod spec;
@@ -24,6 +25,7 @@ pub mod table;
 
 use crate::error::StudyError;
 use evaluate::Point;
+pub use findings::{axis_label, failures, write_data, Failures, Findings};
 use journal::{foreign, io, journals, read_journal, DESCRIPTION};
 use serde::Serialize;
 use spec::{Family, Objective, Study};
@@ -149,16 +151,17 @@ pub fn gather(dirs: &[PathBuf]) -> Result<(Study, Vec<Point>), StudyError> {
 
 /// Finishes a study whose points are all in `points` (index order): computes the sensitivities
 /// at the operating point on `jobs` threads (`progress` gets their (done, total) loops) and the
-/// findings, and writes the table, summary and plots into `dir`.
+/// findings, and writes the table and summary into `dir` (their plots:
+/// `reports::design_space::plots`).
 pub fn finish(
     study: &Study,
     points: &[Point],
     dir: &Path,
     jobs: usize,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<(report::Findings, crate::report::Written), StudyError> {
+) -> Result<(Findings, crate::report::Written), StudyError> {
     let sensitivities = sensitivity::sensitivities(study, jobs, progress);
-    let findings = report::Findings::new(study, points, sensitivities);
-    let written = report::write(study, points, &findings, dir)?;
+    let findings = Findings::new(study, points, sensitivities);
+    let written = write_data(study, points, &findings, dir)?;
     Ok((findings, written))
 }

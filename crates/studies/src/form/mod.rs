@@ -4,7 +4,6 @@
 //! peak-to-valley), the surface roughness with its feed marks (§8.5.1), and a segment of
 //! commanded vs true tool trajectory (Figs 8-15, 8-20).
 
-pub mod report;
 pub mod roughness;
 
 use crate::error::StudyError;

@@ -5,8 +5,6 @@
 //! (the simulator process or a DAQ daemon, [`FrfPlant`]), this process taking the controller's
 //! place and injecting the excitation.
 
-pub mod report;
-
 use crate::error::StudyError;
 use daq_io::{Backend, Sensor};
 use lti::spectral::h1_at_bin;

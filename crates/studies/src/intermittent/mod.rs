@@ -4,8 +4,6 @@
 //! error the tool leaves at the step edge (Fig 7-19: the tool pushed away from the part
 //! leaves material standing).
 
-pub mod report;
-
 use crate::error::StudyError;
 use run_config::{ControllerConfig, ControllerKind, Scenario};
 use runner::run::run_to_end_with;

@@ -8,8 +8,6 @@
 //! end), or to a trip. The prediction can be for another controller than the recorded one —
 //! the one `servo ctl load` swapped in, for the part of the run after the swap.
 
-pub mod report;
-
 use crate::StudyError;
 use lti::spectral::{Psd, Welch, WelchConfig};
 use lti::welch_statistics::{expected_welch, BandScatter};

@@ -2,8 +2,6 @@
 //! simulated probe data — a known artefact form and spindle error motion, measured with the
 //! three angle sets of Table D-1 — and how well each way of combining them recovers both.
 
-pub mod report;
-
 use design::spindle::{
     harmonic_weighting, modify, separate, synchronous, synthesise, Separation, THESIS_ANGLE_SETS,
 };

@@ -8,8 +8,6 @@
 //!   `τ_eff = τ + T/2 + (N−1)/(2·f_adc)` (transport, hold, mean ADC sampling advance);
 //! * sampled loop — the simulator's exact discretisation, cutting force → tool position.
 
-pub mod report;
-
 use crate::error::StudyError;
 use num_complex::Complex64 as C;
 use plant_sim::impedance::Impedances;

@@ -7,8 +7,6 @@
 
 mod loop_shape;
 
-pub mod report;
-
 use crate::budget::Budget;
 use crate::error::StudyError;
 use plant_sim::params::StageParams;

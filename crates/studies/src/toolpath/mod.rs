@@ -6,7 +6,7 @@
 //! coefficients, a sag grid that can be loaded back to compensate the next cut; and the
 //! geometric sensitivity to the tool's centre height and X offset.
 
-pub mod report;
+mod files;
 
 use crate::error::StudyError;
 use nalgebra::{DMatrix, DVector};
@@ -16,6 +16,8 @@ use runner::toolpath::{feasibility, prescription_of, Feasibility, RingLoop, RING
 use runner::Plan;
 use serde::Serialize;
 use std::f64::consts::TAU;
+
+pub use files::{write_data, TableSize};
 
 /// Grid nodes per side of the aperture's maps.
 pub const MAP_NODES: usize = 129;

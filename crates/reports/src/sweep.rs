@@ -1,10 +1,11 @@
 //! `sweep.csv`, `sweep.json` and the bandwidth-sweep plot (Fig 5-14).
 
-use super::Sweep;
 use crate::plot::{Figure, Series};
-use crate::report::{data, plots, ReportError, Written};
+use crate::plot_files;
 use std::fmt::Write as _;
 use std::path::Path;
+use studies::report::{data, ReportError, Written};
+use studies::sweep::Sweep;
 
 /// `sweep.csv`, `sweep.json`, `sweep.{png,svg}` (thesis Fig 5-14).
 pub fn write(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
@@ -40,7 +41,7 @@ pub fn write(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
     let mut series = Vec::new();
     for s in sweeps {
         let bw: Vec<f64> = s.points.iter().map(|p| p.bandwidth_hz).collect();
-        let nm = |f: fn(&super::SweepPoint) -> Option<f64>| {
+        let nm = |f: fn(&studies::sweep::SweepPoint) -> Option<f64>| {
             s.points
                 .iter()
                 .map(|p| f(p).map_or(f64::NAN, |v| v * 1e9))
@@ -80,6 +81,6 @@ pub fn write(sweeps: &[Sweep], dir: &Path) -> Result<Written, ReportError> {
         log_y: false,
         series,
     };
-    out.note = plots(&[(fig, "sweep")], dir, &mut out.files);
+    out.note = plot_files(&[(fig, "sweep")], dir, &mut out.files);
     Ok(out)
 }

@@ -1,16 +1,17 @@
 //! `spindle.csv`, `spindle.json` and the profile plots of the spindle error separation.
 
 use crate::plot::{Figure, Series};
-use crate::report::{plots, to_json, write_files, ReportError, Written};
+use crate::plot_files;
 use std::fmt::Write as _;
 use std::path::Path;
+use studies::report::{to_json, write_files, ReportError, Written};
 
 /// `spindle.json`, `spindle.csv` (one revolution: truth and every estimate),
 /// `harmonic_weighting.csv`, and the pictures `harmonic_weighting` (Fig D-2), `artefact`
 /// (Fig D-7) and `x_motion` (Fig D-8).
 pub fn write(
-    r: &super::SpindleReport,
-    p: &super::SpindleProfiles,
+    r: &studies::spindle::SpindleReport,
+    p: &studies::spindle::SpindleProfiles,
     max_harmonic: usize,
     dir: &Path,
 ) -> Result<Written, ReportError> {
@@ -128,7 +129,7 @@ pub fn write(
             Series::line("synthesised", p.angle_deg.clone(), nm(&p.synthesised.x)),
         ],
     };
-    out.note = plots(
+    out.note = plot_files(
         &[
             (weighting, "harmonic_weighting"),
             (artefact, "artefact"),

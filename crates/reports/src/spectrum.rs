@@ -1,12 +1,13 @@
 //! `spectrum.csv`, `spectrum.json` and the PSD, CAS and control-output plots of a recording
 //! beside its budget (Fig 5-15).
 
-use super::{Signals, Spectrum};
 use crate::plot::{Figure, Series};
-use crate::report::{data, plots, ReportError, Written};
+use crate::plot_files;
 use lti::spectral::cas_of_bins;
 use std::fmt::Write as _;
 use std::path::Path;
+use studies::report::{data, ReportError, Written};
+use studies::spectrum::{Signals, Spectrum};
 
 /// Writes the data and the plots into `dir`; `title` names the recording.
 pub fn write(s: &Spectrum, title: &str, dir: &Path) -> Result<Written, ReportError> {
@@ -74,7 +75,7 @@ pub fn write(s: &Spectrum, title: &str, dir: &Path) -> Result<Written, ReportErr
         log_y,
         series,
     };
-    out.note = plots(
+    out.note = plot_files(
         &[
             (
                 figure(

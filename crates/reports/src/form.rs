@@ -1,20 +1,21 @@
 //! `machine.json`, `form_map.csv`, `trajectory.csv`, `roughness_profile.csv`, the form-error map,
 //! the trajectory plots and the machined face's radial profile of a machining run.
 
-use super::MAP_COLUMNS;
 use crate::plot::{self, Figure, Series};
-use crate::report::{plots, to_json, write_files, ReportError, Written};
+use crate::plot_files;
 use std::fmt::Write as _;
 use std::path::Path;
+use studies::form::MAP_COLUMNS;
+use studies::report::{to_json, write_files, ReportError, Written};
 
 /// Picture columns of the form-error map (the data keep every 0.1° bin).
 const MAP_PICTURE_COLUMNS: usize = 720;
 
-/// `machine.json` (the [`FormReport`](super::FormReport)), `form_map.csv`,
+/// `machine.json` (the [`FormReport`](studies::form::FormReport)), `form_map.csv`,
 /// `trajectory.csv`, and the pictures `form_error_map`, `trajectory`, `trajectory_error`
 /// (PNG + SVG).
 pub fn write(
-    a: &super::FormAnalysis,
+    a: &studies::form::FormAnalysis,
     title: &str,
     learned: Option<&[f64]>,
     dir: &Path,
@@ -83,10 +84,10 @@ pub fn write(
         value_label: "form error − mean (nm)".into(),
     };
     let ms: Vec<f64> = a.segment().iter().map(|s| s.time_s * 1e3).collect();
-    let um = |f: fn(&super::SegmentRow) -> f64| -> Vec<f64> {
+    let um = |f: fn(&studies::form::SegmentRow) -> f64| -> Vec<f64> {
         a.segment().iter().map(|s| f(s) * 1e6).collect()
     };
-    let nm = |f: fn(&super::SegmentRow) -> f64| -> Vec<f64> {
+    let nm = |f: fn(&studies::form::SegmentRow) -> f64| -> Vec<f64> {
         a.segment().iter().map(|s| f(s) * 1e9).collect()
     };
     let series = |label: &str, y: Vec<f64>| Series::line(label, ms.clone(), y);
@@ -121,7 +122,7 @@ pub fn write(
         for r in &profile {
             writeln!(csv, "{:.9e},{:.6e},{:.6e},{:.6e}", r[0], r[1], r[2], r[3]).unwrap();
         }
-        out.files.push(crate::report::write_file(
+        out.files.push(studies::report::write_file(
             dir.join("roughness_profile.csv"),
             &csv,
         )?);
@@ -145,13 +146,13 @@ pub fn write(
         ));
     }
     if let Some(table) = learned {
-        out.files.push(crate::report::write_file(
+        out.files.push(studies::report::write_file(
             dir.join("repetitive_table.csv"),
             &runner::repetitive::table_csv(table),
         )?);
         figures.extend(repetitive_figures(&report, table, title));
     }
-    out.note = plots(&figures, dir, &mut out.files);
+    out.note = plot_files(&figures, dir, &mut out.files);
     if out.note.is_none() {
         match plot::write(&map, &dir.join("form_error_map")) {
             Ok(paths) => out.files.extend(paths),
@@ -164,7 +165,7 @@ pub fn write(
 /// The repetitive controller's convergence (form error RMS per revolution) and its learned
 /// correction over one revolution.
 fn repetitive_figures(
-    report: &super::FormReport,
+    report: &studies::form::FormReport,
     table: &[f64],
     title: &str,
 ) -> [(Figure, &'static str); 2] {

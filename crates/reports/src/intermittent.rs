@@ -1,11 +1,11 @@
 //! `intermittent.csv` and `intermittent.json` of the intermittent-cut study.
 
-use crate::report::{data, ReportError, Written};
 use std::fmt::Write as _;
 use std::path::Path;
+use studies::report::{data, ReportError, Written};
 
 /// `intermittent.csv` and `intermittent.json`: the Ka table of the intermittent cut.
-pub fn write(rows: &[super::KaRow], dir: &Path) -> Result<Written, ReportError> {
+pub fn write(rows: &[studies::intermittent::KaRow], dir: &Path) -> Result<Written, ReportError> {
     let mut csv = String::from(
         "ka_v_per_v,pid_scale,peak_following_error_m,edge_form_error_m,following_rms_m\n",
     );

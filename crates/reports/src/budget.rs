@@ -1,11 +1,12 @@
 //! `budget.csv`, `budget.json` and the PSD and CAS plots of the error budget (Fig 5-15, 5-16).
 
-use super::Budget;
 use crate::plot::{Figure, Series};
-use crate::report::{data, plots, ReportError, Written};
+use crate::plot_files;
 use runner::closed_loop::SOURCES;
 use std::fmt::Write as _;
 use std::path::Path;
+use studies::budget::Budget;
+use studies::report::{data, ReportError, Written};
 
 /// What `budget.json` holds: the budget, what it was made for (the plant and rate, and the
 /// controller) and the loop's stability margins.
@@ -64,12 +65,12 @@ pub fn write(
         Series::line(
             "following error, total",
             b.freq_hz.clone(),
-            nm2(&super::total_psd(&b.following_psd)),
+            nm2(&studies::budget::total_psd(&b.following_psd)),
         ),
         Series::line(
             "true error, total",
             b.freq_hz.clone(),
-            nm2(&super::total_psd(&b.true_psd)),
+            nm2(&studies::budget::total_psd(&b.true_psd)),
         ),
     ];
     for (k, (name, _)) in SOURCES.iter().enumerate() {
@@ -101,7 +102,7 @@ pub fn write(
             Series::line("true error", b.freq_hz.clone(), nm(&b.true_cas)),
         ],
     };
-    out.note = plots(
+    out.note = plot_files(
         &[(psd, "budget_psd"), (cas, "budget_cas")],
         dir,
         &mut out.files,

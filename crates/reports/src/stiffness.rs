@@ -1,12 +1,16 @@
 //! `stiffness.csv`, `stiffness.json` and the compliance plot (eq 7-9).
 
 use crate::plot::{Figure, Series};
-use crate::report::{data, plots, ReportError, Written};
+use crate::plot_files;
 use std::fmt::Write as _;
 use std::path::Path;
+use studies::report::{data, ReportError, Written};
 
 /// `stiffness.csv`, `stiffness.json`, `compliance.{png,svg}` (thesis Fig 7-7, 7-14).
-pub fn write(curves: &[super::ComplianceCurve], dir: &Path) -> Result<Written, ReportError> {
+pub fn write(
+    curves: &[studies::stiffness::ComplianceCurve],
+    dir: &Path,
+) -> Result<Written, ReportError> {
     let mut csv = String::from(
         "ka,pid_scale,stable,freq_hz,analytic_m_per_n,sampled_m_per_n,sampled_m2_m_per_n\n",
     );
@@ -56,6 +60,6 @@ pub fn write(curves: &[super::ComplianceCurve], dir: &Path) -> Result<Written, R
         log_y: true,
         series,
     };
-    out.note = plots(&[(fig, "compliance")], dir, &mut out.files);
+    out.note = plot_files(&[(fig, "compliance")], dir, &mut out.files);
     Ok(out)
 }

@@ -1,9 +1,9 @@
 //! `frf.csv`, `frf.json` and the Bode plot of a measured FRF beside its model.
 
 use crate::plot::{self, Figure, Series};
-use crate::report::{data, ReportError, Written};
 use std::fmt::Write as _;
 use std::path::Path;
+use studies::report::{data, ReportError, Written};
 
 /// What an FRF was measured for and on: the quantity, the configured plant and rate (the
 /// model beside it), and the plant that answered (the simulator in this process, or the one
@@ -11,7 +11,7 @@ use std::path::Path;
 #[derive(Debug, Clone, Copy)]
 pub struct Provenance<'a> {
     /// Which loop, hence which quantity.
-    pub which: super::FrfLoop,
+    pub which: studies::frf::FrfLoop,
     /// The configured plant and rate.
     pub made_for: &'a run_config::MadeFor,
     /// Where it was measured (`the simulated stage, seed 1`, `the plant serving fts-servo/lab`).
@@ -39,13 +39,13 @@ struct FrfFile<'a> {
     unit: &'static str,
     made_for: &'a run_config::MadeFor,
     measured_on: &'a str,
-    points: &'a [super::FrfPoint],
+    points: &'a [studies::frf::FrfPoint],
 }
 
 /// `frf.csv` (opened by a comment line naming the quantity, its unit and plant), `frf.json`
 /// (the same as fields), `bode.{png,svg}` (magnitude above phase).
 pub fn write(
-    points: &[super::FrfPoint],
+    points: &[studies::frf::FrfPoint],
     model: &[(f64, num_complex::Complex64)],
     title: &str,
     provenance: &Provenance,
@@ -91,7 +91,7 @@ pub fn write(
     let f: Vec<f64> = points.iter().map(|p| p.freq_hz).collect();
     let mf: Vec<f64> = model.iter().map(|m| m.0).collect();
     let model_series = |y: Vec<f64>| Series::line("model (sampled loop)", mf.clone(), y);
-    let series = |get: fn(&super::FrfPoint) -> f64, label: &str, pts: bool| Series {
+    let series = |get: fn(&studies::frf::FrfPoint) -> f64, label: &str, pts: bool| Series {
         label: label.into(),
         x: f.clone(),
         y: points.iter().map(get).collect(),
