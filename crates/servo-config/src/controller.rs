@@ -108,12 +108,12 @@ enum Kind {
 /// command). Plain data: moving it copies it, dropping it frees nothing.
 ///
 /// ```
-/// use servo_runtime::{Controller, Deployment};
+/// use servo_config::{Controller, Deployment};
 /// let d = Deployment::thesis_prototype();
 /// let mut c = Controller::build(&d.controller, &d.stage, d.period_s())?;
 /// let u = c.update(1e-3, 0.0); // 1 mV of position error in sensor volts
 /// assert!(u > 1.65e-3 && !c.faulted());
-/// # Ok::<(), servo_runtime::Invalid>(())
+/// # Ok::<(), servo_config::Invalid>(())
 /// ```
 #[derive(Debug, Clone)]
 pub struct Controller {
