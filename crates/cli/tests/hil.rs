@@ -463,7 +463,7 @@ fn sigterm_to_any_hil_process_ends_the_run_and_finishes_the_file() {
 /// blocks, and the recording holds every valid tick, joined.
 #[test]
 fn impossible_blocks_are_refused_by_the_recorder_and_the_view() {
-    use daq_io::contract::Block;
+    use daq_io::contract::RecordBlock;
     use daq_io::ipc::{leaf, send, subscriber_count, Endpoint};
     use daq_io::{flags, Telemetry, TelemetryBlock, Truth, TruthBlock};
     let p = prefix("badblocks");

@@ -4,7 +4,7 @@
 //! run, or a DAQ daemon's bug) is refused whole, with why; the stream goes on from the last
 //! good record, so no valid record is lost.
 
-use crate::contract::{Block, BLOCK_TICKS};
+use crate::contract::{RecordBlock, BLOCK_TICKS};
 
 /// Why a received block was set aside.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -51,7 +51,7 @@ pub struct BlockCheck {
 
 impl BlockCheck {
     /// The records of `b`, or why the block is refused (the stream's state is then unchanged).
-    pub fn check<'a, B: Block>(&mut self, b: &'a B) -> Result<&'a [B::Record], BadBlock> {
+    pub fn check<'a, B: RecordBlock>(&mut self, b: &'a B) -> Result<&'a [B::Record], BadBlock> {
         let records = b.records().ok_or(BadBlock::CountAboveCapacity {
             block: b.index(),
             count: b.count(),

@@ -239,8 +239,8 @@ pub struct TruthBlock {
 }
 
 /// A block of records ([`TelemetryBlock`], [`TruthBlock`]) as a sender fills it and a
-/// receiver reads it ([`Block::records`], [`crate::BlockCheck`]).
-pub trait Block: Copy + Default + core::fmt::Debug + Shareable {
+/// receiver reads it ([`RecordBlock::records`], [`crate::BlockCheck`]).
+pub trait RecordBlock: Copy + Default + core::fmt::Debug + Shareable {
     /// One record.
     type Record: Copy;
     /// Appends a record; returns true when the block is full.
@@ -252,7 +252,7 @@ pub trait Block: Copy + Default + core::fmt::Debug + Shareable {
     fn seq(r: &Self::Record) -> u64;
     /// The block's index in its stream.
     fn index(&self) -> u64;
-    /// Its record count as sent (what [`Block::records`] checks).
+    /// Its record count as sent (what [`RecordBlock::records`] checks).
     fn count(&self) -> u32;
     /// No records held.
     fn is_empty(&self) -> bool;
@@ -276,7 +276,7 @@ macro_rules! block {
             }
         }
 
-        impl Block for $b {
+        impl RecordBlock for $b {
             type Record = $r;
             #[inline]
             fn push(&mut self, r: $r) -> bool {

@@ -6,7 +6,9 @@
 //! resources of dead nodes first, so a run after a `kill -9` starts cleanly.
 
 use crate::clock::monotonic_ns;
-use crate::contract::{Ack, Block, Command, Control, Health, Sensor, TelemetryBlock, TruthBlock};
+use crate::contract::{
+    Ack, Command, Control, Health, RecordBlock, Sensor, TelemetryBlock, TruthBlock,
+};
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use iceoryx2::sample_mut_uninit::SampleMutUninit;
@@ -398,7 +400,7 @@ pub struct BlockWriter<B> {
     run_id: u64,
 }
 
-impl<B: Block> BlockWriter<B> {
+impl<B: RecordBlock> BlockWriter<B> {
     /// A writer for the blocks of run `run_id` ([`crate::Sensor::run_id`]).
     pub fn new(run_id: u64) -> Self {
         BlockWriter {

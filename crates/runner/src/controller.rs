@@ -9,7 +9,7 @@ use servo_core::IirCoeffs;
 
 /// A run's controller: what the runtime runs, and its linear model.
 #[derive(Debug, Clone)]
-pub struct Controller {
+pub struct RunController {
     /// What the runtime runs (a state-space controller's matrices included).
     pub spec: ControllerSpec,
     /// Linear realisation on inputs `[gap_v, accel_v]` with zero reference (for stability).
@@ -119,7 +119,7 @@ pub fn stage_of(config: &RunConfig) -> Stage {
     }
 }
 
-impl Controller {
+impl RunController {
     /// The controller of `config` (the plant section gives the rate, and the mass for Kg
     /// scaling; a state-space controller's matrices are `ss`, read from
     /// `controller.ss_file`). Errors are located in `at`.
@@ -209,7 +209,7 @@ impl Controller {
                 )
             }
         };
-        Ok(Controller {
+        Ok(RunController {
             spec,
             linear,
             limit_v: c.limit_v,

@@ -174,7 +174,7 @@ impl Joiner {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use daq_io::contract::Block;
+    use daq_io::contract::RecordBlock;
 
     fn telemetry(index: u64, run: u64, seqs: std::ops::Range<u64>) -> TelemetryBlock {
         let mut b = TelemetryBlock::default();

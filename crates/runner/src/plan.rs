@@ -5,7 +5,7 @@
 //! raw configuration.
 
 use crate::closed_loop::ClosedLoop;
-use crate::controller::{stage_of, Controller};
+use crate::controller::{stage_of, RunController};
 use crate::error::RunError;
 use crate::feedforward::feedforward_spec;
 use crate::repetitive::RepetitivePlan;
@@ -40,7 +40,7 @@ pub struct Plan {
     /// The simulated stage at tick 0 (seeded, with the scenario's cutting profile).
     pub sim: Simulator,
     /// The controller: what the runtime runs, and its linear model.
-    pub controller: Controller,
+    pub controller: RunController,
     /// The sampled closed loop of `sim` and `controller` (a `coil` current loop linearised as
     /// the ideal loop of eq 5-9).
     pub closed_loop: ClosedLoop,
@@ -162,7 +162,7 @@ impl Plan {
                 None
             }
         };
-        let controller = Controller::build(&config, &origin, ss)?;
+        let controller = RunController::build(&config, &origin, ss)?;
         let closed_loop = closed_loop_of(&config, &origin, &sim, &controller)?;
         if let Some(seed) = config.run.practice_seed {
             // Drawn here so that a run on it cannot fail later (its stage draws it again).
@@ -346,7 +346,7 @@ fn closed_loop_of(
     config: &RunConfig,
     at: &Origin,
     sim: &Simulator,
-    ctrl: &Controller,
+    ctrl: &RunController,
 ) -> Result<ClosedLoop, RunError> {
     Ok(ClosedLoop::new(
         &linear_tick_of(config, at, sim)?,

@@ -5,8 +5,8 @@
 use crate::error::RunError;
 use crate::pil::{PilError, PilOptions, TargetLoop};
 use crate::plan::Plan;
+use crate::plan_loop::PlanLoop;
 use crate::recording;
-use crate::servo_loop::ServoLoop;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{RunMeta, Summary, SummaryBuilder};
 use daq_io::{Backend, Daq, InProcess};
@@ -43,7 +43,7 @@ pub fn run_with(
         plan,
         opts,
         radius,
-        Side::Host(ServoLoop::new(plan)?),
+        Side::Host(PlanLoop::new(plan)?),
         on_frame,
     )
 }
@@ -73,7 +73,7 @@ pub fn run_on_target(
 #[allow(clippy::large_enum_variant)]
 enum Side {
     /// In this process.
-    Host(ServoLoop),
+    Host(PlanLoop),
     /// On a target processor.
     Target(Box<TargetLoop>),
 }

@@ -4,8 +4,8 @@
 mod example_configs;
 mod fuzz_inputs;
 mod no_alloc;
+mod plan_loop;
 mod protection;
-mod servo_loop;
 mod stall;
 mod telemetry;
 mod toolpath;

@@ -5,7 +5,7 @@ use daq_io::{Backend, Sensor};
 use densa_alloc::{is_active, measure, CountingAllocator};
 use run_config::{FeedforwardKind, Loaded, Scenario};
 use run_config::{Machining, SurfaceConfig};
-use runner::{Plan, ServoLoop};
+use runner::{Plan, PlanLoop};
 
 /// Counts per thread: the test harness's own threads never enter a measurement.
 #[global_allocator]
@@ -25,7 +25,7 @@ fn machining_tick_allocates_nothing() {
         });
         cfg.config.controller.feedforward = ff;
         let plan = Plan::new(&cfg).unwrap();
-        let mut servo = ServoLoop::new(&plan).unwrap();
+        let mut servo = PlanLoop::new(&plan).unwrap();
         let mut plant = plan.stage();
         let mut sample = Sensor::default();
         // Warm up past the first tick (which fills the preview window).

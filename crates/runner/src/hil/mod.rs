@@ -2,7 +2,7 @@
 //! iceoryx2 transport. Each function here is the body of one `servo` subcommand.
 //!
 //! Guarantees: lockstep runs are bit-identical to [`crate::run::run`] with the same config
-//! (same [`SimBackend`], same [`ServoLoop`], same frames); the recorder never blocks the loop
+//! (same [`SimBackend`], same [`PlanLoop`], same frames); the recorder never blocks the loop
 //! (it writes uncompressed MCAP chunks to stay cheap, and has 1024 blocks = 65 536 ticks of
 //! queue per stream; a full queue overwrites the oldest block
 //! and the gap is counted as dropped frames); a lost controller puts the plant in the safe
@@ -13,8 +13,8 @@ use crate::hot_swap::PlanCheck;
 use crate::join::Joiner;
 use crate::operator_log::{GainChange, Swap};
 use crate::plan::Plan;
+use crate::plan_loop::PlanLoop;
 use crate::recording;
-use crate::servo_loop::ServoLoop;
 use crate::stop::{EndReason, StopRequest};
 use crate::summary::{HilMeta, RunMeta, Summary, SummaryBuilder};
 use daq_io::contract::{command, role};
@@ -122,7 +122,7 @@ pub fn controller(
     // The orchestrator checked stability too; a controller never trusts that it did (the
     // gain range refuses an unstable loop).
     let deployment = crate::gain_range::checked(plan)?;
-    let mut servo = ServoLoop::with_deployment(plan, &deployment)?;
+    let mut servo = PlanLoop::with_deployment(plan, &deployment)?;
     let ep = Endpoint::open(prefix, "controller")?;
     let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;
     let stopper = ControlSender::new(&ep)?;

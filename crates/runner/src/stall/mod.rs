@@ -35,7 +35,7 @@ use crate::closed_loop::{input, output, ClosedLoop, SOURCES};
 use crate::error::RunError;
 use crate::hil::{serve_options, PlantOptions};
 use crate::plan::{linear_tick_of, Plan};
-use crate::servo_loop::ServoLoop;
+use crate::plan_loop::PlanLoop;
 use daq_io::serve::Pacing;
 use daq_io::watchdog::{Verdict, Watchdog};
 use daq_io::{Backend, Sensor};
@@ -458,7 +458,7 @@ pub fn simulate(
     peer_timeout_s: f64,
 ) -> Result<StallRun, RunError> {
     let mut backend = plan.stage();
-    let mut servo = ServoLoop::new(plan)?;
+    let mut servo = PlanLoop::new(plan)?;
     let mut watchdog = Watchdog::new(policy(plan, peer_timeout_s));
     let period_ns = period_ns(plan);
     let sensitivity = plan.config.plant.capa.sensitivity_v_per_m;

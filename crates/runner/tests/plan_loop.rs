@@ -4,7 +4,7 @@
 
 use daq_io::{flags, Sensor};
 use run_config::{Loaded, SafeState};
-use runner::{Plan, ServoLoop};
+use runner::{Plan, PlanLoop};
 use servo_runtime::TripCause;
 
 fn sample(seq: u64, gap_v: f64) -> Sensor {
@@ -18,7 +18,7 @@ fn sample(seq: u64, gap_v: f64) -> Sensor {
 
 #[test]
 fn a_nan_reading_gives_zero_volts_and_a_fault_flag() {
-    let mut servo = ServoLoop::new(&Plan::new(&Loaded::default()).unwrap()).unwrap();
+    let mut servo = PlanLoop::new(&Plan::new(&Loaded::default()).unwrap()).unwrap();
     let (c, t) = servo.tick(&sample(0, 0.01));
     let c = c.unwrap();
     assert!(c.dac_v != 0.0 && c.flags & flags::FAULT_CONTROLLER == 0);
@@ -46,7 +46,7 @@ fn a_nan_reading_trips_to_the_configured_safe_state() {
     for (state, held) in [(SafeState::Zero, false), (SafeState::Hold, true)] {
         let mut l = Loaded::default();
         l.config.protection.safe_state = state;
-        let mut servo = ServoLoop::new(&Plan::new(&l).unwrap()).unwrap();
+        let mut servo = PlanLoop::new(&Plan::new(&l).unwrap()).unwrap();
         let before = servo.tick(&sample(0, 0.01)).0.unwrap().dac_v;
         let (c, _) = servo.tick(&sample(1, f64::NAN));
         let c = c.unwrap();

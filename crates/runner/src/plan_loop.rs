@@ -11,12 +11,12 @@ use servo_config::Deployment;
 use servo_runtime::{Servo, TripCause};
 
 /// The runtime's loop with the run's trajectory.
-pub struct ServoLoop {
+pub struct PlanLoop {
     servo: Servo,
     surface: Option<Box<SurfaceReference>>,
 }
 
-impl ServoLoop {
+impl PlanLoop {
     /// The loop of `plan` in its initial state.
     pub fn new(plan: &Plan) -> Result<Self, ConfigError> {
         Self::with_deployment(plan, &plan.deployment)
@@ -38,7 +38,7 @@ impl ServoLoop {
             }
             _ => None,
         };
-        Ok(ServoLoop { servo, surface })
+        Ok(PlanLoop { servo, surface })
     }
 
     /// One tick for sample `s`: the command and the tick's telemetry (both None when `s` closes
