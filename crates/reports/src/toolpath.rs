@@ -44,7 +44,8 @@ pub fn write(
         .iter()
         .map(|b| 0.5 * (b.radius_m[0] + b.radius_m[1]) * 1e3)
         .collect();
-    let col = |g: fn(&runner::toolpath::Band) -> f64| f.bands.iter().map(g).collect::<Vec<_>>();
+    let col =
+        |g: fn(&studies::toolpath::demands::Band) -> f64| f.bands.iter().map(g).collect::<Vec<_>>();
     let bands = Figure {
         title: format!("What the path asks of the stage, per radius band — {title}"),
         x_label: "band centre radius (mm)".into(),

@@ -43,7 +43,6 @@ pub mod schema;
 pub mod stall;
 pub mod stop;
 pub mod summary;
-pub mod toolpath;
 
 pub use error::RunError;
 pub use plan::Plan;

@@ -8,4 +8,3 @@ mod plan_loop;
 mod protection;
 mod stall;
 mod telemetry;
-mod toolpath;

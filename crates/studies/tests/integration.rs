@@ -13,4 +13,5 @@ mod repetitive;
 mod spectrum_lost_ticks;
 mod spindle_errors;
 mod toolpath;
+mod toolpath_demands;
 mod tune;

@@ -52,7 +52,10 @@ fn the_predicted_band_error_is_the_simulated_cuts() {
     let file = dir.path().join("gentle.toml");
     std::fs::write(&file, GENTLE).unwrap();
     let p = plan(&file, 0.6);
-    let predicted = runner::toolpath::feasibility(&p, 10).unwrap().bands[0].predicted_rms_m;
+    let predicted = studies::toolpath::demands::feasibility(&p, 10)
+        .unwrap()
+        .bands[0]
+        .predicted_rms_m;
     let (_, analysis) = machine(&p);
     let simulated = analysis.report().form_error_m.rms;
     // The band 9.95–10 mm against the prediction's 9–10 mm band (its edge the largest).

@@ -61,7 +61,7 @@ impl ToolpathCmd {
         }
         let plan = Plan::new(&l)?;
         let study = studies::toolpath::study(&plan, usize::from(self.bands))?;
-        let (m, path, _) = runner::toolpath::prescription_of(&plan)?;
+        let (m, path, _) = studies::toolpath::demands::prescription_of(&plan)?;
         let table = TableSize {
             radii: usize::from(self.table_radii),
             counts: usize::from(self.table_counts),

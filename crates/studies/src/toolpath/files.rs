@@ -60,7 +60,7 @@ pub fn write_data(
     dir: &Path,
 ) -> Result<Written, ReportError> {
     let fts_table =
-        runner::toolpath::command_table(path, table.radii, table.counts, table.pulses_per_rev);
+        super::demands::command_table(path, table.radii, table.counts, table.pulses_per_rev);
     write_files(
         dir,
         &[

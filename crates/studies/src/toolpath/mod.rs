@@ -1,18 +1,19 @@
 //! The part a prescription's tool path would leave, before it is cut: the stage's demands per
-//! radius band (`runner::toolpath`), and over the whole aperture the predicted form error —
+//! radius band ([`demands`]), and over the whole aperture the predicted form error —
 //! the run's loop applied to the FTS path ring by ring, each point of the part taking the
 //! error of the nose that touched it (the envelope of the nose positions, to first order) —
 //! reported as an optician does: PV and RMS after piston and tilt (and after power), Zernike
 //! coefficients, a sag grid that can be loaded back to compensate the next cut; and the
 //! geometric sensitivity to the tool's centre height and X offset.
 
+pub mod demands;
 mod files;
 
 use crate::error::StudyError;
+use demands::{feasibility, prescription_of, Feasibility, RingLoop, RING_SAMPLES};
 use nalgebra::{DMatrix, DVector};
 use optics::toolpath::ToolPath;
 use optics::{Zernike, ZernikeOrder};
-use runner::toolpath::{feasibility, prescription_of, Feasibility, RingLoop, RING_SAMPLES};
 use runner::Plan;
 use serde::Serialize;
 use std::f64::consts::TAU;

@@ -10,14 +10,13 @@
 //! voltage `V(jnΩ)·Xₙ` and the tool error `(T(jnΩ) − 1)·Xₙ`, with `V` and `T` the loop's
 //! responses from the surface reference to the DAC command and to the true tool position.
 
-use crate::closed_loop::{output, reference_path_response};
-use crate::error::RunError;
-use crate::plan::Plan;
 use num_complex::Complex64 as C;
 use optics::toolpath::ToolPath;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use run_config::surface::LoadedSurface;
 use run_config::{Machining, Scenario, SurfaceConfig};
+use runner::closed_loop::{output, reference_path_response};
+use runner::{Plan, RunError};
 use serde::Serialize;
 use std::f64::consts::TAU;
 use std::sync::Arc;

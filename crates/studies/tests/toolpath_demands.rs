@@ -9,9 +9,9 @@ use recorder::Input;
 use run_config::surface::LoadedSurface;
 use run_config::{Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConfig};
 use runner::plan::PRESCRIPTION_INPUT;
-use runner::toolpath::feasibility;
 use runner::{Plan, RunError};
 use std::f64::consts::TAU;
+use studies::toolpath::demands::feasibility;
 
 const A_M: f64 = 2e-6;
 const NORM_M: f64 = 0.01;
