@@ -5,6 +5,7 @@
 //! transport delay, coloured noise and cutting forces; and the spindle metrology rig of
 //! Appendix D (artefact, spindle error motion, probes). See `README.md` for the calibration.
 
+mod backend;
 mod coil_loop;
 pub mod convert;
 pub mod cutting;

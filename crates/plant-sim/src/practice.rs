@@ -69,7 +69,6 @@ pub struct PracticeStage {
     /// reading = C·x + D·g.
     mount: ([[f64; 2]; 2], [f64; 2], [f64; 2], f64),
     x: [f64; 2],
-    last_truth: Truth,
 }
 
 impl PracticeStage {
@@ -102,7 +101,6 @@ impl PracticeStage {
             truth,
             mount,
             x: [0.0; 2],
-            last_truth: Truth::default(),
         })
     }
 
@@ -119,14 +117,10 @@ impl PracticeStage {
     /// One tick with `dac_v` (V) and a force `extra_force_n` (N) on the tool (a cut), as
     /// [`Simulator::step_with_force`], the gap reading through the mount.
     pub fn step_with_force(&mut self, dac_v: f64, extra_force_n: f64) -> Sensor {
-        let (s, t) = self.sim.step_with_force(dac_v, extra_force_n);
-        self.last_truth = t.to_contract(s.time_s);
+        let s = self.sim.step_sensor(dac_v, extra_force_n);
         Sensor {
-            time_s: s.time_s,
             gap_v: self.through_mount(s.gap_v),
-            accel_v: s.accel_v,
-            flags: s.flags,
-            ..Default::default()
+            ..s
         }
     }
 
@@ -148,7 +142,7 @@ impl Backend for PracticeStage {
     }
 
     fn truth(&self) -> Option<Truth> {
-        Some(self.last_truth)
+        Backend::truth(&self.sim)
     }
 }
 

@@ -295,6 +295,9 @@ pub struct Simulator {
     gaussian: Gaussian,
     tick: u64,
     period_s: f64,
+    /// The contract's truth of the last [`Simulator::step_sensor`] (what
+    /// [`daq_io::Backend::truth`] returns).
+    pub(crate) last_truth: daq_io::Truth,
 }
 
 impl Simulator {
@@ -396,6 +399,7 @@ impl Simulator {
             gaussian: Gaussian::new(seed),
             tick: 0,
             period_s: period,
+            last_truth: daq_io::Truth::default(),
         })
     }
 

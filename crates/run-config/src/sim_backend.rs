@@ -8,11 +8,10 @@ use daq_io::{Backend, Sensor, Truth};
 use plant_sim::practice::PracticeStage;
 use plant_sim::Simulator;
 
-/// The simulated stage as a daq-io backend (keeps the last step's truth), with the part on
-/// the spindle when machining.
+/// The simulated stage of a run as a daq-io backend: the simulator or the practice stage, with
+/// the part on the spindle when machining.
 pub struct SimBackend {
     stage: Stage,
-    truth: Truth,
     workpiece: Option<Workpiece>,
     tick: u64,
 }
@@ -32,7 +31,6 @@ impl SimBackend {
     pub fn new(sim: Simulator) -> Self {
         SimBackend {
             stage: Stage::Configured(sim),
-            truth: Truth::default(),
             workpiece: None,
             tick: 0,
         }
@@ -59,7 +57,6 @@ impl SimBackend {
         };
         Ok(SimBackend {
             stage,
-            truth: Truth::default(),
             workpiece,
             tick: 0,
         })
@@ -82,22 +79,8 @@ impl Backend for SimBackend {
             .as_ref()
             .map_or(0.0, |w| w.cutting_force_n(self.tick));
         let mut sample = match &mut self.stage {
-            Stage::Configured(sim) => {
-                let (s, t) = sim.step_with_force(dac_v, force);
-                self.truth = t.to_contract(s.time_s);
-                Sensor {
-                    time_s: s.time_s,
-                    gap_v: s.gap_v,
-                    accel_v: s.accel_v,
-                    flags: s.flags,
-                    ..Default::default()
-                }
-            }
-            Stage::Practice(p) => {
-                let s = p.step_with_force(dac_v, force);
-                self.truth = Backend::truth(&**p).unwrap_or_default();
-                s
-            }
+            Stage::Configured(sim) => sim.step_sensor(dac_v, force),
+            Stage::Practice(p) => p.step_with_force(dac_v, force),
         };
         self.tick += 1;
         sample.encoder_count = self
@@ -108,7 +91,10 @@ impl Backend for SimBackend {
     }
 
     fn truth(&self) -> Option<Truth> {
-        Some(self.truth)
+        match &self.stage {
+            Stage::Configured(sim) => Backend::truth(sim),
+            Stage::Practice(p) => Backend::truth(&**p),
+        }
     }
 }
 
