@@ -27,15 +27,6 @@ enum Stage {
 }
 
 impl SimBackend {
-    /// Wraps `sim` (no spindle).
-    pub fn new(sim: Simulator) -> Self {
-        SimBackend {
-            stage: Stage::Configured(sim),
-            workpiece: None,
-            tick: 0,
-        }
-    }
-
     /// The stage of the run `config` (its checked values at `at`): the seeded simulator `sim`
     /// with the scenario's cutting profile, the practice stage of `run.practice_seed` instead
     /// when set, and the spindle and part of a machining scenario cut along `surface`.

@@ -195,10 +195,11 @@ impl FrfPlant for RemotePlant {
     }
 }
 
-/// The stage of `plan` simulated in this process (seeded; a scenario's cutting force acts as
-/// it would on the machine).
+/// The stage of `plan` simulated in this process, as its run steps it (seeded; the practice
+/// stage of `run.practice_seed` when set; a scenario's cutting force acts as it would on the
+/// machine).
 pub fn simulated(plan: &Plan) -> SimBackend {
-    SimBackend::new(plan.sim.clone())
+    plan.stage()
 }
 
 /// Plant, controller and model of one measurement, and the drive tick.
