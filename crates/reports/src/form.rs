@@ -2,7 +2,7 @@
 //! the trajectory plots and the machined face's radial profile of a machining run.
 
 use crate::plot::{self, Figure, Series};
-use crate::plot_files;
+use crate::{plot_file, plot_files};
 use std::fmt::Write as _;
 use std::path::Path;
 use studies::form::MAP_COLUMNS;
@@ -152,13 +152,8 @@ pub fn write(
         )?);
         figures.extend(repetitive_figures(&report, table, title));
     }
-    out.note = plot_files(&figures, dir, &mut out.files);
-    if out.note.is_none() {
-        match plot::write(&map, &dir.join("form_error_map")) {
-            Ok(paths) => out.files.extend(paths),
-            Err(e) => out.note = Some(e.to_string()),
-        }
-    }
+    out.note = plot_files(&figures, dir, &mut out.files)
+        .or_else(|| plot_file(&map, &dir.join("form_error_map"), &mut out.files));
     Ok(out)
 }
 

@@ -1,6 +1,7 @@
 //! `frf.csv`, `frf.json` and the Bode plot of a measured FRF beside its model.
 
 use crate::plot::{self, Figure, Series};
+use crate::plot_file;
 use std::fmt::Write as _;
 use std::path::Path;
 use studies::report::{data, ReportError, Written};
@@ -147,9 +148,6 @@ pub fn write(
         top: mag,
         bottom: phase,
     };
-    match plot::write(&bode, &dir.join("bode")) {
-        Ok(paths) => out.files.extend(paths),
-        Err(e) => out.note = Some(e.to_string()),
-    }
+    out.note = plot_file(&bode, &dir.join("bode"), &mut out.files);
     Ok(out)
 }

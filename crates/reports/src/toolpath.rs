@@ -1,8 +1,8 @@
 //! What a tool-path study writes: its data (`studies::toolpath::write_data`) and the pictures
 //! `fts_path`, `predicted_form_error` and `bands`.
 
-use crate::plot::{self, Figure, Map, Series, SquareMap};
-use crate::plot_files;
+use crate::plot::{Figure, Map, Series, SquareMap};
+use crate::{plot_file, plot_files};
 use optics::toolpath::ToolPath;
 use std::path::Path;
 use studies::report::{ReportError, Written};
@@ -79,13 +79,10 @@ pub fn write(
         "form error (nm)",
     );
     for (item, stem) in [(fts, "fts_path"), (error, "predicted_form_error")] {
-        if out.note.is_some() {
-            break;
-        }
-        match plot::write(&item, &dir.join(stem)) {
-            Ok(paths) => out.files.extend(paths),
-            Err(e) => out.note = Some(e.to_string()),
-        }
+        out.note = out
+            .note
+            .take()
+            .or_else(|| plot_file(&item, &dir.join(stem), &mut out.files));
     }
     Ok(out)
 }

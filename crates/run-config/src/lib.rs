@@ -33,7 +33,10 @@ pub use servo_config::{
     line_of, ConfigError, ControllerKind, MadeFor, Origin, PidGains, ProtectionConfig, SafeState,
 };
 pub use sim_backend::{practice_stage, SimBackend};
-pub use stage::{plant_error, simulated_stage, simulator, surface_file, StageError, SurfaceFile};
+pub use stage::{
+    plant_error, resolve, simulated_stage, simulator, surface_file, Resolved, StageError,
+    SurfaceFile,
+};
 
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::PlantParams;

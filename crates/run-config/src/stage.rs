@@ -80,10 +80,24 @@ pub fn surface_file(
     }))
 }
 
-/// The simulated stage of the run `loaded`, as `servo run` steps it: its values checked, its
-/// paths resolved against the file's folder, the seeded simulator (or the practice stage of
-/// `run.practice_seed`), the scenario's cutting profile and the part of a machining scenario.
-pub fn simulated_stage(loaded: &Loaded) -> Result<SimBackend, StageError> {
+/// A run's configuration with its values checked and its paths resolved against its file's
+/// folder, and what its stage is built from.
+#[derive(Debug, Clone)]
+pub struct Resolved {
+    /// The configuration.
+    pub config: RunConfig,
+    /// Its seeded simulator, with the scenario's cutting profile.
+    pub sim: Simulator,
+    /// The surface of a machining scenario.
+    pub surface: Option<LoadedSurface>,
+}
+
+/// Checks the configuration of `loaded`, resolves its paths and builds its simulator and
+/// surface; `surface_bytes` gives the bytes of the file a surface names (None: it names none).
+pub fn resolve<F>(loaded: &Loaded, mut surface_bytes: F) -> Result<Resolved, StageError>
+where
+    F: FnMut(&SurfaceConfig) -> Result<Option<Vec<u8>>, ConfigError>,
+{
     let at = &loaded.origin;
     let mut config = loaded.config.clone();
     config.validate(at)?;
@@ -91,14 +105,23 @@ pub fn simulated_stage(loaded: &Loaded) -> Result<SimBackend, StageError> {
     let sim = simulator(&config, at)?;
     let surface = match &config.scenario {
         Scenario::Machine(m) => {
-            let file = surface_file(&m.surface, at)?;
-            Some(LoadedSurface::load(
-                m,
-                at,
-                file.as_ref().map(|f| f.bytes.as_slice()),
-            )?)
+            let file = surface_bytes(&m.surface)?;
+            Some(LoadedSurface::load(m, at, file.as_deref())?)
         }
         _ => None,
     };
-    Ok(SimBackend::for_run(&config, at, sim, surface)?)
+    Ok(Resolved {
+        config,
+        sim,
+        surface,
+    })
+}
+
+/// The simulated stage of the run `loaded`, as `servo run` steps it ([`resolve`]d, its surface
+/// read from disk): the seeded simulator (or the practice stage of `run.practice_seed`), the
+/// scenario's cutting profile and the part of a machining scenario.
+pub fn simulated_stage(loaded: &Loaded) -> Result<SimBackend, StageError> {
+    let at = &loaded.origin;
+    let r = resolve(loaded, |s| Ok(surface_file(s, at)?.map(|f| f.bytes)))?;
+    Ok(SimBackend::for_run(&r.config, at, r.sim, r.surface)?)
 }

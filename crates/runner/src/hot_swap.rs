@@ -3,8 +3,8 @@
 //! loaded controller (a state-space file as `servo synth` writes it, or a `[controller]`
 //! fragment as `servo tune` writes it), checks what it was made for and the new closed loop's
 //! stability on the run's plant model, and hands the runtime the controller with its gain
-//! range. A daemon without the model takes only files that carry that check
-//! ([`servo_config::CarriedCheck`]).
+//! range. A daemon without the model takes only files that carry that check (the runtime's
+//! own rule when [`servo_runtime::ServeOptions`] names no check).
 
 use crate::error::RunError;
 use crate::gain_range::gain_range;

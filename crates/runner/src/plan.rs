@@ -66,18 +66,8 @@ impl Plan {
     /// [`SURFACE_INPUT`]) — a recording's embedded copies — and reading the others.
     pub fn with_inputs(loaded: &Loaded, mut inputs: Vec<Input>) -> Result<Self, RunError> {
         let origin = loaded.origin.clone();
-        let mut config = loaded.config.clone();
-        config.validate(&origin)?;
-        config.resolve_paths(&origin);
-        let sim = run_config::simulator(&config, &origin)?;
-        let surface = match &config.scenario {
-            Scenario::Machine(m) => {
-                let file = surface_file(&m.surface, &origin, &mut inputs)?;
-                Some(LoadedSurface::load(m, &origin, file.as_deref())?)
-            }
-            _ => None,
-        };
-        Plan::assemble(config, origin, sim, surface, inputs)
+        let r = run_config::resolve(loaded, |s| surface_file(s, &origin, &mut inputs))?;
+        Plan::assemble(r.config, origin, r.sim, r.surface, inputs)
     }
 
     /// The same run with another controller (the stage, its noise and the surface reused;
@@ -301,7 +291,7 @@ fn surface_file(
     surface: &SurfaceConfig,
     origin: &Origin,
     inputs: &mut Vec<Input>,
-) -> Result<Option<Vec<u8>>, RunError> {
+) -> Result<Option<Vec<u8>>, ConfigError> {
     let name = match surface {
         SurfaceConfig::Image { .. } => SURFACE_INPUT,
         SurfaceConfig::Prescription { .. } => PRESCRIPTION_INPUT,

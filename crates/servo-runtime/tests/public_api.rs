@@ -22,9 +22,8 @@ struct Surface {
     items: BTreeSet<String>,
     /// `Type::method` of every public inherent method of a type an embedder can name.
     methods: BTreeSet<String>,
-    /// Names of the public types defined here or in servo-config (whose methods are listed).
-    local_types: BTreeSet<String>,
-    /// `Type::method` of every public inherent method found, whether its type is public.
+    /// `Type::method` of every public inherent method found here or in servo-config (an
+    /// inherent impl is in its type's crate), whether its type is public.
     all_methods: BTreeSet<String>,
 }
 
@@ -75,13 +74,8 @@ fn walk(items: &[Item], prefix: Option<&str>, dir: &Path, s: &mut Surface) {
     };
     for item in items {
         let named = |vis: &Visibility, ident: &syn::Ident, kind: &str, s: &mut Surface| {
-            if is_pub(vis) {
-                if let Some(path) = at(&ident.to_string()) {
-                    s.items.insert(format!("{path} {kind}"));
-                }
-                if matches!(kind, "struct" | "enum") {
-                    s.local_types.insert(ident.to_string());
-                }
+            if let Some(path) = at(&ident.to_string()).filter(|_| is_pub(vis)) {
+                s.items.insert(format!("{path} {kind}"));
             }
         };
         match item {
@@ -158,7 +152,6 @@ fn surface() -> Surface {
         &config,
         &mut theirs,
     );
-    s.local_types.extend(theirs.local_types);
     s.all_methods.extend(theirs.all_methods);
     // Methods of the types an embedder can name (public at some path of this crate).
     let named: BTreeSet<String> = s
@@ -170,10 +163,7 @@ fn surface() -> Surface {
     s.methods = s
         .all_methods
         .iter()
-        .filter(|m| {
-            let ty = m.split("::").next().unwrap_or("");
-            s.local_types.contains(ty) && named.contains(ty)
-        })
+        .filter(|m| named.contains(m.split("::").next().unwrap_or("")))
         .cloned()
         .collect();
     s

@@ -53,7 +53,7 @@ struct Metadata<'a> {
 }
 
 /// Pretty JSON of an analysis result `value` (what it is: `what`), opened by its
-/// [`Metadata`]; a result that is a list goes under `key`.
+/// metadata (what, when, which tool and command); a result that is a list goes under `key`.
 pub fn to_json<T: serde::Serialize + ?Sized>(what: &str, key: &str, value: &T) -> String {
     let metadata = Metadata {
         what,

@@ -71,7 +71,7 @@ impl FrfCmd {
         let plan = Plan::new(&l)?;
         let (pts, measured_on) = match &self.prefix {
             None => (
-                self.measure(&plan, &mut frf::simulated(&plan))?,
+                self.measure(&plan, &mut plan.stage())?,
                 format!("the simulated stage, seed {}", plan.config.run.seed),
             ),
             Some(prefix) => self.measure_remote(&plan, prefix)?,

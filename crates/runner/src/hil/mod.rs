@@ -2,10 +2,10 @@
 //! iceoryx2 transport. Each function here is the body of one `servo` subcommand.
 //!
 //! Guarantees: lockstep runs are bit-identical to [`crate::run::run`] with the same config
-//! (same [`SimBackend`], same [`PlanLoop`], same frames); the recorder never blocks the loop
-//! (it writes uncompressed MCAP chunks to stay cheap, and has 1024 blocks = 65 536 ticks of
-//! queue per stream; a full queue overwrites the oldest block
-//! and the gap is counted as dropped frames); a lost controller puts the plant in the safe
+//! (the same stage, [`Plan::stage`], the same [`PlanLoop`], the same frames); the recorder
+//! never blocks the loop (it writes uncompressed MCAP chunks to stay cheap, and has 1024
+//! blocks = 65 536 ticks of queue per stream; a full queue overwrites the oldest block and the
+//! gap is counted as dropped frames); a lost controller puts the plant in the safe
 //! state (see [`daq_io::serve`]); a lost plant stops the controller with [`RunError::PlantLost`].
 
 use crate::error::RunError;

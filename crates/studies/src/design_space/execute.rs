@@ -1,7 +1,7 @@
 //! Running a shard of a study on every local core: workers take the shard's remaining points
 //! one at a time, and each finished point goes to the journal at once (so an interruption
 //! loses at most the points being evaluated) and to the progress report. The worker pool
-//! ([`in_parallel`]) also runs the sensitivities' loops.
+//! (`in_parallel`) also runs the sensitivities' loops.
 
 use super::evaluate::{evaluate, Point};
 use super::journal::{claim, pending, Journal, Shard};

@@ -195,13 +195,6 @@ impl FrfPlant for RemotePlant {
     }
 }
 
-/// The stage of `plan` simulated in this process, as its run steps it (seeded; the practice
-/// stage of `run.practice_seed` when set; a scenario's cutting force acts as it would on the
-/// machine).
-pub fn simulated(plan: &Plan) -> SimBackend {
-    plan.stage()
-}
-
 /// Plant, controller and model of one measurement, and the drive tick.
 struct Rig<'p> {
     plant: &'p mut dyn FrfPlant,
@@ -306,7 +299,7 @@ pub fn model_curve(
     to_hz: f64,
     n: usize,
 ) -> Result<Vec<(f64, Complex64)>, StudyError> {
-    let mut sim = simulated(plan);
+    let mut sim = plan.stage();
     let rig = Rig::new(plan, which, &mut sim)?;
     lti::spectral::log_space(from_hz, to_hz, n)
         .into_iter()
@@ -331,7 +324,7 @@ pub fn chirp(
         duration_s,
         repeats,
     };
-    chirp_on(plan, which, &chirp, &mut simulated(plan))
+    chirp_on(plan, which, &chirp, &mut plan.stage())
 }
 
 /// A repeated exponential chirp: the band in Hz, amplitude in V, one sweep's length in s and
@@ -428,7 +421,7 @@ pub fn stepped_sine(
     s: &FrfSettings,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<FrfPoint>, StudyError> {
-    stepped_sine_on(plan, which, freqs_hz, s, &mut simulated(plan), progress)
+    stepped_sine_on(plan, which, freqs_hz, s, &mut plan.stage(), progress)
 }
 
 /// The excitation of the one stepped-sine frequency in `one` (Hz), its periods per block and
