@@ -103,8 +103,8 @@ pub fn identify(
         }
         None => {
             let path: PathBuf = frf.extract()?;
-            let (f, g) = studies::identify::read_frf_csv(&path, nyquist_hz).map_err(servo_err)?;
-            (f, g, studies::identify::frf_source(&path))
+            let m = run_config::frf_file::read_frf(&path, nyquist_hz).map_err(servo_err)?;
+            (m.freq_hz, m.response, m.source)
         }
     };
     py.detach(|| {

@@ -58,15 +58,16 @@ pub fn write(
         measured_on,
     } = *provenance;
     let mut csv = provenance_line(provenance);
-    csv.push_str("freq_hz,magnitude_m_per_v,phase_deg,coherence,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v\n");
+    csv.push_str("freq_hz,magnitude_m_per_v,phase_deg,coherence,uncertainty_m_per_v,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v\n");
     for p in points {
         writeln!(
             csv,
-            "{:.6},{:.6e},{:.4},{:.6},{:.6e},{:.4},{},{:.6e}",
+            "{:.6},{:.6e},{:.4},{:.6},{:.3e},{:.6e},{:.4},{},{:.6e}",
             p.freq_hz,
             p.magnitude,
             p.phase_deg,
             p.coherence,
+            p.uncertainty,
             p.model_magnitude,
             p.model_phase_deg,
             p.clipped,

@@ -6,6 +6,7 @@
 //! simulated stage behind daq-io's `Backend` ([`SimBackend`], [`simulated_stage`]). What the run
 //! planner (`runner`) builds a run from and what libfts_plant serves, without the design tools.
 
+pub mod frf_file;
 mod machining;
 mod made_for;
 mod plant_file;

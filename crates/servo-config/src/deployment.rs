@@ -12,6 +12,9 @@ pub const MAX_SS_ORDER: usize = 40;
 /// Sections of the largest ZPETC filter a loop runs (second-order sections).
 pub const ZPETC_SECTIONS: usize = 12;
 
+/// Most taps of an FIR feedforward filter.
+pub const MAX_FIR_TAPS: usize = 64;
+
 /// Most ticks of reference preview (feedforward preview plus half the smoothing window).
 pub const MAX_PREVIEW: usize = 62;
 
@@ -321,6 +324,28 @@ pub enum FeedforwardSpec {
     /// A zero-phase-error tracking filter (designed offline from the sampled closed loop): the
     /// reference `preview` ticks ahead through `gain · Π sections`.
     Zpetc(ZpetcSpec),
+    /// A finite-impulse-response filter of the reference (designed offline from a measured
+    /// FRF): `Σ taps[i] · r[k + preview − i]`.
+    Fir(FirSpec),
+}
+
+/// The taps of an FIR feedforward filter: the reference the loop follows at tick k is
+/// `Σᵢ taps[i] · y_d[k + preview − i]` over the first `taps_used` taps (m/m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FirSpec {
+    /// The taps (dimensionless, m/m), the first `taps_used`.
+    pub taps: [f64; MAX_FIR_TAPS],
+    /// Taps in use (1 ..= [`MAX_FIR_TAPS`]).
+    pub taps_used: usize,
+    /// Ticks of preview: the first tap multiplies the trajectory this far ahead.
+    pub preview: usize,
+}
+
+impl FirSpec {
+    /// Ticks of the trajectory's past the filter reads (its last tap's delay).
+    pub fn lag(&self) -> usize {
+        self.taps_used.saturating_sub(1 + self.preview)
+    }
 }
 
 /// The coefficients of a ZPETC feedforward filter.
@@ -360,6 +385,15 @@ impl FeedforwardSpec {
             FeedforwardSpec::None => 0,
             FeedforwardSpec::Model => 1,
             FeedforwardSpec::Zpetc(z) => z.preview,
+            FeedforwardSpec::Fir(f) => f.preview,
+        }
+    }
+
+    /// Ticks of the trajectory's past the feedforward reads (beyond the one before this tick).
+    pub fn lag(&self) -> usize {
+        match self {
+            FeedforwardSpec::Fir(f) => f.lag(),
+            _ => 0,
         }
     }
 }

@@ -3,8 +3,8 @@
 
 use crate::check::{Allowed, Invalid};
 use crate::deployment::{
-    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, ReferenceSpec, Stage, MAX_PREVIEW,
-    ZPETC_SECTIONS,
+    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, FirSpec, ReferenceSpec, Stage,
+    MAX_FIR_TAPS, MAX_PREVIEW, ZPETC_SECTIONS,
 };
 
 impl Deployment {
@@ -79,6 +79,9 @@ impl Deployment {
                     Allowed::Text("finite coefficients"),
                 ));
             }
+        }
+        if let FeedforwardSpec::Fir(f) = &self.feedforward {
+            check_fir(f)?;
         }
         if !(self.smoothing_hz == 0.0 || (self.smoothing_hz > 0.0 && self.smoothing_hz < nyquist)) {
             return Err(Invalid::new(
@@ -292,4 +295,44 @@ pub fn check_reference(
             positive(section, "duration_s", duration_s, "s")
         }
     }
+}
+
+/// Largest sum of |taps| an FIR feedforward may have: the most it can amplify the reference
+/// (a filter designed to flatten a loop stays within a few).
+const MAX_FIR_GAIN: f64 = 100.0;
+
+/// An FIR feedforward's taps: 1 ..= [`MAX_FIR_TAPS`] of them, finite, their |sum| at most
+/// [`MAX_FIR_GAIN`], the preview within [`MAX_PREVIEW`] and the past it reads within the window.
+fn check_fir(f: &FirSpec) -> Result<(), Invalid> {
+    if f.taps_used == 0 || f.taps_used > MAX_FIR_TAPS {
+        return Err(Invalid::new(
+            "feedforward",
+            "taps",
+            f.taps_used as f64,
+            Allowed::between(1.0, MAX_FIR_TAPS as f64, "taps"),
+        ));
+    }
+    if f.preview > MAX_PREVIEW || f.lag() > MAX_PREVIEW {
+        return Err(Invalid::new(
+            "feedforward",
+            "preview_ticks",
+            f.preview as f64,
+            Allowed::between(
+                0.0,
+                MAX_PREVIEW as f64,
+                "ticks (and taps − 1 − preview_ticks as many at most)",
+            ),
+        ));
+    }
+    let taps = &f.taps[..f.taps_used];
+    let gain: f64 = taps.iter().map(|t| libm::fabs(*t)).sum();
+    if !taps.iter().all(|t| t.is_finite()) || !(gain <= MAX_FIR_GAIN) {
+        return Err(Invalid::new(
+            "feedforward",
+            "taps",
+            gain,
+            Allowed::Text("finite taps whose absolute values sum to at most 100"),
+        ));
+    }
+    Ok(())
 }

@@ -6,8 +6,9 @@
 
 use super::{Reader, Writer};
 use servo_config::{
-    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ReferenceSpec, Seal,
-    SsMatrices, Stability, Stage, ZpetcSpec, MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
+    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, FirSpec, PidGains, ReferenceSpec,
+    Seal, SsMatrices, Stability, Stage, ZpetcSpec, MAX_FIR_TAPS, MAX_PREVIEW, MAX_SS_ORDER,
+    ZPETC_SECTIONS,
 };
 use servo_config::{ProtectionConfig, SafeState};
 
@@ -15,16 +16,28 @@ use servo_config::{ProtectionConfig, SafeState};
 pub const MAGIC: [u8; 4] = *b"FTSD";
 /// The layout version this build reads and writes.
 pub const VERSION: u16 = 2;
-/// The largest image in bytes (the largest state-space controller and ZPETC filter).
+/// The largest image in bytes (the largest state-space controller and the larger of the
+/// largest ZPETC and FIR filters).
 pub const MAX_BYTES: usize = 6
     + 8 * 9
     + (3 + 8 * 7 + 1 + 8 * (MAX_SS_ORDER + 1) * (MAX_SS_ORDER + 1))
     + 25
     + 3 * 32
     + 33
-    + (1 + 8 + 8 + 8 + 8 * 5 * ZPETC_SECTIONS)
+    + max(
+        1 + 8 + 8 + 8 + 8 * 5 * ZPETC_SECTIONS,
+        1 + 8 + 8 + 8 * MAX_FIR_TAPS,
+    )
     + 8
     + (3 + 8 * 6);
+
+const fn max(a: usize, b: usize) -> usize {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
 
 /// Why bytes are not a deployment image: the field where decoding stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -129,6 +142,14 @@ pub fn encode(d: &Deployment, out: &mut [u8]) -> Option<usize> {
                 for &v in s {
                     w.f64(v)?;
                 }
+            }
+        }
+        FeedforwardSpec::Fir(f) => {
+            w.u8(3)?;
+            w.u64(f.preview as u64)?;
+            w.u64(f.taps_used as u64)?;
+            for &v in &f.taps[..f.taps_used.min(MAX_FIR_TAPS)] {
+                w.f64(v)?;
             }
         }
     }
@@ -308,6 +329,29 @@ pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
                 sections_used: used as usize,
             })
         }
+        3 => {
+            let preview = field!(r, u64, "feedforward.preview");
+            if preview > MAX_PREVIEW as u64 {
+                return Err(ImageError {
+                    field: "feedforward.preview",
+                });
+            }
+            let used = field!(r, u64, "feedforward.taps");
+            if used > MAX_FIR_TAPS as u64 {
+                return Err(ImageError {
+                    field: "feedforward.taps",
+                });
+            }
+            let mut taps = [0.0; MAX_FIR_TAPS];
+            for v in &mut taps[..used as usize] {
+                *v = field!(r, f64, "feedforward.taps");
+            }
+            FeedforwardSpec::Fir(FirSpec {
+                taps,
+                taps_used: used as usize,
+                preview: preview as usize,
+            })
+        }
         _ => {
             return Err(ImageError {
                 field: "feedforward",
@@ -390,16 +434,35 @@ mod tests {
         d
     }
 
+    fn rich_fir() -> Deployment {
+        let mut d = rich();
+        let mut taps = [0.0; MAX_FIR_TAPS];
+        for (k, t) in taps.iter_mut().enumerate() {
+            *t = 0.5f64.powi(k as i32) - 0.01;
+        }
+        d.feedforward = FeedforwardSpec::Fir(FirSpec {
+            taps,
+            taps_used: MAX_FIR_TAPS,
+            preview: 30,
+        });
+        d
+    }
+
     #[test]
     fn deployments_round_trip_and_the_largest_fits() {
         let mut buf = [0u8; MAX_BYTES];
-        for d in [Deployment::thesis_prototype(), rich()] {
+        for d in [Deployment::thesis_prototype(), rich(), rich_fir()] {
             let n = encode(&d, &mut buf).expect("MAX_BYTES suffices");
             assert_eq!(decode(&buf[..n]), Ok(d));
         }
         // The largest deployment uses the whole bound, no more.
-        assert_eq!(encode(&rich(), &mut buf), Some(MAX_BYTES));
-        assert!(encode(&rich(), &mut buf[..MAX_BYTES - 1]).is_none());
+        let largest = if encode(&rich(), &mut buf) > encode(&rich_fir(), &mut buf) {
+            rich()
+        } else {
+            rich_fir()
+        };
+        assert_eq!(encode(&largest, &mut buf), Some(MAX_BYTES));
+        assert!(encode(&largest, &mut buf[..MAX_BYTES - 1]).is_none());
     }
 
     #[test]

@@ -74,15 +74,16 @@ impl ServoLoop {
         let controller = Controller::build(&d.controller, &d.stage, period)?;
         let feedforward = Feedforward::build(&d.feedforward, &d.stage, d.controller.limit_v)?;
         let lead = d.feedforward.preview();
-        let window = Window::new(lead, d.smoothing_half()).ok_or(Invalid::new(
-            "",
-            "smoothing_hz",
-            d.smoothing_hz,
-            Allowed::OffOrAtLeast {
-                low: d.servo_rate_hz / (2.0 * (MAX_PREVIEW.saturating_sub(lead)) as f64 + 1.0),
-                unit: "Hz (the preview holds 62 ticks, the feedforward takes its share)",
-            },
-        ))?;
+        let window =
+            Window::new(lead, d.smoothing_half(), d.feedforward.lag()).ok_or(Invalid::new(
+                "",
+                "smoothing_hz",
+                d.smoothing_hz,
+                Allowed::OffOrAtLeast {
+                    low: d.servo_rate_hz / (2.0 * (MAX_PREVIEW.saturating_sub(lead)) as f64 + 1.0),
+                    unit: "Hz (the preview holds 62 ticks, the feedforward takes its share)",
+                },
+            ))?;
         Ok(ServoLoop {
             controller,
             feedforward,

@@ -14,6 +14,9 @@ pub enum StudyError {
     /// Building or running the loop.
     #[error(transparent)]
     Run(#[from] RunError),
+    /// A measured FRF file was refused.
+    #[error(transparent)]
+    FrfFile(#[from] run_config::frf_file::FrfFileError),
     /// The linear model of the loop (a frequency response, a Lyapunov equation).
     #[error("loop model: {0}")]
     Model(#[from] lti::LtiError),

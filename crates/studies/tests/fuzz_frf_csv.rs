@@ -4,7 +4,7 @@
 //! then checked) and otherwise refused with an error naming the file — never a panic.
 
 use proptest::prelude::*;
-use studies::identify::read_frf_csv;
+use run_config::frf_file::read_frf;
 
 const NYQUIST_HZ: f64 = 99_800.0;
 
@@ -24,6 +24,7 @@ fn csv() -> impl Strategy<Value = String> {
     let header = prop_oneof![
         3 => Just("freq_hz,magnitude_m_per_v,phase_deg"),
         1 => Just("freq_hz,magnitude_m_per_v,phase_deg,clipped"),
+        1 => Just("freq_hz,magnitude_m_per_v,phase_deg,coherence,uncertainty_m_per_v"),
         1 => Just("freq_hz,phase_deg"),
         1 => Just("magnitude_m_per_v,freq_hz,phase_deg,excitation_v"),
         1 => Just(""),
@@ -41,9 +42,13 @@ proptest! {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("fuzz-frf.csv");
         std::fs::write(&path, &text).unwrap();
-        match read_frf_csv(&path, NYQUIST_HZ) {
-            Ok((f, g)) => {
+        match read_frf(&path, NYQUIST_HZ) {
+            Ok(frf) => {
+                let (f, g) = (&frf.freq_hz, &frf.response);
                 prop_assert_eq!(f.len(), g.len());
+                prop_assert_eq!(f.len(), frf.coherence.len());
+                prop_assert!(frf.coherence.iter().all(|g| (0.0..=1.0).contains(g)), "{text}");
+                prop_assert!(frf.uncertainty.iter().flatten().all(|u| *u >= 0.0), "{text}");
                 prop_assert!(f.windows(2).all(|w| w[0] < w[1]) && f.iter().all(|&x| x > 0.0 && x < NYQUIST_HZ), "{text}");
                 prop_assert!(g.iter().all(|z| z.re.is_finite() && z.im.is_finite()), "{text}");
             }

@@ -74,7 +74,7 @@ fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
 /// credible" instead of printing a fit of NaN or −2806 %.
 #[test]
 fn bad_frf_files_and_incredible_fits_are_refused() {
-    use studies::identify::read_frf_csv;
+    use run_config::frf_file::read_frf;
     use studies::StudyError;
     let dir = tempfile::tempdir().unwrap();
     let nyquist = 99_800.0;
@@ -119,7 +119,7 @@ fn bad_frf_files_and_incredible_fits_are_refused() {
     for (name, text, line, what) in cases {
         let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
-        let err = read_frf_csv(&path, nyquist).unwrap_err();
+        let err = read_frf(&path, nyquist).unwrap_err();
         let msg = err.to_string();
         assert!(
             msg.contains(&format!("{name}:{line}:")) && msg.contains(what),

@@ -36,9 +36,11 @@ impl IdentifyCmd {
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let plan = Plan::new(&self.plant.load()?)?;
         let nyquist_hz = plan.config.plant.timing.servo_rate_hz / 2.0;
-        let (f, g) = studies::identify::read_frf_csv(&self.file, nyquist_hz)?;
+        let frf = run_config::frf_file::read_frf(&self.file, nyquist_hz)
+            .map_err(studies::StudyError::from)?;
+        let (f, g) = (frf.freq_hz, frf.response);
         let id = studies::identify::identify(&plan, &f, &g)?;
-        let source = studies::identify::frf_source(&self.file);
+        let source = frf.source;
         crate::output::write_result(&self.out, &id.model_toml(&plan, &source), self.overwrite)?;
         if self.json {
             print_json(&id);

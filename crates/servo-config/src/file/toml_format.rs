@@ -7,8 +7,8 @@
 use super::made_for::MadeFor;
 use super::origin::{ConfigError, Origin};
 use crate::deployment::{
-    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, PidGains, ReferenceSpec,
-    SsMatrices, Stability, Stage, ZpetcSpec, MAX_SS_ORDER, ZPETC_SECTIONS,
+    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, FirSpec, PidGains, ReferenceSpec,
+    SsMatrices, Stability, Stage, ZpetcSpec, MAX_FIR_TAPS, MAX_SS_ORDER, ZPETC_SECTIONS,
 };
 use crate::protection::ProtectionConfig;
 use serde::{Deserialize, Serialize};
@@ -171,6 +171,10 @@ enum FeedforwardTable {
         #[serde(deserialize_with = "super::exact::exact_arrays")]
         sections: Vec<[f64; 5]>,
     },
+    Fir {
+        preview_ticks: usize,
+        taps: Vec<f64>,
+    },
 }
 
 /// A deployment file.
@@ -231,6 +235,25 @@ pub fn parse_deployment(text: &str, at: &Origin) -> Result<DeploymentAndProvenan
                 preview: preview_ticks,
                 sections: all,
                 sections_used: sections.len(),
+            })
+        }
+        FeedforwardTable::Fir {
+            preview_ticks,
+            taps,
+        } => {
+            if taps.is_empty() || taps.len() > MAX_FIR_TAPS {
+                return Err(at.invalid(
+                    "feedforward.taps",
+                    format!("{} taps", taps.len()),
+                    &format!("1 to {MAX_FIR_TAPS}"),
+                ));
+            }
+            let mut all = [0.0; MAX_FIR_TAPS];
+            all[..taps.len()].copy_from_slice(&taps);
+            FeedforwardSpec::Fir(FirSpec {
+                taps: all,
+                taps_used: taps.len(),
+                preview: preview_ticks,
             })
         }
     };
@@ -368,6 +391,11 @@ pub fn deployment_toml(d: &Deployment, made_for: Option<&MadeFor>, header: &str)
                 "sections",
                 z.sections[..z.sections_used].iter().map(|s| s.to_vec()),
             );
+        }
+        FeedforwardSpec::Fir(f) => {
+            let _ = writeln!(out, "kind = \"fir\"\npreview_ticks = {}", f.preview);
+            let taps: Vec<String> = f.taps[..f.taps_used].iter().map(|&t| num(t)).collect();
+            let _ = writeln!(out, "taps = [{}]", taps.join(", "));
         }
     }
     out += "\n";

@@ -60,6 +60,11 @@ pub struct FrfPoint {
     pub phase_deg: f64,
     /// Magnitude-squared coherence across the measurement blocks.
     pub coherence: f64,
+    /// The measurement's uncertainty, m/V: the radius of the disk around the measured response
+    /// that holds the true one with a complex Gaussian 1σ disk's probability (63 %), from the
+    /// spread of the blocks ([`lti::spectral::h1_uncertainty`]).
+    #[serde(rename = "uncertainty_m_per_v")]
+    pub uncertainty: f64,
     /// Model magnitude, m/V.
     #[serde(rename = "model_magnitude_m_per_v")]
     pub model_magnitude: f64,
@@ -273,7 +278,7 @@ impl<'p> Rig<'p> {
         &self,
         f_hz: f64,
         h: Complex64,
-        coherence: f64,
+        (coherence, blocks): (f64, usize),
         clipped: bool,
         excitation_v: f64,
     ) -> Result<FrfPoint, StudyError> {
@@ -283,6 +288,7 @@ impl<'p> Rig<'p> {
             magnitude: h.norm(),
             phase_deg: h.arg().to_degrees(),
             coherence,
+            uncertainty: lti::spectral::h1_uncertainty(h, coherence, blocks),
             model_magnitude: m.norm(),
             model_phase_deg: m.arg().to_degrees(),
             clipped,
@@ -405,7 +411,7 @@ pub fn chirp_on(
             rig.point(
                 frf.freq_hz[k],
                 frf.h[k],
-                frf.coherence[k],
+                (frf.coherence[k], repeats),
                 clipped,
                 amplitude_v,
             )
@@ -493,7 +499,13 @@ pub fn stepped_sine_on(
             }
         }
         let (h, coherence) = h1_at_bin(&u_rec, &y_rec, periods_per_block as usize, s.blocks);
-        out.push(rig.point(seg.frequency_hz, h, coherence, clipped, amplitude)?);
+        out.push(rig.point(
+            seg.frequency_hz,
+            h,
+            (coherence, s.blocks),
+            clipped,
+            amplitude,
+        )?);
     }
     progress(freqs_hz.len(), freqs_hz.len());
     Ok(out)

@@ -15,7 +15,6 @@ use plant_sim::params::StageParams;
 use plant_sim::Simulator;
 use runner::closed_loop::ClosedLoop;
 use runner::Plan;
-use std::path::Path;
 
 /// The identified parameters, in Table 5-2 order.
 pub const NAMES: [&str; 6] = [
@@ -121,136 +120,9 @@ impl Identified {
     }
 }
 
-/// Largest plausible magnitude of an open-loop stage FRF, m/V: a nm-stage moves micrometres
-/// per volt (the thesis prototype ≈ 2.5 µm/V static), so a response near 1 is a closed-loop T
-/// or S (m/m), not a plant.
-pub const MAX_PLANT_MAGNITUDE_M_PER_V: f64 = 1e-2;
-
-/// Fewest points a fit of six parameters is attempted on.
-pub const MIN_POINTS: usize = 7;
-
 /// Lowest fit % (on the complex response) `identify` reports as a result; below it the model
 /// does not explain the data (the thesis's own fit: 97.7 %).
 pub const MIN_CREDIBLE_FIT_PERCENT: f64 = 70.0;
-
-/// How an identified model names the FRF file it was fitted to: its path and the SHA-256 of
-/// its bytes (the model file quotes it).
-pub fn frf_source(path: &Path) -> String {
-    let bytes = daq_io::input_file::read_regular(path, run_config::input_file::MAX_TEXT_BYTES)
-        .unwrap_or_default();
-    format!(
-        "{} (SHA-256 {})",
-        path.display(),
-        run_config::sha256_hex(&bytes)
-    )
-}
-
-/// Reads an FRF CSV with columns `freq_hz`, `magnitude_m_per_v`, `phase_deg` (others ignored;
-/// rows with `clipped = true` skipped; at most [`run_config::input_file::MAX_TEXT_BYTES`]).
-/// Every row must have every column; values must be finite, frequencies strictly increasing
-/// and below `nyquist_hz`, magnitudes those of a plant (0 < |G| ≤
-/// [`MAX_PLANT_MAGNITUDE_M_PER_V`]). Errors name the file and line.
-pub fn read_frf_csv(
-    path: &Path,
-    nyquist_hz: f64,
-) -> Result<(Vec<f64>, Vec<Complex64>), StudyError> {
-    let text = run_config::input_file::read_text(path)?;
-    let bad = |line: usize, what: &str| StudyError::DataFile {
-        path: path.to_owned(),
-        line,
-        what: what.to_owned(),
-    };
-    let mut lines = text.lines().enumerate().peekable();
-    // Comment lines first; `servo frf` says there which quantity the file holds.
-    while let Some((i, line)) = lines.next_if(|(_, l)| l.starts_with('#')) {
-        let quantity = line
-            .split("quantity =")
-            .nth(1)
-            .and_then(|q| q.split_whitespace().next());
-        if let Some(q) = quantity.filter(|&q| q != "P") {
-            return Err(bad(
-                i + 1,
-                &format!(
-                    "quantity {q}: identification fits the plant P (an open-loop FRF: loop = open); this file holds {}",
-                    line.split('(').nth(1).and_then(|d| d.split(')').next()).unwrap_or(q)
-                ),
-            ));
-        }
-    }
-    let header_line = lines.peek().map_or(1, |(i, _)| i + 1);
-    let header: Vec<&str> = lines
-        .next()
-        .map(|(_, h)| h.split(',').map(str::trim).collect())
-        .unwrap_or_default();
-    let col = |name: &str| {
-        header.iter().position(|h| *h == name).ok_or_else(|| {
-            bad(
-                header_line,
-                &format!("no column `{name}` (header: {})", header.join(",")),
-            )
-        })
-    };
-    let (cf, cm, cp) = (
-        col("freq_hz")?,
-        col("magnitude_m_per_v")?,
-        col("phase_deg")?,
-    );
-    let cc = header.iter().position(|h| *h == "clipped");
-    let (mut f, mut g) = (Vec::new(), Vec::new());
-    for (i, line) in lines {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        if cells.len() != header.len() {
-            return Err(bad(
-                i + 1,
-                &format!("{} columns; the header has {}", cells.len(), header.len()),
-            ));
-        }
-        if cc.is_some_and(|c| cells[c] == "true") {
-            continue;
-        }
-        let num = |c: usize| {
-            cells[c]
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| bad(i + 1, &format!("`{}` is not a finite number", cells[c])))
-        };
-        let (freq, mag, phase) = (num(cf)?, num(cm)?, num(cp)?);
-        if freq <= 0.0 || freq >= nyquist_hz {
-            return Err(bad(
-                i + 1,
-                &format!("freq_hz {freq}: must lie in (0, {nyquist_hz}) Hz, below the servo rate's Nyquist frequency"),
-            ));
-        }
-        if f.last().is_some_and(|&last| freq <= last) {
-            return Err(bad(
-                i + 1,
-                &format!("freq_hz {freq}: frequencies must increase strictly (duplicated or unsorted rows)"),
-            ));
-        }
-        if mag <= 0.0 || mag > MAX_PLANT_MAGNITUDE_M_PER_V {
-            return Err(bad(
-                i + 1,
-                &format!(
-                    "magnitude_m_per_v {mag}: an open-loop stage FRF lies in (0, {MAX_PLANT_MAGNITUDE_M_PER_V}] m/V \
-                     (a closed-loop FRF, ≈ 1 m/m at low frequency, cannot be identified)"
-                ),
-            ));
-        }
-        f.push(freq);
-        g.push(Complex64::from_polar(mag, phase.to_radians()));
-    }
-    if f.len() < MIN_POINTS {
-        return Err(bad(
-            1,
-            &format!("{} usable rows; at least {MIN_POINTS} needed", f.len()),
-        ));
-    }
-    Ok((f, g))
-}
 
 /// The model's open-loop response (m/V) at `freq_hz` for stage `stage` in `cfg`'s plant.
 fn open_loop(plan: &Plan, stage: StageParams, freq_hz: &[f64]) -> Result<Vec<Complex64>, String> {
@@ -285,12 +157,17 @@ pub fn identify(
         open_loop(plan, with_table_5_2(&base, p), f)
     };
     let invalid = |e: String| StudyError::from(design::identify::IdentifyError::Invalid(e));
-    let (f, keep, fitted) = misfit::fit_excluding(freq_hz, measured, MIN_POINTS, |kf, km| {
-        let mut model = |p: &[f64]| stage(p, kf);
-        let f = design::identify::fit(&mut model, km, &start, &lower, &upper, 200)?;
-        let fitted = stage(&f.params, freq_hz).map_err(invalid)?;
-        Ok((f, fitted))
-    })?;
+    let (f, keep, fitted) = misfit::fit_excluding(
+        freq_hz,
+        measured,
+        run_config::frf_file::MIN_POINTS,
+        |kf, km| {
+            let mut model = |p: &[f64]| stage(p, kf);
+            let f = design::identify::fit(&mut model, km, &start, &lower, &upper, 200)?;
+            let fitted = stage(&f.params, freq_hz).map_err(invalid)?;
+            Ok((f, fitted))
+        },
+    )?;
     let ratio: Vec<Complex64> = (0..freq_hz.len())
         .map(|i| measured[i] / fitted[i])
         .collect();
