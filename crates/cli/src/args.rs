@@ -165,6 +165,10 @@ pub struct FeedforwardArgs {
     /// surfaces with kinks or steps.
     #[arg(value_parser = crate::args::finite, long)]
     pub smoothing_hz: Option<f64>,
+    /// A measured open-loop FRF of the stage (`servo frf --loop open` writes frf.csv): what
+    /// `--feedforward fir` is fitted to.
+    #[arg(long, value_name = "FRF_CSV")]
+    pub frf: Option<PathBuf>,
 }
 
 impl FeedforwardArgs {
@@ -172,6 +176,9 @@ impl FeedforwardArgs {
     pub fn apply(&self, c: &mut ControllerConfig) {
         set(&mut c.feedforward, self.feedforward);
         set(&mut c.smoothing_hz, self.smoothing_hz);
+        if let Some(path) = &self.frf {
+            c.frf_file = Some(path.clone());
+        }
     }
 }
 

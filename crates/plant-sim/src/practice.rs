@@ -72,10 +72,12 @@ pub struct PracticeStage {
 }
 
 impl PracticeStage {
-    /// `plant` (its timing, converters, noise) with the stage and mount of `seed`; noise
-    /// seeded by `seed` too.
+    /// `plant` (its timing, converters, noise) with the stage and mount of `seed`, drawn
+    /// around the thesis prototype's stage (Table 5-2) whatever stage `plant` holds — a run's
+    /// configured stage is its controller's *model* of the practice stage (an identified one,
+    /// often), and the stage must not move when the model does; noise seeded by `seed` too.
     pub fn new(plant: &PlantParams, seed: u64) -> Result<Self, SimError> {
-        let truth = PracticeTruth::draw(seed, &plant.stage);
+        let truth = PracticeTruth::draw(seed, &PlantParams::default().stage);
         let params = PlantParams {
             stage: truth.stage,
             ..*plant
@@ -169,6 +171,20 @@ mod tests {
         }
         assert!((MOUNT_HZ.0..=MOUNT_HZ.1).contains(&a.mount_hz));
         assert_eq!(a.stage.m1_kg, thesis.m1_kg);
+    }
+
+    /// The stage a seed draws does not depend on the configured stage (the controller's model
+    /// of it): a run with an identified model cuts on the stage that was measured.
+    #[test]
+    fn the_draw_ignores_the_configured_model() {
+        let thesis = PlantParams::default();
+        let mut identified = thesis;
+        identified.stage.m4_kg *= 1.07;
+        identified.stage.k2_n_per_m *= 0.9;
+        let a = PracticeStage::new(&thesis, 7).unwrap();
+        let b = PracticeStage::new(&identified, 7).unwrap();
+        assert_eq!(a.truth(), b.truth());
+        assert_eq!(a.truth(), &PracticeTruth::draw(7, &thesis.stage));
     }
 
     /// The mount alone: a sine at its frequency comes out ζz/ζp = 2 times larger; at DC and

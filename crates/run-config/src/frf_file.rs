@@ -57,12 +57,17 @@ pub enum FrfFileError {
 /// uncertainties ≥ 0. Errors name the file and line.
 pub fn read_frf(path: &Path, nyquist_hz: f64) -> Result<MeasuredFrf, FrfFileError> {
     let bytes = crate::input_file::read_input(path, crate::input_file::MAX_TEXT_BYTES)?;
+    parse_frf(&bytes, path, nyquist_hz)
+}
+
+/// [`read_frf`] of bytes already read (a recording's copy of the file at `path`).
+pub fn parse_frf(bytes: &[u8], path: &Path, nyquist_hz: f64) -> Result<MeasuredFrf, FrfFileError> {
     let bad = |line: usize, what: &str| FrfFileError::Line {
         path: path.to_owned(),
         line,
         what: what.to_owned(),
     };
-    let text = std::str::from_utf8(&bytes).map_err(|_| bad(1, "not UTF-8 text"))?;
+    let text = std::str::from_utf8(bytes).map_err(|_| bad(1, "not UTF-8 text"))?;
     let mut lines = text.lines().enumerate().peekable();
     // Comment lines first; `servo frf` says there which quantity the file holds.
     while let Some((i, line)) = lines.next_if(|(_, l)| l.starts_with('#')) {
@@ -109,7 +114,7 @@ pub fn read_frf(path: &Path, nyquist_hz: f64) -> Result<MeasuredFrf, FrfFileErro
         response: Vec::new(),
         coherence: Vec::new(),
         uncertainty: cu.map(|_| Vec::new()),
-        source: format!("{} (SHA-256 {})", path.display(), crate::sha256_hex(&bytes)),
+        source: format!("{} (SHA-256 {})", path.display(), crate::sha256_hex(bytes)),
     };
     for (i, line) in lines {
         if line.trim().is_empty() {

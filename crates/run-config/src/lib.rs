@@ -242,6 +242,39 @@ pub struct ControllerConfig {
     /// point), adding half of it to the preview. For surfaces with kinks or steps (beam
     /// integrator, images) whose exact inverse would saturate the DAC; 0 = off.
     pub smoothing_hz: f64,
+    /// A measured open-loop FRF of the stage, DAC (V) → measured position (m), as
+    /// `servo frf --loop open` writes it (`frf.csv`), relative to the config file: what
+    /// `feedforward = "fir"` is fitted to.
+    pub frf_file: Option<PathBuf>,
+    /// The FIR feedforward's fit (for `feedforward = "fir"`).
+    pub fir: FirConfig,
+}
+
+/// How an FIR feedforward is fitted to a measured FRF.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct FirConfig {
+    /// Number of taps, 1 to 64 (one multiply-add each per tick).
+    pub taps: usize,
+    /// Ticks of preview the filter reads ahead of the trajectory (at most 62; the sensor's
+    /// lag and the loop's phase need a few tens at 199.6 kHz).
+    pub preview_ticks: usize,
+    /// Upper end of the band made flat, Hz (measured bins above it are not fitted).
+    pub band_hz: f64,
+    /// Largest gain of the filter above the band (m/m): what it may amplify of a trajectory's
+    /// content it was not fitted on.
+    pub max_gain: f64,
+}
+
+impl Default for FirConfig {
+    fn default() -> Self {
+        FirConfig {
+            taps: 48,
+            preview_ticks: 24,
+            band_hz: 3000.0,
+            max_gain: 2.0,
+        }
+    }
 }
 
 impl ControllerConfig {
@@ -279,6 +312,10 @@ pub enum FeedforwardKind {
     /// The same, inverting the loop from reference to the sensor reading (what a machine's own
     /// FRF measurement gives: the following error vanishes, the tool leads by the sensor lag).
     ZpetcSensor,
+    /// An FIR filter of the reference fitted to the measured FRF `controller.frf_file` so
+    /// that reference → tool is flat in gain and phase over `controller.fir.band_hz` (the
+    /// tool's response from the measured reading and the model's sensor path).
+    Fir,
 }
 
 impl Default for ControllerConfig {
@@ -297,6 +334,8 @@ impl Default for ControllerConfig {
             stability: None,
             force: false,
             smoothing_hz: 0.0,
+            frf_file: None,
+            fir: FirConfig::default(),
         }
     }
 }
@@ -343,6 +382,9 @@ impl RunConfig {
     /// relative to the working directory: they are written relative to the file at `at`.
     pub fn resolve_paths(&mut self, at: &Origin) {
         if let Some(p) = &mut self.controller.ss_file {
+            *p = at.resolve(p);
+        }
+        if let Some(p) = &mut self.controller.frf_file {
             *p = at.resolve(p);
         }
         if let Scenario::Machine(m) = &mut self.scenario {
@@ -396,6 +438,9 @@ impl RunConfig {
         }
         let c = &self.controller;
         servo_config::check_controller(&c.spec(None), rate).map_err(|e| at.located(&e))?;
+        if c.feedforward == FeedforwardKind::Fir {
+            self.validate_fir(at, nyquist)?;
+        }
         if !(c.smoothing_hz == 0.0 || (c.smoothing_hz > 0.0 && c.smoothing_hz < nyquist)) {
             return Err(at.invalid(
                 "controller.smoothing_hz",
@@ -414,6 +459,42 @@ impl RunConfig {
             .check(c.limit_v, self.plant.dc_gain_m_per_v())
             .map_err(|e| at.located(&e))?;
         self.realtime.validate(at, self.plant.period_s())
+    }
+
+    /// The FIR feedforward's keys: a measured FRF named, taps, preview and band in range.
+    fn validate_fir(&self, at: &Origin, nyquist: f64) -> Result<(), ConfigError> {
+        let c = &self.controller;
+        if c.frf_file.is_none() {
+            return Err(at.invalid(
+                "controller.frf_file",
+                "(missing)",
+                "a measured open-loop FRF (servo frf --loop open writes frf.csv) for feedforward = \"fir\"",
+            ));
+        }
+        let f = &c.fir;
+        let most = servo_config::MAX_FIR_TAPS;
+        if !(1..=most).contains(&f.taps) {
+            return Err(at.invalid("controller.fir.taps", f.taps, &format!("1 to {most}")));
+        }
+        let preview = servo_config::MAX_PREVIEW;
+        if f.preview_ticks > preview || f.taps.saturating_sub(1 + f.preview_ticks) > preview {
+            return Err(at.invalid(
+                "controller.fir.preview_ticks",
+                f.preview_ticks,
+                &format!("0 to {preview}, and at least taps − 1 − {preview}"),
+            ));
+        }
+        if !(f.band_hz > 0.0 && f.band_hz < nyquist) {
+            return Err(at.invalid(
+                "controller.fir.band_hz",
+                f.band_hz,
+                &format!("(0, {nyquist}) Hz"),
+            ));
+        }
+        if !(f.max_gain > 0.0 && f.max_gain <= 100.0) {
+            return Err(at.invalid("controller.fir.max_gain", f.max_gain, "(0, 100] m/m"));
+        }
+        Ok(())
     }
 }
 

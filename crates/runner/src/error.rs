@@ -23,9 +23,22 @@ pub enum RunError {
         /// Controller description.
         controller: String,
     },
-    /// The ZPETC feedforward could not be designed for this loop.
+    /// The ZPETC or FIR feedforward could not be designed for this loop.
     #[error(transparent)]
     Feedforward(#[from] FeedforwardError),
+    /// A measured FRF the run names was refused.
+    #[error(transparent)]
+    FrfFile(#[from] run_config::frf_file::FrfFileError),
+    /// A design on measured data needs the plant's linear model (its sensor path), which the
+    /// `coil` current-loop model has not.
+    #[error("{what} needs a plant model with a linear tick (plant.actuator.model = \"ideal\" or \"first-order\")")]
+    NeedsLinearPlant {
+        /// What needed it.
+        what: &'static str,
+    },
+    /// The loop's frequency response could not be evaluated (a pole on the unit circle).
+    #[error(transparent)]
+    Lti(#[from] lti::LtiError),
     /// Recording.
     #[error(transparent)]
     Record(#[from] recorder::RecordError),

@@ -1,13 +1,18 @@
 //! The feedforward of a run, designed once from its plan: the stage-model inverse (evaluated by
-//! the runtime from the stage's numbers), or the ZPETC designed from the run's sampled closed
-//! loop (reference → tool, or reference → sensor reading for `zpetc-sensor`), handed to the
-//! runtime as coefficients.
+//! the runtime from the stage's numbers), the ZPETC designed from the run's sampled closed
+//! loop (reference → tool, or reference → sensor reading for `zpetc-sensor`), or the FIR
+//! fitted to the loop closed on a measured FRF ([`MeasuredLoop`]), handed to the runtime as
+//! coefficients.
 
 use crate::closed_loop::{input, output, ClosedLoop};
+use crate::measured_loop::MeasuredLoop;
+use design::fir::{FirError, FirProblem};
 use design::zpetc::{design, ZpetcDesign, ZpetcError};
 use lti::StateSpace;
 use run_config::{FeedforwardKind, RunConfig};
-use servo_config::{FeedforwardSpec, ZpetcSpec, MAX_PREVIEW, ZPETC_SECTIONS};
+use servo_config::{
+    FeedforwardSpec, FirSpec, ZpetcSpec, MAX_FIR_TAPS, MAX_PREVIEW, ZPETC_SECTIONS,
+};
 
 /// Largest reduced order tried.
 const MAX_ORDER: usize = 2 * ZPETC_SECTIONS - 4;
@@ -27,6 +32,14 @@ pub enum FeedforwardError {
     /// The design failed.
     #[error("ZPETC feedforward: {0}")]
     Design(#[from] ZpetcError),
+    /// The FIR fit failed.
+    #[error("FIR feedforward on {source_file}: {error}")]
+    Fir {
+        /// The measured FRF it was fitted to.
+        source_file: String,
+        /// Why.
+        error: FirError,
+    },
     /// The design does not fit the loop's fixed-size filter or preview.
     #[error("ZPETC feedforward needs {sections} sections and {preview} ticks of preview (at most {ZPETC_SECTIONS} and {MAX_PREVIEW})")]
     TooLarge {
@@ -37,17 +50,138 @@ pub enum FeedforwardError {
     },
 }
 
-/// The feedforward `config` asks for, on the loop `cl`.
+/// The feedforward `config` asks for, on the loop `cl` (the model's) or, for an FIR, the loop
+/// closed on the measured FRF (`measured`, required then).
 pub fn feedforward_spec(
     config: &RunConfig,
     cl: &ClosedLoop,
-) -> Result<FeedforwardSpec, FeedforwardError> {
+    measured: Option<&MeasuredLoop>,
+) -> Result<(FeedforwardSpec, Option<FirFit>), FeedforwardError> {
     Ok(match config.controller.feedforward {
-        FeedforwardKind::None => FeedforwardSpec::None,
-        FeedforwardKind::Model => FeedforwardSpec::Model,
+        FeedforwardKind::None => (FeedforwardSpec::None, None),
+        FeedforwardKind::Model => (FeedforwardSpec::Model, None),
         kind @ (FeedforwardKind::Zpetc | FeedforwardKind::ZpetcSensor) => {
-            FeedforwardSpec::Zpetc(zpetc(cl, kind)?)
+            (FeedforwardSpec::Zpetc(zpetc(cl, kind)?), None)
         }
+        FeedforwardKind::Fir => {
+            let measured = measured.expect("a plan with an FIR feedforward measures its loop");
+            let fit = fir(config, cl, measured)?;
+            (FeedforwardSpec::Fir(fit.spec), Some(fit))
+        }
+    })
+}
+
+/// An FIR feedforward fitted to a measured loop, and how well it flattens it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FirFit {
+    /// The taps as the runtime takes them.
+    pub spec: FirSpec,
+    /// The measured FRF (file and SHA-256).
+    pub source: String,
+    /// Measured bins fitted (at or below the band).
+    pub bins: usize,
+    /// The band made flat, Hz.
+    pub band_hz: f64,
+    /// Largest `|T·H − 1|` over the fitted bins, at the measured `T` (m/m).
+    pub worst_residual: f64,
+    /// Largest over the bins and over each bin's uncertainty disk: `|T·H − 1| + σ·|H|`.
+    pub worst_residual_in_disk: f64,
+    /// Where the worst over the disks lies, Hz.
+    pub worst_hz: f64,
+}
+
+impl std::fmt::Display for FirFit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "FIR feedforward: {} taps, {} ticks of preview, fitted on {} measured bins up to {} Hz of {}; \
+             reference → tool within {:.2} % of flat (within {:.2} % over each bin's uncertainty, worst at {:.0} Hz)",
+            self.spec.taps_used,
+            self.spec.preview,
+            self.bins,
+            self.band_hz,
+            self.source,
+            100.0 * self.worst_residual,
+            100.0 * self.worst_residual_in_disk,
+            self.worst_hz
+        )
+    }
+}
+
+/// The FIR of `config.controller.fir` fitted to `measured` so that reference → tool is flat,
+/// each bin weighted by its coherence and the band it stands for; the DC gain is the model's
+/// loop's (`cl` at 0 Hz: the integrator's 1, times the sensor path's static gain).
+pub fn fir(
+    config: &RunConfig,
+    cl: &ClosedLoop,
+    measured: &MeasuredLoop,
+) -> Result<FirFit, FeedforwardError> {
+    let c = &config.controller.fir;
+    let failed = |error| FeedforwardError::Fir {
+        source_file: measured.source.clone(),
+        error,
+    };
+    let dc_gain = cl
+        .response(output::TOOL_M, input::REFERENCE_M, 0.0)
+        .map_err(|e| {
+            failed(FirError::Invalid {
+                what: e.to_string(),
+            })
+        })?
+        .re;
+    let f = &measured.freq_hz;
+    // Each bin stands for half the way to its neighbours.
+    let weight: Vec<f64> = (0..f.len())
+        .map(|k| {
+            let lo = if k == 0 {
+                f[0]
+            } else {
+                0.5 * (f[k - 1] + f[k])
+            };
+            let hi = if k + 1 == f.len() {
+                f[k]
+            } else {
+                0.5 * (f[k] + f[k + 1])
+            };
+            measured.coherence[k] * (hi - lo).max(f[k] * 1e-3)
+        })
+        .collect();
+    let d = design::fir::design(&FirProblem {
+        freq_hz: f,
+        path: &measured.reference_to_tool,
+        weight: &weight,
+        dc_gain,
+        period_s: cl.period_s,
+        taps: c.taps.min(MAX_FIR_TAPS),
+        preview: c.preview_ticks.min(MAX_PREVIEW),
+        band_hz: c.band_hz,
+        max_gain_above_band: c.max_gain,
+    })
+    .map_err(failed)?;
+    let mut spec = FirSpec {
+        taps: [0.0; MAX_FIR_TAPS],
+        taps_used: d.taps.len(),
+        preview: d.preview,
+    };
+    spec.taps[..d.taps.len()].copy_from_slice(&d.taps);
+    let (mut worst, mut worst_disk, mut worst_hz) = (0.0f64, 0.0f64, 0.0);
+    for (k, &fk) in f.iter().enumerate().filter(|(_, &fk)| fk <= c.band_hz) {
+        let h = design::fir::response(&d.taps, d.preview, fk, cl.period_s);
+        let centre = (measured.reference_to_tool[k] * h - 1.0).norm();
+        let disk = centre + measured.uncertainty[k] * h.norm();
+        worst = worst.max(centre);
+        if disk > worst_disk {
+            (worst_disk, worst_hz) = (disk, fk);
+        }
+    }
+    Ok(FirFit {
+        spec,
+        source: measured.source.clone(),
+        bins: d.freq_hz.len(),
+        band_hz: c.band_hz,
+        worst_residual: worst,
+        worst_residual_in_disk: worst_disk,
+        worst_hz,
     })
 }
 

@@ -30,6 +30,7 @@ pub mod hil;
 pub mod hot_swap;
 pub mod join;
 pub mod machining;
+pub mod measured_loop;
 pub mod operator_log;
 pub mod pil;
 pub mod plan;

@@ -7,7 +7,8 @@
 use crate::closed_loop::ClosedLoop;
 use crate::controller::{stage_of, RunController};
 use crate::error::RunError;
-use crate::feedforward::feedforward_spec;
+use crate::feedforward::{feedforward_spec, FirFit};
+use crate::measured_loop::MeasuredLoop;
 use crate::repetitive::RepetitivePlan;
 use plant_sim::params::CurrentLoopModel;
 use plant_sim::Simulator;
@@ -23,6 +24,8 @@ use servo_config::{Deployment, Invalid, ReferenceSpec, SsMatrices};
 
 /// Attachment name of the controller file in a recording.
 pub const CONTROLLER_INPUT: &str = "controller.toml";
+/// Attachment name of the measured FRF (`controller.frf_file`) in a recording.
+pub const FRF_INPUT: &str = "frf.csv";
 /// Attachment name of the surface image in a recording.
 pub const SURFACE_INPUT: &str = "surface.png";
 
@@ -53,6 +56,10 @@ pub struct Plan {
     pub inputs: Vec<Input>,
     /// The repetitive controller of a machining run, checked on the closed loop.
     pub repetitive: Option<RepetitivePlan>,
+    /// The loop closed on the measured FRF `controller.frf_file`, when the run names one.
+    pub measured: Option<MeasuredLoop>,
+    /// The FIR feedforward's fit, for `feedforward = "fir"`.
+    pub fir: Option<FirFit>,
 }
 
 impl Plan {
@@ -158,6 +165,8 @@ impl Plan {
             // Drawn here so that a run on it cannot fail later (its stage draws it again).
             run_config::practice_stage(&config, &origin, seed)?;
         }
+        let measured = measured_loop(&config, &sim, &controller, &mut inputs)?;
+        let (feedforward, fir) = feedforward_spec(&config, &closed_loop, measured.as_ref())?;
         let deployment = Deployment {
             servo_rate_hz: config.plant.timing.servo_rate_hz,
             stage: stage_of(&config),
@@ -167,7 +176,7 @@ impl Plan {
                 .scenario
                 .reference(config.run.duration_s)
                 .unwrap_or(ReferenceSpec::Hold),
-            feedforward: feedforward_spec(&config, &closed_loop)?,
+            feedforward,
             smoothing_hz: config.controller.smoothing_hz,
             protection: config.protection,
         };
@@ -202,6 +211,8 @@ impl Plan {
             deployment,
             inputs,
             repetitive,
+            measured,
+            fir,
         })
     }
 
@@ -240,6 +251,45 @@ impl Plan {
         )
         .expect("the plan drew this stage without error")
     }
+}
+
+/// The loop closed on the measured FRF `controller.frf_file` (taken from `inputs` where a
+/// recording holds it, else read and added there); None when the run names none.
+fn measured_loop(
+    config: &RunConfig,
+    sim: &Simulator,
+    controller: &RunController,
+    inputs: &mut Vec<Input>,
+) -> Result<Option<MeasuredLoop>, RunError> {
+    let Some(path) = &config.controller.frf_file else {
+        inputs.retain(|i| i.name != FRF_INPUT);
+        return Ok(None);
+    };
+    let bytes = match inputs.iter().find(|i| i.name == FRF_INPUT) {
+        Some(i) => i.data.clone(),
+        None => {
+            let bytes =
+                run_config::input_file::read_input(path, run_config::input_file::MAX_TEXT_BYTES)?;
+            inputs.push(Input {
+                name: FRF_INPUT.into(),
+                media_type: "text/csv".into(),
+                data: bytes.clone(),
+            });
+            bytes
+        }
+    };
+    let nyquist = config.plant.timing.servo_rate_hz / 2.0;
+    let frf = run_config::frf_file::parse_frf(&bytes, path, nyquist)?;
+    let sensitivity = config.plant.capa.sensitivity_v_per_m;
+    let open = ClosedLoop::open(sim, sensitivity).ok_or(RunError::NeedsLinearPlant {
+        what: "a design on a measured FRF",
+    })?;
+    Ok(Some(MeasuredLoop::new(
+        &frf,
+        &open,
+        &controller.linear,
+        sensitivity,
+    )?))
 }
 
 /// The state-space controller file `text` named by `controller.ss_file` (at `path`): its

@@ -139,6 +139,7 @@ impl MachineCmd {
                 FeedforwardKind::Model => "model feedforward",
                 FeedforwardKind::Zpetc => "ZPETC feedforward (tool)",
                 FeedforwardKind::ZpetcSensor => "ZPETC feedforward (sensor)",
+                FeedforwardKind::Fir => "FIR feedforward (measured FRF)",
             }
         );
         let learned = summary.meta.repetitive_table_m.as_deref();
@@ -151,6 +152,9 @@ impl MachineCmd {
             return Ok(code);
         }
         print_summary(&summary, false);
+        if let Some(fit) = &plan.fir {
+            println!("  {fit}");
+        }
         print_form(&report);
         if let Some(p) = &plan.repetitive {
             print_repetitive(p, &report);
