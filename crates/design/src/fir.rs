@@ -1,5 +1,5 @@
 //! FIR feedforward from frequency-response data: the taps `h` of
-//! `H(z) = Σᵢ hᵢ·z^{p−i}` (p ticks of preview) that make a measured loop `T` (reference →
+//! `H(z) = Σᵢ hᵢ·z^{p−i·s}` (p ticks of preview, taps s ticks apart) that make a measured loop `T` (reference →
 //! tool, m/m) flat, `T·H ≈ 1` in gain and phase over a band — a convex least-squares problem
 //! (weighted by each bin's confidence, a small ridge on the taps), with the DC gain exact and
 //! `|H|` bounded above the band so the filter never amplifies what it was not fitted on.
@@ -26,6 +26,8 @@ pub struct FirProblem<'a> {
     pub taps: usize,
     /// Ticks of preview (the first tap's lead).
     pub preview: usize,
+    /// Ticks between taps (≥ 1; the band must lie below `1/(2·stride·period)`).
+    pub stride: usize,
     /// Upper end of the fitted band, Hz.
     pub band_hz: f64,
     /// Largest |H| above the band (m/m).
@@ -39,6 +41,8 @@ pub struct FirDesign {
     pub taps: Vec<f64>,
     /// Ticks of preview.
     pub preview: usize,
+    /// Ticks between taps.
+    pub stride: usize,
     /// `|T·H − 1|` at each fitted bin (the frequencies in `freq_hz`).
     pub residual: Vec<f64>,
     /// The fitted bins, Hz.
@@ -71,17 +75,23 @@ pub enum FirError {
 }
 
 /// Relative weight of the ridge on the taps (against the band's mean weight).
-const RIDGE: f64 = 1e-12;
+const RIDGE: f64 = 1e-8;
 /// Frequencies above the band where |H| is bounded.
 const BOUND_FREQUENCIES: usize = 96;
 /// Fewest bins in the band.
 const MIN_BINS: usize = 4;
 
-/// `H(e^{jωT})` of `taps` with `preview` ticks of lead, at `f_hz`.
-pub fn response(taps: &[f64], preview: usize, f_hz: f64, period_s: f64) -> Complex64 {
+/// `H(e^{jωT})` of `taps` `stride` ticks apart with `preview` ticks of lead, at `f_hz`.
+pub fn response(
+    taps: &[f64],
+    preview: usize,
+    stride: usize,
+    f_hz: f64,
+    period_s: f64,
+) -> Complex64 {
     taps.iter()
         .enumerate()
-        .map(|(i, &h)| h * tap_phasor(i, preview, f_hz, period_s))
+        .map(|(i, &h)| h * tap_phasor(i * stride, preview, f_hz, period_s))
         .sum()
 }
 
@@ -94,10 +104,14 @@ pub fn design(p: &FirProblem) -> Result<FirDesign, FirError> {
             p.taps, p.preview
         ));
     }
-    let nyquist = 0.5 / p.period_s;
+    if p.stride == 0 {
+        return invalid("stride 0: taps are at least one tick apart".into());
+    }
+    // The filter's response repeats every rate/stride: it is bounded up to half of that.
+    let nyquist = 0.5 / (p.period_s * p.stride as f64);
     if !(p.band_hz > 0.0 && p.band_hz < nyquist) {
         return invalid(format!(
-            "band {} Hz: must lie in (0, {nyquist}) Hz",
+            "band {} Hz: must lie in (0, {nyquist}) Hz, below half the rate over the stride",
             p.band_hz
         ));
     }
@@ -145,7 +159,7 @@ pub fn design(p: &FirProblem) -> Result<FirDesign, FirError> {
     for &k in &bins {
         let w = (p.weight[k] / total).sqrt();
         let a: Vec<Complex64> = (0..n)
-            .map(|i| p.path[k] * tap_phasor(i, p.preview, p.freq_hz[k], p.period_s))
+            .map(|i| p.path[k] * tap_phasor(i * p.stride, p.preview, p.freq_hz[k], p.period_s))
             .collect();
         rows.push(row(&|i| -w * a[i].re, 0.0));
         b.push(-w);
@@ -162,9 +176,10 @@ pub fn design(p: &FirProblem) -> Result<FirDesign, FirError> {
         let f = p.band_hz + (nyquist - p.band_hz) * (m as f64 + 0.5) / BOUND_FREQUENCIES as f64;
         rows.push(row(&|_| 0.0, 0.0));
         b.push(p.max_gain_above_band);
-        rows.push(row(&|i| -tap_phasor(i, p.preview, f, p.period_s).re, 0.0));
+        let phasor = |i: usize| tap_phasor(i * p.stride, p.preview, f, p.period_s);
+        rows.push(row(&|i| -phasor(i).re, 0.0));
         b.push(0.0);
-        rows.push(row(&|i| -tap_phasor(i, p.preview, f, p.period_s).im, 0.0));
+        rows.push(row(&|i| -phasor(i).im, 0.0));
         b.push(0.0);
         blocks.push(Block::Cone(3));
     }
@@ -174,20 +189,24 @@ pub fn design(p: &FirProblem) -> Result<FirDesign, FirError> {
     taps.truncate(n);
     let residual = bins
         .iter()
-        .map(|&k| (p.path[k] * response(&taps, p.preview, p.freq_hz[k], p.period_s) - 1.0).norm())
+        .map(|&k| {
+            (p.path[k] * response(&taps, p.preview, p.stride, p.freq_hz[k], p.period_s) - 1.0)
+                .norm()
+        })
         .collect();
     Ok(FirDesign {
         residual,
         freq_hz: bins.iter().map(|&k| p.freq_hz[k]).collect(),
         taps,
         preview: p.preview,
+        stride: p.stride,
     })
 }
 
-/// Tap `i`'s factor in `H` at `f_hz`: `e^{jω(preview − i)T}`.
-fn tap_phasor(i: usize, preview: usize, f_hz: f64, period_s: f64) -> Complex64 {
+/// The factor in `H` at `f_hz` of a tap `delay` ticks after the first: `e^{jω(preview − delay)T}`.
+fn tap_phasor(delay: usize, preview: usize, f_hz: f64, period_s: f64) -> Complex64 {
     let w = 2.0 * std::f64::consts::PI * f_hz * period_s;
-    Complex64::from_polar(1.0, w * (preview as f64 - i as f64))
+    Complex64::from_polar(1.0, w * (preview as f64 - delay as f64))
 }
 
 #[cfg(test)]
@@ -213,6 +232,7 @@ mod tests {
             period_s: period,
             taps: 12,
             preview: 5,
+            stride: 1,
             band_hz: 3975.0,
             max_gain_above_band: 1.5,
         })
@@ -246,6 +266,7 @@ mod tests {
             period_s: period,
             taps: 6,
             preview: 1,
+            stride: 1,
             band_hz: 1200.0,
             max_gain_above_band: 10.0,
         })
@@ -276,6 +297,7 @@ mod tests {
             period_s: period,
             taps: 24,
             preview: 12,
+            stride: 1,
             band_hz: 1000.0,
             max_gain_above_band: bound,
         })
@@ -284,7 +306,7 @@ mod tests {
         assert!((sum - 1.0).abs() < 1e-7, "DC gain {sum}");
         for k in 0..400 {
             let f = 1050.0 + (5000.0 - 1050.0) * k as f64 / 400.0;
-            let h = response(&d.taps, d.preview, f, period).norm();
+            let h = response(&d.taps, d.preview, 1, f, period).norm();
             assert!(h <= bound * 1.01, "{f} Hz: |H| = {h}");
         }
     }

@@ -254,11 +254,15 @@ pub struct ControllerConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct FirConfig {
-    /// Number of taps, 1 to 64 (one multiply-add each per tick).
+    /// Number of taps, 1 to 128 (one multiply-add each per tick).
     pub taps: usize,
     /// Ticks of preview the filter reads ahead of the trajectory (at most 62; the sensor's
     /// lag and the loop's phase need a few tens at 199.6 kHz).
     pub preview_ticks: usize,
+    /// Ticks between taps (≥ 1, `(taps − 1)·stride_ticks` below 2048): the taps span
+    /// `taps·stride_ticks` ticks of the trajectory — the loop's response below a kHz needs
+    /// milliseconds — and flatten a band below `rate / (2·stride_ticks)`.
+    pub stride_ticks: usize,
     /// Upper end of the band made flat, Hz (measured bins above it are not fitted).
     pub band_hz: f64,
     /// Largest gain of the filter above the band (m/m): what it may amplify of a trajectory's
@@ -269,9 +273,10 @@ pub struct FirConfig {
 impl Default for FirConfig {
     fn default() -> Self {
         FirConfig {
-            taps: 48,
-            preview_ticks: 24,
-            band_hz: 3000.0,
+            taps: 96,
+            preview_ticks: 32,
+            stride_ticks: 16,
+            band_hz: 1500.0,
             max_gain: 2.0,
         }
     }
@@ -477,18 +482,27 @@ impl RunConfig {
             return Err(at.invalid("controller.fir.taps", f.taps, &format!("1 to {most}")));
         }
         let preview = servo_config::MAX_PREVIEW;
-        if f.preview_ticks > preview || f.taps.saturating_sub(1 + f.preview_ticks) > preview {
+        if f.preview_ticks > preview {
             return Err(at.invalid(
                 "controller.fir.preview_ticks",
                 f.preview_ticks,
-                &format!("0 to {preview}, and at least taps − 1 − {preview}"),
+                &format!("0 to {preview} ticks"),
             ));
         }
-        if !(f.band_hz > 0.0 && f.band_hz < nyquist) {
+        let span = servo_config::MAX_FIR_SPAN;
+        if f.stride_ticks == 0 || (f.taps - 1) * f.stride_ticks >= span {
+            return Err(at.invalid(
+                "controller.fir.stride_ticks",
+                f.stride_ticks,
+                &format!("at least 1, with (taps − 1)·stride_ticks below {span} ticks"),
+            ));
+        }
+        let top = nyquist / f.stride_ticks as f64;
+        if !(f.band_hz > 0.0 && f.band_hz < top) {
             return Err(at.invalid(
                 "controller.fir.band_hz",
                 f.band_hz,
-                &format!("(0, {nyquist}) Hz"),
+                &format!("(0, {top}) Hz: below half the rate over stride_ticks"),
             ));
         }
         if !(f.max_gain > 0.0 && f.max_gain <= 100.0) {

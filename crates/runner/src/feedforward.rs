@@ -94,9 +94,10 @@ impl std::fmt::Display for FirFit {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "FIR feedforward: {} taps, {} ticks of preview, fitted on {} measured bins up to {} Hz of {}; \
+            "FIR feedforward: {} taps {} ticks apart, {} ticks of preview, fitted on {} measured bins up to {} Hz of {}; \
              reference → tool within {:.2} % of flat (within {:.2} % over each bin's uncertainty, worst at {:.0} Hz)",
             self.spec.taps_used,
+            self.spec.stride,
             self.spec.preview,
             self.bins,
             self.band_hz,
@@ -109,7 +110,7 @@ impl std::fmt::Display for FirFit {
 }
 
 /// The FIR of `config.controller.fir` fitted to `measured` so that reference → tool is flat,
-/// each bin weighted by its coherence and the band it stands for; the DC gain is the model's
+/// each bin weighted by its coherence; the DC gain is the model's
 /// loop's (`cl` at 0 Hz: the integrator's 1, times the sensor path's static gain).
 pub fn fir(
     config: &RunConfig,
@@ -130,30 +131,18 @@ pub fn fir(
         })?
         .re;
     let f = &measured.freq_hz;
-    // Each bin stands for half the way to its neighbours.
-    let weight: Vec<f64> = (0..f.len())
-        .map(|k| {
-            let lo = if k == 0 {
-                f[0]
-            } else {
-                0.5 * (f[k - 1] + f[k])
-            };
-            let hi = if k + 1 == f.len() {
-                f[k]
-            } else {
-                0.5 * (f[k] + f[k + 1])
-            };
-            measured.coherence[k] * (hi - lo).max(f[k] * 1e-3)
-        })
-        .collect();
+    // Each bin as much as its coherence (a log-spaced measurement puts its bins where the
+    // loop's response changes fastest: per bin, not per hertz).
+    let weight = &measured.coherence;
     let d = design::fir::design(&FirProblem {
         freq_hz: f,
         path: &measured.reference_to_tool,
-        weight: &weight,
+        weight,
         dc_gain,
         period_s: cl.period_s,
         taps: c.taps.min(MAX_FIR_TAPS),
         preview: c.preview_ticks.min(MAX_PREVIEW),
+        stride: c.stride_ticks,
         band_hz: c.band_hz,
         max_gain_above_band: c.max_gain,
     })
@@ -162,11 +151,12 @@ pub fn fir(
         taps: [0.0; MAX_FIR_TAPS],
         taps_used: d.taps.len(),
         preview: d.preview,
+        stride: d.stride,
     };
     spec.taps[..d.taps.len()].copy_from_slice(&d.taps);
     let (mut worst, mut worst_disk, mut worst_hz) = (0.0f64, 0.0f64, 0.0);
     for (k, &fk) in f.iter().enumerate().filter(|(_, &fk)| fk <= c.band_hz) {
-        let h = design::fir::response(&d.taps, d.preview, fk, cl.period_s);
+        let h = design::fir::response(&d.taps, d.preview, d.stride, fk, cl.period_s);
         let centre = (measured.reference_to_tool[k] * h - 1.0).norm();
         let disk = centre + measured.uncertainty[k] * h.norm();
         worst = worst.max(centre);

@@ -13,7 +13,12 @@ pub const MAX_SS_ORDER: usize = 40;
 pub const ZPETC_SECTIONS: usize = 12;
 
 /// Most taps of an FIR feedforward filter.
-pub const MAX_FIR_TAPS: usize = 64;
+pub const MAX_FIR_TAPS: usize = 128;
+
+/// Ticks of trajectory an FIR feedforward can reach back (`(taps − 1)·stride` below it): the
+/// runtime keeps this many past samples (16 KiB; 10 ms at 199.6 kHz, what a loop's response
+/// around its 450 Hz mode needs).
+pub const MAX_FIR_SPAN: usize = 2048;
 
 /// Most ticks of reference preview (feedforward preview plus half the smoothing window).
 pub const MAX_PREVIEW: usize = 62;
@@ -325,12 +330,15 @@ pub enum FeedforwardSpec {
     /// reference `preview` ticks ahead through `gain · Π sections`.
     Zpetc(ZpetcSpec),
     /// A finite-impulse-response filter of the reference (designed offline from a measured
-    /// FRF): `Σ taps[i] · r[k + preview − i]`.
+    /// FRF): `Σ taps[i] · r[k + preview − i·stride]`.
     Fir(FirSpec),
 }
 
 /// The taps of an FIR feedforward filter: the reference the loop follows at tick k is
-/// `Σᵢ taps[i] · y_d[k + preview − i]` over the first `taps_used` taps (m/m).
+/// `Σᵢ taps[i] · y_d[k + preview − i·stride]` over the first `taps_used` taps (m/m). Taps
+/// `stride` ticks apart reach back far enough to shape a loop's response below a kHz (128 taps
+/// one tick apart span 0.6 ms at 199.6 kHz) while the band they flatten stays below
+/// `rate / (2·stride)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FirSpec {
     /// The taps (dimensionless, m/m), the first `taps_used`.
@@ -339,13 +347,8 @@ pub struct FirSpec {
     pub taps_used: usize,
     /// Ticks of preview: the first tap multiplies the trajectory this far ahead.
     pub preview: usize,
-}
-
-impl FirSpec {
-    /// Ticks of the trajectory's past the filter reads (its last tap's delay).
-    pub fn lag(&self) -> usize {
-        self.taps_used.saturating_sub(1 + self.preview)
-    }
+    /// Ticks between taps (≥ 1; `(taps_used − 1)·stride` < [`MAX_FIR_SPAN`]).
+    pub stride: usize,
 }
 
 /// The coefficients of a ZPETC feedforward filter.
@@ -386,14 +389,6 @@ impl FeedforwardSpec {
             FeedforwardSpec::Model => 1,
             FeedforwardSpec::Zpetc(z) => z.preview,
             FeedforwardSpec::Fir(f) => f.preview,
-        }
-    }
-
-    /// Ticks of the trajectory's past the feedforward reads (beyond the one before this tick).
-    pub fn lag(&self) -> usize {
-        match self {
-            FeedforwardSpec::Fir(f) => f.lag(),
-            _ => 0,
         }
     }
 }

@@ -28,8 +28,8 @@ pub use check::{Allowed, Invalid};
 pub use controller::{accel_shaping, kg_of, position_pid, Controller};
 pub use deployment::{
     ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, FirSpec, PidGains, ReferenceSpec,
-    Seal, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN, MAX_FIR_TAPS, MAX_PREVIEW,
-    MAX_SS_ORDER, ZPETC_SECTIONS,
+    Seal, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN, MAX_FIR_SPAN, MAX_FIR_TAPS,
+    MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
 };
 pub use protection::{ProtectionConfig, SafeState};
 pub use reference_path::{hann_weights, reference_path, Complex, PathResponse};

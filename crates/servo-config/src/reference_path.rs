@@ -78,7 +78,7 @@ pub fn reference_path(d: &Deployment, f_hz: f64) -> PathResponse {
         FeedforwardSpec::Fir(spec) => {
             let mut filter = [0.0, 0.0];
             for (i, &h) in spec.taps[..spec.taps_used].iter().enumerate() {
-                let zi = z(spec.preview as f64 - i as f64);
+                let zi = z(spec.preview as f64 - (i * spec.stride) as f64);
                 filter = [filter[0] + h * zi[0], filter[1] + h * zi[1]];
             }
             PathResponse {

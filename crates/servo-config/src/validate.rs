@@ -4,7 +4,7 @@
 use crate::check::{Allowed, Invalid};
 use crate::deployment::{
     ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, FirSpec, ReferenceSpec, Stage,
-    MAX_FIR_TAPS, MAX_PREVIEW, ZPETC_SECTIONS,
+    MAX_FIR_SPAN, MAX_FIR_TAPS, MAX_PREVIEW, ZPETC_SECTIONS,
 };
 
 impl Deployment {
@@ -302,7 +302,8 @@ pub fn check_reference(
 const MAX_FIR_GAIN: f64 = 100.0;
 
 /// An FIR feedforward's taps: 1 ..= [`MAX_FIR_TAPS`] of them, finite, their |sum| at most
-/// [`MAX_FIR_GAIN`], the preview within [`MAX_PREVIEW`] and the past it reads within the window.
+/// [`MAX_FIR_GAIN`], the preview within [`MAX_PREVIEW`] and the past it reads within
+/// [`MAX_FIR_SPAN`].
 fn check_fir(f: &FirSpec) -> Result<(), Invalid> {
     if f.taps_used == 0 || f.taps_used > MAX_FIR_TAPS {
         return Err(Invalid::new(
@@ -312,16 +313,20 @@ fn check_fir(f: &FirSpec) -> Result<(), Invalid> {
             Allowed::between(1.0, MAX_FIR_TAPS as f64, "taps"),
         ));
     }
-    if f.preview > MAX_PREVIEW || f.lag() > MAX_PREVIEW {
+    if f.preview > MAX_PREVIEW {
         return Err(Invalid::new(
             "feedforward",
             "preview_ticks",
             f.preview as f64,
-            Allowed::between(
-                0.0,
-                MAX_PREVIEW as f64,
-                "ticks (and taps − 1 − preview_ticks as many at most)",
-            ),
+            Allowed::between(0.0, MAX_PREVIEW as f64, "ticks"),
+        ));
+    }
+    if f.stride == 0 || (f.taps_used - 1) * f.stride >= MAX_FIR_SPAN {
+        return Err(Invalid::new(
+            "feedforward",
+            "stride_ticks",
+            f.stride as f64,
+            Allowed::Text("at least 1, and (taps − 1)·stride_ticks below 2048 ticks"),
         ));
     }
     let taps = &f.taps[..f.taps_used];

@@ -7,8 +7,8 @@
 use super::{Reader, Writer};
 use servo_config::{
     ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, FirSpec, PidGains, ReferenceSpec,
-    Seal, SsMatrices, Stability, Stage, ZpetcSpec, MAX_FIR_TAPS, MAX_PREVIEW, MAX_SS_ORDER,
-    ZPETC_SECTIONS,
+    Seal, SsMatrices, Stability, Stage, ZpetcSpec, MAX_FIR_SPAN, MAX_FIR_TAPS, MAX_PREVIEW,
+    MAX_SS_ORDER, ZPETC_SECTIONS,
 };
 use servo_config::{ProtectionConfig, SafeState};
 
@@ -26,7 +26,7 @@ pub const MAX_BYTES: usize = 6
     + 33
     + max(
         1 + 8 + 8 + 8 + 8 * 5 * ZPETC_SECTIONS,
-        1 + 8 + 8 + 8 * MAX_FIR_TAPS,
+        1 + 8 + 8 + 8 + 8 * MAX_FIR_TAPS,
     )
     + 8
     + (3 + 8 * 6);
@@ -147,6 +147,7 @@ pub fn encode(d: &Deployment, out: &mut [u8]) -> Option<usize> {
         FeedforwardSpec::Fir(f) => {
             w.u8(3)?;
             w.u64(f.preview as u64)?;
+            w.u64(f.stride as u64)?;
             w.u64(f.taps_used as u64)?;
             for &v in &f.taps[..f.taps_used.min(MAX_FIR_TAPS)] {
                 w.f64(v)?;
@@ -336,6 +337,12 @@ pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
                     field: "feedforward.preview",
                 });
             }
+            let stride = field!(r, u64, "feedforward.stride");
+            if stride > MAX_FIR_SPAN as u64 {
+                return Err(ImageError {
+                    field: "feedforward.stride",
+                });
+            }
             let used = field!(r, u64, "feedforward.taps");
             if used > MAX_FIR_TAPS as u64 {
                 return Err(ImageError {
@@ -350,6 +357,7 @@ pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
                 taps,
                 taps_used: used as usize,
                 preview: preview as usize,
+                stride: stride as usize,
             })
         }
         _ => {
@@ -444,6 +452,7 @@ mod tests {
             taps,
             taps_used: MAX_FIR_TAPS,
             preview: 30,
+            stride: 16,
         });
         d
     }

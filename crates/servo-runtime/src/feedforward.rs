@@ -2,9 +2,10 @@
 //! inverse on finite differences, or a ZPETC or FIR filter whose coefficients were designed
 //! offline.
 
+use crate::fir::Fir;
 use crate::preview::Window;
 use servo_config::{Allowed, Invalid};
-use servo_config::{FeedforwardSpec, FirSpec, Stage, ZPETC_SECTIONS};
+use servo_config::{FeedforwardSpec, Stage, ZPETC_SECTIONS};
 use servo_core::{Block, Limits, Setpoint, Zpetc};
 
 /// A feedforward ready to run.
@@ -18,9 +19,8 @@ pub(crate) enum Feedforward {
     Model(servo_core::Feedforward),
     /// Reshaped reference (m).
     Zpetc(Zpetc<ZPETC_SECTIONS>),
-    /// Reshaped reference (m) by fixed taps over the window (checked with the deployment),
-    /// and whether it latched a non-finite output.
-    Fir(FirSpec, bool),
+    /// Reshaped reference (m) by fixed taps over the trajectory's past.
+    Fir(Fir),
 }
 
 impl Feedforward {
@@ -60,7 +60,7 @@ impl Feedforward {
                     Allowed::Text("a ZPETC filter servo-core accepts"),
                 )
             })?),
-            FeedforwardSpec::Fir(f) => Feedforward::Fir(*f, false),
+            FeedforwardSpec::Fir(f) => Feedforward::Fir(Fir::new(f)),
         })
     }
 
@@ -70,7 +70,7 @@ impl Feedforward {
             Feedforward::None => false,
             Feedforward::Model(f) => f.faulted(),
             Feedforward::Zpetc(z) => z.faulted(),
-            Feedforward::Fir(_, fault) => *fault,
+            Feedforward::Fir(f) => f.faulted(),
         }
     }
 
@@ -80,7 +80,7 @@ impl Feedforward {
             Feedforward::None => {}
             Feedforward::Model(f) => f.reset(),
             Feedforward::Zpetc(z) => z.reset(),
-            Feedforward::Fir(_, fault) => *fault = false,
+            Feedforward::Fir(f) => f.reset(),
         }
     }
 
@@ -101,16 +101,19 @@ impl Feedforward {
                 (now, ff.update(sp))
             }
             Feedforward::Zpetc(z) => (z.update(w.smooth(z.preview() as isize)), 0.0),
-            Feedforward::Fir(f, fault) => {
-                let p = f.preview as isize;
-                let mut r = 0.0;
-                for (i, &h) in f.taps[..f.taps_used].iter().enumerate() {
-                    r += h * w.smooth(p - i as isize);
-                }
-                // A non-finite result latches and gives 0, as the ZPETC filter's sections do
-                // (the loop trips on the latch this tick).
-                *fault |= !r.is_finite();
-                (if *fault { 0.0 } else { r }, 0.0)
+            Feedforward::Fir(f) => (f.evaluate(), 0.0),
+        }
+    }
+
+    /// Takes this tick's window (every tick, tripped or not: a filter with a memory of the
+    /// trajectory keeps it); `fresh` when the window was filled anew.
+    #[inline]
+    pub(crate) fn follow(&mut self, w: &Window, fresh: bool) {
+        if let Feedforward::Fir(f) = self {
+            if fresh {
+                f.prime(w);
+            } else {
+                f.follow(w);
             }
         }
     }

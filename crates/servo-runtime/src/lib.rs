@@ -55,6 +55,7 @@
 #![cfg_attr(not(feature = "std"), no_std)]
 
 mod feedforward;
+mod fir;
 mod preview;
 mod protection;
 mod reference;

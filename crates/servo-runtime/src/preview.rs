@@ -19,18 +19,17 @@ pub(crate) struct Window {
 }
 
 impl Window {
-    /// A window for a feedforward needing `lead` ticks of preview and `lag` ticks of past
-    /// (beyond the tick before this one), smoothed over `2·half + 1` ticks (0: none). None when
-    /// the preview would exceed [`MAX_PREVIEW`] or the past as many.
-    pub(crate) fn new(lead: usize, half: usize, lag: usize) -> Option<Self> {
+    /// A window for a feedforward needing `lead` ticks of preview, smoothed over `2·half + 1`
+    /// ticks (0: none). None when the preview would exceed [`MAX_PREVIEW`].
+    pub(crate) fn new(lead: usize, half: usize) -> Option<Self> {
         let preview = lead + half;
-        if preview > MAX_PREVIEW || lag + half > MAX_PREVIEW {
+        if preview > MAX_PREVIEW {
             return None;
         }
         let weights = hann_weights(half);
         Some(Window {
             y: [0.0; LEN],
-            past: half + 1 + lag,
+            past: half + 1,
             preview,
             weights,
             half,
@@ -83,7 +82,7 @@ mod tests {
 
     #[test]
     fn hann_smoothing_keeps_lines_and_has_unit_gain() {
-        let mut w = Window::new(1, 10, 0).unwrap();
+        let mut w = Window::new(1, 10).unwrap();
         let ramp: Vec<f64> = (0..=w.preview()).map(|j| j as f64).collect();
         w.prime(&ramp);
         for k in 1..=30 {
@@ -99,8 +98,7 @@ mod tests {
 
     #[test]
     fn preview_beyond_capacity_is_refused() {
-        assert!(Window::new(3, MAX_PREVIEW - 2, 0).is_none());
-        assert!(Window::new(2, MAX_PREVIEW - 2, 2).is_some());
-        assert!(Window::new(2, MAX_PREVIEW - 2, 3).is_none());
+        assert!(Window::new(3, MAX_PREVIEW - 2).is_none());
+        assert!(Window::new(2, MAX_PREVIEW - 2).is_some());
     }
 }

@@ -74,16 +74,15 @@ impl ServoLoop {
         let controller = Controller::build(&d.controller, &d.stage, period)?;
         let feedforward = Feedforward::build(&d.feedforward, &d.stage, d.controller.limit_v)?;
         let lead = d.feedforward.preview();
-        let window =
-            Window::new(lead, d.smoothing_half(), d.feedforward.lag()).ok_or(Invalid::new(
-                "",
-                "smoothing_hz",
-                d.smoothing_hz,
-                Allowed::OffOrAtLeast {
-                    low: d.servo_rate_hz / (2.0 * (MAX_PREVIEW.saturating_sub(lead)) as f64 + 1.0),
-                    unit: "Hz (the preview holds 62 ticks, the feedforward takes its share)",
-                },
-            ))?;
+        let window = Window::new(lead, d.smoothing_half()).ok_or(Invalid::new(
+            "",
+            "smoothing_hz",
+            d.smoothing_hz,
+            Allowed::OffOrAtLeast {
+                low: d.servo_rate_hz / (2.0 * (MAX_PREVIEW.saturating_sub(lead)) as f64 + 1.0),
+                unit: "Hz (the preview holds 62 ticks, the feedforward takes its share)",
+            },
+        ))?;
         Ok(ServoLoop {
             controller,
             feedforward,
@@ -185,10 +184,12 @@ impl ServoLoop {
             let mut ahead = [0.0; MAX_PREVIEW + 1];
             source.prime(s, &mut ahead[..=p]);
             self.window.prime(&ahead);
+            self.feedforward.follow(&self.window, true);
             return;
         }
         let ahead = source.next(s, p);
         self.window.push(ahead);
+        self.feedforward.follow(&self.window, false);
     }
 
     /// One tick for sample `s` with the trajectory `source`: the command and the tick's

@@ -173,6 +173,7 @@ enum FeedforwardTable {
     },
     Fir {
         preview_ticks: usize,
+        stride_ticks: usize,
         taps: Vec<f64>,
     },
 }
@@ -239,6 +240,7 @@ pub fn parse_deployment(text: &str, at: &Origin) -> Result<DeploymentAndProvenan
         }
         FeedforwardTable::Fir {
             preview_ticks,
+            stride_ticks,
             taps,
         } => {
             if taps.is_empty() || taps.len() > MAX_FIR_TAPS {
@@ -254,6 +256,7 @@ pub fn parse_deployment(text: &str, at: &Origin) -> Result<DeploymentAndProvenan
                 taps: all,
                 taps_used: taps.len(),
                 preview: preview_ticks,
+                stride: stride_ticks,
             })
         }
     };
@@ -393,7 +396,11 @@ pub fn deployment_toml(d: &Deployment, made_for: Option<&MadeFor>, header: &str)
             );
         }
         FeedforwardSpec::Fir(f) => {
-            let _ = writeln!(out, "kind = \"fir\"\npreview_ticks = {}", f.preview);
+            let _ = writeln!(
+                out,
+                "kind = \"fir\"\npreview_ticks = {}\nstride_ticks = {}",
+                f.preview, f.stride
+            );
             let taps: Vec<String> = f.taps[..f.taps_used].iter().map(|&t| num(t)).collect();
             let _ = writeln!(out, "taps = [{}]", taps.join(", "));
         }
