@@ -77,12 +77,22 @@ impl PracticeStage {
     /// configured stage is its controller's *model* of the practice stage (an identified one,
     /// often), and the stage must not move when the model does; noise seeded by `seed` too.
     pub fn new(plant: &PlantParams, seed: u64) -> Result<Self, SimError> {
+        Self::with_noise_seed(plant, seed, seed)
+    }
+
+    /// [`PracticeStage::new`] with its noise seeded by `noise_seed` instead: the same stage,
+    /// other noise (for repeated measurements of one stage).
+    pub fn with_noise_seed(
+        plant: &PlantParams,
+        seed: u64,
+        noise_seed: u64,
+    ) -> Result<Self, SimError> {
         let truth = PracticeTruth::draw(seed, &PlantParams::default().stage);
         let params = PlantParams {
             stage: truth.stage,
             ..*plant
         };
-        let sim = Simulator::new(&params, seed, &Default::default())?;
+        let sim = Simulator::new(&params, noise_seed, &Default::default())?;
         let w = 2.0 * std::f64::consts::PI * truth.mount_hz;
         let continuous = StateSpace {
             a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -w * w, -2.0 * MOUNT_ZETA_POLE * w]),
@@ -109,6 +119,25 @@ impl PracticeStage {
     /// What the seed drew (for revealing after the workflow, never to the client).
     pub fn truth(&self) -> &PracticeTruth {
         &self.truth
+    }
+
+    /// The mount's response at `f_hz` (its discrete form, at the servo period): what the
+    /// reading sees of the gap, dimensionless (for judging a measurement against the truth).
+    pub fn mount_response(&self, f_hz: f64) -> num_complex::Complex64 {
+        use num_complex::Complex64 as C;
+        let (a, b, c, d) = &self.mount;
+        let z = C::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * self.sim.period_s());
+        // c·(zI − A)⁻¹·b + d for the 2×2 A.
+        let (m00, m01, m10, m11) = (
+            z - a[0][0],
+            C::from(-a[0][1]),
+            C::from(-a[1][0]),
+            z - a[1][1],
+        );
+        let det = m00 * m11 - m01 * m10;
+        let x0 = (m11 * b[0] - m01 * b[1]) / det;
+        let x1 = (m00 * b[1] - m10 * b[0]) / det;
+        x0 * c[0] + x1 * c[1] + d
     }
 
     /// The simulator of the drawn stage (before the mount).
@@ -206,8 +235,14 @@ mod tests {
             }
             peak
         };
-        let fr = PracticeStage::new(&plant, 3).unwrap().truth().mount_hz;
+        let stage = PracticeStage::new(&plant, 3).unwrap();
+        let fr = stage.truth().mount_hz;
         assert!((amplitude(fr) - 2.0).abs() < 0.01, "{}", amplitude(fr));
+        // The response the stage states agrees with the filter it runs.
+        for f in [50.0, fr, 60_000.0] {
+            let stated = stage.mount_response(f).norm();
+            assert!((stated - amplitude(f)).abs() < 0.02, "{f} Hz: {stated}");
+        }
         assert!((amplitude(50.0) - 1.0).abs() < 0.01);
         assert!((amplitude(60_000.0) - 1.0).abs() < 0.02);
     }

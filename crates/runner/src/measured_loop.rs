@@ -77,3 +77,48 @@ impl MeasuredLoop {
         Ok(out)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Plan;
+    use run_config::{ControllerKind, Loaded};
+
+    /// Closed on the model's own open-loop response, the measured loop is the model's closed
+    /// loop (reference → tool) to rounding: the PID, and the acceleration loop whose
+    /// accelerometer path comes from the model.
+    #[test]
+    fn on_the_models_own_frf_it_is_the_models_loop() {
+        for (kind, ka) in [(ControllerKind::Pid, 0.0), (ControllerKind::Accel, 1.0)] {
+            let mut loaded = Loaded::default();
+            loaded.config.controller.kind = kind;
+            loaded.config.controller.ka = ka;
+            let plan = Plan::new(&loaded).unwrap();
+            let s = plan.config.plant.capa.sensitivity_v_per_m;
+            let open = ClosedLoop::open(&plan.sim, s).unwrap();
+            let freq_hz = lti::spectral::log_space(10.0, 20_000.0, 40);
+            let frf = MeasuredFrf {
+                response: freq_hz
+                    .iter()
+                    .map(|&f| open.command_response(f).unwrap())
+                    .collect(),
+                coherence: vec![1.0; freq_hz.len()],
+                uncertainty: None,
+                source: "the model".into(),
+                freq_hz,
+            };
+            let m = MeasuredLoop::new(&frf, &open, &plan.controller.linear, s).unwrap();
+            for (f, t) in m.freq_hz.iter().zip(&m.reference_to_tool) {
+                let want = plan
+                    .closed_loop
+                    .response(output::TOOL_M, input::REFERENCE_M, *f)
+                    .unwrap();
+                assert!(
+                    (t / want - 1.0).norm() < 1e-8,
+                    "{kind:?} {f} Hz: {t} vs {want}"
+                );
+            }
+            assert!(m.uncertainty.iter().all(|u| *u == 0.0));
+        }
+    }
+}

@@ -77,3 +77,47 @@ impl Fir {
         self.fault = false;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use servo_config::MAX_FIR_TAPS;
+
+    /// The filter is the convolution it states, `Σ taps[i]·y_d[k + preview − i·stride]`, the
+    /// trajectory before its first sample at rest there; it follows the window every tick.
+    #[test]
+    fn the_filter_is_its_convolution() {
+        let (preview, stride, used) = (5usize, 3usize, 20usize);
+        let mut taps = [0.0; MAX_FIR_TAPS];
+        for (i, t) in taps.iter_mut().take(used).enumerate() {
+            *t = libm::sin(1.3 * i as f64) / (1.0 + i as f64);
+        }
+        let spec = FirSpec {
+            taps,
+            taps_used: used,
+            preview,
+            stride,
+        };
+        let y = |k: isize| libm::sin(0.05 * k.max(0) as f64) + 1e-3 * k.max(0) as f64;
+        let mut w = Window::new(preview, 0).unwrap();
+        let ahead: Vec<f64> = (0..=preview as isize).map(y).collect();
+        w.prime(&ahead);
+        let mut fir = Fir::new(&spec);
+        fir.prime(&w);
+        for k in 0..200isize {
+            if k > 0 {
+                w.push(y(k + preview as isize));
+                fir.follow(&w);
+            }
+            let want: f64 = (0..used)
+                .map(|i| taps[i] * y(k + preview as isize - (i * stride) as isize))
+                .sum();
+            assert!((fir.evaluate() - want).abs() < 1e-12, "tick {k}");
+        }
+        assert!(!fir.faulted());
+        w.push(f64::NAN);
+        fir.follow(&w);
+        assert_eq!(fir.evaluate(), 0.0);
+        assert!(fir.faulted());
+    }
+}

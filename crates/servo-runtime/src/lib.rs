@@ -76,9 +76,9 @@ mod serve;
 /// [`Deployment::check`] (see each type for its keys and ranges).
 pub mod deployment {
     pub use servo_config::{
-        ControllerKind, ControllerSpec, FeedforwardSpec, PidGains, ProtectionConfig, ReferenceSpec,
-        SafeState, Seal, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN, MAX_PREVIEW,
-        MAX_SS_ORDER, ZPETC_SECTIONS,
+        ControllerKind, ControllerSpec, FeedforwardSpec, FirSpec, PidGains, ProtectionConfig,
+        ReferenceSpec, SafeState, Seal, SsMatrices, Stability, Stage, ZpetcSpec, GAIN_MARGIN,
+        MAX_FIR_TAPS, MAX_PREVIEW, MAX_SS_ORDER, ZPETC_SECTIONS,
     };
     #[cfg(feature = "std")]
     pub use servo_config::{MadeFor, Mismatch};

@@ -75,3 +75,58 @@ fn the_practice_stage_is_measured_not_the_model() {
         );
     }
 }
+
+/// The uncertainty `servo frf` states for each bin means what it says: measured again with
+/// other noise, the practice stage's true response lies within the stated radius of the
+/// measurement at about 63 % of the bins (a complex Gaussian's 1σ disk), judged against the
+/// truth itself — the drawn stage's exact response through its mount.
+#[test]
+fn the_stated_uncertainty_covers_the_truth_at_its_rate() {
+    use plant_sim::practice::PracticeStage;
+    use studies::frf::stepped_sine_on;
+    const SEED: u64 = 2026;
+    let freqs = lti::spectral::log_space(20.0, 5000.0, 30);
+    let settings = FrfSettings::for_loop(FrfLoop::Open);
+    let practice = Loaded::default();
+    let plan = plan(&practice);
+    // The truth: the drawn stage's model (its exact sampled response) times the mount.
+    let mut drawn = Loaded::default();
+    drawn.config.plant.stage = PracticeTruth::draw(SEED, &drawn.config.plant.stage).stage;
+    let truth_plan = common::plan(&drawn);
+    let (mut inside, mut bins) = (0, 0);
+    for noise_seed in 1..=4u64 {
+        let mut stage =
+            PracticeStage::with_noise_seed(&practice.config.plant, SEED, noise_seed).unwrap();
+        let mount: Vec<Complex64> = freqs.iter().map(|&f| stage.mount_response(f)).collect();
+        let points = stepped_sine_on(
+            &plan,
+            FrfLoop::Open,
+            &freqs,
+            &settings,
+            &mut stage,
+            &mut |_, _| {},
+        )
+        .unwrap();
+        let exact = stepped_sine(
+            &truth_plan,
+            FrfLoop::Open,
+            &freqs,
+            &settings,
+            &mut |_, _| {},
+        )
+        .unwrap();
+        for ((p, e), m) in points.iter().zip(&exact).zip(&mount) {
+            let truth = model(e) * m;
+            bins += 1;
+            if (measured(p) - truth).norm() <= p.uncertainty {
+                inside += 1;
+            }
+        }
+    }
+    let rate = inside as f64 / bins as f64;
+    println!("{inside} of {bins} bins hold the truth within their stated radius ({rate:.2})");
+    assert!(
+        (0.60..=0.76).contains(&rate),
+        "{inside} of {bins} bins ({rate:.2}) hold the truth within the stated uncertainty"
+    );
+}

@@ -72,7 +72,10 @@ impl FrfCmd {
         let (pts, measured_on) = match &self.prefix {
             None => (
                 self.measure(&plan, &mut plan.stage())?,
-                format!("the simulated stage, seed {}", plan.config.run.seed),
+                match plan.config.run.practice_seed {
+                    Some(seed) => format!("the practice stage of seed {seed} (simulated, hidden)"),
+                    None => format!("the simulated stage, seed {}", plan.config.run.seed),
+                },
             ),
             Some(prefix) => self.measure_remote(&plan, prefix)?,
         };

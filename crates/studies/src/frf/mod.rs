@@ -61,8 +61,10 @@ pub struct FrfPoint {
     /// Magnitude-squared coherence across the measurement blocks.
     pub coherence: f64,
     /// The measurement's uncertainty, m/V: the radius of the disk around the measured response
-    /// that holds the true one with a complex Gaussian 1σ disk's probability (63 %), from the
-    /// spread of the blocks ([`lti::spectral::h1_uncertainty`]).
+    /// that holds the true one with a complex Gaussian 1σ disk's probability (63 %): from the
+    /// noise in the bins beside the excited one (stepped sine,
+    /// [`lti::spectral::periodic_uncertainty`]) or from the coherence over the sweeps (chirp,
+    /// [`lti::spectral::h1_uncertainty`]).
     #[serde(rename = "uncertainty_m_per_v")]
     pub uncertainty: f64,
     /// Model magnitude, m/V.
@@ -185,6 +187,22 @@ impl FrfPlant for SimBackend {
     }
 }
 
+/// The practice stage alone (measured as a lab measures its stage, for judging against its
+/// truth): clipped points are marked, not aborted.
+impl FrfPlant for plant_sim::practice::PracticeStage {
+    fn initial(&mut self) -> Sensor {
+        Backend::initial(self)
+    }
+
+    fn step(&mut self, dac_v: f64) -> Result<Sensor, StudyError> {
+        Ok(Backend::step(self, dac_v))
+    }
+
+    fn aborts_on_clip(&self) -> bool {
+        false
+    }
+}
+
 /// A plant served on a prefix: a clip aborts to 0 V and the run is closed.
 impl FrfPlant for RemotePlant {
     fn initial(&mut self) -> Sensor {
@@ -278,7 +296,7 @@ impl<'p> Rig<'p> {
         &self,
         f_hz: f64,
         h: Complex64,
-        (coherence, blocks): (f64, usize),
+        (coherence, uncertainty): (f64, f64),
         clipped: bool,
         excitation_v: f64,
     ) -> Result<FrfPoint, StudyError> {
@@ -288,7 +306,7 @@ impl<'p> Rig<'p> {
             magnitude: h.norm(),
             phase_deg: h.arg().to_degrees(),
             coherence,
-            uncertainty: lti::spectral::h1_uncertainty(h, coherence, blocks),
+            uncertainty,
             model_magnitude: m.norm(),
             model_phase_deg: m.arg().to_degrees(),
             clipped,
@@ -411,13 +429,19 @@ pub fn chirp_on(
             rig.point(
                 frf.freq_hz[k],
                 frf.h[k],
-                (frf.coherence[k], repeats),
+                (
+                    frf.coherence[k],
+                    lti::spectral::h1_uncertainty(frf.h[k], frf.coherence[k], repeats),
+                ),
                 clipped,
                 amplitude_v,
             )
         })
         .collect()
 }
+
+/// Bins on each side of a stepped sine's own whose noise gives its uncertainty.
+const NEIGHBOURS: usize = 4;
 
 /// Measures the loop of `plan` at `freqs_hz` by stepped sine; `progress` gets (done, total).
 pub fn stepped_sine(
@@ -499,10 +523,12 @@ pub fn stepped_sine_on(
             }
         }
         let (h, coherence) = h1_at_bin(&u_rec, &y_rec, periods_per_block as usize, s.blocks);
+        let cycles = periods_per_block as usize * s.blocks;
+        let uncertainty = lti::spectral::periodic_uncertainty(&u_rec, &y_rec, cycles, NEIGHBOURS);
         out.push(rig.point(
             seg.frequency_hz,
             h,
-            (coherence, s.blocks),
+            (coherence, uncertainty),
             clipped,
             amplitude,
         )?);
