@@ -158,15 +158,15 @@ def main() -> int:
     root.mkdir(parents=True, exist_ok=True)
     with ThreadPoolExecutor(max_workers=a.jobs) as pool:
         results = list(pool.map(lambda s: seed_runs(servo, s, root), a.seeds))
+    (root / "scoreboard.json").write_text(json.dumps(results, indent=1))
+    print(table(results))
     for r in results:
         if "failed" in r:
-            print(f"seed {r['seed']}: measurement failed: {r['failed']}", file=sys.stderr)
+            print(f"seed {r['seed']}: measurement failed: {r['failed']}")
         else:
             for m, run_ in r["runs"].items():
                 if "failed" in run_:
-                    print(f"seed {r['seed']}, {m}: {' '.join(run_['failed'])}", file=sys.stderr)
-    (root / "scoreboard.json").write_text(json.dumps(results, indent=1))
-    print(table(results))
+                    print(f"seed {r['seed']}, {m}: {' '.join(run_['failed'])}")
     print(f"every run: {root / 'scoreboard.json'}")
     return 0
 

@@ -121,7 +121,7 @@ pub fn design(p: &FirProblem) -> Result<FirDesign, FirError> {
             p.dc_gain
         ));
     }
-    if !(p.max_gain_above_band > 0.0) {
+    if p.max_gain_above_band.is_nan() || p.max_gain_above_band <= 0.0 {
         return invalid(format!(
             "gain bound {}: must be positive",
             p.max_gain_above_band

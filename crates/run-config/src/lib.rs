@@ -223,10 +223,11 @@ pub struct ControllerConfig {
     /// Output limit ±V (the ±10 V DAC).
     pub limit_v: f64,
     /// Feedforward from the reference: `none`, `model` (the stage's inverse
-    /// `m·r̈ + c·ṙ + k·r` added to the output, one tick of preview) or `zpetc` / `zpetc-sensor`
+    /// `m·r̈ + c·ṙ + k·r` added to the output, one tick of preview), `zpetc` / `zpetc-sensor`
     /// (zero-phase-error tracking of the whole loop to the tool / to the sensor reading,
     /// designed from the sampled closed-loop model, with the preview it needs; thesis §9.3.1's
-    /// missing feedforward).
+    /// missing feedforward) or `fir` (taps fitted to the measured FRF `frf_file`, see
+    /// `[controller.fir]`).
     pub feedforward: FeedforwardKind,
     /// What the gains or the controller file were made for (written by `servo tune`; a
     /// controller file carries its own `[made_for]`): checked against this run's plant and

@@ -331,7 +331,7 @@ fn check_fir(f: &FirSpec) -> Result<(), Invalid> {
     }
     let taps = &f.taps[..f.taps_used];
     let gain: f64 = taps.iter().map(|t| libm::fabs(*t)).sum();
-    if !taps.iter().all(|t| t.is_finite()) || !(gain <= MAX_FIR_GAIN) {
+    if !taps.iter().all(|t| t.is_finite()) || gain > MAX_FIR_GAIN {
         return Err(Invalid::new(
             "feedforward",
             "taps",
