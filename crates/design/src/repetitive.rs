@@ -13,7 +13,9 @@
 //! (Tomizuka, Tsao & Chew 1989, with the zero-phase `Q` over `N` bins; `H` is the bin average of
 //! the linearly interpolated table; `G` the loop from the correction to the measured error,
 //! `m` the lead in ticks). Learning converges when `κ < 1` at every harmonic the bins hold,
-//! `0 ≤ n ≤ N/2`, at every speed the spindle may turn.
+//! `0 ≤ n ≤ N/2`, at every speed the spindle may turn. Where `G` is known only within a disk of
+//! radius `σ` (a measured loop), the check takes the worst over the disk:
+//! `|Q|·(|1 − k_r·H·L·e^{jωm}·G| + k_r·|H·L|·σ)`.
 
 use num_complex::Complex64 as C;
 use std::f64::consts::TAU;
@@ -34,12 +36,18 @@ pub struct Learning {
 impl Learning {
     /// `κ(n)` for the loop's response `g` at the harmonic's frequency with the lead applied.
     pub fn factor(&self, harmonic: usize, g_with_lead: C) -> f64 {
+        self.factor_in_disk(harmonic, g_with_lead, 0.0)
+    }
+
+    /// The largest `κ(n)` for a loop response anywhere within `radius` of `g_with_lead`.
+    pub fn factor_in_disk(&self, harmonic: usize, g_with_lead: C, radius: f64) -> f64 {
         let nu = TAU * harmonic as f64 / self.bins_per_rev as f64;
         let cos = libm::cos(nu);
         let q = 1.0 - 2.0 * self.q_neighbour * (1.0 - cos);
         let h = 0.25 * (3.0 + cos);
         let l = filter_response(&self.filter, nu);
-        (q * (1.0 - self.learning_gain * h * l * g_with_lead)).norm()
+        let k = self.learning_gain * h * l;
+        q.abs() * ((1.0 - k * g_with_lead).norm() + k.norm() * radius)
     }
 }
 
@@ -55,8 +63,8 @@ fn filter_response(taps: &[f64], nu: f64) -> C {
 /// The loop sampled at every harmonic the bins hold, at each spindle speed.
 #[derive(Debug, Clone)]
 pub struct Harmonics {
-    /// `(harmonic n, frequency in Hz, G(e^{j2πfT}))`.
-    points: Vec<(usize, f64, C)>,
+    /// `(harmonic n, frequency in Hz, G(e^{j2πfT}), the radius G is known within)`.
+    points: Vec<(usize, f64, C, f64)>,
     period_s: f64,
 }
 
@@ -71,13 +79,26 @@ impl Harmonics {
         period_s: f64,
         mut g: impl FnMut(f64) -> C,
     ) -> Self {
+        Self::sample_within(bins_per_rev, speeds_rev_per_s, period_s, |f| (g(f), 0.0))
+    }
+
+    /// [`Harmonics::sample`] of a loop known within a disk: `g(f_hz)` gives the response and
+    /// the radius it is known within (a measurement's uncertainty); the checks take the worst
+    /// over each disk.
+    pub fn sample_within(
+        bins_per_rev: usize,
+        speeds_rev_per_s: &[f64],
+        period_s: f64,
+        mut g: impl FnMut(f64) -> (C, f64),
+    ) -> Self {
         let nyquist = 0.5 / period_s;
         let mut points = Vec::new();
         for &s in speeds_rev_per_s {
             for n in 0..=bins_per_rev / 2 {
                 let f = n as f64 * s.abs();
                 if f < nyquist {
-                    points.push((n, f, g(f)));
+                    let (response, radius) = g(f);
+                    points.push((n, f, response, radius));
                 }
             }
         }
@@ -98,9 +119,9 @@ impl Harmonics {
             lead_ticks,
         };
         let mut sum = 0.0;
-        for &(n, f, g) in &self.points {
+        for &(n, f, g, radius) in &self.points {
             let lead = C::from_polar(1.0, TAU * f * lead_ticks * self.period_s);
-            let k = learning.factor(n, g * lead);
+            let k = learning.factor_in_disk(n, g * lead, radius);
             sum += k * k;
             // A NaN response (a loop that cannot be evaluated there) is the worst.
             if k.is_nan() || k > worst.factor {
@@ -151,7 +172,7 @@ impl Harmonics {
         let t = 2 * half + 1;
         let mut normal = nalgebra::DMatrix::<f64>::zeros(t, t);
         let mut rhs = nalgebra::DVector::<f64>::zeros(t);
-        for &(n, f, g) in &self.points {
+        for &(n, f, g, _) in &self.points {
             let nu = TAU * n as f64 / learning.bins_per_rev as f64;
             let cos = libm::cos(nu);
             let w = (1.0 - 2.0 * learning.q_neighbour * (1.0 - cos)).abs();
@@ -285,5 +306,25 @@ mod tests {
             ..learning
         };
         assert!((learning.factor(32, C::new(0.0, 0.0)) - 1.4).abs() < 1e-12);
+    }
+
+    /// Over a disk the check is the worst point of it: a loop known within 0.3 of its value
+    /// at a harmonic where the centre converges may not.
+    #[test]
+    fn the_disk_is_judged_by_its_worst_point() {
+        let learning = Learning {
+            bins_per_rev: 100,
+            learning_gain: 1.0,
+            q_neighbour: 0.0,
+            filter: vec![1.0],
+        };
+        let g = C::new(0.5, 0.0);
+        let centre = learning.factor(0, g);
+        assert!((centre - 0.5).abs() < 1e-12);
+        // The worst of |1 − (g + δ)| over |δ| ≤ 0.3 is at δ = −0.3: 0.8; over 0.6: 1.1.
+        assert!((learning.factor_in_disk(0, g, 0.3) - 0.8).abs() < 1e-12);
+        let h = Harmonics::sample_within(100, &[10.0], 1e-4, |_| (g, 0.6));
+        let c = h.convergence(&learning, 0.0);
+        assert!((c.factor - 1.1).abs() < 1e-12, "{c:?}");
     }
 }

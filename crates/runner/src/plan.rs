@@ -190,6 +190,7 @@ impl Plan {
                     m,
                     s,
                     &closed_loop,
+                    measured.as_ref(),
                     &deployment,
                     &origin,
                     &mut inputs,

@@ -11,6 +11,7 @@
 
 use crate::closed_loop::{input, output, reference_path_response, ClosedLoop};
 use crate::error::RunError;
+use crate::measured_loop::{Extended, MeasuredLoop};
 use design::repetitive::{Convergence, Harmonics, Learning};
 use recorder::Input;
 use run_config::Origin;
@@ -54,15 +55,22 @@ pub struct RepetitivePlan {
     pub table: Option<Vec<f64>>,
     /// Gap reading per metre, V/m.
     pub sensitivity_v_per_m: f64,
+    /// What the convergence was checked on: the model's loop, or the loop closed on a measured
+    /// FRF (and what it assumed beyond the measured band).
+    pub checked_on: String,
 }
 
-/// Plans `s` for the machining `m` of `config` on the loop `cl` running `deployment`; a
-/// starting table is taken from `inputs` ([`TABLE_INPUT`]) or read and added there.
+/// Plans `s` for the machining `m` of `config` on the loop `cl` running `deployment` — or, when
+/// the run names a measured FRF, on the loop closed on it (`measured`), each harmonic judged
+/// over its uncertainty disk; a starting table is taken from `inputs` ([`TABLE_INPUT`]) or
+/// read and added there.
+#[allow(clippy::too_many_arguments)]
 pub fn plan(
     config: &RunConfig,
     m: &Machining,
     s: &RepetitiveSection,
     cl: &ClosedLoop,
+    measured: Option<&MeasuredLoop>,
     deployment: &Deployment,
     origin: &Origin,
     inputs: &mut Vec<Input>,
@@ -88,7 +96,26 @@ pub fn plan(
     let mut speeds = vec![nominal * slow, nominal, nominal * fast];
     speeds.dedup();
     let response = reference_path_response(cl, deployment, output::MEASURED_M);
-    let harmonics = Harmonics::sample(s.bins_per_rev, &speeds, period, &response);
+    let (harmonics, checked_on) = match measured {
+        None => (
+            Harmonics::sample(s.bins_per_rev, &speeds, period, &response),
+            "the model's loop".to_owned(),
+        ),
+        Some(measured) => {
+            let extended = measured_path(measured, deployment, &response);
+            (
+                Harmonics::sample_within(s.bins_per_rev, &speeds, period, |f| {
+                    extended.at(f, response(f))
+                }),
+                format!(
+                    "the loop closed on the measured FRF {} up to {:.0} Hz, over each bin's uncertainty; beyond it the model's loop within ±{:.1} %",
+                    measured.source,
+                    extended.top_hz,
+                    100.0 * extended.beyond
+                ),
+            )
+        }
+    };
     let mut learning = Learning {
         bins_per_rev: s.bins_per_rev,
         learning_gain: s.learning_gain,
@@ -115,7 +142,7 @@ pub fn plan(
                 "scenario.repetitive.learning_gain",
                 s.learning_gain,
                 &format!(
-                    "a learning law that converges on this loop: at harmonic {} ({:.0} Hz) a revolution multiplies the error by {:.3} with lead {:.2} ticks (must be < 1); lower learning_gain, raise q_neighbour toward 0.25, or leave lead_ticks out to have it chosen",
+                    "a learning law that converges on this loop: at harmonic {} ({:.0} Hz) a revolution multiplies the error by {:.3} with lead {:.2} ticks (must be < 1; checked on {checked_on}); lower learning_gain, raise q_neighbour toward 0.25, or leave lead_ticks out to have it chosen",
                     convergence.harmonic, convergence.frequency_hz, convergence.factor, convergence.lead_ticks
                 ),
             )
@@ -152,7 +179,36 @@ pub fn plan(
         off_tick: s.off_at_s.map(ticks),
         table,
         sensitivity_v_per_m: config.plant.capa.sensitivity_v_per_m,
+        checked_on,
     })
+}
+
+/// The reference path's response to the reading on the loop closed on `measured` (the run's
+/// feedforward and smoothing applied, as `model` applies them on the model), extended beyond
+/// the measured bins by the model.
+fn measured_path(
+    measured: &MeasuredLoop,
+    deployment: &Deployment,
+    model: &dyn Fn(f64) -> num_complex::Complex64,
+) -> Extended {
+    use num_complex::Complex64 as C;
+    let at_bins: Vec<(C, f64)> = measured
+        .freq_hz
+        .iter()
+        .enumerate()
+        .map(|(k, &f)| {
+            let p = servo_config::reference_path(deployment, f);
+            let reference = C::new(p.reference[0], p.reference[1]);
+            let command = C::new(p.feedforward_v_per_m[0], p.feedforward_v_per_m[1]);
+            let (to_reading, sigma_r) = measured.reference_to_reading[k];
+            let (from_command, sigma_c) = measured.command_to_reading[k];
+            (
+                to_reading * reference + from_command * command,
+                sigma_r * reference.norm() + sigma_c * command.norm(),
+            )
+        })
+        .collect();
+    Extended::new(&measured.freq_hz, &at_bins, model)
 }
 
 /// The measured position's delay behind the tool at low frequency, ticks (the loop model's

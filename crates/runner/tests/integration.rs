@@ -3,6 +3,7 @@
 
 mod example_configs;
 mod fuzz_inputs;
+mod measured_design;
 mod no_alloc;
 mod plan_loop;
 mod protection;

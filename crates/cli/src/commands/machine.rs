@@ -197,6 +197,7 @@ fn print_repetitive(p: &runner::repetitive::RepetitivePlan, report: &FormReport)
         .iter()
         .map(|v| format!("{:.1}", v * 1e9))
         .collect();
+    println!("    checked on {}", p.checked_on);
     println!("  form error RMS per revolution (nm): {}", revs.join(" "));
     if let Some(s) = report.synchronous_rms_m {
         println!(
