@@ -260,7 +260,7 @@ pub struct FirConfig {
     /// Ticks of preview the filter reads ahead of the trajectory (at most 62; the sensor's
     /// lag and the loop's phase need a few tens at 199.6 kHz).
     pub preview_ticks: usize,
-    /// Ticks between taps (≥ 1, `(taps − 1)·stride_ticks` below 2048): the taps span
+    /// Ticks between taps (≥ 1, `taps·stride_ticks` at most 2048): the taps span
     /// `taps·stride_ticks` ticks of the trajectory — the loop's response below a kHz needs
     /// milliseconds — and flatten a band below `rate / (2·stride_ticks)`.
     pub stride_ticks: usize,
@@ -491,11 +491,11 @@ impl RunConfig {
             ));
         }
         let span = servo_config::MAX_FIR_SPAN;
-        if f.stride_ticks == 0 || (f.taps - 1) * f.stride_ticks >= span {
+        if f.stride_ticks == 0 || f.taps * f.stride_ticks > span {
             return Err(at.invalid(
                 "controller.fir.stride_ticks",
                 f.stride_ticks,
-                &format!("at least 1, with (taps − 1)·stride_ticks below {span} ticks"),
+                &format!("at least 1, with taps·stride_ticks at most {span} ticks"),
             ));
         }
         let top = nyquist / f.stride_ticks as f64;

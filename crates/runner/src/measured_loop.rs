@@ -152,7 +152,8 @@ impl Extended {
             None => return (model_at, self.beyond * model_at.norm()),
             Some(0) => self.ratio[0],
             Some(k) => {
-                let t = (f_hz.ln() - f[k - 1].ln()) / (f[k].ln() - f[k - 1].ln());
+                let ln = libm::log;
+                let t = (ln(f_hz) - ln(f[k - 1])) / (ln(f[k]) - ln(f[k - 1]));
                 let (a, b) = (self.ratio[k - 1], self.ratio[k]);
                 (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t)
             }

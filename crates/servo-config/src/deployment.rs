@@ -15,7 +15,7 @@ pub const ZPETC_SECTIONS: usize = 12;
 /// Most taps of an FIR feedforward filter.
 pub const MAX_FIR_TAPS: usize = 128;
 
-/// Ticks of trajectory an FIR feedforward can reach back (`(taps − 1)·stride` below it): the
+/// Ticks of trajectory an FIR feedforward can reach back (`taps·stride` at most this): the
 /// runtime keeps this many past samples (16 KiB; 10 ms at 199.6 kHz, what a loop's response
 /// around its 450 Hz mode needs).
 pub const MAX_FIR_SPAN: usize = 2048;
@@ -347,7 +347,7 @@ pub struct FirSpec {
     pub taps_used: usize,
     /// Ticks of preview: the first tap multiplies the trajectory this far ahead.
     pub preview: usize,
-    /// Ticks between taps (≥ 1; `(taps_used − 1)·stride` < [`MAX_FIR_SPAN`]).
+    /// Ticks between taps (≥ 1; `taps_used·stride` ≤ [`MAX_FIR_SPAN`]).
     pub stride: usize,
 }
 

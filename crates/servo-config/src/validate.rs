@@ -321,12 +321,12 @@ fn check_fir(f: &FirSpec) -> Result<(), Invalid> {
             Allowed::between(0.0, MAX_PREVIEW as f64, "ticks"),
         ));
     }
-    if f.stride == 0 || (f.taps_used - 1) * f.stride >= MAX_FIR_SPAN {
+    if f.stride == 0 || f.taps_used * f.stride > MAX_FIR_SPAN {
         return Err(Invalid::new(
             "feedforward",
             "stride_ticks",
             f.stride as f64,
-            Allowed::Text("at least 1, and (taps − 1)·stride_ticks below 2048 ticks"),
+            Allowed::Text("at least 1, and taps·stride_ticks at most 2048 ticks"),
         ));
     }
     let taps = &f.taps[..f.taps_used];
