@@ -41,7 +41,7 @@ pub mod layout;
 pub mod peers;
 #[cfg(feature = "ipc")]
 pub mod qualify;
-#[cfg(feature = "ipc")]
+#[cfg(feature = "realtime")]
 pub mod realtime;
 #[cfg(feature = "ipc")]
 pub mod recorder_pace;
