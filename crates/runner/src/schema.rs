@@ -265,6 +265,15 @@ fn is_number(node: &Value) -> bool {
 /// The default run with each scenario kind, machining each preset surface (the image
 /// surface's file is [`probe_image`], given to the run as its embedded copy), and machining
 /// with repetitive control.
+/// A run with an FIR feedforward (its keys are checked only then; the FRF is not read before
+/// they are).
+fn fir_feedforward() -> RunConfig {
+    let mut c = RunConfig::default();
+    c.controller.feedforward = run_config::FeedforwardKind::Fir;
+    c.controller.frf_file = Some(crate::plan::FRF_INPUT.into());
+    c
+}
+
 fn base_configs() -> Vec<toml::Value> {
     let image = ImageMap {
         path: SURFACE_INPUT.into(),
@@ -303,6 +312,7 @@ fn base_configs() -> Vec<toml::Value> {
             ..RunConfig::default()
         }))
         .chain(std::iter::once(coil_current_loop()))
+        .chain(std::iter::once(fir_feedforward()))
         .map(|config| toml::Value::try_from(&config).expect("a configuration always serialises"))
         .collect()
 }
