@@ -12,7 +12,8 @@ measure the open-loop FRF in process as the book does (stepped sine, 150 points 
 
 and table per method the median and worst form error (RMS and PV over the whole cut, RMS over
 its last three revolutions) and how many runs diverged (the last three revolutions worse than
-the first) or were refused or tripped (servo exited with an error).
+the first), were refused before the cut (a design that could not be made, a learning law its
+check refused) or tripped (the machine protection stopped the cut).
 
     python3 scripts/scoreboard.py                      # seeds 101-120
     python3 scripts/scoreboard.py --seeds 101 102 103  # these seeds (CI runs three)
@@ -74,7 +75,11 @@ def cut(servo: str, seed_dir: Path, name: str, config: str, extra: list[str]) ->
     p = run([servo, "machine", "-c", f"{out.name}.toml", "--no-record", "--out-dir", out.name,
              *extra], seed_dir)
     if p.returncode != 0:
-        return {"failed": (p.stderr or p.stdout).strip().splitlines()[-1:]}
+        lines = (p.stdout + p.stderr).splitlines()
+        tripped = [line.strip() for line in lines if "TRIPPED" in line]
+        if tripped:
+            return {"failed": tripped[:1], "tripped": True}
+        return {"failed": [line.strip() for line in lines if "error" in line][-1:]}
     d = json.loads((out / "machine.json").read_text())
     revs = d["revolution_rms_m"]
     last = revs[-3:]
@@ -129,12 +134,13 @@ def table(results: list[dict]) -> str:
     lines = [f"{len(results)} practice seeds ({results[0]['seed']}…{results[-1]['seed']}), "
              "stressing freeform at 1000 rpm, FRF: stepped sine, 150 points, 20 Hz – 5 kHz",
              f"{'method':<18} {'RMS nm':>14} {'PV nm':>16} {'last 3 rev RMS':>16} "
-             f"{'diverged':>9} {'failed':>7}",
+             f"{'diverged':>9} {'refused':>8} {'tripped':>8}",
              f"{'':<18} {'median worst':>14} {'median  worst':>16} {'median worst':>16}"]
     for m in METHODS:
         rs = [r["runs"][m] for r in results if "runs" in r]
         ok = [r for r in rs if "failed" not in r]
-        failed = len(rs) - len(ok) + sum(1 for r in results if "runs" not in r)
+        tripped = sum(1 for r in rs if r.get("tripped"))
+        refused = len(rs) - len(ok) - tripped + sum(1 for r in results if "runs" not in r)
 
         def col(key: str) -> str:
             if not ok:
@@ -142,7 +148,7 @@ def table(results: list[dict]) -> str:
             v = [r[key] for r in ok]
             return f"{statistics.median(v):6.1f} {max(v):7.1f}"
         lines.append(f"{m:<18} {col('rms_nm'):>14} {col('pv_nm'):>16} {col('last3_rms_nm'):>16} "
-                     f"{sum(diverged(r) for r in ok):>9} {failed:>7}")
+                     f"{sum(diverged(r) for r in ok):>9} {refused:>8} {tripped:>8}")
     return "\n".join(lines)
 
 
