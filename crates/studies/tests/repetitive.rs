@@ -44,6 +44,22 @@ fn the_flat_blank_cut_error_is_learned_away() {
     for w in rms[2..6].windows(2) {
         assert!(w[1] < 0.75 * w[0], "{rms:?}");
     }
+    // Each revolution's range: together they span the cut's PV, and each holds its RMS.
+    let ranges = &r.revolution_range_m;
+    assert_eq!(ranges.len(), rms.len());
+    let (low, high) = ranges
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), r| {
+            (l.min(r[0]), h.max(r[1]))
+        });
+    assert!(
+        (high - low - r.form_error_m.pv).abs() < 1e-15,
+        "{ranges:?} vs {:?}",
+        r.form_error_m
+    );
+    for (range, rms) in ranges.iter().zip(rms) {
+        assert!(range[1] - range[0] >= *rms, "{range:?} {rms}");
+    }
     let table = summary.meta.repetitive_table_m.expect("the learned table");
     assert_eq!(table.len(), 4096);
     // The correction is the deflection it cancels: a few hundred nm at most.

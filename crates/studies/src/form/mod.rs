@@ -69,6 +69,9 @@ pub struct FormReport {
     /// Form error RMS of each revolution in m (the run's mean removed), the first (outermost)
     /// first: how a repetitive controller converges.
     pub revolution_rms_m: Vec<f64>,
+    /// Lowest and highest form error of each revolution in m, the first (outermost) first: the
+    /// PV of any run of revolutions is the highest of their highs less the lowest of their lows.
+    pub revolution_range_m: Vec<[f64; 2]>,
     /// RMS in m of the spindle-synchronous part of the form error: the error at each angle
     /// averaged over the complete revolutions, the run's mean removed (None: no complete
     /// revolution).
@@ -110,6 +113,8 @@ pub struct FormAnalysis {
     map_count: Vec<u32>,
     /// Per revolution: Σe, Σe², samples.
     revolution_sums: Vec<(f64, f64, u64)>,
+    /// Lowest and highest form error per revolution, m.
+    revolution_range: Vec<[f64; 2]>,
     fit_ata: SMatrix<f64, 5, 5>,
     fit_atb: SVector<f64, 5>,
     segment_from: Option<f64>,
@@ -152,6 +157,7 @@ impl FormAnalysis {
             map_sum: vec![0.0; rows * MAP_COLUMNS],
             map_count: vec![0; rows * MAP_COLUMNS],
             revolution_sums: vec![(0.0, 0.0, 0); rows],
+            revolution_range: vec![[f64::INFINITY, f64::NEG_INFINITY]; rows],
             fit_ata: SMatrix::zeros(),
             fit_atb: SVector::zeros(),
             segment_from: None,
@@ -186,6 +192,8 @@ impl FormAnalysis {
         self.map_count[row * MAP_COLUMNS + col] += 1;
         let sums = &mut self.revolution_sums[row];
         *sums = (sums.0 + e, sums.1 + e * e, sums.2 + 1);
+        let range = &mut self.revolution_range[row];
+        *range = [range[0].min(e), range[1].max(e)];
         if let Some(g) = &self.grid {
             let r = self.cut.radius_m(theta);
             let (x, y) = (r * libm::cos(theta), r * libm::sin(theta));
@@ -258,6 +266,13 @@ impl FormAnalysis {
                     let mu = form.mean;
                     (sq / n - 2.0 * mu * sum / n + mu * mu).max(0.0).sqrt()
                 })
+                .collect(),
+            revolution_range_m: self
+                .revolution_sums
+                .iter()
+                .zip(&self.revolution_range)
+                .filter(|(s, _)| s.2 > 0)
+                .map(|(_, &range)| range)
                 .collect(),
             synchronous_rms_m: self.synchronous_rms(form.mean),
         }
