@@ -71,6 +71,44 @@ fn a_deployment_read_back_is_the_one_written_bit_for_bit() {
     assert!(c.dac_v.is_finite());
 }
 
+/// An FIR feedforward's taps, stride and preview come back bit for bit; taps that reach back
+/// further than the loop keeps, or a stride of 0, are refused by key.
+#[test]
+fn an_fir_deployment_reads_back_and_its_reach_is_checked() {
+    use servo_runtime::deployment::{FirSpec, MAX_FIR_TAPS};
+    let mut d = rich();
+    let mut u = numbers(0x9e37_79b9_7f4a_7c15);
+    let mut taps = [0.0; MAX_FIR_TAPS];
+    for t in taps.iter_mut().take(96) {
+        *t = (u() * 1e3).fract() * 0.04 - 0.02;
+    }
+    taps[0] = 1.0;
+    d.feedforward = FeedforwardSpec::Fir(FirSpec {
+        taps,
+        taps_used: 96,
+        preview: 32,
+        stride: 16,
+    });
+    let text = deployment_toml(&d, None, "fir");
+    let back = parse_deployment(&text, &Origin::default()).unwrap();
+    assert_eq!(back.deployment, d);
+    let mut servo = Servo::new(&back.deployment).unwrap();
+    assert!(servo.tick(&Default::default()).dac_v.is_finite());
+    for (from, to) in [
+        ("stride_ticks = 16", "stride_ticks = 22"),
+        ("stride_ticks = 16", "stride_ticks = 0"),
+    ] {
+        let bad = text.replacen(from, to, 1);
+        let e = parse_deployment(&bad, &Origin::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("feedforward.stride_ticks") && e.contains("2048"),
+            "{e}"
+        );
+    }
+}
+
 #[test]
 fn bad_values_are_named_by_file_line_key_and_range() {
     let text = deployment_toml(&Deployment::thesis_prototype(), None, "t");
