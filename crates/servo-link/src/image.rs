@@ -179,6 +179,14 @@ macro_rules! field {
     };
 }
 
+/// A count or length of at most `max`, named `key` when it is missing or larger.
+fn count(r: &mut Reader, max: usize, key: &'static str) -> Result<usize, ImageError> {
+    r.u64()
+        .and_then(|v| usize::try_from(v).ok())
+        .filter(|&v| v <= max)
+        .ok_or(ImageError { field: key })
+}
+
 fn flag(v: u8, key: &'static str) -> Result<bool, ImageError> {
     match v {
         0 => Ok(false),
@@ -303,61 +311,34 @@ pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
         1 => FeedforwardSpec::Model,
         2 => {
             let gain = field!(r, f64, "feedforward.gain");
-            let preview = field!(r, u64, "feedforward.preview");
-            if preview > MAX_PREVIEW as u64 {
-                return Err(ImageError {
-                    field: "feedforward.preview",
-                });
-            }
-            let used = field!(r, u64, "feedforward.sections");
-            if used > ZPETC_SECTIONS as u64 {
-                return Err(ImageError {
-                    field: "feedforward.sections",
-                });
-            }
+            let preview = count(&mut r, MAX_PREVIEW, "feedforward.preview")?;
+            let used = count(&mut r, ZPETC_SECTIONS, "feedforward.sections")?;
             let mut sections = [[0.0; 5]; ZPETC_SECTIONS];
-            for s in &mut sections[..used as usize] {
+            for s in &mut sections[..used] {
                 for v in s {
                     *v = field!(r, f64, "feedforward.sections");
                 }
             }
             FeedforwardSpec::Zpetc(ZpetcSpec {
                 gain,
-                preview: usize::try_from(preview).map_err(|_| ImageError {
-                    field: "feedforward.preview",
-                })?,
+                preview,
                 sections,
-                sections_used: used as usize,
+                sections_used: used,
             })
         }
         3 => {
-            let preview = field!(r, u64, "feedforward.preview");
-            if preview > MAX_PREVIEW as u64 {
-                return Err(ImageError {
-                    field: "feedforward.preview",
-                });
-            }
-            let stride = field!(r, u64, "feedforward.stride");
-            if stride > MAX_FIR_SPAN as u64 {
-                return Err(ImageError {
-                    field: "feedforward.stride",
-                });
-            }
-            let used = field!(r, u64, "feedforward.taps");
-            if used > MAX_FIR_TAPS as u64 {
-                return Err(ImageError {
-                    field: "feedforward.taps",
-                });
-            }
+            let preview = count(&mut r, MAX_PREVIEW, "feedforward.preview")?;
+            let stride = count(&mut r, MAX_FIR_SPAN, "feedforward.stride")?;
+            let used = count(&mut r, MAX_FIR_TAPS, "feedforward.taps")?;
             let mut taps = [0.0; MAX_FIR_TAPS];
-            for v in &mut taps[..used as usize] {
+            for v in &mut taps[..used] {
                 *v = field!(r, f64, "feedforward.taps");
             }
             FeedforwardSpec::Fir(FirSpec {
                 taps,
-                taps_used: used as usize,
-                preview: preview as usize,
-                stride: stride as usize,
+                taps_used: used,
+                preview,
+                stride,
             })
         }
         _ => {
