@@ -16,7 +16,7 @@ pub struct FirProblem<'a> {
     pub freq_hz: &'a [f64],
     /// The loop to flatten at each bin (m/m).
     pub path: &'a [Complex64],
-    /// Each bin's weight (≥ 0; e.g. its coherence times the band it stands for).
+    /// Each bin's weight (≥ 0; e.g. its coherence).
     pub weight: &'a [f64],
     /// The loop's gain at DC (m/m): `Σ h = 1 / dc_gain` exactly.
     pub dc_gain: f64,
@@ -43,10 +43,13 @@ pub struct FirDesign {
     pub preview: usize,
     /// Ticks between taps.
     pub stride: usize,
-    /// `|T·H − 1|` at each fitted bin (the frequencies in `freq_hz`).
+    /// The fitted bins: indices into the problem's `freq_hz` (those at or below the band,
+    /// with weight and a finite response).
+    pub bins: Vec<usize>,
+    /// `|T·H − 1|` at each fitted bin.
     pub residual: Vec<f64>,
-    /// The fitted bins, Hz.
-    pub freq_hz: Vec<f64>,
+    /// `|H|` at each fitted bin.
+    pub gain: Vec<f64>,
 }
 
 /// Why no filter was fitted.
@@ -187,16 +190,18 @@ pub fn design(p: &FirProblem) -> Result<FirDesign, FirError> {
     q[n] = 1.0;
     let mut taps = solve_conic(&q, &rows, &b, &blocks).map_err(FirError::Solver)?;
     taps.truncate(n);
-    let residual = bins
+    let h: Vec<Complex64> = bins
         .iter()
-        .map(|&k| {
-            (p.path[k] * response(&taps, p.preview, p.stride, p.freq_hz[k], p.period_s) - 1.0)
-                .norm()
-        })
+        .map(|&k| response(&taps, p.preview, p.stride, p.freq_hz[k], p.period_s))
         .collect();
     Ok(FirDesign {
-        residual,
-        freq_hz: bins.iter().map(|&k| p.freq_hz[k]).collect(),
+        residual: bins
+            .iter()
+            .zip(&h)
+            .map(|(&k, h)| (p.path[k] * h - 1.0).norm())
+            .collect(),
+        gain: h.iter().map(|h| h.norm()).collect(),
+        bins,
         taps,
         preview: p.preview,
         stride: p.stride,

@@ -130,18 +130,16 @@ pub fn fir(
             })
         })?
         .re;
-    let f = &measured.freq_hz;
     // Each bin as much as its coherence (a log-spaced measurement puts its bins where the
     // loop's response changes fastest: per bin, not per hertz).
-    let weight = &measured.coherence;
     let d = design::fir::design(&FirProblem {
-        freq_hz: f,
+        freq_hz: &measured.freq_hz,
         path: &measured.reference_to_tool,
-        weight,
+        weight: &measured.coherence,
         dc_gain,
         period_s: cl.period_s,
-        taps: c.taps.min(MAX_FIR_TAPS),
-        preview: c.preview_ticks.min(MAX_PREVIEW),
+        taps: c.taps,
+        preview: c.preview_ticks,
         stride: c.stride_ticks,
         band_hz: c.band_hz,
         max_gain_above_band: c.max_gain,
@@ -155,19 +153,17 @@ pub fn fir(
     };
     spec.taps[..d.taps.len()].copy_from_slice(&d.taps);
     let (mut worst, mut worst_disk, mut worst_hz) = (0.0f64, 0.0f64, 0.0);
-    for (k, &fk) in f.iter().enumerate().filter(|(_, &fk)| fk <= c.band_hz) {
-        let h = design::fir::response(&d.taps, d.preview, d.stride, fk, cl.period_s);
-        let centre = (measured.reference_to_tool[k] * h - 1.0).norm();
-        let disk = centre + measured.uncertainty[k] * h.norm();
+    for ((&k, &centre), &gain) in d.bins.iter().zip(&d.residual).zip(&d.gain) {
+        let disk = centre + measured.uncertainty[k] * gain;
         worst = worst.max(centre);
         if disk > worst_disk {
-            (worst_disk, worst_hz) = (disk, fk);
+            (worst_disk, worst_hz) = (disk, measured.freq_hz[k]);
         }
     }
     Ok(FirFit {
         spec,
         source: measured.source.clone(),
-        bins: d.freq_hz.len(),
+        bins: d.bins.len(),
         band_hz: c.band_hz,
         worst_residual: worst,
         worst_residual_in_disk: worst_disk,
