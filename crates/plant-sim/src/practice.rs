@@ -122,22 +122,21 @@ impl PracticeStage {
     }
 
     /// The mount's response at `f_hz` (its discrete form, at the servo period): what the
-    /// reading sees of the gap, dimensionless (for judging a measurement against the truth).
+    /// reading sees of the gap, dimensionless (for judging a measurement against the truth; NaN
+    /// on a pole of the discretised mount, which damping keeps off the unit circle).
     pub fn mount_response(&self, f_hz: f64) -> num_complex::Complex64 {
-        use num_complex::Complex64 as C;
         let (a, b, c, d) = &self.mount;
-        let z = C::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * self.sim.period_s());
-        // c·(zI − A)⁻¹·b + d for the 2×2 A.
-        let (m00, m01, m10, m11) = (
-            z - a[0][0],
-            C::from(-a[0][1]),
-            C::from(-a[1][0]),
-            z - a[1][1],
-        );
-        let det = m00 * m11 - m01 * m10;
-        let x0 = (m11 * b[0] - m01 * b[1]) / det;
-        let x1 = (m00 * b[1] - m10 * b[0]) / det;
-        x0 * c[0] + x1 * c[1] + d
+        let mount = StateSpace {
+            a: DMatrix::from_row_slice(2, 2, &[a[0][0], a[0][1], a[1][0], a[1][1]]),
+            b: DMatrix::from_row_slice(2, 1, b),
+            c: DMatrix::from_row_slice(1, 2, c),
+            d: DMatrix::from_element(1, 1, *d),
+        };
+        mount
+            .freq_response_discrete(f_hz, self.sim.period_s())
+            .map_or(num_complex::Complex64::new(f64::NAN, f64::NAN), |h| {
+                h[(0, 0)]
+            })
     }
 
     /// The simulator of the drawn stage (before the mount).
