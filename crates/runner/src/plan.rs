@@ -139,19 +139,11 @@ impl Plan {
         }
         let ss = match (&c.kind, &c.ss_file) {
             (ControllerKind::Ss, Some(path)) => {
-                let read = inputs.iter().find(|i| i.name == CONTROLLER_INPUT);
-                let text = match read {
-                    Some(i) => String::from_utf8_lossy(&i.data).into_owned(),
-                    None => {
-                        let text = read_text(path)?;
-                        inputs.push(Input {
-                            name: CONTROLLER_INPUT.into(),
-                            media_type: "application/toml".into(),
-                            data: text.clone().into_bytes(),
-                        });
-                        text
-                    }
-                };
+                let bytes =
+                    input_or_read(&mut inputs, CONTROLLER_INPUT, "application/toml", || {
+                        read_text(path).map(String::into_bytes)
+                    })?;
+                let text = String::from_utf8_lossy(&bytes);
                 Some(read_ss_file(&text, path, &config, &run)?)
             }
             _ => {
@@ -266,19 +258,9 @@ fn measured_loop(
         inputs.retain(|i| i.name != FRF_INPUT);
         return Ok(None);
     };
-    let bytes = match inputs.iter().find(|i| i.name == FRF_INPUT) {
-        Some(i) => i.data.clone(),
-        None => {
-            let bytes =
-                run_config::input_file::read_input(path, run_config::input_file::MAX_TEXT_BYTES)?;
-            inputs.push(Input {
-                name: FRF_INPUT.into(),
-                media_type: "text/csv".into(),
-                data: bytes.clone(),
-            });
-            bytes
-        }
-    };
+    let bytes = input_or_read(inputs, FRF_INPUT, "text/csv", || {
+        run_config::input_file::read_input(path, run_config::input_file::MAX_TEXT_BYTES)
+    })?;
     let nyquist = config.plant.timing.servo_rate_hz / 2.0;
     let frf = run_config::frf_file::parse_frf(&bytes, path, nyquist)?;
     let sensitivity = config.plant.capa.sensitivity_v_per_m;
@@ -333,6 +315,26 @@ pub fn located_in_run(e: &Invalid, at: &Origin) -> ConfigError {
         _ => *e,
     };
     at.located(&e)
+}
+
+/// The bytes of the input file `name`: the recording's embedded copy from `inputs` when there,
+/// else `read` and added to `inputs` (so a recording of the run carries it).
+pub(crate) fn input_or_read<E>(
+    inputs: &mut Vec<Input>,
+    name: &str,
+    media_type: &str,
+    read: impl FnOnce() -> Result<Vec<u8>, E>,
+) -> Result<Vec<u8>, E> {
+    if let Some(i) = inputs.iter().find(|i| i.name == name) {
+        return Ok(i.data.clone());
+    }
+    let data = read()?;
+    inputs.push(Input {
+        name: name.into(),
+        media_type: media_type.into(),
+        data: data.clone(),
+    });
+    Ok(data)
 }
 
 /// The bytes of the file `surface` names: the recording's embedded copy from `inputs` when

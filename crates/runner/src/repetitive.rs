@@ -265,26 +265,18 @@ fn load_table(
     origin: &Origin,
 ) -> Result<Vec<f64>, RunError> {
     let key = "scenario.repetitive.table";
-    let text = match inputs.iter().find(|i| i.name == TABLE_INPUT) {
-        Some(i) => String::from_utf8_lossy(&i.data).into_owned(),
-        None => {
-            let shown = path.display().to_string();
-            let text =
-                daq_io::input_file::read_regular_text(path, MAX_TABLE_BYTES).map_err(|e| {
-                    origin.invalid(
-                        key,
-                        &shown,
-                        &format!("a UTF-8 CSV file, regular, of at most 1 MiB ({e})"),
-                    )
-                })?;
-            inputs.push(Input {
-                name: TABLE_INPUT.into(),
-                media_type: "text/csv".into(),
-                data: text.clone().into_bytes(),
-            });
-            text
-        }
-    };
+    let bytes = crate::plan::input_or_read(inputs, TABLE_INPUT, "text/csv", || {
+        daq_io::input_file::read_regular_text(path, MAX_TABLE_BYTES)
+            .map(String::into_bytes)
+            .map_err(|e| {
+                origin.invalid(
+                    key,
+                    path.display(),
+                    &format!("a UTF-8 CSV file, regular, of at most 1 MiB ({e})"),
+                )
+            })
+    })?;
+    let text = String::from_utf8_lossy(&bytes);
     parse_table(&text, s.bins_per_rev, s.limit_m).map_err(|why| {
         origin
             .invalid(
