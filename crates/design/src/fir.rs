@@ -218,6 +218,29 @@ fn tap_phasor(delay: usize, preview: usize, f_hz: f64, period_s: f64) -> Complex
 mod tests {
     use super::*;
 
+    /// The fit of `path` at `freq` (equal weights, DC gain 1, taps one tick apart, 0.1 ms).
+    fn fit(
+        freq: &[f64],
+        path: &[Complex64],
+        (taps, preview): (usize, usize),
+        band_hz: f64,
+        max_gain_above_band: f64,
+    ) -> FirDesign {
+        design(&FirProblem {
+            freq_hz: freq,
+            path,
+            weight: &vec![1.0; freq.len()],
+            dc_gain: 1.0,
+            period_s: 1e-4,
+            taps,
+            preview,
+            stride: 1,
+            band_hz,
+            max_gain_above_band,
+        })
+        .unwrap()
+    }
+
     /// A pure delay of `d` ticks is inverted exactly by a preview of `d` ticks: fitted up to
     /// near Nyquist, the fit finds the single tap.
     #[test]
@@ -228,20 +251,7 @@ mod tests {
             .iter()
             .map(|f| Complex64::from_polar(1.0, -2.0 * std::f64::consts::PI * f * period * 3.0))
             .collect();
-        let weight = vec![1.0; freq.len()];
-        let d = design(&FirProblem {
-            freq_hz: &freq,
-            path: &path,
-            weight: &weight,
-            dc_gain: 1.0,
-            period_s: period,
-            taps: 12,
-            preview: 5,
-            stride: 1,
-            band_hz: 3975.0,
-            max_gain_above_band: 1.5,
-        })
-        .unwrap();
+        let d = fit(&freq, &path, (12, 5), 3975.0, 1.5);
         for (i, t) in d.taps.iter().enumerate() {
             let want = if i == 2 { 1.0 } else { 0.0 };
             assert!((t - want).abs() < 1e-5, "tap {i}: {t}");
@@ -263,20 +273,7 @@ mod tests {
                 a / (1.0 - (1.0 - a) * z1)
             })
             .collect();
-        let weight = vec![1.0; freq.len()];
-        let d = design(&FirProblem {
-            freq_hz: &freq,
-            path: &path,
-            weight: &weight,
-            dc_gain: 1.0,
-            period_s: period,
-            taps: 6,
-            preview: 1,
-            stride: 1,
-            band_hz: 3980.0,
-            max_gain_above_band: 10.0,
-        })
-        .unwrap();
+        let d = fit(&freq, &path, (6, 1), 3980.0, 10.0);
         let want = [0.0, 1.0 / a, -(1.0 - a) / a, 0.0, 0.0, 0.0];
         for (t, w) in d.taps.iter().zip(want) {
             assert!((t - w).abs() < 1e-4, "{:?}", d.taps);
@@ -293,21 +290,8 @@ mod tests {
             .iter()
             .map(|f| Complex64::new(1.0, 0.0) / (1.0 + Complex64::new(0.0, f / 200.0)).powi(2))
             .collect();
-        let weight = vec![1.0; freq.len()];
         let bound = 2.0;
-        let d = design(&FirProblem {
-            freq_hz: &freq,
-            path: &path,
-            weight: &weight,
-            dc_gain: 1.0,
-            period_s: period,
-            taps: 24,
-            preview: 12,
-            stride: 1,
-            band_hz: 1000.0,
-            max_gain_above_band: bound,
-        })
-        .unwrap();
+        let d = fit(&freq, &path, (24, 12), 1000.0, bound);
         let sum: f64 = d.taps.iter().sum();
         assert!((sum - 1.0).abs() < 1e-7, "DC gain {sum}");
         for k in 0..400 {
