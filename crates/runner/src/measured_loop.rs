@@ -94,7 +94,7 @@ impl MeasuredLoop {
 }
 
 /// Smallest relative uncertainty assumed for the model beyond the measured band.
-pub const MIN_BEYOND: f64 = 0.05;
+const MIN_BEYOND: f64 = 0.05;
 
 /// Bins at the top of the band whose disagreement with the model sets the allowance beyond it.
 const TOP_BINS: usize = 10;
@@ -103,7 +103,7 @@ const TOP_BINS: usize = 10;
 /// measurement, between them the model times the measured-to-model ratio interpolated (in log
 /// frequency), below the first bin that ratio held; beyond the last bin the model, known within
 /// `beyond` of its magnitude — the largest relative disagreement between measurement and model
-/// (plus the measurement's own uncertainty) over the band's top bins, at least [`MIN_BEYOND`]:
+/// (plus the measurement's own uncertainty) over the band's top bins, at least 5 %:
 /// an FRF stops where it was measured, and a check beyond it errs safe.
 #[derive(Debug, Clone)]
 pub struct Extended {
