@@ -40,6 +40,7 @@ pub mod remote_plant;
 pub mod repetitive;
 pub mod replay;
 pub mod run;
+mod run_input;
 pub mod schema;
 pub mod stall;
 pub mod stop;

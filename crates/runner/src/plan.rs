@@ -10,6 +10,7 @@ use crate::error::RunError;
 use crate::feedforward::{feedforward_spec, FirFit};
 use crate::measured_loop::MeasuredLoop;
 use crate::repetitive::RepetitivePlan;
+use crate::run_input::input_or_read;
 use plant_sim::params::CurrentLoopModel;
 use plant_sim::Simulator;
 use recorder::Input;
@@ -315,26 +316,6 @@ pub fn located_in_run(e: &Invalid, at: &Origin) -> ConfigError {
         _ => *e,
     };
     at.located(&e)
-}
-
-/// The bytes of the input file `name`: the recording's embedded copy from `inputs` when there,
-/// else `read` and added to `inputs` (so a recording of the run carries it).
-pub(crate) fn input_or_read<E>(
-    inputs: &mut Vec<Input>,
-    name: &str,
-    media_type: &str,
-    read: impl FnOnce() -> Result<Vec<u8>, E>,
-) -> Result<Vec<u8>, E> {
-    if let Some(i) = inputs.iter().find(|i| i.name == name) {
-        return Ok(i.data.clone());
-    }
-    let data = read()?;
-    inputs.push(Input {
-        name: name.into(),
-        media_type: media_type.into(),
-        data: data.clone(),
-    });
-    Ok(data)
 }
 
 /// The bytes of the file `surface` names: the recording's embedded copy from `inputs` when

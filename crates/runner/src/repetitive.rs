@@ -265,7 +265,7 @@ fn load_table(
     origin: &Origin,
 ) -> Result<Vec<f64>, RunError> {
     let key = "scenario.repetitive.table";
-    let bytes = crate::plan::input_or_read(inputs, TABLE_INPUT, "text/csv", || {
+    let bytes = crate::run_input::input_or_read(inputs, TABLE_INPUT, "text/csv", || {
         daq_io::input_file::read_regular_text(path, MAX_TABLE_BYTES)
             .map(String::into_bytes)
             .map_err(|e| {
