@@ -7,7 +7,7 @@ use plant_sim::params::NoiseParams;
 use run_config::presets::{ScenarioKind, ScenarioValues, StagePreset};
 use run_config::{ConfigError, ControllerConfig, ControllerKind, FeedforwardKind, Loaded};
 use std::num::NonZeroU32;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The stage and where the configuration comes from (every command that models the loop).
 #[derive(Args, Debug, Clone)]
@@ -172,14 +172,28 @@ pub struct FeedforwardArgs {
 }
 
 impl FeedforwardArgs {
-    /// Applies the flags.
-    pub fn apply(&self, c: &mut ControllerConfig) {
+    /// Applies the flags; `config_file` is the configuration file the paths in `c` are
+    /// resolved against.
+    pub fn apply(&self, c: &mut ControllerConfig, config_file: Option<&Path>) {
         set(&mut c.feedforward, self.feedforward);
         set(&mut c.smoothing_hz, self.smoothing_hz);
         if let Some(path) = &self.frf {
-            c.frf_file = Some(path.clone());
+            c.frf_file = Some(from_working_dir(path, config_file));
         }
     }
+}
+
+/// A path given on the command line, which names a file from the working directory: as given
+/// where the configuration's paths are resolved there too (no file, or a file in this folder),
+/// else made absolute, so the configuration file's folder does not move it.
+fn from_working_dir(path: &Path, config_file: Option<&Path>) -> PathBuf {
+    let resolved_here = config_file
+        .and_then(Path::parent)
+        .is_none_or(|folder| folder.as_os_str().is_empty());
+    if resolved_here || path.is_absolute() {
+        return path.to_owned();
+    }
+    std::path::absolute(path).unwrap_or_else(|_| path.to_owned())
 }
 
 /// What the stage is asked to do.
@@ -251,7 +265,9 @@ impl RunArgs {
         let mut l = self.plant.load()?;
         self.length.apply(&mut l);
         self.controller.apply(&mut l.config.controller);
-        self.feedforward.apply(&mut l.config.controller);
+        let file = l.origin.path.clone();
+        self.feedforward
+            .apply(&mut l.config.controller, file.as_deref());
         self.scenario.apply(&mut l);
         Ok(l)
     }

@@ -305,24 +305,44 @@ pub fn print_written(w: &studies::report::Written) {
     }
 }
 
-/// The loop's margins in one line.
+/// The loop's margins in one line, and on the measured FRF when the run names one.
 pub fn print_margins(plan: &runner::Plan) {
     match studies::margins::loop_margins(plan) {
-        Ok(m) => {
-            let f = |v: Option<f64>, unit: &str| {
-                v.map_or("–".to_string(), |x| format!("{x:.1} {unit}"))
-            };
-            println!(
-                "  margins (loop broken at the DAC): phase {} at {}, gain {} at {}, lower gain {}",
-                f(m.phase_margin_deg, "°"),
-                f(m.gain_crossover_hz, "Hz"),
-                f(m.gain_margin_db, "dB"),
-                f(m.phase_crossover_hz, "Hz"),
-                f(m.lower_gain_margin_db, "dB")
-            );
-        }
+        Ok(m) => println!("  margins (loop broken at the DAC): {}", margins_text(&m)),
         Err(e) => println!("  margins: {e}"),
     }
+    if let Some(measured) = &plan.measured {
+        let s = &measured.stability;
+        let v = s.verdict;
+        println!(
+            "  on the measured FRF {}: {}; sensitivity peak {:.1} dB at {:.0} Hz",
+            measured.source,
+            margins_text(&s.margins),
+            v.sensitivity_peak.0,
+            v.sensitivity_peak.1
+        );
+        println!(
+            "    {} over every bin's uncertainty disk: |1 + L| − r ≥ {:.3} (at {:.0} Hz); beyond {:.0} Hz the model within ±{:.0} %",
+            if v.robustly_stable() { "stable" } else { "NOT stable" },
+            v.disk_distance.0,
+            v.disk_distance.1,
+            s.top_hz,
+            100.0 * s.beyond
+        );
+    }
+}
+
+/// Phase and gain margins with their frequencies.
+fn margins_text(m: &design::loops::Margins) -> String {
+    let f = |v: Option<f64>, unit: &str| v.map_or("–".to_string(), |x| format!("{x:.1} {unit}"));
+    format!(
+        "phase {} at {}, gain {} at {}, lower gain {}",
+        f(m.phase_margin_deg, "°"),
+        f(m.gain_crossover_hz, "Hz"),
+        f(m.gain_margin_db, "dB"),
+        f(m.phase_crossover_hz, "Hz"),
+        f(m.lower_gain_margin_db, "dB")
+    )
 }
 
 /// A run's summary, as text or JSON.

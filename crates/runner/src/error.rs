@@ -23,6 +23,21 @@ pub enum RunError {
         /// Controller description.
         controller: String,
     },
+    /// The loop closed on the measured FRF the run names (`controller.frf_file`) is unstable,
+    /// or a loop within the measurement's uncertainty disks is.
+    #[error("{}", unstable_on_measured(frf, *stable, *distance, *at_hz, controller))]
+    UnstableOnMeasured {
+        /// The FRF file and its SHA-256.
+        frf: String,
+        /// The measured loop itself is stable (only its uncertainty allows instability).
+        stable: bool,
+        /// The smallest `|1 + L| − r` (the uncertainty radius `r`), and where, Hz.
+        distance: f64,
+        /// Where the loop comes nearest −1, Hz.
+        at_hz: f64,
+        /// Controller description.
+        controller: String,
+    },
     /// The ZPETC or FIR feedforward could not be designed for this loop.
     #[error(transparent)]
     Feedforward(#[from] FeedforwardError),
@@ -136,6 +151,29 @@ fn readable(radius: f64) -> String {
         format!("{radius:.6}")
     } else {
         format!("{radius:.3e}")
+    }
+}
+
+/// Why the loop on a measured FRF was refused, in words.
+fn unstable_on_measured(
+    frf: &str,
+    stable: bool,
+    distance: f64,
+    at_hz: f64,
+    controller: &str,
+) -> String {
+    if stable {
+        format!(
+            "the measured FRF {frf} (controller.frf_file) allows an unstable loop with \
+             {controller}: at {at_hz:.0} Hz its uncertainty disk reaches −1 (|1 + L| − r = \
+             {distance:.3}); measure with more averages there or lower the gains; nothing was run"
+        )
+    } else {
+        format!(
+            "the closed loop on the measured FRF {frf} (controller.frf_file) is unstable with \
+             {controller}: its Nyquist plot encircles −1 where the model's does not (nearest at \
+             {at_hz:.0} Hz); lower the gains; nothing was run"
+        )
     }
 }
 

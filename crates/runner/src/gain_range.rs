@@ -7,6 +7,7 @@
 use crate::closed_loop::ClosedLoop;
 use crate::controller::LinearController;
 use crate::error::RunError;
+use crate::measured_loop::MeasuredLoop;
 use crate::plan::{linear_tick_of, Plan};
 use servo_config::{Deployment, Stability};
 
@@ -20,8 +21,9 @@ pub fn checked(plan: &Plan) -> Result<Deployment, RunError> {
 
 /// The stability of `plan`'s loop, sealed to it ([`Stability::sealed`]): its spectral radius and
 /// its gain range, by bisection on the spectral radius of the sampled closed loop with the
-/// controller's output scaled (to 1e-6 relative); [`RunError::Unstable`] when the loop is not
-/// stable as it is.
+/// controller's output scaled (to 1e-6 relative) and, with a measured FRF, on the loop closed on
+/// it over every bin's uncertainty disk ([`crate::measured_loop::Verdict`]: the range is the one
+/// both allow); [`RunError::Unstable`] when the loop is not stable as it is.
 pub fn gain_range(plan: &Plan) -> Result<Stability, RunError> {
     let spectral_radius = plan.check_stable()?;
     let c = &plan.config;
@@ -39,7 +41,8 @@ pub fn gain_range(plan: &Plan) -> Result<Stability, RunError> {
             c.plant.capa.sensitivity_v_per_m,
             plan.period_s(),
         );
-        cl.spectral_radius() < 1.0
+        let on_measured = |m: &MeasuredLoop| m.stability.at_scale(k).robustly_stable();
+        cl.spectral_radius() < 1.0 && plan.measured.as_ref().is_none_or(on_measured)
     };
     let d = &plan.deployment;
     Ok(Stability {

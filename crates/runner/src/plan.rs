@@ -212,12 +212,27 @@ impl Plan {
 
     /// The spectral radius of the sampled closed loop, or [`RunError::Unstable`] when it is
     /// ≥ 1 or not a number (coefficients that overflow; the pre-run check of every run and of
-    /// every HIL process).
+    /// every HIL process); with a measured FRF ([`Plan::measured`]),
+    /// [`RunError::UnstableOnMeasured`] when the loop on it, or any within its uncertainty
+    /// disks, is not stable.
     pub fn check_stable(&self) -> Result<f64, RunError> {
         let radius = self.closed_loop.spectral_radius();
         if radius.is_nan() || radius >= 1.0 {
             return Err(RunError::Unstable {
                 radius,
+                controller: self.controller.description.clone(),
+            });
+        }
+        if let Some(m) = &self.measured {
+            let v = m.stability.verdict;
+            if v.robustly_stable() {
+                return Ok(radius);
+            }
+            return Err(RunError::UnstableOnMeasured {
+                frf: m.source.clone(),
+                stable: v.stable,
+                distance: v.disk_distance.0,
+                at_hz: v.disk_distance.1,
                 controller: self.controller.description.clone(),
             });
         }

@@ -11,12 +11,18 @@ use std::path::Path;
 /// `frf.csv` of the plan's model, open loop, at 80 points from 20 Hz to 5 kHz, each point's
 /// uncertainty `relative` of its magnitude.
 fn model_frf(plan: &Plan, relative: f64, path: &Path) {
+    scaled_model_frf(plan, 1.0, relative, (20.0, 5000.0), path);
+}
+
+/// `frf.csv` of a stage `gain` times the plan's model, open loop, at 80 points over `band_hz`,
+/// each point's uncertainty `relative` of its magnitude.
+fn scaled_model_frf(plan: &Plan, gain: f64, relative: f64, band_hz: (f64, f64), path: &Path) {
     let open = ClosedLoop::open(&plan.sim, plan.config.plant.capa.sensitivity_v_per_m).unwrap();
     let mut csv = String::from(
         "# fts-servo frf: quantity = P (the model)\nfreq_hz,magnitude_m_per_v,phase_deg,coherence,uncertainty_m_per_v\n",
     );
-    for f in lti::spectral::log_space(20.0, 5000.0, 80) {
-        let p = open.command_response(f).unwrap();
+    for f in lti::spectral::log_space(band_hz.0, band_hz.1, 80) {
+        let p = gain * open.command_response(f).unwrap();
         csv += &format!(
             "{f:.9},{:.15e},{:.12},1,{:.6e}\n",
             p.norm(),
@@ -105,4 +111,52 @@ fn repetitive_control_is_checked_over_the_measured_disks() {
         e.contains("Hz) a revolution") && e.contains("measured FRF"),
         "{e}"
     );
+}
+
+/// The feedback loop checked on a measured FRF agrees with the eigenvalues of the sampled
+/// closed loop: a stage `g` times the model is the model's loop with the controller's output
+/// scaled by `g`, which `gain_range` finds stable only between its two limits (by the spectral
+/// radius, not by frequency responses). Measured from 20 Hz to 90 kHz, the loop is accepted 2 %
+/// inside either limit and refused 2 % outside as unstable; 2 % inside with each bin's
+/// uncertainty 5 % of its magnitude, the disks reach −1 and it is refused as allowing
+/// instability; the deployment's gain range is what both loops allow (the stage's limits are
+/// the model's divided by `g`).
+#[test]
+fn the_loop_on_a_measured_frf_is_as_stable_as_its_eigenvalues_say() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = Plan::new(&Loaded::default()).unwrap();
+    let range = runner::gain_range::gain_range(&model).unwrap();
+    let (low, high) = (range.unstable_below, range.unstable_above);
+    assert!(low > 0.0 && high.is_finite(), "{low} {high}");
+    let checked = |gain: f64, relative: f64| {
+        let frf = dir.path().join(format!("frf-{gain}-{relative}.csv"));
+        scaled_model_frf(&model, gain, relative, (20.0, 90_000.0), &frf);
+        let mut loaded = Loaded::default();
+        loaded.config.controller.frf_file = Some(frf);
+        let plan = Plan::new(&loaded).unwrap();
+        plan.check_stable().map(|_| plan)
+    };
+    for gain in [high / 1.02, low * 1.02] {
+        let plan = checked(gain, 0.0).unwrap();
+        let on_measured = runner::gain_range::gain_range(&plan).unwrap();
+        for (got, want) in [
+            (on_measured.unstable_above, (high / gain).min(high)),
+            (on_measured.unstable_below, (low / gain).max(low)),
+        ] {
+            assert!(
+                (got / want - 1.0).abs() < 2e-3,
+                "g = {gain}: {got} vs {want}"
+            );
+        }
+    }
+    for gain in [high * 1.02, low / 1.02] {
+        let e = checked(gain, 0.0)
+            .err()
+            .expect("unstable on the measurement");
+        assert!(e.to_string().contains("is unstable"), "g = {gain}: {e}");
+    }
+    let e = checked(high / 1.02, 0.05)
+        .err()
+        .expect("the disks reach −1");
+    assert!(e.to_string().contains("allows an unstable loop"), "{e}");
 }

@@ -59,16 +59,24 @@ impl DeployCmd {
 /// The stall the stage rides out with the DAC held (a daemon's loop that stops: the DAC keeps
 /// its last value), for the daemon's host to be qualified against.
 fn print_survivable_stall(plan: &Plan) -> Result<(), CliError> {
-    let what = match survivable(plan, plan.config.realtime.peer_timeout_s) {
+    let (what, predicted) = match survivable(plan, plan.config.realtime.peer_timeout_s) {
         Ok(s) => match (s.physics_s(), s.physics_limit) {
-            (Some(p), Some(limit)) => format!("up to {:.1} µs ({})", p * 1e6, limit.describe()),
-            _ => format!("more than {:.0} ms", MAX_STALL_S * 1e3),
+            (Some(p), Some(limit)) => (
+                format!("up to {:.1} µs ({})", p * 1e6, limit.describe()),
+                true,
+            ),
+            _ => (format!("more than {:.0} ms", MAX_STALL_S * 1e3), true),
         },
-        Err(RunError::StallAnalysis(why)) => format!("not predicted: {why}"),
+        Err(RunError::StallAnalysis(why)) => (format!("not predicted: {why}"), false),
         Err(e) => return Err(e.into()),
     };
     println!(
         "  a stalled loop (DAC held): the stage rides out {what}; qualify the daemon's host with servo latency"
     );
+    if predicted && plan.measured.is_some() {
+        println!(
+            "    (predicted on the plant model: a stall is a transient from the loop's state, which the measured FRF does not give)"
+        );
+    }
     Ok(())
 }

@@ -57,7 +57,8 @@ impl ReplayCmd {
             replay.config_mut().controller = crate::args::controller_from(p)?;
         }
         self.controller.apply(&mut replay.config_mut().controller);
-        self.feedforward.apply(&mut replay.config_mut().controller);
+        self.feedforward
+            .apply(&mut replay.config_mut().controller, None);
         if let Some(p) = &self.plant {
             replay.replace_plant(read_plant_file(p)?);
         }

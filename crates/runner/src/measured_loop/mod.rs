@@ -15,6 +15,11 @@ use lti::{FrequencyResponse, LtiError};
 use num_complex::Complex64;
 use run_config::frf_file::MeasuredFrf;
 
+mod extended;
+mod stability;
+pub use extended::Extended;
+pub use stability::{MeasuredStability, Verdict};
+
 /// Reference → tool (m/m) at each bin of a measured FRF, the loop closed on the measurement.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeasuredLoop {
@@ -30,8 +35,13 @@ pub struct MeasuredLoop {
     /// A command added to the controller's output (a feedforward's volts) → measured
     /// position at each bin (m/V), and its uncertainty radius.
     pub command_to_reading: Vec<(Complex64, f64)>,
+    /// The loop gain broken at the DAC, `L = −(K_gap·S·P + K_acc·P_acc)` (negative feedback,
+    /// `1 + L`; as [`ClosedLoop::loop_gain`]) at each bin, and its uncertainty radius.
+    pub loop_gain: Vec<(Complex64, f64)>,
     /// The FRF's coherence at each bin.
     pub coherence: Vec<f64>,
+    /// The feedback loop's stability on the measurement.
+    pub stability: MeasuredStability,
     /// The FRF file and its SHA-256.
     pub source: String,
 }
@@ -56,15 +66,12 @@ impl MeasuredLoop {
         ));
         let controller = FrequencyResponse::new(&ctrl.state_space());
         let period = open.period_s;
-        let mut out = MeasuredLoop {
-            freq_hz: frf.freq_hz.clone(),
-            reference_to_tool: Vec::with_capacity(frf.freq_hz.len()),
-            uncertainty: Vec::with_capacity(frf.freq_hz.len()),
-            reference_to_reading: Vec::with_capacity(frf.freq_hz.len()),
-            command_to_reading: Vec::with_capacity(frf.freq_hz.len()),
-            coherence: frf.coherence.clone(),
-            source: frf.source.clone(),
-        };
+        let n = frf.freq_hz.len();
+        let (mut reference_to_tool, mut uncertainty) =
+            (Vec::with_capacity(n), Vec::with_capacity(n));
+        let mut reference_to_reading = Vec::with_capacity(n);
+        let (mut command_to_reading, mut loop_gain) =
+            (Vec::with_capacity(n), Vec::with_capacity(n));
         for (k, (&f, &measured)) in frf.freq_hz.iter().zip(&frf.response).enumerate() {
             let m = model.discrete(f, period)?;
             let (reading, tool, accel) = (m[(0, 0)], m[(1, 0)], m[(2, 0)]);
@@ -74,91 +81,38 @@ impl MeasuredLoop {
             let to_tool = tool / reading;
             // u = K_g·S·(m − r) + K_a·a with m = P·u, a = P·(accel/reading), tool = P·(tool/reading)·u.
             let feed = -k_gap * s * to_tool;
-            let loop_gain = k_gap * s + k_accel * accel / reading;
-            let denominator = 1.0 - loop_gain * measured;
-            out.reference_to_tool.push(feed * measured / denominator);
+            let kappa = k_gap * s + k_accel * accel / reading;
+            let denominator = 1.0 - kappa * measured;
+            reference_to_tool.push(feed * measured / denominator);
             let sigma = frf.uncertainty.as_ref().map_or(0.0, |u| u[k]);
             // d/dP of a·P/(1 − κP) is a/(1 − κP)².
             let spread = sigma / denominator.norm_sqr();
-            out.uncertainty.push(feed.norm() * spread);
+            uncertainty.push(feed.norm() * spread);
             let to_reading = -k_gap * s;
-            out.reference_to_reading.push((
+            reference_to_reading.push((
                 to_reading * measured / denominator,
                 to_reading.norm() * spread,
             ));
-            out.command_to_reading
-                .push((measured / denominator, spread));
+            command_to_reading.push((measured / denominator, spread));
+            loop_gain.push((-kappa * measured, kappa.norm() * sigma));
         }
-        Ok(out)
-    }
-}
-
-/// Smallest relative uncertainty assumed for the model beyond the measured band.
-const MIN_BEYOND: f64 = 0.05;
-
-/// Bins at the top of the band whose disagreement with the model sets the allowance beyond it.
-const TOP_BINS: usize = 10;
-
-/// A loop response known at every frequency from a measured one: at the measured bins the
-/// measurement, between them the model times the measured-to-model ratio interpolated (in log
-/// frequency), below the first bin that ratio held; beyond the last bin the model, known within
-/// `beyond` of its magnitude — the largest relative disagreement between measurement and model
-/// (plus the measurement's own uncertainty) over the band's top bins, at least 5 %:
-/// an FRF stops where it was measured, and a check beyond it errs safe.
-#[derive(Debug, Clone)]
-pub struct Extended {
-    freq_hz: Vec<f64>,
-    /// Measured over model at each bin, and the measurement's radius over the model's magnitude.
-    ratio: Vec<(Complex64, f64)>,
-    /// Relative radius assumed beyond the last bin.
-    pub beyond: f64,
-    /// The last measured frequency, Hz.
-    pub top_hz: f64,
-}
-
-impl Extended {
-    /// The measured `(response, radius)` at `freq_hz` beside the model's `model(f)`.
-    pub fn new(
-        freq_hz: &[f64],
-        measured: &[(Complex64, f64)],
-        model: &dyn Fn(f64) -> Complex64,
-    ) -> Self {
-        let ratio: Vec<(Complex64, f64)> = freq_hz
-            .iter()
-            .zip(measured)
-            .map(|(&f, &(g, sigma))| {
-                let m = model(f);
-                (g / m, sigma / m.norm())
-            })
-            .collect();
-        let beyond = ratio
-            .iter()
-            .rev()
-            .take(TOP_BINS)
-            .map(|(r, rho)| (r - 1.0).norm() + rho)
-            .fold(MIN_BEYOND, f64::max);
-        Extended {
-            freq_hz: freq_hz.to_vec(),
-            top_hz: freq_hz.last().copied().unwrap_or(0.0),
-            ratio,
-            beyond,
-        }
-    }
-
-    /// The response and the radius it is known within at `f_hz`, the model there `model_at`.
-    pub fn at(&self, f_hz: f64, model_at: Complex64) -> (Complex64, f64) {
-        let f = &self.freq_hz;
-        let (r, rho) = match f.iter().position(|&x| x >= f_hz) {
-            None => return (model_at, self.beyond * model_at.norm()),
-            Some(0) => self.ratio[0],
-            Some(k) => {
-                let ln = libm::log;
-                let t = (ln(f_hz) - ln(f[k - 1])) / (ln(f[k]) - ln(f[k - 1]));
-                let (a, b) = (self.ratio[k - 1], self.ratio[k]);
-                (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t)
-            }
+        let model_loop = FrequencyResponse::new(&open.loop_gain(ctrl, sensitivity_v_per_m)?);
+        let model_at = |f: f64| {
+            model_loop
+                .discrete(f, period)
+                .map_or_else(|_| Complex64::default(), |h| h[(0, 0)])
         };
-        (model_at * r, model_at.norm() * rho)
+        Ok(MeasuredLoop {
+            stability: MeasuredStability::of(&frf.freq_hz, &loop_gain, &model_at, 0.499 / period),
+            freq_hz: frf.freq_hz.clone(),
+            reference_to_tool,
+            uncertainty,
+            reference_to_reading,
+            command_to_reading,
+            loop_gain,
+            coherence: frf.coherence.clone(),
+            source: frf.source.clone(),
+        })
     }
 }
 
@@ -203,6 +157,26 @@ mod tests {
                 );
             }
             assert!(m.uncertainty.iter().all(|u| *u == 0.0));
+            let l = FrequencyResponse::new(&open.loop_gain(&plan.controller.linear, s).unwrap());
+            for (f, (g, _)) in m.freq_hz.iter().zip(&m.loop_gain) {
+                let want = l.discrete(*f, open.period_s).unwrap()[(0, 0)];
+                assert!(
+                    (g / want - 1.0).norm() < 1e-8,
+                    "{kind:?} {f} Hz: L {g} vs {want}"
+                );
+            }
+            let model_loop = |f: f64| l.discrete(f, open.period_s).unwrap()[(0, 0)];
+            let on_model = design::loops::margins(model_loop, 1.0, 0.499 / open.period_s);
+            let got = m.stability.margins;
+            for (a, b) in [
+                (got.phase_margin_deg, on_model.phase_margin_deg),
+                (got.gain_margin_db, on_model.gain_margin_db),
+                (got.lower_gain_margin_db, on_model.lower_gain_margin_db),
+            ] {
+                let (a, b) = (a.unwrap(), b.unwrap());
+                assert!((a - b).abs() < 1e-6, "{kind:?}: {a} vs the model's {b}");
+            }
+            assert!(m.stability.verdict.robustly_stable(), "{kind:?}");
         }
     }
 }
