@@ -1,6 +1,6 @@
 //! fts-servo on a Cortex-M7: the runtime's per-tick core ([`servo_runtime::Servo`], `no_std`,
 //! no allocator) ticked in the TIMER0 interrupt, closed against the host's simulated stage over
-//! UART0 — processor in the loop (`servo run --pil`).
+//! the semihosting console (`console.rs`) — processor in the loop (`servo run --pil`).
 //!
 //! At reset the firmware sends a BOOT frame (what it is), then waits for the deployment image
 //! the host sends (the same deployment `servo run` builds from the configuration; see
@@ -12,9 +12,10 @@
 #![no_std]
 #![no_main]
 
+mod console;
 mod stack;
-mod uart;
 
+use console::Console;
 use core::cell::RefCell;
 use core::fmt::Write as _;
 use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
@@ -24,7 +25,6 @@ use daq_io::Sensor;
 use servo_link::{self as link, image, kind, Boot, FrameReader, Ready, Report, TickReply};
 use servo_runtime::deployment::MAX_SS_ORDER;
 use servo_runtime::{Deployment, Servo};
-use uart::Uart;
 
 /// The MPS2 board's processor clock in Hz (SysTick counts it; 25 MHz on the FPGA image QEMU
 /// models).
@@ -126,9 +126,10 @@ extern "C" fn servo_tick() {
     });
 }
 
-fn send(uart: &mut Uart, kind: u8, payload: &[u8]) {
+fn send(console: &mut Console, kind: u8, payload: &[u8]) {
     // Every payload here is a fixed-size record or a short text: far below the frame limit.
-    let _ = link::write_frame(kind, payload, |b| uart.put(b));
+    let _ = link::write_frame(kind, payload, |b| console.put(b));
+    console.flush();
 }
 
 /// A message in fixed storage (a refusal's text).
@@ -205,9 +206,9 @@ fn load(payload: &[u8], why: &mut Text) -> Option<u32> {
 }
 
 /// Runs one tick in the timer interrupt; the TICK frame to answer.
-fn tick(payload: &[u8], uart: &mut Uart) {
+fn tick(payload: &[u8], console: &mut Console) {
     let Some(sample) = link::decode_sensor(payload) else {
-        return send(uart, kind::REFUSED, b"sample frame of the wrong length");
+        return send(console, kind::REFUSED, b"sample frame of the wrong length");
     };
     let loaded = critical_section::with(|cs| {
         let mut l = LOOP.borrow_ref_mut(cs);
@@ -218,7 +219,7 @@ fn tick(payload: &[u8], uart: &mut Uart) {
     });
     if loaded.is_none() {
         return send(
-            uart,
+            console,
             kind::REFUSED,
             b"sample before a deployment was loaded",
         );
@@ -232,9 +233,9 @@ fn tick(payload: &[u8], uart: &mut Uart) {
         Some(r) => {
             let mut out = [0; link::TICK_BYTES];
             r.encode(&mut out);
-            send(uart, kind::TICK, &out);
+            send(console, kind::TICK, &out);
         }
-        None => send(uart, kind::REFUSED, b"the tick interrupt did not run"),
+        None => send(console, kind::REFUSED, b"the tick interrupt did not run"),
     }
 }
 
@@ -253,7 +254,11 @@ fn main() -> ! {
     core.SYST.enable_counter();
     // SAFETY: the TIMER0 handler shares state only through the critical-section mutex.
     unsafe { NVIC::unmask(Irq::Timer0) };
-    let mut uart = Uart::take();
+    let Some(console) = cortex_m::singleton!(: Console = Console::open()) else {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
     let boot = Boot {
         image_version: image::VERSION,
         max_order: MAX_SS_ORDER as u16,
@@ -261,17 +266,17 @@ fn main() -> ! {
         stack_bytes: stack::size(),
         systick_hz: SYSTICK_HZ,
     };
-    send(&mut uart, kind::BOOT, &boot.encode());
+    send(console, kind::BOOT, &boot.encode());
     let Some(reader) = cortex_m::singleton!(: FrameReader = FrameReader::default()) else {
         loop {
             cortex_m::asm::wfi();
         }
     };
     loop {
-        let byte = uart.get();
+        let byte = console.get();
         match reader.push(byte) {
             Ok(None) => {}
-            Ok(Some((kind::SAMPLE, p))) => tick(p, &mut uart),
+            Ok(Some((kind::SAMPLE, p))) => tick(p, console),
             Ok(Some((kind::LOAD, p))) => {
                 let mut why = Text::new();
                 match load(p, &mut why) {
@@ -282,9 +287,9 @@ fn main() -> ! {
                         };
                         // The high-water mark from here on is the running loop's.
                         stack::paint();
-                        send(&mut uart, kind::READY, &ready.encode());
+                        send(console, kind::READY, &ready.encode());
                     }
-                    None => send(&mut uart, kind::REFUSED, why.bytes()),
+                    None => send(console, kind::REFUSED, why.bytes()),
                 }
             }
             Ok(Some((kind::REPORT_REQUEST, _))) => {
@@ -295,13 +300,13 @@ fn main() -> ! {
                         .unwrap_or_default()
                 });
                 report.stack_used_bytes = stack::used();
-                send(&mut uart, kind::REPORT, &report.encode());
+                send(console, kind::REPORT, &report.encode());
             }
-            Ok(Some(_)) => send(&mut uart, kind::REFUSED, b"unknown frame kind"),
+            Ok(Some(_)) => send(console, kind::REFUSED, b"unknown frame kind"),
             Err(e) => {
                 let mut why = Text::new();
                 let _ = write!(why, "{e}");
-                send(&mut uart, kind::REFUSED, why.bytes());
+                send(console, kind::REFUSED, why.bytes());
             }
         }
     }
@@ -314,8 +319,7 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     if let Some(at) = info.location() {
         let _ = write!(why, " at {}:{}", at.file(), at.line());
     }
-    let mut uart = Uart::take();
-    send(&mut uart, kind::REFUSED, why.bytes());
+    send(&mut Console::open(), kind::REFUSED, why.bytes());
     loop {
         cortex_m::asm::wfi();
     }

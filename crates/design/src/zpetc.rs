@@ -72,7 +72,7 @@ pub enum ZpetcError {
     #[error(transparent)]
     Lti(#[from] LtiError),
     /// No reduced order up to the limit matches the model well enough.
-    #[error("no reduced model of order ≤ {max_order} matches the loop within {tolerance} up to {f_check_hz} Hz (best {best:.2e})")]
+    #[error("no reduced model of order ≤ {max_order} matches the loop within {tolerance} up to {f_check_hz:.0} Hz (best {best:.2e})")]
     NoFit {
         /// Largest order tried.
         max_order: usize,

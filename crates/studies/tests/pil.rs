@@ -93,6 +93,20 @@ fn the_chapter7_pid_loop_is_the_same_on_the_target() {
     assert!(t.build.contains("f64 in hardware"), "{}", t.build);
 }
 
+/// A fifth of a second of a 1 kHz sine at 199.6 kHz (39 920 ticks, the loop settled into its
+/// steady state): tick for tick the host's, at about 80 µs of wall time a tick over the
+/// semihosting link.
+#[test]
+#[ignore = "needs the firmware and qemu-system-arm"]
+fn a_fifth_of_a_second_of_a_sine_is_the_same_on_the_target() {
+    let mut l = loaded(0.2);
+    l.config.scenario = Scenario::Sine {
+        amplitude_m: 1e-6,
+        frequency_hz: 1000.0,
+    };
+    assert_same_loop(&Plan::new(&l).unwrap(), 39_900);
+}
+
 #[test]
 #[ignore = "needs the firmware and qemu-system-arm"]
 fn an_h2_state_space_loop_is_the_same_on_the_target() {

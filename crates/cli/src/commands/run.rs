@@ -36,7 +36,7 @@ pub struct Run {
     digest: bool,
     /// Processor in the loop: the controller runs in this firmware (the ARM ELF built in
     /// firmware/) on a Cortex-M7 under qemu-system-arm, the stage here, one sample and one
-    /// command per tick over the board's UART. The summary gives its cost on the target.
+    /// command per tick over the semihosting console. The summary gives its cost on the target.
     #[arg(long, value_name = "FIRMWARE_ELF", conflicts_with = "hil")]
     pil: Option<PathBuf>,
     /// With --pil: the processor clock the target's cost is converted for, in Hz (default

@@ -19,7 +19,7 @@ const STDERR_BYTES: u64 = 4096;
 
 /// The command that starts `qemu`: through util-linux's `setpriv --pdeathsig KILL` when it is
 /// on `PATH`, so the emulator dies with this process even when it is killed outright (it
-/// would otherwise spin on its UART forever).
+/// would otherwise wait on its link forever).
 fn emulator(qemu: &std::path::Path) -> Command {
     let setpriv = std::env::var_os("PATH").and_then(|paths| {
         std::env::split_paths(&paths)
@@ -73,12 +73,9 @@ impl TargetLoop {
         let mut child = emulator(&opts.qemu)
             .args(["-M", "mps2-an500", "-nodefaults", "-display", "none"])
             .args(["-icount", &icount, "-no-reboot"])
-            .args([
-                "-chardev",
-                "stdio,id=link,signal=off",
-                "-serial",
-                "chardev:link",
-            ])
+            // The link is Arm semihosting on QEMU's own standard input and output (`:tt`): the
+            // firmware reads what the host sent and writes a frame in one call each.
+            .args(["-semihosting-config", "enable=on,target=native"])
             .arg("-kernel")
             .arg(&opts.firmware)
             .stdin(Stdio::piped())
@@ -313,7 +310,7 @@ impl TargetLoop {
     }
 
     fn machine(&self) -> String {
-        "target: Cortex-M7 under qemu-system-arm (mps2-an500), one sample and one command per tick over UART0".into()
+        "target: Cortex-M7 under qemu-system-arm (mps2-an500), one sample and one command per tick over the semihosting console".into()
     }
 
     fn build(&self) -> String {
