@@ -265,9 +265,8 @@ impl RunArgs {
         let mut l = self.plant.load()?;
         self.length.apply(&mut l);
         self.controller.apply(&mut l.config.controller);
-        let file = l.origin.path.clone();
         self.feedforward
-            .apply(&mut l.config.controller, file.as_deref());
+            .apply(&mut l.config.controller, l.origin.path.as_deref());
         self.scenario.apply(&mut l);
         Ok(l)
     }

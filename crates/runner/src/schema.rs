@@ -262,9 +262,6 @@ fn is_number(node: &Value) -> bool {
     }
 }
 
-/// The default run with each scenario kind, machining each preset surface (the image
-/// surface's file is [`probe_image`], given to the run as its embedded copy), and machining
-/// with repetitive control.
 /// A run with an FIR feedforward (its keys are checked only then; the FRF is not read before
 /// they are).
 fn fir_feedforward() -> RunConfig {
@@ -274,6 +271,9 @@ fn fir_feedforward() -> RunConfig {
     c
 }
 
+/// The default run with each scenario kind, machining each preset surface (the image
+/// surface's file is [`probe_image`], given to the run as its embedded copy), machining
+/// with repetitive control, with the coil current loop and with an FIR feedforward.
 fn base_configs() -> Vec<toml::Value> {
     let image = ImageMap {
         path: SURFACE_INPUT.into(),

@@ -81,9 +81,8 @@ impl MachineCmd {
         let mut l = self.plant.load()?;
         self.length.apply(&mut l);
         self.controller.apply(&mut l.config.controller);
-        let file = l.origin.path.clone();
         self.feedforward
-            .apply(&mut l.config.controller, file.as_deref());
+            .apply(&mut l.config.controller, l.origin.path.as_deref());
         let mut m = match &l.config.scenario {
             Scenario::Machine(m) => m.clone(),
             _ => Machining::default(),

@@ -55,9 +55,8 @@ impl ToolpathCmd {
     pub fn exec(&self) -> Result<ExitCode, CliError> {
         let mut l = self.plant.load()?;
         self.controller.apply(&mut l.config.controller);
-        let file = l.origin.path.clone();
         self.feedforward
-            .apply(&mut l.config.controller, file.as_deref());
+            .apply(&mut l.config.controller, l.origin.path.as_deref());
         if let Scenario::Machine(m) = &mut l.config.scenario {
             crate::args::set(&mut m.spindle_rpm, self.rpm);
         }
