@@ -10,7 +10,7 @@ use common::plan;
 use num_complex::Complex64;
 use plant_sim::practice::PracticeTruth;
 use run_config::Loaded;
-use studies::frf::{stepped_sine, FrfLoop, FrfPoint, FrfSettings};
+use studies::frf::{FrfLoop, FrfPoint, FrfSettings};
 
 /// Seeds whose draws move the suspension resonance (82 Hz on the model) by a few per cent.
 const SEEDS: [u64; 2] = [7, 2026];
@@ -28,29 +28,14 @@ fn the_practice_stage_is_measured_not_the_model() {
     // Around the suspension resonance and below the mount's 5–9 kHz (its gain there is 1 to
     // within 1 %).
     let freqs = [40.0, 65.0, 75.0, 82.0, 90.0, 100.0, 130.0, 300.0];
-    let settings = FrfSettings::for_loop(FrfLoop::Open);
     for seed in SEEDS {
         let mut practice = Loaded::default();
         practice.config.run.practice_seed = Some(seed);
-        let on_practice = stepped_sine(
-            &plan(&practice),
-            FrfLoop::Open,
-            &freqs,
-            &settings,
-            &mut |_, _| {},
-        )
-        .unwrap();
+        let on_practice = common::open_loop_frf(&plan(&practice), &freqs);
         // The drawn stage, configured as the model: its model is the truth's exact response.
         let mut drawn = Loaded::default();
         drawn.config.plant.stage = PracticeTruth::draw(seed, &drawn.config.plant.stage).stage;
-        let on_drawn = stepped_sine(
-            &plan(&drawn),
-            FrfLoop::Open,
-            &freqs,
-            &settings,
-            &mut |_, _| {},
-        )
-        .unwrap();
+        let on_drawn = common::open_loop_frf(&plan(&drawn), &freqs);
         let mut worst_truth: f64 = 0.0;
         let mut worst_model: f64 = 0.0;
         for (p, d) in on_practice.iter().zip(&on_drawn) {
@@ -107,14 +92,7 @@ fn the_stated_uncertainty_covers_the_truth_at_its_rate() {
             &mut |_, _| {},
         )
         .unwrap();
-        let exact = stepped_sine(
-            &truth_plan,
-            FrfLoop::Open,
-            &freqs,
-            &settings,
-            &mut |_, _| {},
-        )
-        .unwrap();
+        let exact = common::open_loop_frf(&truth_plan, &freqs);
         for ((p, e), m) in points.iter().zip(&exact).zip(&mount) {
             let truth = model(e) * m;
             bins += 1;
@@ -146,15 +124,7 @@ fn a_loop_the_measured_stage_cannot_carry_is_refused_and_would_have_diverged() {
     practice.config.run.practice_seed = Some(7);
     practice.config.run.duration_s = 0.05;
     let freqs = lti::spectral::log_space(20.0, 5000.0, 60);
-    let settings = FrfSettings::for_loop(FrfLoop::Open);
-    let points = stepped_sine(
-        &plan(&practice),
-        FrfLoop::Open,
-        &freqs,
-        &settings,
-        &mut |_, _| {},
-    )
-    .unwrap();
+    let points = common::open_loop_frf(&plan(&practice), &freqs);
     let mut csv = String::from("# fts-servo frf: quantity = P (practice seed 7)\nfreq_hz,magnitude_m_per_v,phase_deg,coherence,uncertainty_m_per_v\n");
     for p in &points {
         csv += &format!(

@@ -6,7 +6,6 @@ use crate::common;
 use common::plan;
 use num_complex::Complex64;
 use run_config::Loaded;
-use studies::frf::{stepped_sine, FrfLoop, FrfSettings};
 use studies::identify::{identify, table_5_2, with_table_5_2};
 
 #[test]
@@ -15,15 +14,7 @@ fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
     let freqs: Vec<f64> = (0..80)
         .map(|i| 20.0 * libm::pow(500.0f64, i as f64 / 79.0))
         .collect();
-    let settings = FrfSettings::for_loop(FrfLoop::Open);
-    let points = stepped_sine(
-        &plan(&truth_cfg),
-        FrfLoop::Open,
-        &freqs,
-        &settings,
-        &mut |_, _| {},
-    )
-    .unwrap();
+    let points = common::open_loop_frf(&plan(&truth_cfg), &freqs);
     let (f, g): (Vec<f64>, Vec<Complex64>) = points
         .iter()
         .filter(|p| !p.clipped)

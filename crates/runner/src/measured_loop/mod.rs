@@ -66,6 +66,18 @@ impl MeasuredLoop {
         ));
         let controller = FrequencyResponse::new(&ctrl.state_space());
         let period = open.period_s;
+        let s = sensitivity_v_per_m;
+        // At `f`: the model's reading and tool per DAC volt, the controller's gap gain and its
+        // loop factor κ. The loop is u = K_g·S·(m − r) + K_a·a with m = P·u,
+        // a = P·(accel/reading), tool = P·(tool/reading)·u, so u = κ·m − K_g·S·r with
+        // κ = K_g·S + K_a·accel/reading, and the loop gain broken at the DAC is L = −κ·P.
+        let at = |f: f64| -> Result<(Complex64, Complex64, Complex64, Complex64), LtiError> {
+            let m = model.discrete(f, period)?;
+            let (reading, tool, accel) = (m[(0, 0)], m[(1, 0)], m[(2, 0)]);
+            let kc = controller.discrete(f, period)?;
+            let (k_gap, k_accel) = (kc[(0, 0)], kc[(0, 1)]);
+            Ok((reading, tool, k_gap, k_gap * s + k_accel * accel / reading))
+        };
         let n = frf.freq_hz.len();
         let (mut reference_to_tool, mut uncertainty) =
             (Vec::with_capacity(n), Vec::with_capacity(n));
@@ -73,15 +85,8 @@ impl MeasuredLoop {
         let (mut command_to_reading, mut loop_gain) =
             (Vec::with_capacity(n), Vec::with_capacity(n));
         for (k, (&f, &measured)) in frf.freq_hz.iter().zip(&frf.response).enumerate() {
-            let m = model.discrete(f, period)?;
-            let (reading, tool, accel) = (m[(0, 0)], m[(1, 0)], m[(2, 0)]);
-            let kc = controller.discrete(f, period)?;
-            let (k_gap, k_accel) = (kc[(0, 0)], kc[(0, 1)]);
-            let s = sensitivity_v_per_m;
-            let to_tool = tool / reading;
-            // u = K_g·S·(m − r) + K_a·a with m = P·u, a = P·(accel/reading), tool = P·(tool/reading)·u.
-            let feed = -k_gap * s * to_tool;
-            let kappa = k_gap * s + k_accel * accel / reading;
+            let (reading, tool, k_gap, kappa) = at(f)?;
+            let feed = -k_gap * s * (tool / reading);
             let denominator = 1.0 - kappa * measured;
             reference_to_tool.push(feed * measured / denominator);
             let sigma = frf.uncertainty.as_ref().map_or(0.0, |u| u[k]);
@@ -96,12 +101,8 @@ impl MeasuredLoop {
             command_to_reading.push((measured / denominator, spread));
             loop_gain.push((-kappa * measured, kappa.norm() * sigma));
         }
-        let model_loop = FrequencyResponse::new(&open.loop_gain(ctrl, sensitivity_v_per_m)?);
-        let model_at = |f: f64| {
-            model_loop
-                .discrete(f, period)
-                .map_or_else(|_| Complex64::default(), |h| h[(0, 0)])
-        };
+        // The model's loop gain, by the same κ: L = −κ·P_reading.
+        let model_at = |f: f64| at(f).map_or_else(|_| Complex64::default(), |(p, _, _, k)| -k * p);
         Ok(MeasuredLoop {
             stability: MeasuredStability::of(&frf.freq_hz, &loop_gain, &model_at, 0.499 / period),
             freq_hz: frf.freq_hz.clone(),

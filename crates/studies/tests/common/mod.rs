@@ -20,3 +20,12 @@ pub fn machine(p: &runner::Plan) -> (runner::summary::Summary, studies::form::Fo
     )
     .unwrap()
 }
+
+/// The open-loop FRF of `p` by stepped sine at `freqs` Hz, with the settings `servo frf --loop
+/// open` uses.
+#[allow(dead_code)] // Used by the FRF and identification tests, not by every test binary.
+pub fn open_loop_frf(p: &runner::Plan, freqs: &[f64]) -> Vec<studies::frf::FrfPoint> {
+    use studies::frf::{stepped_sine, FrfLoop, FrfSettings};
+    let settings = FrfSettings::for_loop(FrfLoop::Open);
+    stepped_sine(p, FrfLoop::Open, freqs, &settings, &mut |_, _| {}).unwrap()
+}
