@@ -13,6 +13,7 @@ mod gaussian;
 pub mod impedance;
 pub mod metrology;
 pub mod model;
+pub mod modes;
 pub mod params;
 pub mod practice;
 pub mod quantisation;

@@ -2,6 +2,7 @@
 //! mechanics (DESIGN.md equations), current loop (eq 5-9), motor, capacitive sensor (eq 5-8),
 //! accelerometer chain (Table 7-2) and the noise shaping filters (eq 6-6..6-8, Table 7-2).
 
+use crate::modes::ModeSite;
 use crate::params::{rad, CurrentLoopModel, PlantParams, StageParams};
 use lti::interconnect::{ConnectError, Interconnect, NamedBlock};
 use lti::{LtiError, StateSpace};
@@ -446,6 +447,7 @@ impl PlantModel {
         // Every current-loop setting is checked, whichever model is selected: a file valid
         // today stays valid when the model is switched.
         check_coil(&a.coil)?;
+        p.modes.check()?;
         let ideal = second_order_lowpass(
             a.current_bandwidth_hz,
             a.current_damping,
@@ -542,9 +544,7 @@ impl PlantModel {
                 &["aa_gap_in", "aa_acc_in"],
                 &["sensor_v", "accel_v"],
             ))
-            .wire("aa_gap_in", "sensor_out", 1.0)
             .wire("aa_acc_in", "accel_out", 1.0)
-            .wire("f_motor_in", "motor_force_n", 1.0)
             .wire("f_cut_in", "f_cut", 1.0)
             .wire("xg_in", "base_m", 1.0)
             .wire("vg_in", "base_v", 1.0)
@@ -562,6 +562,24 @@ impl PlantModel {
                 "base_a",
                 if acc.base_difference { -1.0 } else { 0.0 },
             );
+        // Extra modes sit between the motor and the mechanics, and between the sensor and the
+        // anti-alias filter; a site without any is a plain wire.
+        let sites = [
+            (ModeSite::Force, "modes_force", "f_motor_in", "motor_force_n"),
+            (ModeSite::Sensor, "modes_sensor", "aa_gap_in", "sensor_out"),
+        ];
+        let mut net = net;
+        for (site, name, to, from) in sites {
+            net = match p.modes.state_space(site)? {
+                Some(chain) => {
+                    let (input, out) = (format!("{name}_in"), format!("{name}_out"));
+                    net.block(NamedBlock::new(name, chain, &[&input], &[&out]))
+                        .wire(&input, from, 1.0)
+                        .wire(to, &out, 1.0)
+                }
+                None => net.wire(to, from, 1.0),
+            };
+        }
         let connected = net.build(&output::NAMES)?;
         Ok(PlantModel {
             sys: connected.sys,

@@ -1,6 +1,7 @@
 //! Parameters of the simulated stage, in SI units; every default is the thesis prototype
 //! (DESIGN.md, "The plant"; ★ marks values the thesis does not identify — our documented choice).
 
+use crate::modes::ExtraModes;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
@@ -350,6 +351,11 @@ pub struct PlantParams {
     pub noise: NoiseParams,
     /// Servo rate and delay.
     pub timing: TimingParams,
+    /// Resonances the four-mass model lacks, `[[plant.modes]]` (none by default; left out of
+    /// the file, and of its provenance digest, when empty).
+    #[serde(skip_serializing_if = "ExtraModes::is_empty")]
+    #[cfg_attr(feature = "schema", schemars(with = "Vec<crate::modes::ExtraMode>"))]
+    pub modes: ExtraModes,
 }
 
 impl PlantParams {

@@ -6,11 +6,10 @@
 //! identification has something real to find; [`PracticeStage::truth`] reveals the draw
 //! afterwards.
 
+use crate::modes::{ExtraMode, ExtraModes, ModeSite};
 use crate::params::{PlantParams, StageParams};
 use crate::sim::{SimError, Simulator};
 use daq_io::{Backend, Sensor, Truth};
-use lti::StateSpace;
-use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::Serialize;
@@ -59,23 +58,33 @@ impl PracticeTruth {
             mount_hz,
         }
     }
+
+    /// The mount resonance as the extra mode it is: on the gap reading, a peak of
+    /// [`MOUNT_ZETA_ZERO`]/[`MOUNT_ZETA_POLE`] at [`PracticeTruth::mount_hz`] (what the reading
+    /// sees of the gap: [`ExtraMode::response`]).
+    pub fn mount(&self) -> ExtraMode {
+        ExtraMode {
+            at: ModeSite::Sensor,
+            hz: self.mount_hz,
+            zeta: MOUNT_ZETA_POLE,
+            zero_hz: self.mount_hz,
+            zero_zeta: MOUNT_ZETA_ZERO,
+        }
+    }
 }
 
-/// The practice stage: `plant` with the drawn stage, its reading through the mount.
+/// The practice stage: `plant` with the drawn stage and the mount as a sensor-site extra mode.
 pub struct PracticeStage {
     sim: Simulator,
     truth: PracticeTruth,
-    /// The mount, discretised (Tustin, pre-warped at its frequency): x ← A·x + B·g,
-    /// reading = C·x + D·g.
-    mount: ([[f64; 2]; 2], [f64; 2], [f64; 2], f64),
-    x: [f64; 2],
 }
 
 impl PracticeStage {
     /// `plant` (its timing, converters, noise) with the stage and mount of `seed`, drawn
-    /// around the thesis prototype's stage (Table 5-2) whatever stage `plant` holds — a run's
-    /// configured stage is its controller's *model* of the practice stage (an identified one,
-    /// often), and the stage must not move when the model does; noise seeded by `seed` too.
+    /// around the thesis prototype's stage (Table 5-2) whatever stage and extra modes `plant`
+    /// holds — a run's configured plant is its controller's *model* of the practice stage (an
+    /// identified one, often), and the stage must not move when the model does; noise seeded
+    /// by `seed` too.
     pub fn new(plant: &PlantParams, seed: u64) -> Result<Self, SimError> {
         Self::with_noise_seed(plant, seed, seed)
     }
@@ -90,30 +99,11 @@ impl PracticeStage {
         let truth = PracticeTruth::draw(seed, &PlantParams::default().stage);
         let params = PlantParams {
             stage: truth.stage,
+            modes: ExtraModes::new(&[truth.mount()]).expect("one mode fits"),
             ..*plant
         };
         let sim = Simulator::new(&params, noise_seed, &Default::default())?;
-        let w = 2.0 * std::f64::consts::PI * truth.mount_hz;
-        let continuous = StateSpace {
-            a: DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -w * w, -2.0 * MOUNT_ZETA_POLE * w]),
-            b: DMatrix::from_row_slice(2, 1, &[0.0, 1.0]),
-            c: DMatrix::from_row_slice(1, 2, &[0.0, 2.0 * (MOUNT_ZETA_ZERO - MOUNT_ZETA_POLE) * w]),
-            d: DMatrix::from_element(1, 1, 1.0),
-        };
-        let d = lti::discretise::c2d_tustin(&continuous, sim.period_s(), Some(truth.mount_hz))
-            .expect("a damped second-order section discretises");
-        let mount = (
-            [[d.a[(0, 0)], d.a[(0, 1)]], [d.a[(1, 0)], d.a[(1, 1)]]],
-            [d.b[(0, 0)], d.b[(1, 0)]],
-            [d.c[(0, 0)], d.c[(0, 1)]],
-            d.d[(0, 0)],
-        );
-        Ok(PracticeStage {
-            sim,
-            truth,
-            mount,
-            x: [0.0; 2],
-        })
+        Ok(PracticeStage { sim, truth })
     }
 
     /// What the seed drew (for revealing after the workflow, never to the client).
@@ -121,48 +111,15 @@ impl PracticeStage {
         &self.truth
     }
 
-    /// The mount's response at `f_hz` (its discrete form, at the servo period): what the
-    /// reading sees of the gap, dimensionless (for judging a measurement against the truth; NaN
-    /// on a pole of the discretised mount, which damping keeps off the unit circle).
-    pub fn mount_response(&self, f_hz: f64) -> num_complex::Complex64 {
-        let (a, b, c, d) = &self.mount;
-        let mount = StateSpace {
-            a: DMatrix::from_row_slice(2, 2, &[a[0][0], a[0][1], a[1][0], a[1][1]]),
-            b: DMatrix::from_row_slice(2, 1, b),
-            c: DMatrix::from_row_slice(1, 2, c),
-            d: DMatrix::from_element(1, 1, *d),
-        };
-        mount
-            .freq_response_discrete(f_hz, self.sim.period_s())
-            .map_or(num_complex::Complex64::new(f64::NAN, f64::NAN), |h| {
-                h[(0, 0)]
-            })
-    }
-
-    /// The simulator of the drawn stage (before the mount).
+    /// The simulator of the drawn stage, its mount included.
     pub fn simulator(&self) -> &Simulator {
         &self.sim
     }
 
     /// One tick with `dac_v` (V) and a force `extra_force_n` (N) on the tool (a cut), as
-    /// [`Simulator::step_with_force`], the gap reading through the mount.
+    /// [`Simulator::step_with_force`]: the gap reading through the mount.
     pub fn step_with_force(&mut self, dac_v: f64, extra_force_n: f64) -> Sensor {
-        let s = self.sim.step_sensor(dac_v, extra_force_n);
-        Sensor {
-            gap_v: self.through_mount(s.gap_v),
-            ..s
-        }
-    }
-
-    /// The gap reading `g` (V) through the mount.
-    fn through_mount(&mut self, g: f64) -> f64 {
-        let (a, b, c, d) = &self.mount;
-        let y = c[0] * self.x[0] + c[1] * self.x[1] + d * g;
-        self.x = [
-            a[0][0] * self.x[0] + a[0][1] * self.x[1] + b[0] * g,
-            a[1][0] * self.x[0] + a[1][1] * self.x[1] + b[1] * g,
-        ];
-        y
+        self.sim.step_sensor(dac_v, extra_force_n)
     }
 }
 
@@ -215,34 +172,48 @@ mod tests {
         assert_eq!(a.truth(), &PracticeTruth::draw(7, &thesis.stage));
     }
 
-    /// The mount alone: a sine at its frequency comes out ζz/ζp = 2 times larger; at DC and
-    /// far above, unchanged.
+    /// The mount as the stage runs it: the gap reading of a sine through the practice stage
+    /// over the reading of the same drawn stage without it is the stated mount response —
+    /// ζz/ζp = 2 at the mount's frequency, 1 at DC and far above.
     #[test]
     fn the_mount_peaks_by_the_damping_ratio_at_its_frequency() {
-        let plant = PlantParams::default();
+        let mut plant = PlantParams::default();
+        plant.noise = crate::params::NoiseParams {
+            sensor: false,
+            current: false,
+            base: false,
+            accel: false,
+            ..plant.noise
+        };
+        (plant.adc.bits, plant.dac.bits) = (0, 0);
         let fs = plant.timing.servo_rate_hz;
-        let amplitude = |f: f64| {
-            let mut stage = PracticeStage::new(&plant, 3).unwrap();
+        let practice = PracticeStage::new(&plant, 3).unwrap();
+        let bare = PlantParams {
+            stage: practice.truth().stage,
+            ..plant
+        };
+        // The complex amplitude of the reading at `f` over the last half of 0.2 s.
+        let phasor = |stage: &mut dyn Backend, f: f64| {
             let n = (fs * 0.2) as usize;
-            let mut peak: f64 = 0.0;
+            let w = 2.0 * std::f64::consts::PI * f / fs;
+            let mut sum = num_complex::Complex64::new(0.0, 0.0);
             for k in 0..n {
-                let y =
-                    stage.through_mount(libm::sin(2.0 * std::f64::consts::PI * f * k as f64 / fs));
-                if k > n / 2 {
-                    peak = peak.max(y.abs());
+                let y = stage.step(1e-3 * libm::sin(w * k as f64)).gap_v;
+                if k >= n / 2 {
+                    sum += y * num_complex::Complex64::from_polar(1.0, -w * k as f64);
                 }
             }
-            peak
+            sum
         };
-        let stage = PracticeStage::new(&plant, 3).unwrap();
-        let fr = stage.truth().mount_hz;
-        assert!((amplitude(fr) - 2.0).abs() < 0.01, "{}", amplitude(fr));
-        // The response the stage states agrees with the filter it runs.
+        let fr = practice.truth().mount_hz;
+        let mount = practice.truth().mount();
         for f in [50.0, fr, 60_000.0] {
-            let stated = stage.mount_response(f).norm();
-            assert!((stated - amplitude(f)).abs() < 0.02, "{f} Hz: {stated}");
+            let mut with = PracticeStage::new(&plant, 3).unwrap();
+            let mut without = Simulator::new(&bare, 3, &Default::default()).unwrap();
+            let seen = phasor(&mut with, f) / phasor(&mut without, f);
+            let stated = mount.response(f);
+            assert!((seen - stated).norm() < 0.01 * stated.norm(), "{f} Hz: {seen} vs {stated}");
         }
-        assert!((amplitude(50.0) - 1.0).abs() < 0.01);
-        assert!((amplitude(60_000.0) - 1.0).abs() < 0.02);
+        assert!((mount.response(fr).norm() - 2.0).abs() < 1e-9);
     }
 }
