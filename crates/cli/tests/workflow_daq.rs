@@ -2,7 +2,7 @@
 //! stage whose Table 5-2 parameters are drawn from a seed this test holds and the client never
 //! sees, with a sensor-mount resonance the identification model does not contain, served by
 //! `daq_io::serve` (as the `daq_daemon` example serves it). `servo frf --prefix` measures it
-//! open loop, `servo identify` recovers the draw and reports the resonance, `servo tune`
+//! open loop, `servo identify` recovers the draw and the resonance (into the model), `servo tune`
 //! designs on the identified model, `servo ctl load` deploys the design into a loop closed on
 //! the daemon (`servo controller` + `servo record` on the identified model) bumplessly, and
 //! `servo spectrum` of the recording agrees with the identified model's budget.
@@ -101,15 +101,20 @@ fn a_hidden_stage_is_measured_identified_designed_for_deployed_and_compared() {
         "{misfit} vs {} Hz",
         truth.mount_hz
     );
-    let extra = &id["extra_resonance"];
-    let pole = extra["pole_hz"].as_f64().unwrap();
+    let extra = &id["extra_mode"];
+    let pole = extra["hz"].as_f64().unwrap();
     assert!(
         (pole / truth.mount_hz - 1.0).abs() < 0.01,
         "{extra} vs {} Hz",
         truth.mount_hz
     );
     let text = std::fs::read_to_string(&model).unwrap();
-    assert!(text.contains("NOT in this model"), "{text}");
+    // … and carried into the model every later step designs on.
+    let written: toml::Table = toml::from_str(&text).unwrap();
+    let modes = written["plant"]["modes"].as_array().unwrap();
+    assert_eq!(modes.len(), 1, "{text}");
+    assert_eq!(modes[0]["at"].as_str(), Some("sensor"));
+    assert_eq!(modes[0]["hz"].as_float(), Some(pole), "{text}");
     // Design on the identified model.
     let model = model.to_str().unwrap();
     let pid = tuned("practice-pid.toml", &["--plant", model]);

@@ -14,6 +14,7 @@
 //! | [`level_crossing`] | where a sampled response first falls below a level (bandwidth), found exactly |
 //! | [`interconnect`] | named-signal block interconnection (the four-mass stage is built with it) |
 //! | [`spectral`] | log grids, exact-bin DFT, Welch PSD, H1 FRF and coherence, CAS |
+//! | [`vector_fit`] | a stable rational fit of a sampled system's measured frequency response (z-domain vector fitting) |
 //! | [`welch_statistics`] | what a Welch estimate of a modelled signal should read, and how far it strays by chance |
 
 pub mod discretise;
@@ -26,6 +27,7 @@ pub mod riccati;
 pub mod schur_lyapunov;
 pub mod spectral;
 pub mod state_space;
+pub mod vector_fit;
 pub mod welch_statistics;
 
 pub use discretise::{c2d_tustin, expm, zoh, DelayedZoh};

@@ -565,7 +565,12 @@ impl PlantModel {
         // Extra modes sit between the motor and the mechanics, and between the sensor and the
         // anti-alias filter; a site without any is a plain wire.
         let sites = [
-            (ModeSite::Force, "modes_force", "f_motor_in", "motor_force_n"),
+            (
+                ModeSite::Force,
+                "modes_force",
+                "f_motor_in",
+                "motor_force_n",
+            ),
             (ModeSite::Sensor, "modes_sensor", "aa_gap_in", "sensor_out"),
         ];
         let mut net = net;

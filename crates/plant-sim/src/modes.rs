@@ -125,10 +125,30 @@ impl ExtraModes {
     /// Rejects a mode outside its ranges, naming `modes[i].key`.
     pub(crate) fn check(&self) -> Result<(), ModelError> {
         const KEYS: [[&str; 4]; MAX_MODES] = [
-            ["modes[0].hz", "modes[0].zeta", "modes[0].zero_hz", "modes[0].zero_zeta"],
-            ["modes[1].hz", "modes[1].zeta", "modes[1].zero_hz", "modes[1].zero_zeta"],
-            ["modes[2].hz", "modes[2].zeta", "modes[2].zero_hz", "modes[2].zero_zeta"],
-            ["modes[3].hz", "modes[3].zeta", "modes[3].zero_hz", "modes[3].zero_zeta"],
+            [
+                "modes[0].hz",
+                "modes[0].zeta",
+                "modes[0].zero_hz",
+                "modes[0].zero_zeta",
+            ],
+            [
+                "modes[1].hz",
+                "modes[1].zeta",
+                "modes[1].zero_hz",
+                "modes[1].zero_zeta",
+            ],
+            [
+                "modes[2].hz",
+                "modes[2].zeta",
+                "modes[2].zero_hz",
+                "modes[2].zero_zeta",
+            ],
+            [
+                "modes[3].hz",
+                "modes[3].zeta",
+                "modes[3].zero_hz",
+                "modes[3].zero_zeta",
+            ],
         ];
         for (m, [hz, zeta, zero_hz, zero_zeta]) in self.iter().zip(KEYS) {
             check(hz, m.hz, 1.0, 1e8, "[1, 1e8] Hz")?;
@@ -181,7 +201,10 @@ mod tests {
         let ss = m.state_space().unwrap();
         for f in [10.0, 1_550.0, 1_600.0, 1_700.0, 20_000.0] {
             let h = ss.freq_response(rad(f)).unwrap()[(0, 0)];
-            assert!((h - m.response(f)).norm() < 1e-9 * m.response(f).norm(), "{f} Hz");
+            assert!(
+                (h - m.response(f)).norm() < 1e-9 * m.response(f).norm(),
+                "{f} Hz"
+            );
         }
     }
 

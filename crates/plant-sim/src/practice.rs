@@ -212,7 +212,10 @@ mod tests {
             let mut without = Simulator::new(&bare, 3, &Default::default()).unwrap();
             let seen = phasor(&mut with, f) / phasor(&mut without, f);
             let stated = mount.response(f);
-            assert!((seen - stated).norm() < 0.01 * stated.norm(), "{f} Hz: {seen} vs {stated}");
+            assert!(
+                (seen - stated).norm() < 0.01 * stated.norm(),
+                "{f} Hz: {seen} vs {stated}"
+            );
         }
         assert!((mount.response(fr).norm() - 2.0).abs() < 1e-9);
     }

@@ -10,6 +10,7 @@
 //! | [`margins`] | | gain and phase margins at the actuator |
 //! | [`frf`] | §5.5.1, §5.7.5 | stepped-sine / chirp FRF on the running simulator beside the model |
 //! | [`identify`] | §5.5.3 | Table 5-2 parameters fitted to an open-loop FRF |
+//! | [`fit`] | | a rational model of a measured FRF, and the modes the plant model lacks |
 //! | [`stiffness`] | eq 7-9, Table 7-1 | dynamic compliance with acceleration feedback |
 //! | [`intermittent`] | §7.6 | the intermittent cut per acceleration gain |
 //! | [`synth`] | Ch. 6 | H2-optimal controller files |
@@ -23,6 +24,7 @@
 pub mod budget;
 pub mod design_space;
 mod error;
+pub mod fit;
 pub mod form;
 pub mod frf;
 pub mod identify;

@@ -5,6 +5,7 @@ mod budget;
 mod budget_exact;
 mod common;
 mod design_space;
+mod frf_fit;
 mod frf_practice;
 mod fuzz_frf_csv;
 mod identify;

@@ -77,10 +77,10 @@ impl IdentifyCmd {
                 100.0 * m.worst_relative
             );
         }
-        match (&id.extra_resonance, id.misfits.is_empty()) {
+        match (&id.extra_mode, id.misfits.is_empty()) {
             (Some(r), _) => println!(
-                "  fitted there beside the stage: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB — not part of the identified plant",
-                r.pole_hz, r.pole_zeta, r.zero_hz, r.zero_zeta, r.peak_db
+                "  fitted there beside the stage: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB — in the model as an extra mode on the reading",
+                r.hz, r.zeta, r.zero_hz, r.zero_zeta, r.peak_db()
             ),
             (None, false) => println!("  those points were left out of the fit"),
             (None, true) => {}

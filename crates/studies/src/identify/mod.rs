@@ -7,11 +7,12 @@ mod misfit;
 mod resonance;
 
 pub use misfit::{Misfit, MISFIT_MIN_RELATIVE, MISFIT_SIGMAS};
-pub use resonance::ExtraResonance;
 
 use crate::error::StudyError;
 use num_complex::Complex64;
+use plant_sim::modes::{ExtraMode, ExtraModes};
 use plant_sim::params::StageParams;
+use plant_sim::PlantParams;
 use plant_sim::Simulator;
 use runner::closed_loop::ClosedLoop;
 use runner::Plan;
@@ -75,20 +76,28 @@ pub struct Identified {
     /// disturbed measurement): reported rather than absorbed.
     pub misfits: Vec<Misfit>,
     /// The resonance fitted beside the stage where the worst misfit was, when it explains
-    /// it (not part of the identified plant: the model file leaves it out and says so).
-    pub extra_resonance: Option<ExtraResonance>,
+    /// it: an extra mode on the reading, written into the model file with the stage.
+    pub extra_mode: Option<ExtraMode>,
 }
 
 impl Identified {
+    /// `plan`'s plant with the fitted stage and, after the plant's own, the extra mode found.
+    pub fn plant(&self, plan: &Plan) -> PlantParams {
+        let own = plan.config.plant.modes;
+        let modes: Vec<ExtraMode> = own.iter().chain(&self.extra_mode).copied().collect();
+        PlantParams {
+            stage: with_table_5_2(&plan.config.plant.stage, &self.fitted),
+            modes: ExtraModes::new(&modes).unwrap_or(own),
+            ..plan.config.plant
+        }
+    }
+
     /// The identified plant as a run-config fragment (`servo tune --plant model.toml`, `servo synth
     /// h2 --plant model.toml`, `servo run --plant model.toml`): `plan`'s plant with the fitted stage,
     /// opened by comments saying where it came from (`source`: the FRF file and its SHA-256)
     /// and how well it fits.
     pub fn model_toml(&self, plan: &Plan, source: &str) -> String {
-        let plant = plant_sim::PlantParams {
-            stage: with_table_5_2(&plan.config.plant.stage, &self.fitted),
-            ..plan.config.plant
-        };
+        let plant = self.plant(plan);
         let mut out = format!(
             "# Plant identified by `servo identify` from {source} (quantity P): fit {:.2} % on {} points\n\
              # (thesis §5.5.3: 97.7 %); the configured plant with the fitted Table 5-2 stage values:\n",
@@ -108,10 +117,17 @@ impl Identified {
                 m.from_hz, m.to_hz, m.points, m.worst_db
             );
         }
-        if let Some(r) = &self.extra_resonance {
+        if let Some(r) = &self.extra_mode {
+            let place = if plant.modes.iter().any(|m| m == r) {
+                "in this model as [[plant.modes]]"
+            } else {
+                "NOT in this model (the configured plant already carries the most extra modes)"
+            };
             out += &format!(
-                "# fitted beside the stage, NOT in this model: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB\n",
-                r.pole_hz, r.pole_zeta, r.zero_hz, r.zero_zeta, r.peak_db
+                "# fitted beside the stage, {place}: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB;\n\
+                 #   on the reading (at = \"sensor\"): this FRF cannot tell a sensor mount from a stage mode — the designs and\n\
+                 #   loop checks see them alike, the tool motion predicted from the model would not\n",
+                r.hz, r.zeta, r.zero_hz, r.zero_zeta, r.peak_db()
             );
         }
         let made_for = run_config::made_for_plant(&plant);
@@ -125,7 +141,11 @@ impl Identified {
 pub const MIN_CREDIBLE_FIT_PERCENT: f64 = 70.0;
 
 /// The model's open-loop response (m/V) at `freq_hz` for stage `stage` in `cfg`'s plant.
-fn open_loop(plan: &Plan, stage: StageParams, freq_hz: &[f64]) -> Result<Vec<Complex64>, String> {
+pub(crate) fn open_loop(
+    plan: &Plan,
+    stage: StageParams,
+    freq_hz: &[f64],
+) -> Result<Vec<Complex64>, String> {
     let mut plant = plan.config.plant;
     plant.stage = stage;
     plant.actuator.model = plant_sim::params::CurrentLoopModel::Ideal;
@@ -185,7 +205,7 @@ pub fn identify(
                 let g = stage(&p[..6], freq_hz)?;
                 Ok(g.iter()
                     .zip(freq_hz)
-                    .map(|(g, &fq)| g * resonance::factor(&p[6..], fq))
+                    .map(|(g, &fq)| g * resonance::mode(&p[6..]).response(fq))
                     .collect())
             };
             let f = design::identify::fit(
@@ -197,7 +217,7 @@ pub fn identify(
                 200,
             )
             .ok()?;
-            let extra = resonance::ExtraResonance::of(&f.params[6..]);
+            let extra = resonance::mode(&f.params[6..]);
             resonance::plausible(&extra, band).ok()?;
             let fitted = model(&f.params).ok()?;
             let all = vec![true; freq_hz.len()];
@@ -207,7 +227,7 @@ pub fn identify(
                     .all(|k| *k);
             explained.then_some((f, extra))
         });
-    let (f, points, extra_resonance) = match with_resonance {
+    let (f, points, extra_mode) = match with_resonance {
         Some((f, extra)) => (f, freq_hz.len(), Some(extra)),
         None => (f, keep.iter().filter(|k| **k).count(), None),
     };
@@ -226,6 +246,6 @@ pub fn identify(
         iterations: f.iterations,
         points,
         misfits,
-        extra_resonance,
+        extra_mode,
     })
 }
