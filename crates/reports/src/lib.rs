@@ -7,6 +7,7 @@
 
 pub mod budget;
 pub mod design_space;
+pub mod fit;
 pub mod form;
 pub mod frf;
 pub mod intermittent;

@@ -94,9 +94,15 @@ fn walk(
                 format!("{prefix}.{name}")
             };
             let sub_pointer = format!("{pointer}/properties/{}", name.replace('~', "~0"));
-            let (_, target) = resolve(root, &sub_pointer);
+            let (target_pointer, target) = resolve(root, &sub_pointer);
+            let items = format!("{target_pointer}/items");
             if is_table(root, target) {
                 walk(root, &sub_pointer, &key, kind.clone(), out);
+            } else if target.get("type").and_then(Value::as_str) == Some("array")
+                && is_table(root, resolve(root, &items).1)
+            {
+                // An array of tables (`[[plant.modes]]`): its keys as `plant.modes[].hz`.
+                walk(root, &items, &format!("{key}[]"), kind.clone(), out);
             } else if target.get("const").is_none() {
                 let text = |field: &str| sub.get(field).or_else(|| target.get(field));
                 out.push(Leaf {
@@ -273,7 +279,8 @@ fn fir_feedforward() -> RunConfig {
 
 /// The default run with each scenario kind, machining each preset surface (the image
 /// surface's file is [`probe_image`], given to the run as its embedded copy), machining
-/// with repetitive control, with the coil current loop and with an FIR feedforward.
+/// with repetitive control, with the coil current loop, with an extra mode and with an FIR
+/// feedforward.
 fn base_configs() -> Vec<toml::Value> {
     let image = ImageMap {
         path: SURFACE_INPUT.into(),
@@ -312,9 +319,24 @@ fn base_configs() -> Vec<toml::Value> {
             ..RunConfig::default()
         }))
         .chain(std::iter::once(coil_current_loop()))
+        .chain(std::iter::once(extra_mode()))
         .chain(std::iter::once(fir_feedforward()))
         .map(|config| toml::Value::try_from(&config).expect("a configuration always serialises"))
         .collect()
+}
+
+/// The default run with an extra mode on the reading (its keys are checked only then).
+fn extra_mode() -> RunConfig {
+    let mut config = RunConfig::default();
+    let mode = plant_sim::modes::ExtraMode {
+        at: plant_sim::modes::ModeSite::Sensor,
+        hz: 1_600.0,
+        zeta: 0.01,
+        zero_hz: 1_600.0,
+        zero_zeta: 0.02,
+    };
+    config.plant.modes = plant_sim::modes::ExtraModes::new(&[mode]).expect("one mode fits");
+    config
 }
 
 /// The default run with the R-L coil current loop (its keys are checked only then).
@@ -360,10 +382,15 @@ fn probe_prescription() -> Vec<u8> {
 fn probe(base: &toml::Value, leaf: &KeyDoc, image: &[u8]) -> Option<String> {
     let mut doc = base.clone();
     let (parent, name) = leaf.key.rsplit_once('.').unwrap_or(("", &leaf.key));
+    // A key of an array of tables (`plant.modes[].hz`) is probed in the array's first table
+    // and refused as `plant.modes[0].hz`.
     let table = parent
         .split('.')
         .filter(|p| !p.is_empty())
-        .try_fold(&mut doc, |t, part| t.get_mut(part))?
+        .try_fold(&mut doc, |t, part| match part.strip_suffix("[]") {
+            Some(array) => t.get_mut(array)?.get_mut(0),
+            None => t.get_mut(part),
+        })?
         .as_table_mut()?;
     table.insert(name.to_owned(), toml::Value::Float(f64::NAN));
     // The tagged table may be an ancestor (`scenario` of `scenario.repetitive.…`).
@@ -393,7 +420,9 @@ fn probe(base: &toml::Value, leaf: &KeyDoc, image: &[u8]) -> Option<String> {
         data: probe_prescription(),
     };
     match Plan::with_inputs(&loaded, vec![image, prescription]) {
-        Err(RunError::Config(ConfigError::Invalid { key, range, .. })) if key == leaf.key => {
+        Err(RunError::Config(ConfigError::Invalid { key, range, .. }))
+            if key == leaf.key.replace("[]", "[0]") =>
+        {
             Some(range)
         }
         _ => None,

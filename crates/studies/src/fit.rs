@@ -160,7 +160,12 @@ fn model_modes(plant: &PlantParams) -> Vec<(f64, String)> {
     let mut modes: Vec<(f64, String)> = lti::eigenvalues(&mech.a)
         .into_iter()
         .filter(|p| p.im > 0.0)
-        .map(|p| (p.norm() / (2.0 * std::f64::consts::PI), "stage".to_owned()))
+        .map(|p| {
+            (
+                p.norm() / (2.0 * std::f64::consts::PI),
+                "stage mode".to_owned(),
+            )
+        })
         .collect();
     modes.extend(
         plant

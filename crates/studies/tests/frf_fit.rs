@@ -97,3 +97,26 @@ fn a_practice_stage_is_fitted_within_its_uncertainty_and_its_mount_is_named() {
         );
     }
 }
+
+/// A file without each bin's uncertainty cannot be fitted by it: refused, naming the file and
+/// the column.
+#[test]
+fn an_frf_without_uncertainty_is_refused_by_name() {
+    let frf = MeasuredFrf {
+        uncertainty: None,
+        source: "elsewhere/frf.csv".into(),
+        ..measure(7)
+    };
+    let e = fit_frf(
+        &common::plan(&Loaded::default()),
+        &frf,
+        None,
+        DEFAULT_MAX_ORDER,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("elsewhere/frf.csv") && e.contains("uncertainty_m_per_v"),
+        "{e}"
+    );
+}

@@ -6,6 +6,7 @@ pub mod config;
 pub mod ctl;
 pub mod deploy;
 pub mod export;
+pub mod fit;
 pub mod frf;
 pub mod hil;
 pub mod identify;
