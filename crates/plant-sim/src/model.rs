@@ -447,7 +447,9 @@ impl PlantModel {
         // Every current-loop setting is checked, whichever model is selected: a file valid
         // today stays valid when the model is switched.
         check_coil(&a.coil)?;
-        p.modes.check()?;
+        for (key, value, lo, hi, range) in p.modes.ranges() {
+            check(key, value, lo, hi, range)?;
+        }
         let ideal = second_order_lowpass(
             a.current_bandwidth_hz,
             a.current_damping,

@@ -5,11 +5,14 @@
 //! (a mode of the stage, which every output sees). `[[plant.modes]]` in a plant file; what
 //! `servo identify` writes when it finds one and what the practice stage hides.
 
-use crate::model::{check, ModelError};
-use crate::params::rad;
 use lti::{LtiError, StateSpace};
 use num_complex::Complex64;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+/// `2π·f`.
+fn rad(f_hz: f64) -> f64 {
+    2.0 * std::f64::consts::PI * f_hz
+}
 
 /// Most extra modes a plant carries.
 pub const MAX_MODES: usize = 4;
@@ -122,8 +125,8 @@ impl ExtraModes {
         Ok(chain)
     }
 
-    /// Rejects a mode outside its ranges, naming `modes[i].key`.
-    pub(crate) fn check(&self) -> Result<(), ModelError> {
+    /// Every value with its key (`modes[i].key`), allowed range and the range as text.
+    pub(crate) fn ranges(&self) -> Vec<(&'static str, f64, f64, f64, &'static str)> {
         const KEYS: [[&str; 4]; MAX_MODES] = [
             [
                 "modes[0].hz",
@@ -150,13 +153,17 @@ impl ExtraModes {
                 "modes[3].zero_zeta",
             ],
         ];
-        for (m, [hz, zeta, zero_hz, zero_zeta]) in self.iter().zip(KEYS) {
-            check(hz, m.hz, 1.0, 1e8, "[1, 1e8] Hz")?;
-            check(zeta, m.zeta, 1e-4, 10.0, "[1e-4, 10]")?;
-            check(zero_hz, m.zero_hz, 1.0, 1e8, "[1, 1e8] Hz")?;
-            check(zero_zeta, m.zero_zeta, 0.0, 10.0, "[0, 10]")?;
-        }
-        Ok(())
+        self.iter()
+            .zip(KEYS)
+            .flat_map(|(m, [hz, zeta, zero_hz, zero_zeta])| {
+                [
+                    (hz, m.hz, 1.0, 1e8, "[1, 1e8] Hz"),
+                    (zeta, m.zeta, 1e-4, 10.0, "[1e-4, 10]"),
+                    (zero_hz, m.zero_hz, 1.0, 1e8, "[1, 1e8] Hz"),
+                    (zero_zeta, m.zero_zeta, 0.0, 10.0, "[0, 10]"),
+                ]
+            })
+            .collect()
     }
 }
 
