@@ -30,6 +30,14 @@ const FINITE_ZERO: f64 = 1e-10;
 /// Zeros closer to the unit circle than this are not inverted.
 pub const UNIT_CIRCLE_MARGIN: f64 = 1e-6;
 
+/// Largest gain `|F|` a design may have anywhere up to Nyquist. `F` inverts a loop that rolls
+/// off, so it rises above the loop's bandwidth — to 10⁴–10⁵ at Nyquist for the thesis loops —
+/// but a reduced model with a zero just outside the unit circle near DC (a truncation
+/// artefact, or a slow non-minimum-phase zero) makes the zero-phase compensation divide by
+/// `B_u(1)² ≈ 0` and lifts `|F|` to 10⁹–10¹²: the reference's own rounding would then saturate
+/// the DAC. Such an order is passed over.
+pub const MAX_GAIN: f64 = 1e6;
+
 /// A ZPETC design.
 #[derive(Debug, Clone)]
 pub struct ZpetcDesign {
@@ -59,6 +67,17 @@ impl ZpetcDesign {
             .product();
         self.gain * sections * z.powi(self.preview as i32)
     }
+
+    /// The largest `|F|` from DC to Nyquist (2000 points) and where it is, Hz.
+    pub fn peak_gain(&self, period_s: f64) -> (f64, f64) {
+        let nyquist = 0.5 / period_s;
+        (0..=2000)
+            .map(|i| {
+                let f = nyquist * i as f64 / 2000.0;
+                (self.response(f, period_s).norm(), f)
+            })
+            .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a })
+    }
 }
 
 /// Errors of [`design`].
@@ -71,6 +90,16 @@ pub enum ZpetcError {
     /// A linear-algebra step failed.
     #[error(transparent)]
     Lti(#[from] LtiError),
+    /// Every reduced order that matches the model makes a filter louder than [`MAX_GAIN`].
+    #[error("every reduced model that matches the loop makes a filter with a gain of {peak:.1e} at {at_hz:.0} Hz (at most {MAX_GAIN:.0e}: the reference's rounding would saturate the DAC); its model's zeros outside the unit circle: {zeros}")]
+    TooLoud {
+        /// The quietest such filter's largest gain.
+        peak: f64,
+        /// Where, Hz.
+        at_hz: f64,
+        /// That model's zeros that were not inverted (z-plane), as text.
+        zeros: String,
+    },
     /// No reduced order up to the limit matches the model well enough.
     #[error("no reduced model of order ≤ {max_order} matches the loop within {tolerance} up to {f_check_hz:.0} Hz (best {best:.2e})")]
     NoFit {
@@ -87,7 +116,8 @@ pub enum ZpetcError {
 
 /// Designs the ZPETC of the stable SISO discrete loop `sys` (period `period_s`): the smallest
 /// balanced truncation of order ≤ `max_order` whose response matches `sys` within `tolerance`
-/// (relative) from 1 Hz to `f_check_hz`, factored and inverted as above.
+/// (relative) from 1 Hz to `f_check_hz` and whose inverse stays within [`MAX_GAIN`],
+/// factored and inverted as above.
 pub fn design(
     sys: &StateSpace,
     period_s: f64,
@@ -107,6 +137,7 @@ pub fn design(
     let dc_full = sys.freq_response_discrete(0.0, period_s)?[(0, 0)].re;
     let balancing = Balancing::new(sys)?;
     let mut best = f64::INFINITY;
+    let mut loud: Option<ZpetcError> = None;
     for order in 1..=max_order.min(sys.nx()) {
         let reduced = balancing.truncate(order).sys;
         let Some(zpk) = Zpk::of(&reduced) else {
@@ -119,8 +150,30 @@ pub fn design(
             .fold(0.0, f64::max);
         best = best.min(error);
         if error <= tolerance {
-            return Ok(zpk.inverse(order, error, dc_full));
+            let design = zpk.inverse(order, error, dc_full);
+            let (peak, at_hz) = design.peak_gain(period_s);
+            if peak <= MAX_GAIN {
+                return Ok(design);
+            }
+            if loud.as_ref().is_none_or(|l: &ZpetcError| match l {
+                ZpetcError::TooLoud { peak: p, .. } => peak < *p,
+                _ => false,
+            }) {
+                let zeros: Vec<String> = design
+                    .unacceptable_zeros
+                    .iter()
+                    .map(|q| format!("{:.4}{:+.4}j", q.re, q.im))
+                    .collect();
+                loud = Some(ZpetcError::TooLoud {
+                    peak,
+                    at_hz,
+                    zeros: zeros.join(", "),
+                });
+            }
         }
+    }
+    if let Some(loud) = loud {
+        return Err(loud);
     }
     Err(ZpetcError::NoFit {
         max_order,

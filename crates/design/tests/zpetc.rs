@@ -112,3 +112,25 @@ fn convolve(a: &[f64], b: &[f64]) -> Vec<f64> {
     }
     out
 }
+
+/// A slow zero just outside the unit circle: its zero-phase compensation divides by
+/// `B_u(1)² = (1 − 1.0005)²` and lifts `|F|` at Nyquist by `|B_u(−1)|²/|B_u(1)|²` = 1.6·10⁷
+/// — beyond `MAX_GAIN`, so the design is refused, naming the gain and the zero; the same loop
+/// with the zero at −1.5 (harmless) is accepted.
+#[test]
+fn a_slow_zero_outside_the_circle_is_refused_not_amplified() {
+    use design::zpetc::{ZpetcError, MAX_GAIN};
+    let den = convolve(&quadratic(0.8, 0.6), &[1.0, -0.5]);
+    let slow = loop_tf(&convolve(&[1.0, -1.0005], &[1.0, -0.3]), &den);
+    match design(&slow, T, 4, 0.49, 1e-9) {
+        Err(ZpetcError::TooLoud { peak, zeros, .. }) => {
+            let want = (2.0005f64 / 0.0005).powi(2);
+            assert!(peak > MAX_GAIN && peak > 0.1 * want, "{peak:e}");
+            assert!(zeros.contains("1.0005"), "{zeros}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let harmless = loop_tf(&convolve(&[1.0, 1.5], &[1.0, -0.3]), &den);
+    let f = design(&harmless, T, 4, 0.49, 1e-9).unwrap();
+    assert!(f.peak_gain(T).0 <= MAX_GAIN);
+}

@@ -110,6 +110,21 @@ impl<const N: usize> Iir<N> {
         self.coeffs = coeffs;
     }
 
+    /// Sets the state to that of an input at rest at `x` forever: the next output for `x` is
+    /// `dc_gain·x` (a stable filter; an integrator has no such state and keeps its own).
+    pub(crate) fn prime(&mut self, x: f64) {
+        let c = &self.coeffs;
+        let y = c.dc_gain() * x;
+        if !y.is_finite() {
+            return;
+        }
+        let mut acc = 0.0;
+        for i in (0..N).rev() {
+            acc += c.b[i] * x - c.a[i] * y;
+            self.state[i] = acc;
+        }
+    }
+
     /// The output for input `x` without touching the state (for strictly proper `b0 = 0`
     /// filters this is the next output whatever `x` is).
     #[inline]
@@ -171,6 +186,15 @@ impl<const M: usize> BiquadCascade<M> {
     /// Product of the sections' DC gains.
     pub fn dc_gain(&self) -> f64 {
         self.sections.iter().map(|s| s.coeffs().dc_gain()).product()
+    }
+
+    /// Sets every section's state to that of an input at rest at `x` forever.
+    pub(crate) fn prime(&mut self, x: f64) {
+        let mut input = x;
+        for s in &mut self.sections {
+            s.prime(input);
+            input *= s.coeffs().dc_gain();
+        }
     }
 }
 

@@ -109,12 +109,19 @@ impl Feedforward {
     /// trajectory keeps it); `fresh` when the window was filled anew.
     #[inline]
     pub(crate) fn follow(&mut self, w: &Window, fresh: bool) {
-        if let Feedforward::Fir(f) = self {
-            if fresh {
-                f.prime(w);
-            } else {
-                f.follow(w);
+        match self {
+            Feedforward::Fir(f) if fresh => f.prime(w),
+            Feedforward::Fir(f) => f.follow(w),
+            // As the FIR: the trajectory at rest at the earliest sample the window smooths,
+            // then what it holds up to the tick before this tick's input (at most
+            // `MAX_PREVIEW` section updates, on the first tick or after skipped ones).
+            Feedforward::Zpetc(z) if fresh => {
+                z.prime(w.smooth(-1));
+                for j in 0..z.preview() as isize {
+                    z.update(w.smooth(j));
+                }
             }
+            Feedforward::None | Feedforward::Model(_) | Feedforward::Zpetc(_) => {}
         }
     }
 }
