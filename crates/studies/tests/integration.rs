@@ -9,6 +9,7 @@ mod frf_fit;
 mod frf_practice;
 mod fuzz_frf_csv;
 mod identify;
+mod identify_coverage;
 mod intermittent;
 mod machining;
 mod repetitive;

@@ -84,7 +84,7 @@ impl FitCmd {
                 r.in_model
                     .as_deref()
                     .map_or("NOT in the plant model".to_owned(), |m| format!(
-                        "the model's {m} mode"
+                        "the model's {m}"
                     ))
             );
         }
