@@ -109,19 +109,29 @@ impl Feedforward {
     /// trajectory keeps it); `fresh` when the window was filled anew.
     #[inline]
     pub(crate) fn follow(&mut self, w: &Window, fresh: bool) {
+        if fresh {
+            self.prime(w);
+        } else if let Feedforward::Fir(f) = self {
+            f.follow(w);
+        }
+    }
+
+    /// Starts a filter with a memory of the trajectory from a window filled anew (the first
+    /// tick, or ticks skipped): the trajectory at rest at the earliest sample the window
+    /// smooths, then what it holds up to the tick before this tick's input — for the ZPETC at
+    /// most `MAX_PREVIEW` section updates. Out of line: the steady tick never comes here.
+    #[cold]
+    #[inline(never)]
+    fn prime(&mut self, w: &Window) {
         match self {
-            Feedforward::Fir(f) if fresh => f.prime(w),
-            Feedforward::Fir(f) => f.follow(w),
-            // As the FIR: the trajectory at rest at the earliest sample the window smooths,
-            // then what it holds up to the tick before this tick's input (at most
-            // `MAX_PREVIEW` section updates, on the first tick or after skipped ones).
-            Feedforward::Zpetc(z) if fresh => {
+            Feedforward::Fir(f) => f.prime(w),
+            Feedforward::Zpetc(z) => {
                 z.prime(w.smooth(-1));
                 for j in 0..z.preview() as isize {
                     z.update(w.smooth(j));
                 }
             }
-            Feedforward::None | Feedforward::Model(_) | Feedforward::Zpetc(_) => {}
+            Feedforward::None | Feedforward::Model(_) => {}
         }
     }
 }
