@@ -49,6 +49,7 @@ __all__ = [
     "tune",
     "synth_h2",
     "identify",
+    "fit_frd",
     "study_info",
     "study_rows",
     "run_study_ray",
@@ -358,6 +359,39 @@ def identify(
         frf = [float(f) for f in frf]  # type: ignore[union-attr]
         measured_m_per_v = np.ascontiguousarray(measured_m_per_v, dtype=np.complex128)
     report, model = _native.identify(frf, measured_m_per_v, config, overrides)
+    return {**json.loads(report), "model_toml": model}
+
+
+def fit_frd(
+    frf: Union[str, "os.PathLike[str]", Sequence[float]],
+    measured_m_per_v: Optional[np.ndarray] = None,
+    uncertainty_m_per_v: Optional[np.ndarray] = None,
+    order: Optional[int] = None,
+    max_order: int = 30,
+    config: Config = None,
+    **tables: Any,
+) -> Dict[str, Any]:
+    """``servo fit``: a stable rational model of a measured FRF, and the modes the plant lacks.
+
+    ``frf`` is the ``frf.csv`` ``servo frf`` writes, or the frequencies in Hz with
+    ``measured_m_per_v`` the complex response (m/V) and ``uncertainty_m_per_v`` each bin's 1σ
+    radius (m/V; required: the fit is weighted and its order chosen by it). Returns the report
+    (``order``, ``within``, ``weighted_rms``, ``resonances``, ``extra_modes``, and ``fit``: the
+    rational model ``H(z) = direct + Σ r/(z − p)`` as ``period_s``, ``direct_m_per_v``,
+    ``poles_z``, ``residues_m_per_v``) and ``model_toml``: the configured plant with the extra
+    modes, the plant file ``servo … --plant`` takes.
+    """
+    config, overrides = _args(config, tables)
+    if measured_m_per_v is None:
+        frf = os.fspath(frf)  # type: ignore[arg-type]
+    else:
+        frf = [float(f) for f in frf]  # type: ignore[union-attr]
+        measured_m_per_v = np.ascontiguousarray(measured_m_per_v, dtype=np.complex128)
+        if uncertainty_m_per_v is not None:
+            uncertainty_m_per_v = np.ascontiguousarray(uncertainty_m_per_v, dtype=np.float64)
+    report, model = _native.fit_frd(
+        frf, measured_m_per_v, uncertainty_m_per_v, order, max_order, config, overrides
+    )
     return {**json.loads(report), "model_toml": model}
 
 

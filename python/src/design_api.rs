@@ -116,3 +116,61 @@ pub fn identify(
         ))
     })
 }
+
+/// `servo fit`: a stable rational model of a measured FRF (`freq_hz`, complex
+/// `measured_m_per_v` and each bin's 1σ radius `uncertainty_m_per_v` — or a `frf.csv` path as
+/// `servo frf` writes it), its order chosen by the uncertainty unless given; the report's JSON
+/// (its rational model and the modes the configured plant lacks) and the plant file (TOML) with
+/// those modes.
+#[pyfunction]
+#[pyo3(signature = (frf, measured_m_per_v=None, uncertainty_m_per_v=None, order=None, max_order=30, config=None, overrides=None))]
+#[allow(clippy::too_many_arguments)] // Python's keyword arguments
+pub fn fit_frd(
+    py: Python<'_>,
+    frf: &Bound<'_, PyAny>,
+    measured_m_per_v: Option<PyReadonlyArray1<'_, num_complex::Complex64>>,
+    uncertainty_m_per_v: Option<PyReadonlyArray1<'_, f64>>,
+    order: Option<usize>,
+    max_order: usize,
+    config: Option<&Bound<'_, PyAny>>,
+    overrides: Option<&Bound<'_, PyDict>>,
+) -> PyResult<(String, String)> {
+    let loaded = load(config, overrides)?;
+    let nyquist_hz = loaded.config.plant.timing.servo_rate_hz / 2.0;
+    let measured = match measured_m_per_v {
+        Some(g) => {
+            let freq_hz: Vec<f64> = frf.extract()?;
+            let response = g.as_slice()?.to_vec();
+            let uncertainty = match uncertainty_m_per_v {
+                Some(u) => Some(u.as_slice()?.to_vec()),
+                None => None,
+            };
+            if response.len() != freq_hz.len()
+                || uncertainty.as_ref().is_some_and(|u| u.len() != freq_hz.len())
+            {
+                return Err(pyo3::exceptions::PyValueError::new_err(
+                    "fit_frd: frf, measured_m_per_v and uncertainty_m_per_v differ in length",
+                ));
+            }
+            run_config::frf_file::MeasuredFrf {
+                coherence: vec![1.0; freq_hz.len()],
+                freq_hz,
+                response,
+                uncertainty,
+                source: "arrays given to fts_servo.fit_frd".to_owned(),
+            }
+        }
+        None => {
+            let path: PathBuf = frf.extract()?;
+            run_config::frf_file::read_frf(&path, nyquist_hz).map_err(servo_err)?
+        }
+    };
+    py.detach(|| {
+        let plan = built(&loaded)?;
+        let fit = studies::fit::fit_frf(&plan, &measured, order, max_order).map_err(servo_err)?;
+        Ok((
+            serde_json::to_string(&fit).map_err(servo_err)?,
+            fit.model_toml(&plan, &measured.source),
+        ))
+    })
+}

@@ -49,6 +49,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(design_api::tune, m)?)?;
     m.add_function(wrap_pyfunction!(design_api::synth_h2, m)?)?;
     m.add_function(wrap_pyfunction!(design_api::identify, m)?)?;
+    m.add_function(wrap_pyfunction!(design_api::fit_frd, m)?)?;
     m.add_function(wrap_pyfunction!(optics_api::prescription_sag, m)?)?;
     m.add_function(wrap_pyfunction!(study_api::study_info, m)?)?;
     m.add_function(wrap_pyfunction!(study_api::study_rows, m)?)?;

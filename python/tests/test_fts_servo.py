@@ -308,6 +308,27 @@ def test_identification_recovers_a_known_stage_from_its_frequency_response() -> 
     assert "k2_n_per_m" in r["model_toml"]
 
 
+def test_a_rational_fit_names_the_mode_the_model_lacks() -> None:
+    """fit_frd on the exact response of a stage with an extra mode at 3 kHz, complex noise of a
+    known 1σ radius added: the fit is as close as the noise allows, its poles are stable, and the
+    mode the model (the same stage without it) lacks is named within 2 % and written into the
+    plant file."""
+    stage = {"k2_n_per_m": 21965.0 * 1.1}
+    mode = {"at": "sensor", "hz": 3000.0, "zeta": 0.01, "zero_hz": 3000.0, "zero_zeta": 0.03}
+    f = np.logspace(np.log10(20.0), 4.0, 120)
+    g = fs.loop_response(f, plant={"stage": stage, "modes": [mode]})["plant_m_per_v"]
+    sigma = 1e-3 * np.abs(g)
+    rng = np.random.default_rng(7)
+    noise = rng.standard_normal(len(f)) + 1j * rng.standard_normal(len(f))
+    r = fs.fit_frd(f, g + sigma * noise / np.sqrt(2), sigma, plant={"stage": stage})
+    assert r["weighted_rms"] < 1.2
+    poles = np.array(r["fit"]["poles_z"])
+    assert (np.hypot(poles[:, 0], poles[:, 1]) < 1.0).all()
+    [extra] = r["extra_modes"]
+    assert extra["hz"] == pytest.approx(3000.0, rel=0.02)
+    assert "[[plant.modes]]" in r["model_toml"]
+
+
 def test_a_python_loop_of_servo_and_plant_is_servo_runs_loop(tmp_path: Path) -> None:
     """Servo and Plant tick by tick close the loop `servo run --digest` closes: the same
     samples and commands, bit for bit (the FNV-1a digest, written again here)."""

@@ -10,17 +10,12 @@ use std::path::Path;
 use studies::fit::{FrfFit, DISK_95};
 use studies::report::{data, ReportError, Written};
 
-/// What `fit.json` holds: the fit's summary and its poles and residues (`[re, im]` in z, at
-/// the period given).
+/// What `fit.json` holds: the FRF's source and the fit (its rational model included).
 #[derive(serde::Serialize)]
 struct FitFile<'a> {
     source: &'a str,
     #[serde(flatten)]
     fit: &'a FrfFit,
-    period_s: f64,
-    direct_m_per_v: f64,
-    poles_z: Vec<[f64; 2]>,
-    residues_m_per_v: Vec<[f64; 2]>,
 }
 
 /// Writes `fit.csv` (per bin: measured, fit, uncertainty, residual in σ), `fit.json` and
@@ -55,14 +50,9 @@ pub fn write(
         )
         .unwrap();
     }
-    let pair = |c: &Complex64| [c.re, c.im];
     let file = FitFile {
         source: &frf.source,
         fit,
-        period_s: fit.fit.period_s,
-        direct_m_per_v: fit.fit.direct,
-        poles_z: fit.fit.poles.iter().map(pair).collect(),
-        residues_m_per_v: fit.fit.residues.iter().map(pair).collect(),
     };
     let mut out = data(
         dir,

@@ -68,9 +68,32 @@ pub struct FrfFit {
     pub resonances: Vec<Resonance>,
     /// The resonances the model lacks, fitted onto the model as extra modes (on the reading).
     pub extra_modes: Vec<ExtraMode>,
-    /// The rational model.
-    #[serde(skip)]
+    /// The rational model (as `{period_s, direct_m_per_v, poles_z, residues_m_per_v}`, each
+    /// complex number as `[re, im]`).
+    #[serde(serialize_with = "rational")]
     pub fit: RationalFit,
+}
+
+/// A rational fit as data: its period, direct term, and each pole (in z) and residue (m/V) as
+/// `[re, im]`.
+fn rational<S: serde::Serializer>(fit: &RationalFit, s: S) -> Result<S::Ok, S::Error> {
+    #[derive(serde::Serialize)]
+    struct Rational {
+        period_s: f64,
+        direct_m_per_v: f64,
+        poles_z: Vec<[f64; 2]>,
+        residues_m_per_v: Vec<[f64; 2]>,
+    }
+    let pair = |c: &Complex64| [c.re, c.im];
+    serde::Serialize::serialize(
+        &Rational {
+            period_s: fit.period_s,
+            direct_m_per_v: fit.direct,
+            poles_z: fit.poles.iter().map(pair).collect(),
+            residues_m_per_v: fit.residues.iter().map(pair).collect(),
+        },
+        s,
+    )
 }
 
 /// Each bin's 1σ radius: the file's uncertainty, at least 1e-6 of the response.
