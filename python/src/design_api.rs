@@ -146,7 +146,9 @@ pub fn fit_frd(
                 None => None,
             };
             if response.len() != freq_hz.len()
-                || uncertainty.as_ref().is_some_and(|u| u.len() != freq_hz.len())
+                || uncertainty
+                    .as_ref()
+                    .is_some_and(|u| u.len() != freq_hz.len())
             {
                 return Err(pyo3::exceptions::PyValueError::new_err(
                     "fit_frd: frf, measured_m_per_v and uncertainty_m_per_v differ in length",
