@@ -339,6 +339,17 @@ def synth_h2(
     }
 
 
+def _frf(
+    frf: Union[str, "os.PathLike[str]", Sequence[float]], measured_m_per_v: Optional[np.ndarray]
+) -> Tuple[Any, Optional[np.ndarray]]:
+    """An FRF as the native module takes it: a ``frf.csv`` path, or the frequencies in Hz as
+    floats with the complex response as a contiguous ``complex128`` array."""
+    if measured_m_per_v is None:
+        return os.fspath(frf), None  # type: ignore[arg-type]
+    freq = [float(f) for f in frf]  # type: ignore[union-attr]
+    return freq, np.ascontiguousarray(measured_m_per_v, dtype=np.complex128)
+
+
 def identify(
     frf: Union[str, "os.PathLike[str]", Sequence[float]],
     measured_m_per_v: Optional[np.ndarray] = None,
@@ -353,11 +364,7 @@ def identify(
     file ``servo … --plant`` takes.
     """
     config, overrides = _args(config, tables)
-    if measured_m_per_v is None:
-        frf = os.fspath(frf)  # type: ignore[arg-type]
-    else:
-        frf = [float(f) for f in frf]  # type: ignore[union-attr]
-        measured_m_per_v = np.ascontiguousarray(measured_m_per_v, dtype=np.complex128)
+    frf, measured_m_per_v = _frf(frf, measured_m_per_v)
     report, model = _native.identify(frf, measured_m_per_v, config, overrides)
     return {**json.loads(report), "model_toml": model}
 
@@ -382,13 +389,9 @@ def fit_frd(
     modes, the plant file ``servo … --plant`` takes.
     """
     config, overrides = _args(config, tables)
-    if measured_m_per_v is None:
-        frf = os.fspath(frf)  # type: ignore[arg-type]
-    else:
-        frf = [float(f) for f in frf]  # type: ignore[union-attr]
-        measured_m_per_v = np.ascontiguousarray(measured_m_per_v, dtype=np.complex128)
-        if uncertainty_m_per_v is not None:
-            uncertainty_m_per_v = np.ascontiguousarray(uncertainty_m_per_v, dtype=np.float64)
+    frf, measured_m_per_v = _frf(frf, measured_m_per_v)
+    if uncertainty_m_per_v is not None:
+        uncertainty_m_per_v = np.ascontiguousarray(uncertainty_m_per_v, dtype=np.float64)
     report, model = _native.fit_frd(
         frf, measured_m_per_v, uncertainty_m_per_v, order, max_order, config, overrides
     )

@@ -91,28 +91,13 @@ pub fn identify(
     overrides: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<(String, String)> {
     let loaded = load(config, overrides)?;
-    let nyquist_hz = loaded.config.plant.timing.servo_rate_hz / 2.0;
-    let (f, g, source) = match measured_m_per_v {
-        Some(g) => {
-            let f: Vec<f64> = frf.extract()?;
-            (
-                f,
-                g.as_slice()?.to_vec(),
-                "arrays given to fts_servo.identify".to_owned(),
-            )
-        }
-        None => {
-            let path: PathBuf = frf.extract()?;
-            let m = run_config::frf_file::read_frf(&path, nyquist_hz).map_err(servo_err)?;
-            (m.freq_hz, m.response, m.source)
-        }
-    };
+    let m = measured_frf(frf, measured_m_per_v, None, &loaded, "identify")?;
     py.detach(|| {
         let plan = built(&loaded)?;
-        let id = studies::identify::identify(&plan, &f, &g).map_err(servo_err)?;
+        let id = studies::identify::identify(&plan, &m.freq_hz, &m.response).map_err(servo_err)?;
         Ok((
             serde_json::to_string(&id).map_err(servo_err)?,
-            id.model_toml(&plan, &source),
+            id.model_toml(&plan, &m.source),
         ))
     })
 }
@@ -136,37 +121,13 @@ pub fn fit_frd(
     overrides: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<(String, String)> {
     let loaded = load(config, overrides)?;
-    let nyquist_hz = loaded.config.plant.timing.servo_rate_hz / 2.0;
-    let measured = match measured_m_per_v {
-        Some(g) => {
-            let freq_hz: Vec<f64> = frf.extract()?;
-            let response = g.as_slice()?.to_vec();
-            let uncertainty = match uncertainty_m_per_v {
-                Some(u) => Some(u.as_slice()?.to_vec()),
-                None => None,
-            };
-            if response.len() != freq_hz.len()
-                || uncertainty
-                    .as_ref()
-                    .is_some_and(|u| u.len() != freq_hz.len())
-            {
-                return Err(pyo3::exceptions::PyValueError::new_err(
-                    "fit_frd: frf, measured_m_per_v and uncertainty_m_per_v differ in length",
-                ));
-            }
-            run_config::frf_file::MeasuredFrf {
-                coherence: vec![1.0; freq_hz.len()],
-                freq_hz,
-                response,
-                uncertainty,
-                source: "arrays given to fts_servo.fit_frd".to_owned(),
-            }
-        }
-        None => {
-            let path: PathBuf = frf.extract()?;
-            run_config::frf_file::read_frf(&path, nyquist_hz).map_err(servo_err)?
-        }
-    };
+    let measured = measured_frf(
+        frf,
+        measured_m_per_v,
+        uncertainty_m_per_v,
+        &loaded,
+        "fit_frd",
+    )?;
     py.detach(|| {
         let plan = built(&loaded)?;
         let fit = studies::fit::fit_frf(&plan, &measured, order, max_order).map_err(servo_err)?;
@@ -174,5 +135,44 @@ pub fn fit_frd(
             serde_json::to_string(&fit).map_err(servo_err)?,
             fit.model_toml(&plan, &measured.source),
         ))
+    })
+}
+
+/// An FRF as `fts_servo.<who>` is given it: a `frf.csv` path (read and checked as `servo`
+/// reads it, at the configured rate's Nyquist frequency), or the frequencies in Hz with the
+/// complex response (m/V) and optionally each bin's 1σ radius (m/V), of one length.
+fn measured_frf(
+    frf: &Bound<'_, PyAny>,
+    measured_m_per_v: Option<PyReadonlyArray1<'_, num_complex::Complex64>>,
+    uncertainty_m_per_v: Option<PyReadonlyArray1<'_, f64>>,
+    loaded: &run_config::Loaded,
+    who: &str,
+) -> PyResult<run_config::frf_file::MeasuredFrf> {
+    let Some(g) = measured_m_per_v else {
+        let path: PathBuf = frf.extract()?;
+        let nyquist_hz = loaded.config.plant.timing.servo_rate_hz / 2.0;
+        return run_config::frf_file::read_frf(&path, nyquist_hz).map_err(servo_err);
+    };
+    let freq_hz: Vec<f64> = frf.extract()?;
+    let response = g.as_slice()?.to_vec();
+    let uncertainty = match uncertainty_m_per_v {
+        Some(u) => Some(u.as_slice()?.to_vec()),
+        None => None,
+    };
+    if response.len() != freq_hz.len()
+        || uncertainty
+            .as_ref()
+            .is_some_and(|u| u.len() != freq_hz.len())
+    {
+        return Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "{who}: the frequencies, the response and the uncertainty differ in length"
+        )));
+    }
+    Ok(run_config::frf_file::MeasuredFrf {
+        coherence: vec![1.0; freq_hz.len()],
+        freq_hz,
+        response,
+        uncertainty,
+        source: format!("arrays given to fts_servo.{who}"),
     })
 }

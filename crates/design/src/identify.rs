@@ -111,9 +111,14 @@ const JACKKNIFE_BANDS: usize = 6;
 /// repeated without each of `groups` bands of adjacent points, to first order from the optimum
 /// (`δ_b = (JᵀJ − J_bᵀJ_b)⁻¹ J_bᵀ r_b`, since `Jᵀr = 0` there), and
 /// `√((G − 1)/G · Σ (δ_b − δ̄)²)`. Points are stored real parts first, then imaginary parts.
-fn jackknife(j: &DMatrix<f64>, r: &DVector<f64>, n: usize, groups: usize) -> Vec<f64> {
+fn jackknife(
+    j: &DMatrix<f64>,
+    jtj: &DMatrix<f64>,
+    r: &DVector<f64>,
+    n: usize,
+    groups: usize,
+) -> Vec<f64> {
     let bins = r.len() / 2;
-    let jtj = j.transpose() * j;
     let mut deltas = Vec::new();
     for g in 0..groups {
         let (from, to) = (g * bins / groups, (g + 1) * bins / groups);
@@ -126,7 +131,7 @@ fn jackknife(j: &DMatrix<f64>, r: &DVector<f64>, n: usize, groups: usize) -> Vec
                 gb += &jr * r[row];
             }
         }
-        let Some(inv) = (&jtj - jb).try_inverse() else {
+        let Some(inv) = (jtj - jb).try_inverse() else {
             return vec![f64::INFINITY; n];
         };
         deltas.push(inv * gb);
@@ -235,8 +240,9 @@ pub fn fit(
     // delete-a-band jackknife), combined.
     let m = r.len();
     let sigma2 = cost / (m.saturating_sub(n).max(1)) as f64;
-    let structure = jackknife(&j, &r, n, JACKKNIFE_BANDS);
-    let rel_std = (j.transpose() * &j)
+    let jtj = j.transpose() * &j;
+    let structure = jackknife(&j, &jtj, &r, n, JACKKNIFE_BANDS);
+    let rel_std = jtj
         .try_inverse()
         .map(|cov| {
             (0..n)

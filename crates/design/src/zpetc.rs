@@ -137,7 +137,8 @@ pub fn design(
     let dc_full = sys.freq_response_discrete(0.0, period_s)?[(0, 0)].re;
     let balancing = Balancing::new(sys)?;
     let mut best = f64::INFINITY;
-    let mut loud: Option<ZpetcError> = None;
+    // The quietest design that matched but was too loud: (peak, at Hz, design).
+    let mut quietest: Option<(f64, f64, ZpetcDesign)> = None;
     for order in 1..=max_order.min(sys.nx()) {
         let reduced = balancing.truncate(order).sys;
         let Some(zpk) = Zpk::of(&reduced) else {
@@ -155,25 +156,22 @@ pub fn design(
             if peak <= MAX_GAIN {
                 return Ok(design);
             }
-            if loud.as_ref().is_none_or(|l: &ZpetcError| match l {
-                ZpetcError::TooLoud { peak: p, .. } => peak < *p,
-                _ => false,
-            }) {
-                let zeros: Vec<String> = design
-                    .unacceptable_zeros
-                    .iter()
-                    .map(|q| format!("{:.4}{:+.4}j", q.re, q.im))
-                    .collect();
-                loud = Some(ZpetcError::TooLoud {
-                    peak,
-                    at_hz,
-                    zeros: zeros.join(", "),
-                });
+            if quietest.as_ref().is_none_or(|q| peak < q.0) {
+                quietest = Some((peak, at_hz, design));
             }
         }
     }
-    if let Some(loud) = loud {
-        return Err(loud);
+    if let Some((peak, at_hz, design)) = quietest {
+        let zeros: Vec<String> = design
+            .unacceptable_zeros
+            .iter()
+            .map(|q| format!("{:.4}{:+.4}j", q.re, q.im))
+            .collect();
+        return Err(ZpetcError::TooLoud {
+            peak,
+            at_hz,
+            zeros: zeros.join(", "),
+        });
     }
     Err(ZpetcError::NoFit {
         max_order,

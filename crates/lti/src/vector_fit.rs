@@ -254,7 +254,7 @@ pub fn vector_fit(
             "vector fit: frequencies, responses and weights differ in length",
         ));
     }
-    if !(1..=MAX_ORDER).contains(&order) || 2 * n_bins < 2 * order + 2 {
+    if !(1..=MAX_ORDER).contains(&order) || n_bins < order + 1 {
         return Err(LtiError::Argument(
             "vector fit: the order must be 1–60 and the bins at least order + 1",
         ));

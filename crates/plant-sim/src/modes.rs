@@ -94,6 +94,16 @@ impl ExtraModes {
         (list.len() <= MAX_MODES).then_some(ExtraModes { modes })
     }
 
+    /// These modes and then `more`, as many as fit in [`MAX_MODES`] (the rest left out).
+    pub fn with<'a>(&self, more: impl IntoIterator<Item = &'a ExtraMode>) -> ExtraModes {
+        let mut out = *self;
+        let free = out.modes.iter_mut().filter(|m| m.is_none());
+        for (slot, m) in free.zip(more) {
+            *slot = Some(*m);
+        }
+        out
+    }
+
     /// The modes, in order.
     pub fn iter(&self) -> impl Iterator<Item = &ExtraMode> {
         self.modes.iter().flatten()
@@ -226,5 +236,8 @@ mod tests {
         };
         assert!(ExtraModes::new(&[m; MAX_MODES]).is_some());
         assert!(ExtraModes::new(&[m; MAX_MODES + 1]).is_none());
+        // Appending keeps what fits.
+        let three = ExtraModes::new(&[m; 3]).unwrap();
+        assert_eq!(three.with(&[m; 3]).iter().count(), MAX_MODES);
     }
 }

@@ -140,8 +140,8 @@ impl<const M: usize> Zpetc<M> {
 
     /// Starts from a trajectory at rest at `y` (m) forever: the filter's state as if it had
     /// been fed `y` since the beginning of time, so that a start away from zero is no step to
-    /// it. The filter inverts a loop that rolls off, so its gain near Nyquist is enormous
-    /// (10⁶–10¹² for a kHz loop at 200 kHz) and a step at its input would saturate the DAC.
+    /// it. The filter inverts a loop that rolls off, so its gain near Nyquist is large (10⁴ and
+    /// more for a kHz loop at 200 kHz) and a step at its input would saturate the DAC.
     /// Feed it the trajectory's samples up to the preview after this (their outputs unused).
     pub fn prime(&mut self, y: f64) {
         self.filter.prime(y);

@@ -7,10 +7,10 @@
 //! the plant file every design and the simulator take.
 
 use crate::error::StudyError;
-use crate::identify::open_loop;
+use crate::identify::{open_loop, sensor_mode};
 use lti::vector_fit::{vector_fit, Mode, RationalFit};
 use num_complex::Complex64;
-use plant_sim::modes::{ExtraMode, ExtraModes, ModeSite};
+use plant_sim::modes::ExtraMode;
 use plant_sim::PlantParams;
 use run_config::frf_file::MeasuredFrf;
 use runner::Plan;
@@ -231,17 +231,7 @@ fn extra_modes(
     let f = &frf.freq_hz;
     let model = open_loop(plan, plan.config.plant.stage, f)
         .map_err(|e| StudyError::from(design::identify::IdentifyError::Invalid(e)))?;
-    let modes = |p: &[f64]| -> Vec<ExtraMode> {
-        p.chunks(4)
-            .map(|p| ExtraMode {
-                at: ModeSite::Sensor,
-                hz: p[0],
-                zeta: p[1],
-                zero_hz: p[2],
-                zero_zeta: p[3],
-            })
-            .collect()
-    };
+    let modes = |p: &[f64]| -> Vec<ExtraMode> { p.chunks(4).map(sensor_mode).collect() };
     let with = |modes: &[ExtraMode]| -> Vec<Complex64> {
         model
             .iter()
@@ -298,11 +288,8 @@ fn extra_modes(
 impl FrfFit {
     /// `plan`'s plant with the extra modes appended to its own (as many as fit).
     pub fn plant(&self, plan: &Plan) -> PlantParams {
-        let own = plan.config.plant.modes;
-        let all: Vec<ExtraMode> = own.iter().chain(&self.extra_modes).copied().collect();
-        let kept = all.len().min(plant_sim::modes::MAX_MODES);
         PlantParams {
-            modes: ExtraModes::new(&all[..kept]).unwrap_or(own),
+            modes: plan.config.plant.modes.with(&self.extra_modes),
             ..plan.config.plant
         }
     }

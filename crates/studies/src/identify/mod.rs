@@ -10,7 +10,7 @@ pub use misfit::{Misfit, MISFIT_MIN_RELATIVE, MISFIT_SIGMAS};
 
 use crate::error::StudyError;
 use num_complex::Complex64;
-use plant_sim::modes::{ExtraMode, ExtraModes};
+use plant_sim::modes::{ExtraMode, ModeSite};
 use plant_sim::params::StageParams;
 use plant_sim::PlantParams;
 use plant_sim::Simulator;
@@ -81,13 +81,12 @@ pub struct Identified {
 }
 
 impl Identified {
-    /// `plan`'s plant with the fitted stage and, after the plant's own, the extra mode found.
+    /// `plan`'s plant with the fitted stage and, after the plant's own, the extra mode found
+    /// (when there is room for it).
     pub fn plant(&self, plan: &Plan) -> PlantParams {
-        let own = plan.config.plant.modes;
-        let modes: Vec<ExtraMode> = own.iter().chain(&self.extra_mode).copied().collect();
         PlantParams {
             stage: with_table_5_2(&plan.config.plant.stage, &self.fitted),
-            modes: ExtraModes::new(&modes).unwrap_or(own),
+            modes: plan.config.plant.modes.with(&self.extra_mode),
             ..plan.config.plant
         }
     }
@@ -133,6 +132,18 @@ impl Identified {
         let made_for = run_config::made_for_plant(&plant);
         out += &format!("# made for {}; {}\n", made_for.describe(), made_for.tool);
         out + &run_config::plant_toml(&plant)
+    }
+}
+
+/// The mode of fitted parameters `p` (`[pole_hz, pole_zeta, zero_hz, zero_zeta]`), on the
+/// reading: what a command → gap FRF shows of an extra mode.
+pub(crate) fn sensor_mode(p: &[f64]) -> ExtraMode {
+    ExtraMode {
+        at: ModeSite::Sensor,
+        hz: p[0],
+        zeta: p[1],
+        zero_hz: p[2],
+        zero_zeta: p[3],
     }
 }
 
@@ -205,7 +216,7 @@ pub fn identify(
                 let g = stage(&p[..6], freq_hz)?;
                 Ok(g.iter()
                     .zip(freq_hz)
-                    .map(|(g, &fq)| g * resonance::mode(&p[6..]).response(fq))
+                    .map(|(g, &fq)| g * sensor_mode(&p[6..]).response(fq))
                     .collect())
             };
             let f = design::identify::fit(
@@ -217,7 +228,7 @@ pub fn identify(
                 200,
             )
             .ok()?;
-            let extra = resonance::mode(&f.params[6..]);
+            let extra = sensor_mode(&f.params[6..]);
             resonance::plausible(&extra, band).ok()?;
             let fitted = model(&f.params).ok()?;
             let all = vec![true; freq_hz.len()];

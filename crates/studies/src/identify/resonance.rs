@@ -10,23 +10,12 @@
 
 use super::misfit::Misfit;
 use crate::StudyError;
-use plant_sim::modes::{ExtraMode, ModeSite};
+use plant_sim::modes::ExtraMode;
 
 /// Damping ratios the fit may take.
 const ZETA_RANGE: (f64, f64) = (1e-3, 0.7);
 /// How far outside its misfit band the resonance may move (a factor on frequency).
 const BAND_MARGIN: f64 = 1.3;
-
-/// The mode of fitted parameters `p` (`[pole_hz, pole_zeta, zero_hz, zero_zeta]`).
-pub(super) fn mode(p: &[f64]) -> ExtraMode {
-    ExtraMode {
-        at: ModeSite::Sensor,
-        hz: p[0],
-        zeta: p[1],
-        zero_hz: p[2],
-        zero_zeta: p[3],
-    }
-}
 
 /// Start and bounds of the resonance in misfit `band`, whose worst point's measured-over-model
 /// ratio is `worst` (a peak of ζz/ζp when the zeros sit at the poles).
