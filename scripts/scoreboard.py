@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """The stage you have: a scoreboard of feedforward designs on hidden practice stages.
 
-For each practice seed (a Table 5-2 draw within ±15 % and a sensor-mount resonance, hidden):
+For each practice seed (a Table 5-2 draw within ±15 %, a sensor-mount resonance and the effects
+of `run.practice_effects`: an in-band stage mode, a force constant varying over the stroke, a
+drifting suspension — hidden):
 measure the open-loop FRF in process as the book does (stepped sine, 150 points from 20 Hz to
 5 kHz), identify a model from it, then cut the book's stressing freeform at 1000 rpm with
 
@@ -18,6 +20,8 @@ check refused) or tripped (the machine protection stopped the cut).
     python3 scripts/scoreboard.py                      # seeds 101-120
     python3 scripts/scoreboard.py --seeds 101 102 103  # these seeds (CI runs three)
     python3 scripts/scoreboard.py --servo target/release/servo --out scoreboard --jobs 2
+    python3 scripts/scoreboard.py --effects band_mode           # that effect alone
+    python3 scripts/scoreboard.py --effects none                # the draw and the mount only
 
 Writes OUT/scoreboard.json (every run) and prints the table. Needs only the `servo` binary.
 """
@@ -95,12 +99,21 @@ def cut(servo: str, seed_dir: Path, name: str, config: str, extra: list[str]) ->
     }
 
 
-def seed_runs(servo: str, seed: int, root: Path) -> dict:
+EFFECTS = ["band_mode", "force_constant", "suspension_drift"]
+
+
+def effects_toml(on: list[str]) -> str:
+    """The `[run]` line switching the practice stage's effects."""
+    return ("practice_effects = { "
+            + ", ".join(f"{e} = {'true' if e in on else 'false'}" for e in EFFECTS) + " }\n")
+
+
+def seed_runs(servo: str, seed: int, root: Path, effects: list[str]) -> dict:
     d = root / f"seed-{seed}"
     d.mkdir(parents=True, exist_ok=True)
     (d / "stressing.toml").write_text(STRESSING)
     bumps(d / "bumps.csv")
-    base = (f"[run]\npractice_seed = {seed}\n\n[scenario]\nkind = \"machine\"\n"
+    base = (f"[run]\npractice_seed = {seed}\n{effects_toml(effects)}\n[scenario]\nkind = \"machine\"\n"
             "spindle_rpm = 1000.0\nstart_radius_m = 10e-3\n\n"
             "[scenario.surface]\nkind = \"prescription\"\npath = \"stressing.toml\"\n")
     (d / "base.toml").write_text(base)
@@ -132,8 +145,9 @@ def diverged(r: dict) -> bool:
     return "failed" not in r and r["last3_rms_nm"] > 1.2 * r["first_rev_rms_nm"] + 0.5
 
 
-def table(results: list[dict]) -> str:
+def table(results: list[dict], effects: list[str]) -> str:
     lines = [f"{len(results)} practice seeds ({results[0]['seed']}…{results[-1]['seed']}), "
+             f"effects: {', '.join(effects) or 'none'}; "
              "stressing freeform at 1000 rpm, FRF: stepped sine, 150 points, 20 Hz – 5 kHz",
              f"{'method':<18} {'RMS nm':>14} {'PV nm':>16} {'last 3 rev RMS':>16} "
              f"{'last 3 rev PV':>16} {'diverged':>9} {'refused':>8} {'tripped':>8}",
@@ -162,14 +176,20 @@ def main() -> int:
     ap.add_argument("--servo", default=shutil.which("servo") or "target/release/servo")
     ap.add_argument("--out", default="scoreboard")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--effects", default=",".join(EFFECTS),
+                    help="the practice stage's effects, comma-separated, or none (default: all)")
     a = ap.parse_args()
+    effects = [] if a.effects == "none" else [e for e in a.effects.split(",") if e]
+    unknown = [e for e in effects if e not in EFFECTS]
+    if unknown:
+        ap.error(f"--effects: unknown {', '.join(unknown)} (allowed: {', '.join(EFFECTS)} or none)")
     servo = str(Path(a.servo).resolve()) if os.path.sep in a.servo else a.servo
     root = Path(a.out)
     root.mkdir(parents=True, exist_ok=True)
     with ThreadPoolExecutor(max_workers=a.jobs) as pool:
-        results = list(pool.map(lambda s: seed_runs(servo, s, root), a.seeds))
+        results = list(pool.map(lambda s: seed_runs(servo, s, root, effects), a.seeds))
     (root / "scoreboard.json").write_text(json.dumps(results, indent=1))
-    print(table(results))
+    print(table(results, effects))
     for r in results:
         if "failed" in r:
             print(f"seed {r['seed']}: measurement failed: {r['failed']}")

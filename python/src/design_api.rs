@@ -94,7 +94,7 @@ pub fn identify(
     let m = measured_frf(frf, measured_m_per_v, None, &loaded, "identify")?;
     py.detach(|| {
         let plan = built(&loaded)?;
-        let id = studies::identify::identify(&plan, &m.freq_hz, &m.response).map_err(servo_err)?;
+        let id = studies::identify::identify_measured(&plan, &m).map_err(servo_err)?;
         Ok((
             serde_json::to_string(&id).map_err(servo_err)?,
             id.model_toml(&plan, &m.source),
@@ -173,6 +173,7 @@ fn measured_frf(
         freq_hz,
         response,
         uncertainty,
+        accel: None,
         source: format!("arrays given to fts_servo.{who}"),
     })
 }

@@ -188,7 +188,7 @@ fn main() {
     let stop = AtomicUsize::new(0);
     let report = match practice {
         Some(seed) => {
-            let mut stage = PracticeStage::new(&PlantParams::default(), seed)
+            let mut stage = PracticeStage::new(&PlantParams::default(), seed, Default::default())
                 .unwrap_or_else(|e| panic!("daq daemon: practice stage: {e}"));
             let report = serve(&ep, &mut stage, &opts, &stop);
             if let Some(path) = &reveal {

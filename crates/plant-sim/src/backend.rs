@@ -2,7 +2,7 @@
 //! [`Sensor`] and what really happened as the contract's [`Truth`] — what the in-process run,
 //! `servo plant`, libfts_plant and the practice stage step.
 
-use crate::sim::Simulator;
+use crate::sim::{CommandChange, Simulator};
 use daq_io::{Backend, Sensor, Truth};
 
 impl Simulator {
@@ -11,15 +11,29 @@ impl Simulator {
     /// count left to the caller) and its truth kept for [`Backend::truth`].
     #[inline]
     pub fn step_sensor(&mut self, dac_v: f64, extra_force_n: f64) -> Sensor {
-        let (s, t) = self.step_with_force(dac_v, extra_force_n);
+        self.step_sensor_changed(dac_v, extra_force_n, CommandChange::NONE)
+            .0
+    }
+
+    /// [`Simulator::step_sensor`] with the command changed on its way to the amplifier
+    /// ([`Simulator::step_changed`]); also the simulator's own truth of the tick.
+    #[inline(always)]
+    pub(crate) fn step_sensor_changed(
+        &mut self,
+        dac_v: f64,
+        extra_force_n: f64,
+        change: CommandChange,
+    ) -> (Sensor, crate::sim::Truth) {
+        let (s, t) = self.step_changed(dac_v, extra_force_n, change);
         self.last_truth = t.to_contract(s.time_s);
-        Sensor {
+        let sensor = Sensor {
             time_s: s.time_s,
             gap_v: s.gap_v,
             accel_v: s.accel_v,
             flags: s.flags,
             ..Default::default()
-        }
+        };
+        (sensor, t)
     }
 }
 

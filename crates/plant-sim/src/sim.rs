@@ -267,6 +267,23 @@ impl Propagator<'_> {
     }
 }
 
+/// A change of the command between the DAC and the current amplifier: `u·scale + offset_v` (V).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct CommandChange {
+    /// Gain on the DAC's output (1: none).
+    pub scale: f64,
+    /// Added after the gain, V.
+    pub offset_v: f64,
+}
+
+impl CommandChange {
+    /// No change.
+    pub const NONE: CommandChange = CommandChange {
+        scale: 1.0,
+        offset_v: 0.0,
+    };
+}
+
 /// The running simulator.
 #[derive(Debug, Clone)]
 pub struct Simulator {
@@ -493,6 +510,19 @@ impl Simulator {
     /// the tick) added to the configured cutting profile: the force of a cut the caller
     /// models (a freeform surface at the spindle position).
     pub fn step_with_force(&mut self, command_v: f64, extra_force_n: f64) -> (SensorSample, Truth) {
+        self.step_changed(command_v, extra_force_n, CommandChange::NONE)
+    }
+
+    /// [`Simulator::step_with_force`] with the DAC's output changed on its way to the current
+    /// amplifier by `change` (what a practice stage does to model a force constant that varies
+    /// with position, or a force the linear model lacks); the truth's `dac_v` stays the DAC's.
+    #[inline(always)]
+    pub(crate) fn step_changed(
+        &mut self,
+        command_v: f64,
+        extra_force_n: f64,
+        change: CommandChange,
+    ) -> (SensorSample, Truth) {
         let mut flag = 0;
         let (u_now, _, clipped) = self.dac_q.convert(command_v);
         let u_now = if command_v.is_finite() {
@@ -502,6 +532,8 @@ impl Simulator {
             flag |= flags::COMMAND_NOT_FINITE;
             0.0
         };
+        let dac_v = u_now;
+        let u_now = u_now * change.scale + change.offset_v;
         let t = self.tick as f64 * self.period_s;
         let extra = if extra_force_n.is_finite() {
             extra_force_n
@@ -580,7 +612,7 @@ impl Simulator {
             accel_m2_m_s2: tr[6],
             x_m: std::array::from_fn(|i| x[m + i] * self.mech_scale[i]),
             v_m_s: std::array::from_fn(|i| x[m + 4 + i] * self.mech_scale[4 + i]),
-            dac_v: u_now,
+            dac_v,
         };
         (sample, truth)
     }

@@ -58,11 +58,11 @@ pub fn write(
         measured_on,
     } = *provenance;
     let mut csv = provenance_line(provenance);
-    csv.push_str("freq_hz,magnitude_m_per_v,phase_deg,coherence,uncertainty_m_per_v,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v\n");
+    csv.push_str("freq_hz,magnitude_m_per_v,phase_deg,coherence,uncertainty_m_per_v,model_magnitude_m_per_v,model_phase_deg,clipped,excitation_v,accel_magnitude_v_per_v,accel_phase_deg,accel_uncertainty_v_per_v\n");
     for p in points {
         writeln!(
             csv,
-            "{:.6},{:.6e},{:.4},{:.6},{:.3e},{:.6e},{:.4},{},{:.6e}",
+            "{:.6},{:.6e},{:.4},{:.6},{:.3e},{:.6e},{:.4},{},{:.6e},{:.6e},{:.4},{:.3e}",
             p.freq_hz,
             p.magnitude,
             p.phase_deg,
@@ -71,7 +71,10 @@ pub fn write(
             p.model_magnitude,
             p.model_phase_deg,
             p.clipped,
-            p.excitation_v
+            p.excitation_v,
+            p.accel_magnitude,
+            p.accel_phase_deg,
+            p.accel_uncertainty
         )
         .unwrap();
     }

@@ -25,8 +25,20 @@ pub struct MeasuredFrf {
     /// Each bin's uncertainty, m/V: the radius of its 63 % (complex 1σ) disk; None when the
     /// file has no `uncertainty_m_per_v` column (an FRF from elsewhere).
     pub uncertainty: Option<Vec<f64>>,
+    /// The accelerometer reading's response to the same excitation, when the file has it
+    /// (`accel_magnitude_v_per_v`, `accel_phase_deg`, `accel_uncertainty_v_per_v`).
+    pub accel: Option<AccelFrf>,
     /// The file and the SHA-256 of its bytes, as designs quote their source.
     pub source: String,
+}
+
+/// The accelerometer's FRF measured with the stage's: reading per DAC volt, V/V.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AccelFrf {
+    /// The response at each of the FRF's frequencies, V/V.
+    pub response: Vec<num_complex::Complex64>,
+    /// Each bin's uncertainty, V/V (the radius of its 63 % disk).
+    pub uncertainty: Vec<f64>,
 }
 
 /// Why an FRF file was refused.
@@ -49,7 +61,8 @@ pub enum FrfFileError {
 }
 
 /// Reads an FRF CSV with columns `freq_hz`, `magnitude_m_per_v`, `phase_deg` and optionally
-/// `coherence`, `uncertainty_m_per_v` (others ignored; rows with `clipped = true` skipped; at
+/// `coherence`, `uncertainty_m_per_v` and the accelerometer's `accel_magnitude_v_per_v`,
+/// `accel_phase_deg`, `accel_uncertainty_v_per_v` (all three or none; others ignored; rows with `clipped = true` skipped; at
 /// most [`crate::input_file::MAX_TEXT_BYTES`]). A comment line naming another quantity than
 /// `P` (`servo frf --loop closed` writes `PS`) is refused. Every row must have every column;
 /// values must be finite, frequencies strictly increasing and below `nyquist_hz`, magnitudes
@@ -109,11 +122,29 @@ pub fn parse_frf(bytes: &[u8], path: &Path, nyquist_hz: f64) -> Result<MeasuredF
         find("coherence"),
         find("uncertainty_m_per_v"),
     );
+    let accel_cols = match (
+        find("accel_magnitude_v_per_v"),
+        find("accel_phase_deg"),
+        find("accel_uncertainty_v_per_v"),
+    ) {
+        (Some(m), Some(p), Some(u)) => Some((m, p, u)),
+        (None, None, None) => None,
+        _ => {
+            return Err(bad(
+                header_line,
+                "the accelerometer's columns come together: accel_magnitude_v_per_v, accel_phase_deg, accel_uncertainty_v_per_v",
+            ))
+        }
+    };
     let mut frf = MeasuredFrf {
         freq_hz: Vec::new(),
         response: Vec::new(),
         coherence: Vec::new(),
         uncertainty: cu.map(|_| Vec::new()),
+        accel: accel_cols.map(|_| AccelFrf {
+            response: Vec::new(),
+            uncertainty: Vec::new(),
+        }),
         source: format!("{} (SHA-256 {})", path.display(), crate::sha256_hex(bytes)),
     };
     for (i, line) in lines {
@@ -179,6 +210,25 @@ pub fn parse_frf(bytes: &[u8], path: &Path, nyquist_hz: f64) -> Result<MeasuredF
                     )
                 })?;
             u.push(sigma);
+        }
+        if let (Some((cm, cp, cu)), Some(a)) = (accel_cols, frf.accel.as_mut()) {
+            let (mag, phase) = (num(cm)?, num(cp)?);
+            let sigma = cells[cu]
+                .parse::<f64>()
+                .ok()
+                .filter(|v| *v >= 0.0 && mag >= 0.0)
+                .ok_or_else(|| {
+                    bad(
+                        i + 1,
+                        &format!(
+                            "accel_magnitude_v_per_v {mag}, accel_uncertainty_v_per_v `{}`: both must be ≥ 0 (V/V)",
+                            cells[cu]
+                        ),
+                    )
+                })?;
+            a.response
+                .push(num_complex::Complex64::from_polar(mag, phase.to_radians()));
+            a.uncertainty.push(sigma);
         }
         frf.freq_hz.push(freq);
         frf.response

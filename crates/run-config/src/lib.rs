@@ -40,6 +40,7 @@ pub use stage::{
 };
 
 use plant_sim::cutting::CuttingProfile;
+use plant_sim::practice::PracticeEffects;
 use plant_sim::PlantParams;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -74,11 +75,16 @@ pub struct RunSection {
     /// unset: 10 % of the duration, at most 0.1 s.
     pub settle_s: Option<f64>,
     /// Simulate the practice stage of this seed instead of the configured one: the Table 5-2
-    /// parameters drawn within ±15 % and a sensor-mount resonance, hidden
-    /// (`plant_sim::practice`, what the example DAQ daemon serves). The configured plant is
-    /// then only the controller's model (its feedforward, its checks): a run on a stage that is
-    /// not the model. Unset: the configured stage.
+    /// parameters drawn within ±15 %, a sensor-mount resonance and the effects of
+    /// `practice_effects`, hidden (`plant_sim::practice`, what the example DAQ daemon serves).
+    /// The configured plant is then only the controller's model (its feedforward, its checks):
+    /// a run on a stage that is not the model. Unset: the configured stage.
     pub practice_seed: Option<u64>,
+    /// The practice stage's effects beyond the draw and the mount, each on unless set false:
+    /// `band_mode` (a stage mode at 1.2–2 kHz), `force_constant` (K_T varying by a few per cent
+    /// over the stroke), `suspension_drift` (k2 drifting by −3 to −8 % with a 2 s time
+    /// constant).
+    pub practice_effects: PracticeEffects,
 }
 
 impl RunSection {
@@ -95,6 +101,7 @@ impl Default for RunSection {
             seed: 1,
             settle_s: None,
             practice_seed: None,
+            practice_effects: PracticeEffects::default(),
         }
     }
 }

@@ -96,7 +96,7 @@ pub fn practice_stage(
     at: &Origin,
     seed: u64,
 ) -> Result<PracticeStage, ConfigError> {
-    PracticeStage::new(&config.plant, seed).map_err(|e| {
+    PracticeStage::new(&config.plant, seed, config.run.practice_effects).map_err(|e| {
         at.invalid(
             "run.practice_seed",
             seed,

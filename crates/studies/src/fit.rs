@@ -66,8 +66,12 @@ pub struct FrfFit {
     pub tried: Vec<OrderTried>,
     /// The fit's resonances in the measured band, each set beside the model.
     pub resonances: Vec<Resonance>,
-    /// The resonances the model lacks, fitted onto the model as extra modes (on the reading).
+    /// The resonances the model lacks, fitted onto the model as extra modes: on the motor
+    /// force or on the reading by the accelerometer's FRF when the file has it, else on the
+    /// reading.
     pub extra_modes: Vec<ExtraMode>,
+    /// For each extra mode, why it is where it is (None: no accelerometer FRF).
+    pub sites: Vec<Option<crate::identify::SiteEvidence>>,
     /// The rational model (as `{period_s, direct_m_per_v, poles_z, residues_m_per_v}`, each
     /// complex number as `[re, im]`).
     #[serde(serialize_with = "rational")]
@@ -165,8 +169,15 @@ pub fn fit_frf(
     )))?;
     let resonances = resonances(&fit, frf, &plan.config.plant);
     let lacking: Vec<&Resonance> = resonances.iter().filter(|r| r.in_model.is_none()).collect();
-    let extra_modes = extra_modes(plan, frf, &sigma, &lacking)?;
+    let mut extra_modes = extra_modes(plan, frf, &sigma, &lacking)?;
+    let sites = match &frf.accel {
+        Some(accel) => {
+            crate::identify::place_modes(&plan.config.plant, &mut extra_modes, &frf.freq_hz, accel)?
+        }
+        None => vec![None; extra_modes.len()],
+    };
     Ok(FrfFit {
+        sites,
         order: chosen.order,
         within: chosen.within,
         weighted_rms: chosen.weighted_rms,
@@ -313,19 +324,20 @@ impl FrfFit {
                 r.in_model.as_deref().unwrap_or("NOT in the model")
             );
         }
-        for m in &self.extra_modes {
+        for (m, site) in self.extra_modes.iter().zip(&self.sites) {
             let place = if plant.modes.iter().any(|x| x == m) {
                 "added as [[plant.modes]]"
             } else {
                 "NOT added (the plant already carries the most extra modes)"
             };
             out += &format!(
-                "# extra mode {:.0} Hz (ζ {:.4}), zeros {:.0} Hz (ζ {:.4}), {:+.1} dB: {place}, on the reading\n",
+                "# extra mode {:.0} Hz (ζ {:.4}), zeros {:.0} Hz (ζ {:.4}), {:+.1} dB: {place},\n#   {}\n",
                 m.hz,
                 m.zeta,
                 m.zero_hz,
                 m.zero_zeta,
-                m.peak_db()
+                m.peak_db(),
+                crate::identify::site_comment(site)
             );
         }
         let made_for = run_config::made_for_plant(&plant);

@@ -106,6 +106,23 @@ fn bad_frf_files_and_incredible_fits_are_refused() {
             2,
             "closed-loop",
         ),
+        (
+            "half-accel.csv",
+            format!("freq_hz,magnitude_m_per_v,phase_deg,clipped,accel_magnitude_v_per_v\n{}", rows(1e-6)),
+            1,
+            "accel_phase_deg",
+        ),
+        (
+            "negative-accel.csv",
+            format!(
+                "freq_hz,magnitude_m_per_v,phase_deg,accel_magnitude_v_per_v,accel_phase_deg,accel_uncertainty_v_per_v\n{}",
+                (0..10)
+                    .map(|i| format!("{},1e-6,-10,0.1,90,-1\n", 100.0 * (i + 1) as f64))
+                    .collect::<String>()
+            ),
+            2,
+            "accel_uncertainty_v_per_v",
+        ),
     ];
     for (name, text, line, what) in cases {
         let path = dir.path().join(name);

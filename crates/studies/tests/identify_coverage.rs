@@ -20,14 +20,16 @@ fn the_stated_uncertainty_holds_the_drawn_values_at_its_rate() {
     for seed in 2000..2030u64 {
         let mut practice = Loaded::default();
         practice.config.run.practice_seed = Some(seed);
+        practice.config.run.practice_effects = common::STEADY;
         let points = common::open_loop_frf(&common::plan(&practice), &freqs);
         let measured: Vec<Complex64> = points
             .iter()
             .map(|p| Complex64::from_polar(p.magnitude, p.phase_deg.to_radians()))
             .collect();
         let id = studies::identify::identify(&model, &freqs, &measured).unwrap();
-        let drawn =
-            studies::identify::table_5_2(&PracticeTruth::draw(seed, &Default::default()).stage);
+        let drawn = studies::identify::table_5_2(
+            &PracticeTruth::draw(seed, &Default::default(), common::STEADY).stage,
+        );
         let mut line = format!("seed {seed}, error in σ:");
         for ((fitted, sigma), drawn) in id.fitted.iter().zip(&id.rel_std).zip(&drawn) {
             let z = (fitted / drawn - 1.0) / sigma;

@@ -88,10 +88,16 @@ impl FitCmd {
                     ))
             );
         }
-        for m in &fit.extra_modes {
+        for (m, site) in fit.extra_modes.iter().zip(&fit.sites) {
             println!(
-                "  extra mode: {:.1} Hz (ζ {:.4}), zeros {:.1} Hz (ζ {:.4}), {:+.1} dB — added on the reading",
-                m.hz, m.zeta, m.zero_hz, m.zero_zeta, m.peak_db()
+                "  extra mode: {:.1} Hz (ζ {:.4}), zeros {:.1} Hz (ζ {:.4}), {:+.1} dB — added {}",
+                m.hz,
+                m.zeta,
+                m.zero_hz,
+                m.zero_zeta,
+                m.peak_db(),
+                site.map_or("on the reading (not placed: no accelerometer FRF, or fewer than two of its bins move)".into(), |s| s
+                    .describe())
             );
         }
         if fit.extra_modes.is_empty() {

@@ -38,10 +38,9 @@ impl IdentifyCmd {
         let nyquist_hz = plan.config.plant.timing.servo_rate_hz / 2.0;
         let frf = run_config::frf_file::read_frf(&self.file, nyquist_hz)
             .map_err(studies::StudyError::from)?;
-        let (f, g) = (frf.freq_hz, frf.response);
-        let id = studies::identify::identify(&plan, &f, &g)?;
-        let source = frf.source;
-        crate::output::write_result(&self.out, &id.model_toml(&plan, &source), self.overwrite)?;
+        let id = studies::identify::identify_measured(&plan, &frf)?;
+        let source = &frf.source;
+        crate::output::write_result(&self.out, &id.model_toml(&plan, source), self.overwrite)?;
         if self.json {
             print_json(&id);
             return Ok(ExitCode::SUCCESS);
@@ -69,21 +68,40 @@ impl IdentifyCmd {
         }
         for m in &id.misfits {
             println!(
-                "  NOT EXPLAINED by the four-mass model: {:.0} – {:.0} Hz ({} points, up to {:+.1} dB / {:.0} %): an unmodelled resonance or a disturbed measurement",
+                "  NOT EXPLAINED by the four-mass model: {:.0} – {:.0} Hz ({} point{}, up to {:+.1} dB / {:.0} %): an unmodelled resonance or a disturbed measurement",
                 m.from_hz,
                 m.to_hz,
                 m.points,
+                if m.points == 1 { "" } else { "s" },
                 m.worst_db,
                 100.0 * m.worst_relative
             );
         }
-        match (&id.extra_mode, id.misfits.is_empty()) {
-            (Some(r), _) => println!(
-                "  fitted there beside the stage: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB — in the model as an extra mode on the reading",
-                r.hz, r.zeta, r.zero_hz, r.zero_zeta, r.peak_db()
-            ),
-            (None, false) => println!("  those points were left out of the fit"),
-            (None, true) => {}
+        for (r, site) in id.extra_modes.iter().zip(&id.sites) {
+            println!(
+                "  fitted beside the stage: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB — in the model, {}",
+                r.hz,
+                r.zeta,
+                r.zero_hz,
+                r.zero_zeta,
+                r.peak_db(),
+                site.map_or("on the reading (not placed: no accelerometer FRF, or fewer than two of its bins move)".into(), |s| s
+                    .describe())
+            );
+        }
+        for m in &id.left_out {
+            println!(
+                "  left out of the fit with its modes: {:.0} – {:.0} Hz ({} point{}, up to {:+.1} dB / {:.0} %)",
+                m.from_hz,
+                m.to_hz,
+                m.points,
+                if m.points == 1 { "" } else { "s" },
+                m.worst_db,
+                100.0 * m.worst_relative
+            );
+        }
+        if id.extra_modes.is_empty() && !id.misfits.is_empty() {
+            println!("  those points were left out of the fit");
         }
         println!(
             "  wrote {} — the identified plant: servo tune --plant {0}, servo synth h2 --plant {0}",

@@ -143,6 +143,7 @@ mod tests {
                     .collect(),
                 coherence: vec![1.0; freq_hz.len()],
                 uncertainty: None,
+                accel: None,
                 source: "the model".into(),
                 freq_hz,
             };

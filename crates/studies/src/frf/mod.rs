@@ -77,6 +77,16 @@ pub struct FrfPoint {
     /// Amplitude of the excitation at this frequency, V (stepped sine: per frequency; chirp:
     /// constant).
     pub excitation_v: f64,
+    /// The accelerometer reading's response to the same excitation, V/V: magnitude (what
+    /// tells a mode of the stage, which the accelerometer on m2 feels, from one on the gap
+    /// reading, which it does not).
+    #[serde(rename = "accel_magnitude_v_per_v")]
+    pub accel_magnitude: f64,
+    /// Its phase in degrees.
+    pub accel_phase_deg: f64,
+    /// Its uncertainty, V/V (the radius of its 63 % disk, as `uncertainty`).
+    #[serde(rename = "accel_uncertainty_v_per_v")]
+    pub accel_uncertainty: f64,
 }
 
 impl FrfPoint {
@@ -263,12 +273,14 @@ impl<'p> Rig<'p> {
     /// with `d` as the model pairs them. On a plant that aborts on a clip, a clipped reading
     /// or command ends the measurement.
     #[inline]
-    fn tick(&mut self, f_hz: f64, d: f64) -> Result<f64, StudyError> {
+    /// One tick with excitation `d` (V): the measured position (m) and the accelerometer
+    /// reading (V) the tick starts with.
+    fn tick(&mut self, f_hz: f64, d: f64) -> Result<(f64, f64), StudyError> {
         let u = match self.which {
             FrfLoop::Open => 0.0,
             FrfLoop::Closed => self.ctrl.update(-self.sample.gap_v, self.sample.accel_v),
         } + d;
-        let measured = self.sample.gap_v / self.sensitivity;
+        let measured = (self.sample.gap_v / self.sensitivity, self.sample.accel_v);
         self.sample = self.plant.step(u)?;
         let clip = self.sample.flags & (daq_io::flags::GAP_CLIPPED | daq_io::flags::DAC_CLIPPED);
         if clip != 0 && self.plant.aborts_on_clip() {
@@ -292,16 +304,22 @@ impl<'p> Rig<'p> {
         Ok(self.model.command_response(f_hz)?)
     }
 
+    /// The point at `f_hz`: the position's response `h` (m/V), the accelerometer's `(h, its
+    /// uncertainty)` (V/V).
     fn point(
         &self,
         f_hz: f64,
         h: Complex64,
         (coherence, uncertainty): (f64, f64),
+        (accel, accel_uncertainty): (Complex64, f64),
         clipped: bool,
         excitation_v: f64,
     ) -> Result<FrfPoint, StudyError> {
         let m = self.model_at(f_hz)?;
         Ok(FrfPoint {
+            accel_magnitude: accel.norm(),
+            accel_phase_deg: accel.arg().to_degrees(),
+            accel_uncertainty,
             freq_hz: f_hz,
             magnitude: h.norm(),
             phase_deg: h.arg().to_degrees(),
@@ -396,7 +414,8 @@ pub fn chirp_on(
         sweep: servo_core::Sweep::Exponential,
     };
     let per = (duration_s * fs).round() as usize;
-    let (mut u_rec, mut y_rec) = (
+    let (mut u_rec, mut y_rec, mut a_rec) = (
+        Vec::with_capacity(per * repeats),
         Vec::with_capacity(per * repeats),
         Vec::with_capacity(per * repeats),
     );
@@ -408,10 +427,11 @@ pub fn chirp_on(
         })?;
         for _ in 0..per {
             let d = gen.update(()).position;
-            let y = rig.tick(from_hz, d)?;
+            let (y, a) = rig.tick(from_hz, d)?;
             if pass > 0 {
                 u_rec.push(d);
                 y_rec.push(y);
+                a_rec.push(a);
                 clipped |= rig.clipped();
             }
         }
@@ -423,6 +443,7 @@ pub fn chirp_on(
         window: Window::Rectangular,
     };
     let frf = h1_welch(&u_rec, &y_rec, fs, &welch)?;
+    let accel = h1_welch(&u_rec, &a_rec, fs, &welch)?;
     (0..frf.freq_hz.len())
         .filter(|&k| (from_hz..=to_hz).contains(&frf.freq_hz[k]))
         .map(|k| {
@@ -432,6 +453,10 @@ pub fn chirp_on(
                 (
                     frf.coherence[k],
                     lti::spectral::h1_uncertainty(frf.h[k], frf.coherence[k], repeats),
+                ),
+                (
+                    accel.h[k],
+                    lti::spectral::h1_uncertainty(accel.h[k], accel.coherence[k], repeats),
                 ),
                 clipped,
                 amplitude_v,
@@ -508,27 +533,33 @@ pub fn stepped_sine_on(
         let one = [f];
         let (mut gen, periods_per_block, amplitude) = one_frequency(plan, &one, s)?;
         let seg = gen.segment(0).expect("one segment");
-        let (mut u_rec, mut y_rec) = (
+        let (mut u_rec, mut y_rec, mut a_rec) = (
+            Vec::with_capacity(seg.measure_len as usize),
             Vec::with_capacity(seg.measure_len as usize),
             Vec::with_capacity(seg.measure_len as usize),
         );
         let mut clipped = false;
         for k in 0..seg.end() {
             let d = gen.update(()).position;
-            let y = rig.tick(seg.frequency_hz, d)?;
+            let (y, a) = rig.tick(seg.frequency_hz, d)?;
             if k >= seg.measure_start {
                 u_rec.push(d);
                 y_rec.push(y);
+                a_rec.push(a);
                 clipped |= rig.clipped();
             }
         }
         let (h, coherence) = h1_at_bin(&u_rec, &y_rec, periods_per_block as usize, s.blocks);
         let cycles = periods_per_block as usize * s.blocks;
         let uncertainty = lti::spectral::periodic_uncertainty(&u_rec, &y_rec, cycles, NEIGHBOURS);
+        let (accel, _) = h1_at_bin(&u_rec, &a_rec, periods_per_block as usize, s.blocks);
+        let accel_uncertainty =
+            lti::spectral::periodic_uncertainty(&u_rec, &a_rec, cycles, NEIGHBOURS);
         out.push(rig.point(
             seg.frequency_hz,
             h,
             (coherence, uncertainty),
+            (accel, accel_uncertainty),
             clipped,
             amplitude,
         )?);

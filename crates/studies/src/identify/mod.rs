@@ -5,15 +5,18 @@
 
 mod misfit;
 mod resonance;
+mod site;
 
 pub use misfit::{Misfit, MISFIT_MIN_RELATIVE, MISFIT_SIGMAS};
+pub use site::{place_modes, SiteEvidence};
 
 use crate::error::StudyError;
 use num_complex::Complex64;
-use plant_sim::modes::{ExtraMode, ModeSite};
+use plant_sim::modes::{ExtraMode, ModeSite, MAX_MODES};
 use plant_sim::params::StageParams;
 use plant_sim::PlantParams;
 use plant_sim::Simulator;
+use run_config::frf_file::MeasuredFrf;
 use runner::closed_loop::ClosedLoop;
 use runner::Plan;
 
@@ -75,18 +78,41 @@ pub struct Identified {
     /// Bands of the FRF the four-mass model alone does not explain (an unmodelled resonance, a
     /// disturbed measurement): reported rather than absorbed.
     pub misfits: Vec<Misfit>,
-    /// The resonance fitted beside the stage where the worst misfit was, when it explains
-    /// it: an extra mode on the reading, written into the model file with the stage.
-    pub extra_mode: Option<ExtraMode>,
+    /// The resonances fitted beside the stage where the misfits were (the worst bands first,
+    /// as many as explain their bands and the plant has room for): extra modes on the reading,
+    /// written into the model file with the stage.
+    pub extra_modes: Vec<ExtraMode>,
+    /// For each extra mode, why it is where it is (None: on the reading, as the gap's FRF
+    /// cannot tell; [`Identified::place_modes`] decides from the accelerometer's).
+    pub sites: Vec<Option<SiteEvidence>>,
+    /// Bands the fit with those modes still cannot explain and leaves out (a point measured
+    /// while the stage was changing, say); empty without modes (the misfits are left out).
+    pub left_out: Vec<Misfit>,
 }
 
 impl Identified {
-    /// `plan`'s plant with the fitted stage and, after the plant's own, the extra mode found
-    /// (when there is room for it).
+    /// Places the extra modes on the motor force or on the reading by the accelerometer's FRF
+    /// `accel`, measured at the frequencies `freq_hz` of the identified one ([`place_modes`],
+    /// against the fitted stage).
+    fn place_modes(
+        &mut self,
+        plan: &Plan,
+        freq_hz: &[f64],
+        accel: &run_config::frf_file::AccelFrf,
+    ) -> Result<(), StudyError> {
+        let stage = PlantParams {
+            stage: with_table_5_2(&plan.config.plant.stage, &self.fitted),
+            ..plan.config.plant
+        };
+        self.sites = place_modes(&stage, &mut self.extra_modes, freq_hz, accel)?;
+        Ok(())
+    }
+
+    /// `plan`'s plant with the fitted stage and, after the plant's own, the extra modes found.
     pub fn plant(&self, plan: &Plan) -> PlantParams {
         PlantParams {
             stage: with_table_5_2(&plan.config.plant.stage, &self.fitted),
-            modes: plan.config.plant.modes.with(&self.extra_mode),
+            modes: plan.config.plant.modes.with(&self.extra_modes),
             ..plan.config.plant
         }
     }
@@ -116,22 +142,28 @@ impl Identified {
                 m.from_hz, m.to_hz, m.points, m.worst_db
             );
         }
-        if let Some(r) = &self.extra_mode {
-            let place = if plant.modes.iter().any(|m| m == r) {
-                "in this model as [[plant.modes]]"
-            } else {
-                "NOT in this model (the configured plant already carries the most extra modes)"
-            };
+        for (r, site) in self.extra_modes.iter().zip(&self.sites) {
             out += &format!(
-                "# fitted beside the stage, {place}: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB;\n\
-                 #   on the reading (at = \"sensor\"): this FRF cannot tell a sensor mount from a stage mode — the designs and\n\
-                 #   loop checks see them alike, the tool motion predicted from the model would not\n",
-                r.hz, r.zeta, r.zero_hz, r.zero_zeta, r.peak_db()
+                "# fitted beside the stage, in this model as [[plant.modes]]: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB;\n\
+                 #   {}\n",
+                r.hz, r.zeta, r.zero_hz, r.zero_zeta, r.peak_db(), site_comment(site)
             );
         }
         let made_for = run_config::made_for_plant(&plant);
         out += &format!("# made for {}; {}\n", made_for.describe(), made_for.tool);
         out + &run_config::plant_toml(&plant)
+    }
+}
+
+/// Where a mode was placed and why, for a plant file's comment.
+pub(crate) fn site_comment(site: &Option<SiteEvidence>) -> String {
+    match site {
+        Some(e) => e.describe(),
+        None => "on the reading (at = \"sensor\"): not placed (no accelerometer FRF, or fewer than two of its bins\n\
+                 #   move) — a gap FRF alone cannot tell a sensor\n\
+                 #   mount from a stage mode — the designs and loop checks see them alike, the tool motion predicted\n\
+                 #   from the model would not"
+            .into(),
     }
 }
 
@@ -145,6 +177,16 @@ pub(crate) fn sensor_mode(p: &[f64]) -> ExtraMode {
         zero_hz: p[2],
         zero_zeta: p[3],
     }
+}
+
+/// [`identify`] on a measured FRF file's content, its extra modes placed by the accelerometer's
+/// FRF when the file has it ([`place_modes`]).
+pub fn identify_measured(plan: &Plan, frf: &MeasuredFrf) -> Result<Identified, StudyError> {
+    let mut id = identify(plan, &frf.freq_hz, &frf.response)?;
+    if let Some(accel) = &frf.accel {
+        id.place_modes(plan, &frf.freq_hz, accel)?;
+    }
+    Ok(id)
 }
 
 /// Lowest fit % (on the complex response) `identify` reports as a result; below it the model
@@ -203,44 +245,32 @@ pub fn identify(
         .map(|i| measured[i] / fitted[i])
         .collect();
     let misfits = misfit::misfit_bands(freq_hz, &keep, &ratio);
-    // The worst misfit band as a resonance beside the stage, on every point: kept when it
-    // explains the band (no misfit left) from where the band was.
-    let with_resonance = misfits
-        .iter()
-        .max_by(|a, b| a.worst_relative.total_cmp(&b.worst_relative))
-        .and_then(|band| {
-            let worst = ratio[freq_hz.iter().position(|&x| x == band.worst_hz)?].norm();
-            let (r0, rlo, rhi) = resonance::start_and_bounds(band, worst);
-            let cat = |a: &[f64], b: [f64; 4]| [a, &b[..]].concat();
-            let mut model = |p: &[f64]| {
-                let g = stage(&p[..6], freq_hz)?;
-                Ok(g.iter()
-                    .zip(freq_hz)
-                    .map(|(g, &fq)| g * sensor_mode(&p[6..]).response(fq))
-                    .collect())
-            };
-            let f = design::identify::fit(
-                &mut model,
-                measured,
-                &cat(&f.params, r0),
-                &cat(&lower, rlo),
-                &cat(&upper, rhi),
-                200,
-            )
-            .ok()?;
-            let extra = sensor_mode(&f.params[6..]);
-            resonance::plausible(&extra, band).ok()?;
-            let fitted = model(&f.params).ok()?;
-            let all = vec![true; freq_hz.len()];
-            let explained =
-                misfit::kept_after(&misfit::relative_residuals(measured, &fitted), &all)
-                    .iter()
-                    .all(|k| *k);
-            explained.then_some((f, extra))
-        });
-    let (f, points, extra_mode) = match with_resonance {
-        Some((f, extra)) => (f, freq_hz.len(), Some(extra)),
-        None => (f, keep.iter().filter(|k| **k).count(), None),
+    // The misfit bands as resonances beside the stage, fitted with it: the worst bands first,
+    // as many as the plant has room for and as explain what they cover.
+    let room = MAX_MODES - plan.config.plant.modes.iter().count();
+    let mut worst_first: Vec<&Misfit> = misfits.iter().collect();
+    worst_first.sort_by(|a, b| b.worst_relative.total_cmp(&a.worst_relative));
+    worst_first.truncate(room);
+    let with_resonances = (1..=worst_first.len()).rev().find_map(|k| {
+        let (fitted_bands, left) = worst_first.split_at(k);
+        with_resonances(
+            freq_hz,
+            measured,
+            &ratio,
+            fitted_bands,
+            left,
+            |p, fq| stage(p, fq),
+            (&f.params, &lower, &upper),
+        )
+    });
+    let (f, points, extra_modes, left_out) = match with_resonances {
+        Some(w) => (w.fit, w.points, w.extra_modes, w.left_out),
+        None => (
+            f,
+            keep.iter().filter(|k| **k).count(),
+            Vec::new(),
+            Vec::new(),
+        ),
     };
     if f.fit_percent.is_nan() || f.fit_percent < MIN_CREDIBLE_FIT_PERCENT {
         return Err(StudyError::FitNotCredible {
@@ -257,6 +287,75 @@ pub fn identify(
         iterations: f.iterations,
         points,
         misfits,
-        extra_mode,
+        sites: vec![None; extra_modes.len()],
+        extra_modes,
+        left_out,
     })
+}
+
+/// The stage fitted again with a resonance for each of `bands` (on the reading, from where
+/// each band was), on every point but those of the misfit bands `left` unfitted, leaving out
+/// what it still cannot explain (a point measured while the stage was changing, say): the
+/// fit, the points it kept, the modes and the bands it left out — when each resonance stays
+/// near its band and explains it (every point of the band kept).
+fn with_resonances(
+    freq_hz: &[f64],
+    measured: &[Complex64],
+    ratio: &[Complex64],
+    bands: &[&Misfit],
+    left: &[&Misfit],
+    stage: impl Fn(&[f64], &[f64]) -> Result<Vec<Complex64>, String>,
+    (start, lower, upper): (&[f64], &[f64], &[f64]),
+) -> Option<WithResonances> {
+    let within = |f: f64, b: &Misfit| (b.from_hz..=b.to_hz).contains(&f);
+    let (fu, mu): (Vec<f64>, Vec<Complex64>) = (0..freq_hz.len())
+        .filter(|&i| !left.iter().any(|b| within(freq_hz[i], b)))
+        .map(|i| (freq_hz[i], measured[i]))
+        .unzip();
+    let (mut p0, mut lo, mut hi) = (start.to_vec(), lower.to_vec(), upper.to_vec());
+    for band in bands {
+        let worst = ratio[freq_hz.iter().position(|&x| x == band.worst_hz)?].norm();
+        let (r0, rlo, rhi) = resonance::start_and_bounds(band, worst);
+        p0.extend(r0);
+        lo.extend(rlo);
+        hi.extend(rhi);
+    }
+    let modes = |p: &[f64]| -> Vec<ExtraMode> { p[6..].chunks(4).map(sensor_mode).collect() };
+    let response = |p: &[f64], f: &[f64]| -> Result<Vec<Complex64>, String> {
+        let modes = modes(p);
+        Ok(stage(&p[..6], f)?
+            .iter()
+            .zip(f)
+            .map(|(g, &fq)| modes.iter().fold(*g, |g, m| g * m.response(fq)))
+            .collect())
+    };
+    let invalid = |e: String| StudyError::from(design::identify::IdentifyError::Invalid(e));
+    let (f, keep, fitted) =
+        misfit::fit_excluding(&fu, &mu, run_config::frf_file::MIN_POINTS, |kf, km| {
+            let mut on_kept = |p: &[f64]| response(p, kf);
+            let f = design::identify::fit(&mut on_kept, km, &p0, &lo, &hi, 200)?;
+            let fitted = response(&f.params, &fu).map_err(invalid)?;
+            Ok((f, fitted))
+        })
+        .ok()?;
+    let extra = modes(&f.params);
+    for (m, band) in extra.iter().zip(bands) {
+        resonance::plausible(m, band).ok()?;
+    }
+    let explained = (0..fu.len()).all(|i| keep[i] || !bands.iter().any(|b| within(fu[i], b)));
+    let residual: Vec<Complex64> = mu.iter().zip(&fitted).map(|(m, g)| m / g).collect();
+    explained.then(|| WithResonances {
+        points: keep.iter().filter(|k| **k).count(),
+        left_out: misfit::misfit_bands(&fu, &keep, &residual),
+        fit: f,
+        extra_modes: extra,
+    })
+}
+
+/// What [`with_resonances`] found.
+struct WithResonances {
+    fit: design::identify::Fit,
+    points: usize,
+    extra_modes: Vec<ExtraMode>,
+    left_out: Vec<Misfit>,
 }

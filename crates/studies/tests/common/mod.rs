@@ -1,6 +1,13 @@
 //! What the study tests share.
 
 /// The resolved plan of `l` (every test configuration is valid).
+/// The practice stage's linear and time-invariant effects (the in-band mode): a stage whose
+/// drawn model with its modes is the truth a measurement is judged against.
+pub const STEADY: plant_sim::practice::PracticeEffects = plant_sim::practice::PracticeEffects {
+    band_mode: true,
+    ..plant_sim::practice::PracticeEffects::NONE
+};
+
 pub fn plan(l: &run_config::Loaded) -> runner::Plan {
     runner::Plan::new(l).unwrap()
 }
