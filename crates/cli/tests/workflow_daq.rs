@@ -123,7 +123,12 @@ fn a_hidden_stage_is_measured_identified_designed_for_deployed_and_compared() {
     }
     // Design on the identified model.
     let model = model.to_str().unwrap();
-    let pid = tuned("practice-pid.toml", &["--plant", model]);
+    // The in-band stage mode (+6 dB at 1.2–2 kHz) puts the default 1 kHz out of reach under
+    // the Ms, Mt bounds, as the thesis's 1.6 kHz dynamics limited its stage (§6.4.2).
+    let pid = tuned(
+        "practice-pid.toml",
+        &["--plant", model, "--bandwidth-hz", "500"],
+    );
 
     // Deploy: the daemon's next session, the loop closed on it by `servo controller` with its
     // default gains and recorded, both configured with the identified model; the design loaded
