@@ -115,41 +115,52 @@ fn the_stated_uncertainty_covers_the_truth_at_its_rate() {
 }
 
 /// The feedback loop is checked on the measured stage before it runs, and the hidden stage
-/// agrees. On practice seed 7, the acceleration loop with 1/Kg scaling (§7.4.1) at Ka = 1.3 is
-/// stable on the thesis model (spectral radius < 1), but the FRF measured on the stage (stepped
-/// sine, 60 points from 20 Hz to 5 kHz) says it encircles −1, and the plan refuses it; run on
-/// the stage it oscillates into the DAC's limit. At Ka = 1.2 both accept it and the stage
-/// follows within nanometres. Without the in-band stage mode: the accelerometer feels it, and
-/// the check takes the acceleration path from the model (a gap FRF does not measure it) — with
-/// the mode on, Ka = 1.2 passes the check and oscillates on the stage.
+/// agrees. On practice seed 111 (every effect on), the acceleration loop with 1/Kg scaling
+/// (§7.4.1) at Ka = 1.4 is stable on the thesis model (spectral radius < 1); the stage's
+/// in-band mode, which the accelerometer on m2 feels, makes it oscillate into the DAC's limit.
+/// The FRF measured on the stage (stepped sine, 60 points from 20 Hz to 5 kHz) with the
+/// accelerometer's beside the gap's says it encircles −1, and the plan refuses it; the gap's
+/// alone (the accelerometer path then the model's) would have let it run. At Ka = 1.2 the
+/// check accepts it and the stage follows within nanometres.
 #[test]
 fn a_loop_the_measured_stage_cannot_carry_is_refused_and_would_have_diverged() {
     use run_config::ControllerKind;
     let dir = tempfile::tempdir().unwrap();
-    let frf = dir.path().join("frf.csv");
     let mut practice = Loaded::default();
-    practice.config.run.practice_seed = Some(7);
-    practice.config.run.practice_effects = plant_sim::practice::PracticeEffects::NONE;
-    practice.config.run.duration_s = 0.05;
+    practice.config.run.practice_seed = Some(111);
+    practice.config.run.duration_s = 0.1;
     let freqs = lti::spectral::log_space(20.0, 5000.0, 60);
     let points = common::open_loop_frf(&plan(&practice), &freqs);
-    let mut csv = String::from("# fts-servo frf: quantity = P (practice seed 7)\nfreq_hz,magnitude_m_per_v,phase_deg,coherence,uncertainty_m_per_v\n");
+    // The file as `servo frf` writes it, and without the accelerometer's columns.
+    let (with_accel, gap_only) = (dir.path().join("frf.csv"), dir.path().join("gap.csv"));
+    let header = "freq_hz,magnitude_m_per_v,phase_deg,coherence,uncertainty_m_per_v";
+    let mut csv = format!("# fts-servo frf: quantity = P (practice seed 111)\n{header},accel_magnitude_v_per_v,accel_phase_deg,accel_uncertainty_v_per_v\n");
+    let mut gap = format!("# fts-servo frf: quantity = P (practice seed 111)\n{header}\n");
     for p in &points {
-        csv += &format!(
-            "{},{:e},{},{},{:e}\n",
+        let row = format!(
+            "{},{:e},{},{},{:e}",
             p.freq_hz, p.magnitude, p.phase_deg, p.coherence, p.uncertainty
         );
+        csv += &format!(
+            "{row},{:e},{},{:e}\n",
+            p.accel_magnitude, p.accel_phase_deg, p.accel_uncertainty
+        );
+        gap += &format!("{row}\n");
     }
-    std::fs::write(&frf, csv).unwrap();
-    for (ka, carried) in [(1.2, true), (1.3, false)] {
+    std::fs::write(&with_accel, csv).unwrap();
+    std::fs::write(&gap_only, gap).unwrap();
+    for (ka, carried) in [(1.2, true), (1.4, false)] {
         let mut on_model = practice.clone();
         let c = &mut on_model.config.controller;
         (c.kind, c.ka, c.kg_scaling) = (ControllerKind::Accel, ka, true);
         let unmeasured = plan(&on_model);
         unmeasured.check_stable().unwrap();
-        let mut measured = on_model.clone();
-        measured.config.controller.frf_file = Some(frf.clone());
-        let verdict = plan(&measured).check_stable();
+        let verdict_on = |file: &std::path::Path| {
+            let mut measured = on_model.clone();
+            measured.config.controller.frf_file = Some(file.to_path_buf());
+            plan(&measured).check_stable()
+        };
+        let verdict = verdict_on(&with_accel);
         let truth = runner::run::run_to_end(&unmeasured).unwrap();
         let rms = truth.true_error_m.rms;
         println!(
@@ -173,6 +184,8 @@ fn a_loop_the_measured_stage_cannot_carry_is_refused_and_would_have_diverged() {
                 rms > 200e-9 && truth.saturated_ticks > 0,
                 "Ka {ka}: {truth:?}"
             );
+            // The gap's FRF alone cannot see what the accelerometer feels.
+            verdict_on(&gap_only).unwrap();
         }
     }
 }

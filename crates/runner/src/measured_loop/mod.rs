@@ -4,8 +4,10 @@
 //!
 //! The FRF measures the sensor's reading, not the tool: the tool's response per DAC volt is
 //! the measured one times the model's ratio of tool to reading (the sensor path — its filter
-//! and converter delay, ≈ 4.3 ticks at 199.6 kHz), and an accelerometer's reading, where the
-//! controller uses one, the measured one times the model's ratio of accelerometer to reading.
+//! and converter delay, ≈ 4.3 ticks at 199.6 kHz). An accelerometer's reading, where the
+//! controller uses one, is the accelerometer's own FRF when the file has it (`servo frf`
+//! measures it with the gap's: a stage mode the model lacks shows in it), else the measured
+//! position's times the model's ratio of accelerometer to reading.
 //! What the sensor path model misses (a mount resonance between gap and reading) stays in the
 //! tool's estimate; below a few kHz it changes the phase by tenths of a degree.
 
@@ -71,12 +73,19 @@ impl MeasuredLoop {
         // loop factor κ. The loop is u = K_g·S·(m − r) + K_a·a with m = P·u,
         // a = P·(accel/reading), tool = P·(tool/reading)·u, so u = κ·m − K_g·S·r with
         // κ = K_g·S + K_a·accel/reading, and the loop gain broken at the DAC is L = −κ·P.
-        let at = |f: f64| -> Result<(Complex64, Complex64, Complex64, Complex64), LtiError> {
+        // With the accelerometer's FRF A measured too, κ·P is K_g·S·P + K_a·A.
+        let at = |f: f64| -> Result<[Complex64; 5], LtiError> {
             let m = model.discrete(f, period)?;
             let (reading, tool, accel) = (m[(0, 0)], m[(1, 0)], m[(2, 0)]);
             let kc = controller.discrete(f, period)?;
             let (k_gap, k_accel) = (kc[(0, 0)], kc[(0, 1)]);
-            Ok((reading, tool, k_gap, k_gap * s + k_accel * accel / reading))
+            Ok([
+                reading,
+                tool,
+                k_gap,
+                k_gap * s + k_accel * accel / reading,
+                k_accel,
+            ])
         };
         let n = frf.freq_hz.len();
         let (mut reference_to_tool, mut uncertainty) =
@@ -85,11 +94,19 @@ impl MeasuredLoop {
         let (mut command_to_reading, mut loop_gain) =
             (Vec::with_capacity(n), Vec::with_capacity(n));
         for (k, (&f, &measured)) in frf.freq_hz.iter().zip(&frf.response).enumerate() {
-            let (reading, tool, k_gap, kappa) = at(f)?;
+            let [reading, tool, k_gap, kappa, k_accel] = at(f)?;
             let feed = -k_gap * s * (tool / reading);
-            let denominator = 1.0 - kappa * measured;
-            reference_to_tool.push(feed * measured / denominator);
             let sigma = frf.uncertainty.as_ref().map_or(0.0, |u| u[k]);
+            // κ·P and its uncertainty radius.
+            let (kappa_p, kappa_p_sigma) = match &frf.accel {
+                Some(a) => (
+                    k_gap * s * measured + k_accel * a.response[k],
+                    (k_gap * s).norm() * sigma + k_accel.norm() * a.uncertainty[k],
+                ),
+                None => (kappa * measured, kappa.norm() * sigma),
+            };
+            let denominator = 1.0 - kappa_p;
+            reference_to_tool.push(feed * measured / denominator);
             // d/dP of a·P/(1 − κP) is a/(1 − κP)².
             let spread = sigma / denominator.norm_sqr();
             uncertainty.push(feed.norm() * spread);
@@ -99,10 +116,10 @@ impl MeasuredLoop {
                 to_reading.norm() * spread,
             ));
             command_to_reading.push((measured / denominator, spread));
-            loop_gain.push((-kappa * measured, kappa.norm() * sigma));
+            loop_gain.push((-kappa_p, kappa_p_sigma));
         }
         // The model's loop gain, by the same κ: L = −κ·P_reading.
-        let model_at = |f: f64| at(f).map_or_else(|_| Complex64::default(), |(p, _, _, k)| -k * p);
+        let model_at = |f: f64| at(f).map_or_else(|_| Complex64::default(), |m| -m[3] * m[0]);
         Ok(MeasuredLoop {
             stability: MeasuredStability::of(&frf.freq_hz, &loop_gain, &model_at, 0.499 / period),
             freq_hz: frf.freq_hz.clone(),
