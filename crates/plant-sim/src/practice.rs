@@ -411,6 +411,12 @@ mod tests {
         assert!((band.response(truth.band_hz).norm() - 2.0).abs() < 1e-9);
     }
 
+    /// The motor force of a held `command_v` at the thesis force constant, N.
+    fn coil_force_n(command_v: f64) -> f64 {
+        let a = quiet().actuator;
+        a.kt_n_per_a * a.current_gain_a_per_v * command_v
+    }
+
     /// Holds `command_v` for `seconds` on the quiet practice stage of seed 11 with `effects`;
     /// the coil's travel against the carriage at the end, m, and the drawn truth.
     fn hold(command_v: f64, seconds: f64, effects: PracticeEffects) -> (f64, PracticeTruth) {
@@ -432,11 +438,10 @@ mod tests {
             force_constant: true,
             ..PracticeEffects::NONE
         };
-        let a = quiet().actuator;
         let mut largest: f64 = 0.0;
         for command_v in [0.12, -0.12] {
             let (x, truth) = hold(command_v, 1.2, effects);
-            let force = a.kt_n_per_a * a.current_gain_a_per_v * command_v;
+            let force = coil_force_n(command_v);
             let spring = truth.stage.k2_n_per_m * x;
             let ratio = truth.force_constant_ratio(x);
             assert!(
@@ -461,9 +466,8 @@ mod tests {
             suspension_drift: true,
             ..PracticeEffects::NONE
         };
-        let a = quiet().actuator;
         let command_v = 0.1;
-        let force = a.kt_n_per_a * a.current_gain_a_per_v * command_v;
+        let force = coil_force_n(command_v);
         for t in [1.0, 2.5] {
             let (x, truth) = hold(command_v, t, effects);
             let k2 = truth.stage.k2_n_per_m + truth.k2_change_n_per_m(t);

@@ -277,10 +277,11 @@ pub(crate) struct CommandChange {
 }
 
 impl CommandChange {
-    /// No change.
+    /// No change: `u·1 + (−0)` is `u` for every `u` (−0 is the additive identity, +0 is not:
+    /// `−0 + 0 = +0`), so the plain step compiles to no arithmetic at all and keeps its bits.
     pub const NONE: CommandChange = CommandChange {
         scale: 1.0,
-        offset_v: 0.0,
+        offset_v: -0.0,
     };
 }
 

@@ -170,12 +170,7 @@ pub fn fit_frf(
     let resonances = resonances(&fit, frf, &plan.config.plant);
     let lacking: Vec<&Resonance> = resonances.iter().filter(|r| r.in_model.is_none()).collect();
     let mut extra_modes = extra_modes(plan, frf, &sigma, &lacking)?;
-    let sites = match &frf.accel {
-        Some(accel) => {
-            crate::identify::place_modes(&plan.config.plant, &mut extra_modes, &frf.freq_hz, accel)?
-        }
-        None => vec![None; extra_modes.len()],
-    };
+    let sites = crate::identify::place_modes(&plan.config.plant, &mut extra_modes, frf)?;
     Ok(FrfFit {
         sites,
         order: chosen.order,

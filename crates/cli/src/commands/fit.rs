@@ -96,8 +96,7 @@ impl FitCmd {
                 m.zero_hz,
                 m.zero_zeta,
                 m.peak_db(),
-                site.map_or("on the reading (not placed: no accelerometer FRF, or fewer than two of its bins move)".into(), |s| s
-                    .describe())
+                studies::identify::describe_site(site)
             );
         }
         if fit.extra_modes.is_empty() {

@@ -68,13 +68,8 @@ impl IdentifyCmd {
         }
         for m in &id.misfits {
             println!(
-                "  NOT EXPLAINED by the four-mass model: {:.0} – {:.0} Hz ({} point{}, up to {:+.1} dB / {:.0} %): an unmodelled resonance or a disturbed measurement",
-                m.from_hz,
-                m.to_hz,
-                m.points,
-                if m.points == 1 { "" } else { "s" },
-                m.worst_db,
-                100.0 * m.worst_relative
+                "  NOT EXPLAINED by the four-mass model: {}: an unmodelled resonance or a disturbed measurement",
+                band(m)
             );
         }
         for (r, site) in id.extra_modes.iter().zip(&id.sites) {
@@ -85,20 +80,11 @@ impl IdentifyCmd {
                 r.zero_hz,
                 r.zero_zeta,
                 r.peak_db(),
-                site.map_or("on the reading (not placed: no accelerometer FRF, or fewer than two of its bins move)".into(), |s| s
-                    .describe())
+                studies::identify::describe_site(site)
             );
         }
         for m in &id.left_out {
-            println!(
-                "  left out of the fit with its modes: {:.0} – {:.0} Hz ({} point{}, up to {:+.1} dB / {:.0} %)",
-                m.from_hz,
-                m.to_hz,
-                m.points,
-                if m.points == 1 { "" } else { "s" },
-                m.worst_db,
-                100.0 * m.worst_relative
-            );
+            println!("  left out of the fit with its modes: {}", band(m));
         }
         if id.extra_modes.is_empty() && !id.misfits.is_empty() {
             println!("  those points were left out of the fit");
@@ -109,4 +95,18 @@ impl IdentifyCmd {
         );
         Ok(ExitCode::SUCCESS)
     }
+}
+
+/// A band of points the fit could not explain, as printed: `100 – 200 Hz (3 points, up to
+/// +4.5 dB / 77 %)`.
+fn band(m: &studies::identify::Misfit) -> String {
+    format!(
+        "{:.0} – {:.0} Hz ({} point{}, up to {:+.1} dB / {:.0} %)",
+        m.from_hz,
+        m.to_hz,
+        m.points,
+        if m.points == 1 { "" } else { "s" },
+        m.worst_db,
+        100.0 * m.worst_relative
+    )
 }

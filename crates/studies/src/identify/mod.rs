@@ -8,7 +8,7 @@ mod resonance;
 mod site;
 
 pub use misfit::{Misfit, MISFIT_MIN_RELATIVE, MISFIT_SIGMAS};
-pub use site::{place_modes, SiteEvidence};
+pub use site::{describe_site, place_modes, SiteEvidence};
 
 use crate::error::StudyError;
 use num_complex::Complex64;
@@ -91,23 +91,6 @@ pub struct Identified {
 }
 
 impl Identified {
-    /// Places the extra modes on the motor force or on the reading by the accelerometer's FRF
-    /// `accel`, measured at the frequencies `freq_hz` of the identified one ([`place_modes`],
-    /// against the fitted stage).
-    fn place_modes(
-        &mut self,
-        plan: &Plan,
-        freq_hz: &[f64],
-        accel: &run_config::frf_file::AccelFrf,
-    ) -> Result<(), StudyError> {
-        let stage = PlantParams {
-            stage: with_table_5_2(&plan.config.plant.stage, &self.fitted),
-            ..plan.config.plant
-        };
-        self.sites = place_modes(&stage, &mut self.extra_modes, freq_hz, accel)?;
-        Ok(())
-    }
-
     /// `plan`'s plant with the fitted stage and, after the plant's own, the extra modes found.
     pub fn plant(&self, plan: &Plan) -> PlantParams {
         PlantParams {
@@ -158,12 +141,13 @@ impl Identified {
 /// Where a mode was placed and why, for a plant file's comment.
 pub(crate) fn site_comment(site: &Option<SiteEvidence>) -> String {
     match site {
-        Some(e) => e.describe(),
-        None => "on the reading (at = \"sensor\"): not placed (no accelerometer FRF, or fewer than two of its bins\n\
-                 #   move) — a gap FRF alone cannot tell a sensor\n\
-                 #   mount from a stage mode — the designs and loop checks see them alike, the tool motion predicted\n\
-                 #   from the model would not"
-            .into(),
+        Some(_) => describe_site(site),
+        None => format!(
+            "{} — a gap FRF alone cannot tell a sensor\n\
+             #   mount from a stage mode — the designs and loop checks see them alike, the tool motion predicted\n\
+             #   from the model would not",
+            describe_site(site)
+        ),
     }
 }
 
@@ -183,9 +167,11 @@ pub(crate) fn sensor_mode(p: &[f64]) -> ExtraMode {
 /// FRF when the file has it ([`place_modes`]).
 pub fn identify_measured(plan: &Plan, frf: &MeasuredFrf) -> Result<Identified, StudyError> {
     let mut id = identify(plan, &frf.freq_hz, &frf.response)?;
-    if let Some(accel) = &frf.accel {
-        id.place_modes(plan, &frf.freq_hz, accel)?;
-    }
+    let fitted = PlantParams {
+        stage: with_table_5_2(&plan.config.plant.stage, &id.fitted),
+        ..plan.config.plant
+    };
+    id.sites = place_modes(&fitted, &mut id.extra_modes, frf)?;
     Ok(id)
 }
 
@@ -193,18 +179,26 @@ pub fn identify_measured(plan: &Plan, frf: &MeasuredFrf) -> Result<Identified, S
 /// does not explain the data (the thesis's own fit: 97.7 %).
 pub const MIN_CREDIBLE_FIT_PERCENT: f64 = 70.0;
 
+/// The open loop of `plant` with the ideal current loop (the linear model a fit compares with).
+pub(crate) fn open_model(plant: &PlantParams) -> Result<ClosedLoop, String> {
+    let mut ideal = *plant;
+    ideal.actuator.model = plant_sim::params::CurrentLoopModel::Ideal;
+    let sim = Simulator::new(&ideal, 0, &Default::default()).map_err(|e| e.to_string())?;
+    ClosedLoop::open(&sim, ideal.capa.sensitivity_v_per_m).ok_or_else(|| "no linear model".into())
+}
+
 /// The model's open-loop response (m/V) at `freq_hz` for stage `stage` in `cfg`'s plant.
 pub(crate) fn open_loop(
     plan: &Plan,
     stage: StageParams,
     freq_hz: &[f64],
 ) -> Result<Vec<Complex64>, String> {
-    let mut plant = plan.config.plant;
-    plant.stage = stage;
-    plant.actuator.model = plant_sim::params::CurrentLoopModel::Ideal;
-    let sim = Simulator::new(&plant, 0, &Default::default()).map_err(|e| e.to_string())?;
-    let open = ClosedLoop::open(&sim, plant.capa.sensitivity_v_per_m).ok_or("no linear model")?;
-    open.command_responses(freq_hz)
+    let plant = PlantParams {
+        stage,
+        ..plan.config.plant
+    };
+    open_model(&plant)?
+        .command_responses(freq_hz)
         .into_iter()
         .map(|r| r.map_err(|e| e.to_string()))
         .collect()
@@ -259,7 +253,7 @@ pub fn identify(
             &ratio,
             fitted_bands,
             left,
-            |p, fq| stage(p, fq),
+            stage,
             (&f.params, &lower, &upper),
         )
     });

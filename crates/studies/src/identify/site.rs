@@ -11,9 +11,9 @@
 use crate::error::StudyError;
 use num_complex::Complex64;
 use plant_sim::modes::{ExtraMode, ModeSite};
-use plant_sim::{PlantParams, Simulator};
-use run_config::frf_file::AccelFrf;
-use runner::closed_loop::{input, output, ClosedLoop};
+use plant_sim::PlantParams;
+use run_config::frf_file::MeasuredFrf;
+use runner::closed_loop::{input, output};
 
 /// A mode's bins are where it moves the response by more than this (relative).
 const MOVES: f64 = 0.1;
@@ -46,24 +46,32 @@ impl SiteEvidence {
     }
 }
 
+/// Where a mode is and why, in words: the evidence, or that it was left on the reading
+/// unplaced.
+pub fn describe_site(site: &Option<SiteEvidence>) -> String {
+    match site {
+        Some(e) => e.describe(),
+        None => {
+            "on the reading (not placed: no accelerometer FRF, or fewer than two of its bins move)"
+                .into()
+        }
+    }
+}
+
 /// Places each of `modes` (fitted on the reading) on the motor force where the accelerometer's
-/// FRF `accel` at `freq_hz` says so, against `plant` (the model without `modes`): the evidence
-/// for each, or None where the mode moves fewer than two measured bins.
+/// FRF of `frf` says so, against `plant` (the model without `modes`): the evidence for each, or
+/// None where the file has no accelerometer FRF or the mode moves fewer than two of its bins.
 pub fn place_modes(
     plant: &PlantParams,
     modes: &mut [ExtraMode],
-    freq_hz: &[f64],
-    accel: &AccelFrf,
+    frf: &MeasuredFrf,
 ) -> Result<Vec<Option<SiteEvidence>>, StudyError> {
-    let mut ideal = *plant;
-    ideal.actuator.model = plant_sim::params::CurrentLoopModel::Ideal;
-    let sim = Simulator::new(&ideal, 0, &Default::default())
-        .map_err(|e| StudyError::from(design::identify::IdentifyError::Invalid(e.to_string())))?;
-    let open = ClosedLoop::open(&sim, ideal.capa.sensitivity_v_per_m).ok_or(
-        StudyError::NeedsLinearPlant {
-            what: "placing a mode",
-        },
-    )?;
+    let Some(accel) = &frf.accel else {
+        return Ok(vec![None; modes.len()]);
+    };
+    let freq_hz = &frf.freq_hz;
+    let open = super::open_model(plant)
+        .map_err(|e| StudyError::from(design::identify::IdentifyError::Invalid(e)))?;
     let model: Vec<Complex64> = freq_hz
         .iter()
         .map(|&f| open.response(output::ACCEL_READING_V, input::CONTROL_DISTURBANCE_V, f))
