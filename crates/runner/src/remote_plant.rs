@@ -95,12 +95,8 @@ impl RemotePlant {
         Ok(s)
     }
 
-    /// Asks the plant to end the run and answers with 0 V until it has (bounded).
-    pub fn close(mut self) {
-        self.stop();
-    }
-
-    fn stop(&mut self) {
+    /// Asks the plant to end the run and answers with 0 V until it has (bounded); once only.
+    pub fn close(&mut self) {
         if self.closed {
             return;
         }
@@ -133,6 +129,6 @@ impl Drop for RemotePlant {
     /// A measurement that failed or was abandoned still leaves the plant at 0 V and its run
     /// closed.
     fn drop(&mut self) {
-        self.stop();
+        self.close();
     }
 }

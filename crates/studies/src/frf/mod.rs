@@ -180,6 +180,9 @@ pub trait FrfPlant {
     /// Whether a clipped reading or command aborts the measurement (a real stage is not driven
     /// on into its limits) rather than only marking the point.
     fn aborts_on_clip(&self) -> bool;
+    /// The excitation is over: a plant served by another process is let go (its run ended at
+    /// 0 V) before the estimate, which takes longer than its peer timeout allows a tick.
+    fn release(&mut self) {}
 }
 
 /// The simulated stage in this process: clipped points are marked, not aborted.
@@ -225,6 +228,10 @@ impl FrfPlant for RemotePlant {
 
     fn aborts_on_clip(&self) -> bool {
         true
+    }
+
+    fn release(&mut self) {
+        self.close();
     }
 }
 
@@ -436,6 +443,7 @@ pub fn chirp_on(
             }
         }
     }
+    rig.plant.release();
     // One segment per chirp (a periodic excitation): rectangular window, no leakage.
     let welch = WelchConfig {
         segment_len: per,
@@ -548,6 +556,9 @@ pub fn stepped_sine_on(
                 a_rec.push(a);
                 clipped |= rig.clipped();
             }
+        }
+        if i + 1 == freqs_hz.len() {
+            rig.plant.release();
         }
         let (h, coherence) = h1_at_bin(&u_rec, &y_rec, periods_per_block as usize, s.blocks);
         let cycles = periods_per_block as usize * s.blocks;
