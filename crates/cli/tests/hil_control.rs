@@ -280,17 +280,15 @@ fn a_trip_ends_the_run_with_exit_5_in_process_and_in_hil() {
     assert!(hil.frames[n..].iter().all(|f| f.telemetry.control_v == 0.0));
 }
 
-/// Another user on the machine (`nobody`, acting from root's tests; skipped when the suite
-/// cannot switch users): a folder pre-created at the old predictable path (a hostile
+/// Another user on the machine (`nobody`, acting from root's tests; CI runs it as root with
+/// `-- --ignored _as_root`): a folder pre-created at the old predictable path (a hostile
 /// `kp = 16.5` and a symlink to a system file) is neither read nor written by the run; the
 /// run's own config folder is mode 0700 and unreadable to them; `servo ctl` from them changes
 /// nothing; the run records its own configuration and only root's commands.
 #[test]
-fn another_user_can_neither_read_the_config_nor_steer_the_run() {
-    if euid() != 0 {
-        eprintln!("skipped: acting as another user needs root");
-        return;
-    }
+#[ignore = "needs root (acts as another user): CI runs it, `-- --ignored _as_root`"]
+fn another_user_can_neither_read_the_config_nor_steer_the_run_as_root() {
+    assert_eq!(euid(), 0, "acting as another user needs root");
     use std::os::unix::fs::{MetadataExt, PermissionsExt};
     let shared = tmp("shared-tmp");
     std::fs::create_dir_all(&shared).unwrap();

@@ -111,13 +111,11 @@ fn settings_the_host_or_the_ranges_refuse_are_clear_errors() {
 }
 
 /// One core, a low FIFO priority, sleeping between ticks, a tenth of a second: what the kernel
-/// then reports is what was asked (as root; the machine is never starved: the loop sleeps).
+/// then reports is what was asked (the machine is never starved: the loop sleeps).
 #[test]
-fn a_real_time_policy_and_core_are_applied_as_asked() {
-    if euid() != 0 {
-        eprintln!("skipped: SCHED_FIFO needs CAP_SYS_NICE");
-        return;
-    }
+#[ignore = "needs root (SCHED_FIFO needs CAP_SYS_NICE): CI runs it, `-- --ignored _as_root`"]
+fn a_real_time_policy_and_core_are_applied_as_asked_as_root() {
+    assert_eq!(euid(), 0, "SCHED_FIFO needs CAP_SYS_NICE: run as root");
     let v = json(
         &servo()
             .args([
@@ -142,11 +140,9 @@ fn a_real_time_policy_and_core_are_applied_as_asked() {
 /// An unprivileged user asking for SCHED_FIFO, for the loop qualification and for a HIL
 /// process, is refused before anything runs, with what to change.
 #[test]
-fn a_host_that_refuses_real_time_gets_a_clear_error() {
-    if euid() != 0 {
-        eprintln!("skipped: acting as another user needs root");
-        return;
-    }
+#[ignore = "needs root (acts as another user): CI runs it, `-- --ignored _as_root`"]
+fn a_host_that_refuses_real_time_gets_a_clear_error_as_root() {
+    assert_eq!(euid(), 0, "acting as another user needs root");
     let exe = env!("CARGO_BIN_EXE_servo");
     for args in [
         &["latency", "--duration", "0.01", "--rt-policy", "fifo"][..],

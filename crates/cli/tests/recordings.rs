@@ -122,6 +122,24 @@ impl recorder::Visit for Environment {
     }
 }
 
+/// Bytes of a recording that show its run is ticking (its signal handlers are installed
+/// before its file is opened): a few chunks of frames.
+const RECORDING_UNDER_WAY: u64 = 256 << 10;
+
+/// Waits until process `pid`'s recording to `path`, written as `<path>.<pid>.partial` until
+/// it is finished, holds `bytes` (bounded: a minute).
+fn recording_grows(path: &std::path::Path, pid: u32, bytes: u64) {
+    let partial = format!("{}.{pid}.partial", path.display());
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while std::fs::metadata(&partial).map_or(0, |m| m.len()) < bytes {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "{partial} never reached {bytes} bytes"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
+
 /// SIGINT, SIGTERM or SIGHUP mid-run: the run ends at a tick boundary, the MCAP is finished
 /// and readable, its `end` record names the signal, and the exit code is 128 + its number.
 #[test]
@@ -139,7 +157,7 @@ fn a_signal_ends_the_run_with_a_finished_file_that_names_it() {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        std::thread::sleep(std::time::Duration::from_millis(700));
+        recording_grows(&path, child.id(), RECORDING_UNDER_WAY);
         let ok = Command::new("kill")
             .args([&format!("-{signal}"), &child.id().to_string()])
             .status()

@@ -1,5 +1,6 @@
 //! The live view keeps the Unix-user boundary. On a running HIL run: another local user's
-//! client (`nobody`, when the suite runs as root) is closed before it sees a byte — it cannot
+//! client (`nobody`; the test needs root and is run by CI with `--ignored _as_root`) is closed
+//! before it sees a byte — it cannot
 //! connect, read parameters, subscribe, set `gain_scale` or call `stop`, and the run's
 //! recording holds no change of it; the owner's client, offering the protocol's own name
 //! `foxglove.websocket.v1`, reads and steers; a view beyond loopback refuses a client without
@@ -101,7 +102,7 @@ fn send(ws: &mut WebSocket<TcpStream>, v: serde_json::Value) {
 /// connection that sends a handshake reads nothing before the close; the WebSocket client
 /// cannot connect with either subprotocol.
 #[test]
-#[ignore = "run as another user by the_owner_steers_and_another_user_gets_nothing"]
+#[ignore = "run as another user by another_user_gets_nothing_from_the_view_as_root"]
 fn another_users_client() {
     let Ok(url) = std::env::var("FTS_VIEW_URL") else {
         return;
@@ -124,33 +125,51 @@ fn another_users_client() {
     println!("REFUSED");
 }
 
+/// Another user (`nobody`) gets nothing: every way in is closed (three connections refused),
+/// and the run's recording holds no gain change.
 #[test]
-fn the_owner_steers_and_another_user_gets_nothing() {
+#[ignore = "needs root (acts as another user): CI runs it, `-- --ignored _as_root`"]
+fn another_user_gets_nothing_from_the_view_as_root() {
+    use std::os::unix::process::CommandExt;
+    assert_eq!(euid(), 0, "acting as another user needs root");
+    let p = prefix("view-nobody");
+    let out = tmp("view-nobody.mcap");
+    let mut run = long_hil_run(&p, &out, |_| {});
+    let (v, url) = view(&p, &[]);
+    let o = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "view_boundary::another_users_client",
+            "--ignored",
+            "--nocapture",
+        ])
+        .env("FTS_VIEW_URL", &url)
+        .uid(65534)
+        .gid(65534)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && text.contains("REFUSED"), "{text}");
+    let report = end(v);
+    assert!(report.contains(", 3 connections refused"), "{report}");
+    let stopped = servo()
+        .args(["ctl", "--prefix", &p, "stop"])
+        .output()
+        .unwrap();
+    assert!(stopped.status.success());
+    assert!(run.wait().unwrap().success());
+    let log = runner::operator_log::OperatorLog::read(&out).unwrap();
+    assert!(log.gain_changes.is_empty(), "{:?}", log.gain_changes);
+}
+
+#[test]
+fn the_owner_steers_the_view() {
     let p = prefix("view");
     let out = tmp("view.mcap");
     let mut run = long_hil_run(&p, &out, |_| {});
     let (v, url) = view(&p, &[]);
     assert!(url.starts_with("ws://127.0.0.1:"), "{url}");
-    if euid() == 0 {
-        use std::os::unix::process::CommandExt;
-        let o = std::process::Command::new(std::env::current_exe().unwrap())
-            .args([
-                "--exact",
-                "view_boundary::another_users_client",
-                "--ignored",
-                "--nocapture",
-            ])
-            .env("FTS_VIEW_URL", &url)
-            .uid(65534)
-            .gid(65534)
-            .output()
-            .unwrap();
-        let text =
-            String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success() && text.contains("REFUSED"), "{text}");
-    } else {
-        eprintln!("not root: the second-user half of this test is skipped");
-    }
     // The owner: the protocol's own subprotocol name, parameters, a gain the run applies.
     let mut ws = connect(&url, "foxglove.websocket.v1").unwrap();
     let info = until(&mut ws, |m| m["op"] == "serverInfo");
@@ -167,9 +186,6 @@ fn the_owner_steers_and_another_user_gets_nothing() {
     drop(ws);
     let report = end(v);
     assert!(report.contains("gain changes applied [1.1]"), "{report}");
-    if euid() == 0 {
-        assert!(report.contains(", 3 connections refused"), "{report}");
-    }
     // One view at a time: the run's control plane serves a bounded number of them.
     // A view beyond loopback: its URL carries a token, and without it the handshake is refused.
     let (wide, wide_url) = view(&p, &["--host", "0.0.0.0"]);
