@@ -356,7 +356,8 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sender<T> {
 }
 
 /// Busy-polls `s` until `accept` takes a sample or the monotonic clock passes `deadline_ns`
-/// ([`monotonic_ns`]). Returns the sample, still held (returning it to the publisher costs a
+/// ([`monotonic_ns`]) and one last look finds none (a waiter descheduled past its deadline
+/// still takes what came in time). Returns the sample, still held (returning it to the publisher costs a
 /// cross-core cache miss: drop it after the reply is sent). Polls without a pause hint and reads
 /// the clock at the first empty poll, then every 64; yields the core after 50 µs of waiting so processes
 /// sharing a core still progress.
