@@ -94,6 +94,19 @@ fn until(
     }
 }
 
+/// Stops run `p` (`servo ctl stop`), waits for it to end well and returns the gain changes its
+/// recording `out` holds.
+fn stop_run(p: &str, mut run: Child, out: &std::path::Path) -> Vec<f64> {
+    let stopped = servo()
+        .args(["ctl", "--prefix", p, "stop"])
+        .output()
+        .unwrap();
+    assert!(stopped.status.success());
+    assert!(run.wait().unwrap().success());
+    let log = runner::operator_log::OperatorLog::read(out).unwrap();
+    log.gain_changes.iter().map(|g| g.scale).collect()
+}
+
 fn send(ws: &mut WebSocket<TcpStream>, v: serde_json::Value) {
     ws.send(Message::text(v.to_string())).unwrap();
 }
@@ -134,7 +147,7 @@ fn another_user_gets_nothing_from_the_view_as_root() {
     assert_eq!(euid(), 0, "acting as another user needs root");
     let p = prefix("view-nobody");
     let out = tmp("view-nobody.mcap");
-    let mut run = long_hil_run(&p, &out, |_| {});
+    let run = long_hil_run(&p, &out, |_| {});
     let (v, url) = view(&p, &[]);
     let o = std::process::Command::new(std::env::current_exe().unwrap())
         .args([
@@ -153,21 +166,14 @@ fn another_user_gets_nothing_from_the_view_as_root() {
     assert!(o.status.success() && text.contains("REFUSED"), "{text}");
     let report = end(v);
     assert!(report.contains(", 3 connections refused"), "{report}");
-    let stopped = servo()
-        .args(["ctl", "--prefix", &p, "stop"])
-        .output()
-        .unwrap();
-    assert!(stopped.status.success());
-    assert!(run.wait().unwrap().success());
-    let log = runner::operator_log::OperatorLog::read(&out).unwrap();
-    assert!(log.gain_changes.is_empty(), "{:?}", log.gain_changes);
+    assert_eq!(stop_run(&p, run, &out), Vec::<f64>::new());
 }
 
 #[test]
 fn the_owner_steers_the_view() {
     let p = prefix("view");
     let out = tmp("view.mcap");
-    let mut run = long_hil_run(&p, &out, |_| {});
+    let run = long_hil_run(&p, &out, |_| {});
     let (v, url) = view(&p, &[]);
     assert!(url.starts_with("ws://127.0.0.1:"), "{url}");
     // The owner: the protocol's own subprotocol name, parameters, a gain the run applies.
@@ -219,13 +225,5 @@ fn the_owner_steers_the_view() {
     drop(ws);
     end(ro);
     // End the run; its recording holds the owner's one gain change and nothing else.
-    let stopped = servo()
-        .args(["ctl", "--prefix", &p, "stop"])
-        .output()
-        .unwrap();
-    assert!(stopped.status.success());
-    assert!(run.wait().unwrap().success());
-    let log = runner::operator_log::OperatorLog::read(&out).unwrap();
-    let gains: Vec<f64> = log.gain_changes.iter().map(|g| g.scale).collect();
-    assert_eq!(gains, [1.1]);
+    assert_eq!(stop_run(&p, run, &out), [1.1]);
 }

@@ -357,10 +357,10 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> Sender<T> {
 
 /// Busy-polls `s` until `accept` takes a sample or the monotonic clock passes `deadline_ns`
 /// ([`monotonic_ns`]) and one last look finds none (a waiter descheduled past its deadline
-/// still takes what came in time). Returns the sample, still held (returning it to the publisher costs a
-/// cross-core cache miss: drop it after the reply is sent). Polls without a pause hint and reads
-/// the clock at the first empty poll, then every 64; yields the core after 50 µs of waiting so processes
-/// sharing a core still progress.
+/// still takes what came in time). Returns the sample, still held (returning it to the
+/// publisher costs a cross-core cache miss: drop it after the reply is sent). Polls without a
+/// pause hint and reads the clock at the first empty poll, then every 64; yields the core after
+/// 50 µs of waiting so processes sharing a core still progress.
 #[inline]
 pub fn poll_held<T: Debug + ZeroCopySend + Copy>(
     s: &Subscriber<T>,
@@ -369,30 +369,28 @@ pub fn poll_held<T: Debug + ZeroCopySend + Copy>(
 ) -> Option<Sample<ipc::Service, T, ()>> {
     let mut start_ns = 0;
     let mut spins = 0u32;
+    let mut past = false;
     loop {
         while let Ok(Some(v)) = s.receive() {
             if accept(&v) {
                 return Some(v);
             }
         }
+        // The pass after the clock showed the deadline passed was the last look: a waiter
+        // descheduled past its deadline has taken what came in time, and does not call its
+        // peer silent for its own stall.
+        if past {
+            return None;
+        }
         // The clock is read at the first empty poll (an overdue tick of a plant catching up
-        // after a stall returns at once) and then every 64.
+        // after a stall returns after one more pass) and then every 64.
         spins = spins.wrapping_add(1);
         if spins % 64 == 1 {
             let now = monotonic_ns();
-            if now >= deadline_ns {
-                // A last look: a waiter descheduled past its deadline may have missed a value
-                // that came in time, and must not call its peer silent for its own stall.
-                while let Ok(Some(v)) = s.receive() {
-                    if accept(&v) {
-                        return Some(v);
-                    }
-                }
-                return None;
-            }
+            past = now >= deadline_ns;
             if start_ns == 0 {
                 start_ns = now;
-            } else if now - start_ns > 50_000 {
+            } else if !past && now - start_ns > 50_000 {
                 std::thread::yield_now();
             }
         }

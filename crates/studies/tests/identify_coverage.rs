@@ -4,9 +4,10 @@
 //! each measured open loop by stepped sine (150 points, 20 Hz – 5 kHz)
 //! and identified, the drawn values should lie within the stated 1σ at 60–76 % of the 180
 //! parameters (68 % expected) and within 2σ at ≥ 90 % (95 %). Not met yet: today's σ is
-//! conservative on these stages (92 % within 1σ, 98 % within 2σ), so this test fails. Six minutes
-//! of stage time on two cores, so not in the default run: `cargo test --release -p studies --test integration identify_coverage
-//! -- --ignored --nocapture`.
+//! conservative on these stages (92 % within 1σ, 98 % within 2σ), so this test fails. Six
+//! minutes of stage time on two cores, so not in the default run:
+//! `cargo test --release -p studies --test integration identify_coverage -- --ignored
+//! --nocapture`.
 
 use crate::common;
 use num_complex::Complex64;

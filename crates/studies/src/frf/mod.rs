@@ -557,9 +557,6 @@ pub fn stepped_sine_on(
                 clipped |= rig.clipped();
             }
         }
-        if i + 1 == freqs_hz.len() {
-            rig.plant.release();
-        }
         let (h, coherence) = h1_at_bin(&u_rec, &y_rec, periods_per_block as usize, s.blocks);
         let cycles = periods_per_block as usize * s.blocks;
         let uncertainty = lti::spectral::periodic_uncertainty(&u_rec, &y_rec, cycles, NEIGHBOURS);

@@ -140,14 +140,13 @@ impl Identified {
 
 /// Where a mode was placed and why, for a plant file's comment.
 pub(crate) fn site_comment(site: &Option<SiteEvidence>) -> String {
+    let described = describe_site(site);
     match site {
-        Some(_) => describe_site(site),
-        None => format!(
-            "{} — a gap FRF alone cannot tell a sensor\n\
+        Some(_) => described,
+        None => described
+            + " — a gap FRF alone cannot tell a sensor\n\
              #   mount from a stage mode — the designs and loop checks see them alike, the tool motion predicted\n\
              #   from the model would not",
-            describe_site(site)
-        ),
     }
 }
 
