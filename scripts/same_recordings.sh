@@ -22,8 +22,12 @@ record machine machine --duration 0.3 --out-dir machine
 record prescription machine -c "$here/examples/prescriptions/cut-gentle.toml" --duration 0.3 \
   --out-dir prescription
 for f in run sine cut zpetc practice hil machine/machine prescription/machine; do
-  line=$("$new" replay "$f.mcap" --out "$f.replayed.mcap" | grep "data channels")
+  report=$("$new" replay "$f.mcap" --out "$f.replayed.mcap")
+  line=$(grep "data channels" <<< "$report") design=$(grep "  design " <<< "$report" || true)
   echo "$f.mcap:$line"
+  echo "$f.mcap:$design"
+  # The replay runs the recorded deployment: a design that changed form shows only here.
+  ! grep -q "another form" <<< "$design" || { echo "the design changed form: $f"; exit 1; }
   grep -q "identical, bit for bit" <<< "$line" || { echo "differs: $f"; exit 1; }
 done
 echo "every recording of $old replays bit for bit with $new"

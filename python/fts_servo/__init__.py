@@ -242,8 +242,11 @@ def replay(
     configuration, seed and embedded input files — on the plant file ``plant`` when given (a
     recording of a DAQ daemon or a real stage replays only on a plant model) — recorded to
     ``out`` (None: not recorded). Returns ``identical`` (the data channels bit for bit, None when
-    the recording holds every n-th tick), ``first_difference_frame``, ``frames_compared`` and the
-    ``recorded`` and ``replayed`` summaries."""
+    the recording holds every n-th tick), ``first_difference_frame``, ``frames_compared``, the
+    ``recorded`` and ``replayed`` summaries, and ``design``: the recorded deployment (which the
+    replay runs) beside this machine's design of it — ``"same"``, ``{"apart": relative
+    difference}`` (another processor's rounding), ``"other_form"``, ``"not_recorded"`` (an older
+    recording, designed again) or None (a changed configuration)."""
     path = None if out is None else os.fspath(out)
     plant_path = None if plant is None else os.fspath(plant)
     return json.loads(_native.replay(os.fspath(file), path, overwrite, plant_path, salvage))

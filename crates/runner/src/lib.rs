@@ -35,6 +35,7 @@ pub mod operator_log;
 pub mod pil;
 pub mod plan;
 pub mod plan_loop;
+mod recorded_deployment;
 pub mod recording;
 pub mod remote_plant;
 pub mod repetitive;

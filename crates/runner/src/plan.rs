@@ -9,6 +9,8 @@ use crate::controller::{stage_of, RunController};
 use crate::error::RunError;
 use crate::feedforward::{feedforward_spec, FirFit};
 use crate::measured_loop::MeasuredLoop;
+use crate::recorded_deployment;
+pub use crate::recorded_deployment::DEPLOYMENT_INPUT;
 use crate::repetitive::RepetitivePlan;
 use crate::run_input::input_or_read;
 use plant_sim::params::CurrentLoopModel;
@@ -61,6 +63,12 @@ pub struct Plan {
     pub measured: Option<MeasuredLoop>,
     /// The FIR feedforward's fit, for `feedforward = "fir"`.
     pub fir: Option<FirFit>,
+    /// For a plan rebuilt from a recording that carries its deployment ([`DEPLOYMENT_INPUT`]),
+    /// which [`Plan::deployment`] then is: the largest relative difference between the
+    /// recorded numbers and those designed here (0: the same bits; a processor with other
+    /// vector instructions rounds the eigenvalue-based designs in the last bits; infinite:
+    /// another form, a recording from another version of the design).
+    pub design_difference: Option<f64>,
 }
 
 impl Plan {
@@ -71,7 +79,9 @@ impl Plan {
 
     /// Validates and builds the run of `loaded`, taking the input files it names (controller
     /// file, surface image) from `inputs` by attachment name where there ([`CONTROLLER_INPUT`],
-    /// [`SURFACE_INPUT`]) — a recording's embedded copies — and reading the others.
+    /// [`SURFACE_INPUT`]) — a recording's embedded copies — and reading the others. A recorded
+    /// deployment among them ([`DEPLOYMENT_INPUT`]) is what the plan runs (its configuration
+    /// must be the recording's: see [`Plan::design_difference`]).
     pub fn with_inputs(loaded: &Loaded, mut inputs: Vec<Input>) -> Result<Self, RunError> {
         let origin = loaded.origin.clone();
         let r = run_config::resolve(loaded, |s| surface_file(s, &origin, &mut inputs))?;
@@ -100,6 +110,7 @@ impl Plan {
             .inputs
             .iter()
             .filter(|i| same_file || i.name != CONTROLLER_INPUT)
+            .filter(|i| i.name != DEPLOYMENT_INPUT)
             .cloned()
             .collect();
         if let Some(data) = file {
@@ -160,7 +171,7 @@ impl Plan {
         }
         let measured = measured_loop(&config, &sim, &controller, &mut inputs)?;
         let (feedforward, fir) = feedforward_spec(&config, &closed_loop, measured.as_ref())?;
-        let deployment = Deployment {
+        let mut deployment = Deployment {
             servo_rate_hz: config.plant.timing.servo_rate_hz,
             stage: stage_of(&config),
             controller: controller.spec.clone(),
@@ -176,6 +187,14 @@ impl Plan {
         deployment
             .check()
             .map_err(|e| located_in_run(&e, &origin))?;
+        let design_difference = match inputs.iter().position(|i| i.name == DEPLOYMENT_INPUT) {
+            Some(at) => Some(recorded_deployment::adopt(
+                &mut deployment,
+                &inputs.remove(at).data,
+            )?),
+            None => None,
+        };
+        inputs.push(recorded_deployment::embedded(&deployment));
         let repetitive = match &config.scenario {
             Scenario::Machine(m) => match &m.repetitive {
                 Some(s) => Some(crate::repetitive::plan(
@@ -207,6 +226,7 @@ impl Plan {
             repetitive,
             measured,
             fir,
+            design_difference,
         })
     }
 

@@ -4,7 +4,7 @@
 //! two compared: data channels by digest, metrics side by side.
 
 use crate::operator_log::OperatorLog;
-use crate::plan::{Plan, CONTROLLER_INPUT};
+use crate::plan::{Plan, CONTROLLER_INPUT, DEPLOYMENT_INPUT};
 use crate::recording::{inspect_with, FrameSink, RunHeader};
 use crate::run::{run_with, RunOptions};
 use crate::summary::Summary;
@@ -126,16 +126,21 @@ impl RunHeader {
     /// The recorded run with `config` instead of the recorded configuration (a replaced
     /// controller, feedforward or plant): the embedded input files are used where the
     /// configuration still names them, so an unchanged controller file is the recorded copy
-    /// and a new one is read from disk.
+    /// and a new one is read from disk. The recorded deployment runs as long as the
+    /// configuration is the recorded one (its duration aside).
     pub fn replan(&self, config: RunConfig) -> Result<Plan, RunError> {
-        let recorded = &self.loaded.config.controller;
-        let same_controller_file = config.controller.ss_file == recorded.ss_file;
+        let recorded = &self.loaded.config;
+        let same_controller_file = config.controller.ss_file == recorded.controller.ss_file;
+        let mut same_loop = config.clone();
+        same_loop.run.duration_s = recorded.run.duration_s;
+        let same_loop = same_loop == *recorded;
         let mut loaded = self.loaded.clone();
         loaded.config = config;
         let inputs = self
             .inputs()
             .into_iter()
             .filter(|i| same_controller_file || i.name != CONTROLLER_INPUT)
+            .filter(|i| same_loop || i.name != DEPLOYMENT_INPUT)
             .collect();
         Plan::with_inputs(&loaded, inputs)
     }
@@ -176,12 +181,42 @@ pub struct ReplayReport {
     pub recorded: Summary,
     /// The replay's summary.
     pub replayed: Summary,
+    /// The recorded deployment, which the replay ran, beside the one this machine designs
+    /// from the recorded configuration (None when the configuration was changed).
+    pub design: Option<RecordedDesign>,
     /// The recording's decimation: every n-th tick recorded.
     #[serde(skip)]
     pub every: u32,
     /// The replay's loop rate, Hz.
     #[serde(skip)]
     pub rate_hz: f64,
+}
+
+/// The deployment a recording carries beside the one this machine designs from its
+/// configuration.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RecordedDesign {
+    /// Designed here to the same bits.
+    Same,
+    /// Designed here up to this relative difference apart: another processor's vector
+    /// instructions round the eigenvalue-based designs otherwise.
+    Apart(f64),
+    /// Designed here in another form: a recording of another version of the design.
+    OtherForm,
+    /// The recording carries no deployment (an older recording): designed again.
+    NotRecorded,
+}
+
+impl RecordedDesign {
+    fn of(difference: Option<f64>) -> Self {
+        match difference {
+            None => RecordedDesign::NotRecorded,
+            Some(0.0) => RecordedDesign::Same,
+            Some(d) if d.is_finite() => RecordedDesign::Apart(d),
+            Some(_) => RecordedDesign::OtherForm,
+        }
+    }
 }
 
 impl Replay {
@@ -249,6 +284,7 @@ impl Replay {
             compared_until_operator_tick: self.steered_at,
             recorded: self.recorded,
             replayed,
+            design: (!changed).then(|| RecordedDesign::of(plan.design_difference)),
             every,
             rate_hz: plan.config.plant.timing.servo_rate_hz,
         })

@@ -7,5 +7,6 @@ mod measured_design;
 mod no_alloc;
 mod plan_loop;
 mod protection;
+mod recorded_deployment;
 mod stall;
 mod telemetry;

@@ -8,7 +8,7 @@ use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, CliError};
 use clap::Args;
 use run_config::read_plant_file;
-use runner::replay::{Replay, ReplayReport};
+use runner::replay::{RecordedDesign, Replay, ReplayReport};
 use runner::summary::Summary;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -104,6 +104,22 @@ fn print_report(r: &ReplayReport) {
             f as f64 / rate_hz
         ),
         (Some(false), None) => {}
+    }
+    match r.design {
+        Some(RecordedDesign::Same) => {
+            println!("  design               recorded (designed here: the same bits)")
+        }
+        Some(RecordedDesign::Apart(d)) => println!(
+            "  design               recorded (designed here: up to {d:.1e} apart, relative; \
+             another processor rounds otherwise)"
+        ),
+        Some(RecordedDesign::OtherForm) => {
+            println!("  design               recorded (this version designs another form)")
+        }
+        Some(RecordedDesign::NotRecorded) => {
+            println!("  design               designed again (the recording carries no deployment)")
+        }
+        None => {}
     }
     let (was, is) = (&r.recorded.meta.arithmetic, &r.replayed.meta.arithmetic);
     if was != is {
