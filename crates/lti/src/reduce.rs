@@ -4,7 +4,7 @@
 //! `‖G − G_r‖_∞ ≤ 2 Σ σ_discarded`.
 
 use crate::lyapunov::dlyap;
-use crate::state_space::{LtiError, StateSpace};
+use crate::state_space::{balance_system, LtiError, StateSpace};
 use nalgebra::DMatrix;
 
 /// A reduced model and what was discarded.
@@ -30,8 +30,10 @@ pub fn sqrt_factor(p: &DMatrix<f64>) -> DMatrix<f64> {
 
 /// The balancing of a stable discrete system, computed once (two gramians and an SVD) and
 /// truncated to any order.
-pub struct Balancing<'a> {
-    sys: &'a StateSpace,
+pub struct Balancing {
+    /// The system balanced: a single-input or single-output one with the states its input
+    /// does not reach or its output does not see removed first ([`reachable_part`]).
+    sys: StateSpace,
     /// `Wc = RᵀR`, `Wo = LᵀL`.
     r: DMatrix<f64>,
     l: DMatrix<f64>,
@@ -42,10 +44,38 @@ pub struct Balancing<'a> {
     idx: Vec<usize>,
 }
 
-impl<'a> Balancing<'a> {
-    /// Balances `sys`.
-    pub fn new(sys: &'a StateSpace) -> Result<Self, LtiError> {
+impl Balancing {
+    /// Balances `sys`. A single input's unreached states and a single output's unseen ones are
+    /// removed first, exactly ([`reachable_part`]): their gramian direction is zero in one
+    /// gramian but can dominate the other — a slow disturbance state the output sees, 10⁵
+    /// times the rest — whose other directions are then known only to `ε·‖W‖`, and the
+    /// truncation built on them misses the system by O(1).
+    pub fn new(sys: &StateSpace) -> Result<Self, LtiError> {
+        let (a, b, c, _) = balance_system(sys.a.clone(), sys.b.clone(), sys.c.clone());
+        let mut sys = StateSpace {
+            a,
+            b,
+            c,
+            d: sys.d.clone(),
+        };
+        if sys.nu() == 1 {
+            sys = reachable_part(&sys);
+        }
+        if sys.ny() == 1 {
+            sys = dual(&reachable_part(&dual(&sys)));
+        }
         let n = sys.nx();
+        if n == 0 {
+            return Ok(Balancing {
+                sys,
+                r: DMatrix::zeros(0, 0),
+                l: DMatrix::zeros(0, 0),
+                u: DMatrix::zeros(0, 0),
+                vt: DMatrix::zeros(0, 0),
+                s: nalgebra::DVector::zeros(0),
+                idx: Vec::new(),
+            });
+        }
         let (wc, _) = dlyap(&sys.a, &(&sys.b * sys.b.transpose()))?;
         let (wo, _) = dlyap(&sys.a.transpose(), &(sys.c.transpose() * &sys.c))?;
         let (r, l) = (sqrt_factor(&wc), sqrt_factor(&wo));
@@ -81,7 +111,7 @@ impl<'a> Balancing<'a> {
     /// state of zero Hankel singular value has no balanced coordinate: keeping it would divide
     /// by zero).
     pub fn truncate(&self, order: usize) -> Reduced {
-        let (sys, n) = (self.sys, self.sys.nx());
+        let (sys, n) = (&self.sys, self.sys.nx());
         let order = order.min(self.minimal_order());
         let (r, l, u, vt, s) = (&self.r, &self.l, &self.u, &self.vt, &self.s);
         let hankel: Vec<f64> = self.idx.iter().map(|&i| s[i]).collect();
@@ -105,6 +135,50 @@ impl<'a> Balancing<'a> {
             error_bound: 2.0 * hankel[order..].iter().sum::<f64>(),
             hankel,
         }
+    }
+}
+
+/// The part of the single-input `sys` its input reaches, by the orthogonal controllability
+/// staircase: a reflection takes `b` to `β·e₁`, then the Hessenberg reduction of `A` (which
+/// keeps `e₁`) puts the reached states first; those after the first subdiagonal entry below
+/// `n·ε·‖A‖_F` are not reached and are dropped. Orthogonal transformations only: the response
+/// is unchanged to rounding.
+fn reachable_part(sys: &StateSpace) -> StateSpace {
+    let n = sys.nx();
+    let beta = sys.b.norm();
+    if n == 0 || beta == 0.0 {
+        return StateSpace {
+            a: DMatrix::zeros(0, 0),
+            b: DMatrix::zeros(0, sys.nu()),
+            c: DMatrix::zeros(sys.ny(), 0),
+            d: sys.d.clone(),
+        };
+    }
+    let mut v = sys.b.column(0).clone_owned();
+    v[0] += beta.copysign(v[0]);
+    let reflection =
+        DMatrix::<f64>::identity(n, n) - (&v * v.transpose()) * (2.0 / v.norm_squared());
+    let (q, h) = (&reflection * &sys.a * &reflection).hessenberg().unpack();
+    let t = reflection * q;
+    let negligible = n as f64 * f64::EPSILON * sys.a.norm();
+    let k = (0..n - 1)
+        .find(|&k| h[(k + 1, k)].abs() <= negligible)
+        .map_or(n, |k| k + 1);
+    StateSpace {
+        a: h.view((0, 0), (k, k)).into_owned(),
+        b: (t.transpose() * &sys.b).rows(0, k).into_owned(),
+        c: (&sys.c * &t).columns(0, k).into_owned(),
+        d: sys.d.clone(),
+    }
+}
+
+/// The dual system `(Aᵀ, Cᵀ, Bᵀ, Dᵀ)`.
+fn dual(sys: &StateSpace) -> StateSpace {
+    StateSpace {
+        a: sys.a.transpose(),
+        b: sys.c.transpose(),
+        c: sys.b.transpose(),
+        d: sys.d.transpose(),
     }
 }
 
@@ -154,6 +228,52 @@ mod tests {
                 red.error_bound
             );
             assert!((g - gf).norm() < 1e-9 * g.norm());
+        }
+    }
+
+    /// A slow state the input does not reach but the output sees (a disturbance model's, at
+    /// 1 − 10⁻¹²) beside three fast modes: removed before the gramians, so the balanced
+    /// realisation of the rest is exact and its truncation within the Hankel bound.
+    #[test]
+    fn a_slow_state_the_input_does_not_reach_is_removed_first() {
+        let blocks = [(0.95, 0.1), (0.6, 0.9), (0.2, 2.0)];
+        let mut a = DMatrix::zeros(7, 7);
+        for (k, &(r, th)) in blocks.iter().enumerate() {
+            let (c, s) = (r * libm::cos(th), r * libm::sin(th));
+            a[(2 * k, 2 * k)] = c;
+            a[(2 * k, 2 * k + 1)] = -s;
+            a[(2 * k + 1, 2 * k)] = s;
+            a[(2 * k + 1, 2 * k + 1)] = c;
+        }
+        a[(6, 6)] = 1.0 - 1e-12;
+        // The fast modes mixed by a rotation; the slow state coupled to them only through the
+        // output (so the observability gramian mixes it with all of them).
+        let mut q = DMatrix::<f64>::identity(7, 7);
+        q.view_mut((0, 0), (6, 6)).copy_from(
+            &DMatrix::<f64>::from_fn(6, 6, |i, j| libm::sin((i * 6 + j) as f64 + 0.5))
+                .qr()
+                .q(),
+        );
+        let b0 = DMatrix::from_column_slice(7, 1, &[1.0, 0.0, 0.3, 0.1, 0.05, 0.02, 0.0]);
+        let c0 = DMatrix::from_row_slice(1, 7, &[1.0, 0.5, 0.2, -0.1, 0.05, 0.01, 1.0]);
+        let sys = StateSpace {
+            a: &q * a * q.transpose(),
+            b: &q * b0,
+            c: c0 * q.transpose(),
+            d: DMatrix::from_element(1, 1, 0.1),
+        };
+        let bal = Balancing::new(&sys).unwrap();
+        assert_eq!(bal.minimal_order(), 6);
+        let (full, red) = (bal.truncate(7), bal.truncate(2));
+        assert_eq!(full.sys.nx(), 6);
+        // The slow state's constant contribution is not in the response from the input.
+        for i in 0..200 {
+            let f = i as f64 / 400.0;
+            let g = sys.freq_response_discrete(f, 1.0).unwrap()[(0, 0)];
+            let gf = full.sys.freq_response_discrete(f, 1.0).unwrap()[(0, 0)];
+            let gr = red.sys.freq_response_discrete(f, 1.0).unwrap()[(0, 0)];
+            assert!((g - gf).norm() < 1e-9 * g.norm(), "f {f}");
+            assert!((g - gr).norm() <= red.error_bound * (1.0 + 1e-9), "f {f}");
         }
     }
 
