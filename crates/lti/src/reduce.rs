@@ -191,19 +191,25 @@ pub fn balanced_truncation(sys: &StateSpace, order: usize) -> Result<Reduced, Lt
 mod tests {
     use super::*;
 
-    /// A 6-state system of three well-separated modes: reduced to 2 states, the response error
-    /// stays below the a-priori bound at every frequency, and keeping all states is exact.
-    #[test]
-    fn error_within_the_hankel_bound() {
-        let blocks = [(0.95, 0.1), (0.6, 0.9), (0.2, 2.0)];
-        let mut a = DMatrix::zeros(6, 6);
-        for (k, &(r, th)) in blocks.iter().enumerate() {
+    /// An `n`×`n` matrix (n ≥ 6) whose first six states are three well-separated discrete
+    /// modes (radius, angle per tick: 0.95, 0.1; 0.6, 0.9; 0.2, 2.0), the rest zero.
+    fn three_modes(n: usize) -> DMatrix<f64> {
+        let mut a = DMatrix::zeros(n, n);
+        for (k, &(r, th)) in [(0.95, 0.1), (0.6, 0.9), (0.2, 2.0)].iter().enumerate() {
             let (c, s) = (r * libm::cos(th), r * libm::sin(th));
             a[(2 * k, 2 * k)] = c;
             a[(2 * k, 2 * k + 1)] = -s;
             a[(2 * k + 1, 2 * k)] = s;
             a[(2 * k + 1, 2 * k + 1)] = c;
         }
+        a
+    }
+
+    /// A 6-state system of three well-separated modes: reduced to 2 states, the response error
+    /// stays below the a-priori bound at every frequency, and keeping all states is exact.
+    #[test]
+    fn error_within_the_hankel_bound() {
+        let a = three_modes(6);
         let b = DMatrix::from_column_slice(6, 1, &[1.0, 0.0, 0.3, 0.1, 0.05, 0.02]);
         let c = DMatrix::from_row_slice(1, 6, &[1.0, 0.5, 0.2, -0.1, 0.05, 0.01]);
         let sys = StateSpace {
@@ -236,15 +242,7 @@ mod tests {
     /// realisation of the rest is exact and its truncation within the Hankel bound.
     #[test]
     fn a_slow_state_the_input_does_not_reach_is_removed_first() {
-        let blocks = [(0.95, 0.1), (0.6, 0.9), (0.2, 2.0)];
-        let mut a = DMatrix::zeros(7, 7);
-        for (k, &(r, th)) in blocks.iter().enumerate() {
-            let (c, s) = (r * libm::cos(th), r * libm::sin(th));
-            a[(2 * k, 2 * k)] = c;
-            a[(2 * k, 2 * k + 1)] = -s;
-            a[(2 * k + 1, 2 * k)] = s;
-            a[(2 * k + 1, 2 * k + 1)] = c;
-        }
+        let mut a = three_modes(7);
         a[(6, 6)] = 1.0 - 1e-12;
         // The fast modes mixed by a rotation; the slow state coupled to them only through the
         // output (so the observability gramian mixes it with all of them).

@@ -53,12 +53,11 @@ pub(crate) fn adopt(designed: &mut Deployment, recorded: &[u8]) -> Result<f64, R
 /// The largest relative difference between the numbers of two texts of the same form
 /// (infinite when their words or their count of numbers differ).
 fn largest_difference(a: &str, b: &str) -> f64 {
-    let words = |s: &'_ str| -> Vec<String> {
+    fn words(s: &str) -> Vec<&str> {
         s.split(|c: char| c.is_whitespace() || ",[]={}".contains(c))
             .filter(|w| !w.is_empty())
-            .map(str::to_owned)
             .collect()
-    };
+    }
     let (a, b) = (words(a), words(b));
     if a.len() != b.len() {
         return f64::INFINITY;
