@@ -4,6 +4,7 @@
 mod carex;
 mod common;
 mod darex;
+mod deterministic_products;
 mod near_boundary;
 mod riccati_random;
 mod schur_form;

@@ -403,17 +403,22 @@ fn attempt(
     let mut eigenvalues = m.eigenvalues();
     let (mut measure, mut value, mut stable) = p.stability(&eigenvalues);
     // Near the boundary (an eigenvalue unresolved, or computed unstable by no more than rounding
-    // can move it) with a semi-definite penalty: Newton's own steps from the origin instead, the
-    // stable iterate with the least residual. A chord step solves on an earlier closed loop,
-    // whose eigenvalue there is off by up to its bound — more than its distance — and so
-    // wanders along that direction once the residual is rounding; and rounding can put the
-    // polished closed loop across the boundary.
+    // can move it) with a semi-definite penalty, or a regularised start refined to an unstable
+    // closed loop: Newton's own steps from the origin instead, the stable iterate with the
+    // least residual. A chord step solves on an earlier closed loop, whose eigenvalue there is
+    // off by up to its bound — more than its distance — and so wanders along that direction
+    // once the residual is rounding; rounding can put the polished closed loop across the
+    // boundary; and near it a chord step can overshoot across it by far more than rounding
+    // (a mode 5·10⁻⁹ outside the unit circle, mirrored inside by the first steps, landed
+    // 1.4·10⁻⁹ outside it), where Kleinman's and Hewer's own iterates from a stabilising start
+    // stay stabilising.
     let near = if stable {
         resolution::closed_loop(p, eigenvalues.clone()).is_some()
     } else {
         resolution::instability_unresolved(p, &eigenvalues)
     };
-    if near && resolution::semidefinite_penalty(p) {
+    let overshot = !stable && route == Route::Regularised;
+    if (near && resolution::semidefinite_penalty(p)) || overshot {
         if let Some((newton, newton_taken)) = p
             .measure(origin)
             .and_then(|start| p.refine_stable(start, steps - first))
