@@ -142,3 +142,43 @@ def steer(client: Client, common: list) -> None:
     client.stopped_at = json.loads(client.service_responses[0][1])["stopped_at_tick"]
     with pytest.raises(ConnectionClosed):
         client.pump(lambda: False, timeout_s=30)
+
+
+def test_a_view_beyond_loopback_speaks_tls_to_a_pinned_certificate(tmp_path: Path) -> None:
+    """Beyond loopback the view serves wss:// with a self-signed certificate made on first use
+    (in XDG_CONFIG_HOME) and prints its SHA-256 fingerprint after the URL. Python's ssl pins it:
+    the certificate fetched, its fingerprint compared with the printed one, then trusted alone.
+    With the token the client reads the server's info; a wrong token is refused (401, inside
+    TLS); a cleartext client gets no WebSocket handshake."""
+    import hashlib
+    import ssl
+
+    from websockets.exceptions import InvalidStatus
+
+    env = dict(os.environ, XDG_CONFIG_HOME=str(tmp_path))
+    prefix = f"pytest-tls-{os.getpid()}"
+    view = spawn("view", "--prefix", prefix, "--host", "0.0.0.0", "--port", "0",
+                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        url, pin = view.stdout.readline().strip(), view.stdout.readline().strip()
+        assert url.startswith("wss://0.0.0.0:") and pin.startswith("sha256 "), (url, pin)
+        port = int(url.split(":")[2].split("/")[0])
+        token = url.split("?token=")[1]
+        pem = ssl.get_server_certificate(("127.0.0.1", port))
+        fingerprint = hashlib.sha256(ssl.PEM_cert_to_DER_cert(pem)).hexdigest().upper()
+        assert ":".join(fingerprint[i : i + 2] for i in range(0, 64, 2)) == pin.split()[1]
+        pinned = ssl.create_default_context(cadata=pem)
+        pinned.check_hostname = False  # the fingerprint is the identity, not a name
+        local = f"wss://127.0.0.1:{port}/"
+        with websockets_sync.connect(f"{local}?token={token}", ssl=pinned, subprotocols=[SUBPROTOCOL]) as ws:
+            assert json.loads(ws.recv(timeout=30))["op"] == "serverInfo"
+        with pytest.raises(InvalidStatus) as refused:
+            websockets_sync.connect(f"{local}?token={'0' * 32}", ssl=pinned, subprotocols=[SUBPROTOCOL])
+        assert refused.value.response.status_code == 401
+        with pytest.raises(Exception) as cleartext:
+            websockets_sync.connect(f"ws://127.0.0.1:{port}/?token={token}", subprotocols=[SUBPROTOCOL],
+                                    open_timeout=20)
+        assert not isinstance(cleartext.value, InvalidStatus), "a cleartext client got an HTTP answer"
+    finally:
+        view.terminate()
+        view.wait(30)

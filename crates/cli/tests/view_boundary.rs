@@ -3,14 +3,16 @@
 //! before it sees a byte — it cannot
 //! connect, read parameters, subscribe, set `gain_scale` or call `stop`, and the run's
 //! recording holds no change of it; the owner's client, offering the protocol's own name
-//! `foxglove.websocket.v1`, reads and steers; a view beyond loopback refuses a client without
-//! its token; a read-only view offers neither parameters nor services.
+//! `foxglove.websocket.v1`, reads and steers; a view beyond loopback speaks TLS with the
+//! certificate whose fingerprint it prints (made on first use), which a cleartext client cannot
+//! reach; with `--cleartext` it refuses a client without its token; a read-only view offers
+//! neither parameters nor services.
 
 use crate::common;
 
 use common::hil::{long_hil_run, prefix};
 use common::{euid, servo, tmp};
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
@@ -19,17 +21,20 @@ use tungstenite::{Message, WebSocket};
 
 /// Starts `servo view` on run `p` with `extra` flags; returns it and the URL it printed.
 fn view(p: &str, extra: &[&str]) -> (Child, String) {
+    view_with(p, extra, &tmp("view-config"))
+}
+
+/// [`view`] with `config` as `XDG_CONFIG_HOME` (where a self-signed certificate is kept).
+fn view_with(p: &str, extra: &[&str], config: &std::path::Path) -> (Child, String) {
     let mut child = servo()
         .args(["view", "--prefix", p, "--port", "0"])
         .args(extra)
+        .env("XDG_CONFIG_HOME", config)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut url = String::new();
-    BufReader::new(child.stdout.as_mut().unwrap())
-        .read_line(&mut url)
-        .unwrap();
+    let url = line(child.stdout.as_mut().unwrap());
     if url.is_empty() {
         let mut err = String::new();
         child
@@ -40,7 +45,17 @@ fn view(p: &str, extra: &[&str]) -> (Child, String) {
             .unwrap();
         panic!("servo view {extra:?} printed no URL: {err}");
     }
-    (child, url.trim().to_owned())
+    (child, url)
+}
+
+/// One line of `out`, read a byte at a time (what follows stays unread), without its newline.
+fn line(out: &mut impl Read) -> String {
+    let mut bytes = Vec::new();
+    let mut byte = [0u8];
+    while out.read(&mut byte).unwrap() == 1 && byte[0] != b'\n' {
+        bytes.push(byte[0]);
+    }
+    String::from_utf8(bytes).unwrap()
 }
 
 /// Ends a view (SIGTERM: it stops serving and reports) and returns what it printed on stderr.
@@ -193,8 +208,22 @@ fn the_owner_steers_the_view() {
     let report = end(v);
     assert!(report.contains("gain changes applied [1.1]"), "{report}");
     // One view at a time: the run's control plane serves a bounded number of them.
-    // A view beyond loopback: its URL carries a token, and without it the handshake is refused.
-    let (wide, wide_url) = view(&p, &["--host", "0.0.0.0"]);
+    // A view beyond loopback: TLS, with the certificate made on first use whose fingerprint it
+    // prints after the URL; a cleartext client gets no handshake.
+    let config = tmp("view-tls-config");
+    let (mut secure, secure_url) = view_with(&p, &["--host", "0.0.0.0"], &config);
+    assert!(secure_url.starts_with("wss://0.0.0.0:"), "{secure_url}");
+    let pin = line(secure.stdout.as_mut().unwrap());
+    let dir = config.join("fts-servo").join("live-view");
+    let made = live_view::ws::tls::Tls::from_pem_files(&dir.join("cert.pem"), &dir.join("key.pem"))
+        .unwrap();
+    assert_eq!(pin, format!("sha256 {}", made.fingerprint()));
+    let (base, token) = secure_url.split_once("/?token=").unwrap();
+    let local = base.replace("wss://0.0.0.0", "ws://127.0.0.1");
+    assert!(connect(&format!("{local}/?token={token}"), "foxglove.websocket.v1").is_err());
+    end(secure);
+    // With --cleartext its URL carries a token, and without it the handshake is refused.
+    let (wide, wide_url) = view(&p, &["--host", "0.0.0.0", "--cleartext"]);
     let (base, token) = wide_url
         .split_once("/?token=")
         .unwrap_or_else(|| panic!("no token in {wide_url:?}"));

@@ -4,7 +4,8 @@
 //! telemetry and truth over shared memory the way the recorder does (its own process: the
 //! servo path never waits for it; a slow view loses its own samples, counted), joins them tick
 //! by tick, and serves the Foxglove WebSocket protocol ([`ws`]: on loopback to the run's own
-//! Unix user only; beyond loopback only with a token; read-only if asked):
+//! Unix user only; beyond loopback only with a token, over TLS unless cleartext is asked for;
+//! read-only if asked):
 //! - `/overview`: per millisecond of run, the minimum, maximum and mean of the main signals —
 //!   the recording's own `/overview` bins, so what a browser shows is what the file holds;
 //!   `every` publishes only each n-th bin;
@@ -48,6 +49,12 @@ pub struct ViewOptions {
     /// A token every client must present (`?token=…`); required when `host` is not a
     /// loopback address.
     pub token: Option<String>,
+    /// Serve TLS (`wss://`) with this identity; required when `host` is not a loopback
+    /// address, unless `cleartext`.
+    pub tls: Option<ws::tls::Tls>,
+    /// Serve beyond loopback without TLS (the token and the data in cleartext: on a network
+    /// every machine on the path is trusted, or through a tunnel).
+    pub cleartext: bool,
 }
 
 impl ViewOptions {
@@ -62,6 +69,8 @@ impl ViewOptions {
             linger: Duration::from_secs(1),
             read_only: false,
             token: None,
+            tls: None,
+            cleartext: false,
         }
     }
 }
@@ -104,6 +113,9 @@ pub enum ViewError {
     /// Served beyond loopback without a token.
     #[error("a live view on {0} (not a loopback address) needs a token: any machine that reaches it could steer the run")]
     NoToken(String),
+    /// Served beyond loopback without TLS, and cleartext not asked for.
+    #[error("a live view on {0} (not a loopback address) is served over TLS (`tls`): its token and data would otherwise cross the network in cleartext (set `cleartext` to serve so knowingly)")]
+    Cleartext(String),
     /// No run appeared.
     #[error("no run on prefix {0:?} within {1:?}: start the run on that prefix first")]
     NoRun(String, Duration),
@@ -127,6 +139,9 @@ pub fn serve(
         || o.host == "localhost";
     if !loopback && o.token.is_none() {
         return Err(ViewError::NoToken(o.host.clone()));
+    }
+    if !loopback && o.tls.is_none() && !o.cleartext {
+        return Err(ViewError::Cleartext(o.host.clone()));
     }
     let ep = Endpoint::open(&o.prefix, &format!("view-{}", std::process::id()))?;
     let tap = Tap::new(&ep)?;
@@ -171,6 +186,7 @@ pub fn serve(
             }),
             read_only: o.read_only,
             token: o.token.clone(),
+            tls: o.tls.clone(),
         },
         tx,
     )

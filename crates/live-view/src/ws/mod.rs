@@ -7,7 +7,9 @@
 //!   of the client socket, [`peer::uid_of`]), refused before the handshake;
 //! - when a token is set (the view listens beyond loopback), every connection must also carry
 //!   it in the URL's query (`?token=…`; a browser can send it), compared in constant time;
-//!   the link is cleartext WebSocket, not TLS;
+//! - with a TLS identity ([`tls::Tls`]) every connection is TLS (`wss://`), the handshake
+//!   done before the WebSocket's, so the token never travels in cleartext; a client pins the
+//!   certificate by its fingerprint;
 //! - a read-only front offers no parameters and no services.
 //!
 //! Both names of the protocol are served: `foxglove.websocket.v1` (its own, what the official
@@ -17,6 +19,7 @@
 
 pub mod peer;
 pub mod protocol;
+pub mod tls;
 
 use protocol::{Parameter, Request, SUBPROTOCOLS};
 use serde_json::json;
@@ -27,7 +30,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, Sender, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
+use tls::Tls;
 use tungstenite::handshake::server::{ErrorResponse, Request as HttpRequest, Response};
 use tungstenite::protocol::WebSocketConfig;
 use tungstenite::{Message, WebSocket};
@@ -84,6 +88,8 @@ pub struct FrontOptions {
     pub read_only: bool,
     /// A token every connection must carry (`?token=…`), if set.
     pub token: Option<String>,
+    /// Serve TLS (`wss://`) with this identity, if set.
+    pub tls: Option<Tls>,
 }
 
 /// A client's request for the view's loop, with where to answer.
@@ -333,7 +339,7 @@ fn check_handshake(
         if !token_of(req).is_some_and(|t| token_matches(t, expected)) {
             return Err(refusal(
                 401,
-                "this live view needs its token: ws://host:port/?token=…",
+                "this live view needs its token: the ?token=… of the URL it printed",
             ));
         }
     }
@@ -401,16 +407,56 @@ fn hello(options: &FrontOptions) -> Vec<Message> {
     out
 }
 
-/// One client, from handshake to close.
+/// How long a client has for its TLS and WebSocket handshakes, each.
+const HANDSHAKE: Duration = Duration::from_secs(5);
+
+/// A client's byte stream: a TCP socket, or TLS over one.
+trait Socket: std::io::Read + std::io::Write {
+    /// The TCP socket under it.
+    fn tcp(&self) -> &TcpStream;
+}
+
+impl Socket for TcpStream {
+    fn tcp(&self) -> &TcpStream {
+        self
+    }
+}
+
+impl Socket for rustls::StreamOwned<rustls::ServerConnection, TcpStream> {
+    fn tcp(&self) -> &TcpStream {
+        &self.sock
+    }
+}
+
+/// One client, from handshake to close: the TLS handshake first when the front has an
+/// identity (within [`HANDSHAKE`]; a client that does not speak TLS fails it and sees nothing).
 fn serve_client(shared: &Shared, stream: TcpStream) {
-    let options = &shared.options;
     let setup = stream.set_nonblocking(false).and_then(|()| {
-        stream.set_read_timeout(Some(Duration::from_secs(5)))?;
-        stream.set_write_timeout(Some(Duration::from_secs(5)))
+        stream.set_read_timeout(Some(HANDSHAKE))?;
+        stream.set_write_timeout(Some(HANDSHAKE))
     });
     if setup.is_err() {
         return;
     }
+    let Some(tls) = &shared.options.tls else {
+        return serve_socket(shared, stream);
+    };
+    let Ok(connection) = rustls::ServerConnection::new(tls.config.clone()) else {
+        return;
+    };
+    let mut secure = rustls::StreamOwned::new(connection, stream);
+    let deadline = Instant::now() + HANDSHAKE;
+    while secure.conn.is_handshaking() {
+        if Instant::now() > deadline || secure.conn.complete_io(&mut secure.sock).is_err() {
+            return;
+        }
+    }
+    serve_socket(shared, secure);
+}
+
+/// One client over `stream`, from the WebSocket handshake to close.
+fn serve_socket<S: Socket>(shared: &Shared, stream: S) {
+    let options = &shared.options;
     let config = WebSocketConfig::default()
         .max_message_size(Some(1 << 20))
         .max_frame_size(Some(1 << 20));
@@ -422,6 +468,7 @@ fn serve_client(shared: &Shared, stream: TcpStream) {
     };
     if ws
         .get_ref()
+        .tcp()
         .set_read_timeout(Some(Duration::from_millis(20)))
         .is_err()
     {
@@ -447,9 +494,9 @@ fn serve_client(shared: &Shared, stream: TcpStream) {
         .retain(|c| c.id != id);
 }
 
-fn client_loop(
+fn client_loop<S: Socket>(
     shared: &Shared,
-    ws: &mut WebSocket<TcpStream>,
+    ws: &mut WebSocket<S>,
     id: u64,
     tx: &SyncSender<Message>,
     rx: &Receiver<Message>,
