@@ -154,7 +154,7 @@ pub fn exit_codes_help() -> String {
 }
 
 /// The codes a command itself exits with, beside a run's end reasons.
-const COMMAND_CODES: [(u8, &str); 2] = [
+const COMMAND_CODES: [(u8, &str); 3] = [
     (
         FAILED,
         "another failure: an unwritable path, a damaged or unfinished recording refused by \
@@ -167,7 +167,19 @@ const COMMAND_CODES: [(u8, &str); 2] = [
          controller that would make the loop unstable; a host that stalls longer than the loop \
          survives (servo run --hil --realtime); an export selection that matches nothing",
     ),
+    (
+        KILLED,
+        "`servo run --hil`: one of its processes was killed by a signal it cannot handle \
+         (SIGKILL: 128 + 9) — the recorder (the loop is stopped; its `.partial` file holds \
+         every complete chunk, read it with `--salvage`), or the plant or controller before \
+         the loop's first tick (the others are stopped, nothing is recorded) or after its \
+         last; killed mid-run, they are a lost peer (3)",
+    ),
 ];
+
+/// Exit code of `servo run --hil` when one of its processes was killed by SIGKILL and the
+/// recorder gave no other reason (128 + 9, as a shell reports it).
+pub const KILLED: u8 = 137;
 
 impl CliError {
     /// The flag a library error's key stands for: the libraries name their options as keys

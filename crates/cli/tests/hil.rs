@@ -296,6 +296,64 @@ fn processes_of(prefix: &str) -> Vec<u32> {
         .collect()
 }
 
+/// The pid of run `prefix`'s `servo ROLE` child.
+fn child_of(prefix: &str, role: &str) -> u32 {
+    processes_of(prefix)
+        .into_iter()
+        .find(|pid| {
+            let cmdline = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+            cmdline.split(|&b| b == 0).nth(1) == Some(role.as_bytes())
+        })
+        .unwrap_or_else(|| panic!("no servo {role} in run {prefix}"))
+}
+
+/// A child of `servo run --hil` killed mid-run (SIGKILL: no handler runs) ends the run as the
+/// exit-code table says, with no process left: the plant — a lost peer, the recording finished
+/// with end reason `peer-lost` at its last tick, exit 3 (it said `stopped`, exit 255); the
+/// recorder — the loop stopped (it ran on unrecorded), exit 137, the `.partial` file
+/// salvageable.
+#[test]
+fn a_killed_child_ends_the_hil_run_as_documented() {
+    let p = prefix("killplant");
+    let out = tmp("killplant.mcap");
+    let mut parent = long_hil_run(&p, &out, |c| {
+        c.stderr(Stdio::null());
+    });
+    let plant = child_of(&p, "plant");
+    assert!(Command::new("kill")
+        .args(["-KILL", &plant.to_string()])
+        .status()
+        .unwrap()
+        .success());
+    assert_eq!(parent.wait().unwrap().code(), Some(3));
+    assert!(processes_of(&p).is_empty(), "left: {:?}", processes_of(&p));
+    let rec = recorder::read(&out).expect("a finished recording");
+    assert_eq!(rec.end["reason"], "peer-lost");
+    let ticks: usize = rec.end["ticks"].parse().unwrap();
+    assert!((20_000..60 * 199_600).contains(&ticks), "{ticks}");
+
+    let p = prefix("killrec");
+    let out = tmp("killrec.mcap");
+    let mut parent = long_hil_run(&p, &out, |c| {
+        c.stderr(Stdio::null());
+    });
+    let record = child_of(&p, "record");
+    assert!(Command::new("kill")
+        .args(["-KILL", &record.to_string()])
+        .status()
+        .unwrap()
+        .success());
+    assert_eq!(parent.wait().unwrap().code(), Some(137));
+    assert!(processes_of(&p).is_empty(), "left: {:?}", processes_of(&p));
+    assert!(!out.exists());
+    let partial = recorder::partial_path_of(&out, record);
+    let salvaged = run_ok(&["inspect", "--salvage", "--json", partial.to_str().unwrap()]);
+    assert!(
+        salvaged["summary"]["ticks"].as_u64().unwrap() > 0,
+        "{salvaged}"
+    );
+}
+
 /// SIGINT, SIGHUP or SIGTERM sent to the `servo run --hil` parent alone (as a supervisor
 /// sends it) is forwarded as itself: the plant stops at a tick boundary, the recorder finishes
 /// the file (complete, `end` record: interrupted by that signal), the parent exits 128 + its

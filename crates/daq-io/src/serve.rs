@@ -167,6 +167,9 @@ pub enum ServeError {
     /// No controller or recorder subscribed, or no START came, within the startup timeout.
     #[error("no {0} in run {1} within {2:?}: start it on the same run prefix")]
     NoPeer(&'static str, String, Duration),
+    /// Stopped (a signal, or a stop request) while still waiting for a peer.
+    #[error("stopped while waiting for the {0} of run {1}")]
+    StoppedWaiting(&'static str, String),
 }
 
 /// Seconds of monotonic time since `start_ns`.
@@ -223,11 +226,11 @@ fn wait_for_peers(
                 (_, false) => "recorder",
                 _ => "START (servo ctl start)",
             };
-            return Err(ServeError::NoPeer(
-                who,
-                ep.prefix().into(),
-                opts.startup_timeout,
-            ));
+            return Err(if stop.load(Ordering::Relaxed) != 0 {
+                ServeError::StoppedWaiting(who, ep.prefix().into())
+            } else {
+                ServeError::NoPeer(who, ep.prefix().into(), opts.startup_timeout)
+            });
         }
         health_pub.send(health);
         health_pub.prepare();

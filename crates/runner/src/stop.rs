@@ -139,8 +139,9 @@ impl EndReason {
                  and the recording is finished (a second Ctrl-C ends the process at once)"
             }
             EndReason::PeerLost => {
-                "a HIL peer was silent for the peer timeout: the plant drove zero current and \
-                 ended the run"
+                "a HIL peer was lost: the controller silent for the peer timeout (the plant \
+                 drove zero current and ended the run), or the plant gone mid-run (killed or \
+                 crashed: the recording ends at its last tick)"
             }
             EndReason::OverrunBudget => {
                 "the controller answered late more often than the overrun budget allows: the \

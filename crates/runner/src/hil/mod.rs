@@ -43,6 +43,9 @@ pub const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 /// Silence after which the controller declares the plant lost (a loaded 2-core machine can
 /// deschedule a process for tens of ms; 1 s is far beyond that).
 pub const PLANT_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// The slices a controller waits for its first sample in, checking for a stop between them.
+const FIRST_SAMPLE_SLICE: Duration = Duration::from_millis(100);
 /// Silence after which the recorder stops waiting for the end of a run.
 pub const RECORDER_TIMEOUT: Duration = Duration::from_secs(3);
 
@@ -124,7 +127,10 @@ pub fn controller(
     let deployment = crate::gain_range::checked(plan)?;
     let mut servo = PlanLoop::with_deployment(plan, &deployment)?;
     let ep = Endpoint::open(prefix, "controller")?;
-    let mut link = ControllerLink::new(&ep, STARTUP_TIMEOUT, PLANT_TIMEOUT)?;
+    // The first sample is waited for in slices, so that a stop ends the wait: a signal, or the
+    // supervisor's when the recorder the plant waits for has failed.
+    let mut link = ControllerLink::new(&ep, FIRST_SAMPLE_SLICE, PLANT_TIMEOUT)?;
+    let waiting = Instant::now();
     let stopper = ControlSender::new(&ep)?;
     servo.servo_mut().serve_with(
         prefix,
@@ -141,6 +147,18 @@ pub fn controller(
     let result = loop {
         let s = match link.read() {
             Ok(s) => s,
+            Err(daq_io::DaqError::PlantLost { seq: 0, .. }) if stop.is_set() => break Ok(0),
+            Err(daq_io::DaqError::PlantLost { seq: 0, .. })
+                if waiting.elapsed() < STARTUP_TIMEOUT =>
+            {
+                continue
+            }
+            Err(daq_io::DaqError::PlantLost { seq: 0, .. }) => {
+                break Err(RunError::PlantLost(daq_io::DaqError::PlantLost {
+                    seq: 0,
+                    timeout_ms: STARTUP_TIMEOUT.as_millis() as u64,
+                }))
+            }
             Err(e) => break Err(RunError::PlantLost(e)),
         };
         let (cmd, _) = servo.tick(&s);
@@ -332,6 +350,14 @@ pub fn record(
     let reason = if plant_faults & flags::FAULT_OVERRUN_BUDGET != 0 {
         EndReason::OverrunBudget
     } else if plant_faults != 0 {
+        EndReason::PeerLost
+    } else if ticks < total
+        && !matches!(
+            plant_health.state,
+            daq_io::contract::state::DONE | daq_io::contract::state::FAULTED
+        )
+    {
+        // The plant never reported its end: it was lost (killed or crashed) mid-run.
         EndReason::PeerLost
     } else if ticks < total {
         // The plant's final report says who stopped it (a signal, `servo ctl stop`).

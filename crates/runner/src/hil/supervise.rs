@@ -130,9 +130,11 @@ pub fn supervise(
     let total = plan.ticks();
     let mut codes: Vec<(&str, i32)> = Vec::new();
     let mut stopped_at: Option<Instant> = None;
+    let mut looping = false;
     while codes.len() < children.len() {
         while let Some(h) = take(&health) {
             if h.role == role::PLANT {
+                looping |= h.ticks > 0;
                 progress(h.ticks, total);
             }
         }
@@ -141,17 +143,29 @@ pub fn supervise(
                 continue;
             }
             if let Ok(Some(status)) = child.try_wait() {
-                codes.push((name, status.code().unwrap_or(-1)));
+                // Killed by a signal (one it could not handle: SIGKILL): 128 + its number,
+                // as a shell reports it.
+                use std::os::unix::process::ExitStatusExt;
+                let code = status.code().or(status.signal().map(|s| 128 + s));
+                codes.push((name, code.unwrap_or(1)));
             }
         }
         // A stop (a terminal's Ctrl-C reaches the whole group; a supervisor signals only this
         // process) is forwarded, as the same signal, to every child still running: each ends
         // at a tick boundary, the recorder finishes the file naming that signal, and the exit
-        // code is 128 + it.
-        if stop.is_set() && stopped_at.is_none() {
+        // code is 128 + it. A recorder that failed (killed, or its file unwritable) stops the
+        // loop the same way, with SIGTERM: no loop runs on unrecorded. So does any process
+        // that failed before the loop's first tick: the others would wait for it in vain.
+        // (A plant or controller lost mid-run is the loop's own to end: a lost peer.)
+        let failed = |name: &str| {
+            codes
+                .iter()
+                .any(|(n, c)| (name.is_empty() || *n == name) && *c != 0)
+        };
+        if (stop.is_set() || failed("record") || (failed("") && !looping)) && stopped_at.is_none() {
             stopped_at = Some(Instant::now());
             let signal = match stop.reason() {
-                EndReason::Signal(n) => {
+                EndReason::Signal(n) if stop.is_set() => {
                     nix::sys::signal::Signal::try_from(n).unwrap_or(nix::sys::signal::SIGTERM)
                 }
                 _ => nix::sys::signal::SIGTERM,
