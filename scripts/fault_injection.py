@@ -63,8 +63,10 @@ def documented(victim: str, end_reason: str, had_file: bool, before_start: bool)
         return KILLED, "partial" if had_file else "missing", {""}
     if before_start:
         return KILLED, "missing", {""}
-    code = REASON_CODES.get(end_reason)
-    return (code or KILLED) if code is not None else None, "finished", set(REASON_CODES)
+    code = REASON_CODES.get(end_reason)  # None: not an end the book documents for it
+    if code == 0:
+        code = KILLED  # completed: killed after the loop's last tick
+    return code, "finished", set(REASON_CODES)
 
 
 def processes(prefix: str) -> dict[str, int]:
@@ -78,12 +80,10 @@ def processes(prefix: str) -> dict[str, int]:
         except OSError:
             continue
         args = [a.decode(errors="replace") for a in args if a]
-        if "--prefix" not in args or args[args.index("--prefix") + 1 : args.index("--prefix") + 2] != [prefix]:
+        at = args.index("--prefix") if "--prefix" in args else None
+        if at is None or args[at + 1 : at + 2] != [prefix]:
             continue
-        if len(args) < 2:
-            continue
-        role = {"record": "recorder", "run": "run"}.get(args[1], args[1])
-        found[role] = int(entry.name)
+        found["recorder" if args[1] == "record" else args[1]] = int(entry.name)
     return found
 
 

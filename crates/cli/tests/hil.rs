@@ -307,6 +307,35 @@ fn child_of(prefix: &str, role: &str) -> u32 {
         .unwrap_or_else(|| panic!("no servo {role} in run {prefix}"))
 }
 
+/// A long `servo run --hil` (prefix and recording named after `name`) whose `servo ROLE`
+/// child is killed with SIGKILL once the recording holds a few chunks: the run's exit code once
+/// no process of it is left, its recording's path and the killed child's pid.
+fn kill_mid_run(name: &str, role: &str) -> (Option<i32>, PathBuf, u32) {
+    let p = prefix(name);
+    let out = tmp(&format!("{name}.mcap"));
+    let mut parent = long_hil_run(&p, &out, |c| {
+        c.stderr(Stdio::null());
+    });
+    // 2 MB on disk (whole 20 ms chunks of ≈ 4 000 ticks); a slow machine only waits longer.
+    let partial = recorder::partial_path_of(&out, child_of(&p, "record"));
+    while std::fs::metadata(&partial).map_or(0, |m| m.len()) < 2 << 20 {
+        assert!(
+            parent.try_wait().unwrap().is_none(),
+            "ended before the kill"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let child = child_of(&p, role);
+    let killed = Command::new("kill")
+        .args(["-KILL", &child.to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let code = parent.wait().unwrap().code();
+    assert!(processes_of(&p).is_empty(), "left: {:?}", processes_of(&p));
+    (code, out, child)
+}
+
 /// A child of `servo run --hil` killed mid-run (SIGKILL: no handler runs) ends the run as the
 /// exit-code table says, with no process left: the plant — a lost peer, the recording finished
 /// with end reason `peer-lost` at its last tick, exit 3 (it said `stopped`, exit 255); the
@@ -314,37 +343,15 @@ fn child_of(prefix: &str, role: &str) -> u32 {
 /// salvageable.
 #[test]
 fn a_killed_child_ends_the_hil_run_as_documented() {
-    let p = prefix("killplant");
-    let out = tmp("killplant.mcap");
-    let mut parent = long_hil_run(&p, &out, |c| {
-        c.stderr(Stdio::null());
-    });
-    let plant = child_of(&p, "plant");
-    assert!(Command::new("kill")
-        .args(["-KILL", &plant.to_string()])
-        .status()
-        .unwrap()
-        .success());
-    assert_eq!(parent.wait().unwrap().code(), Some(3));
-    assert!(processes_of(&p).is_empty(), "left: {:?}", processes_of(&p));
+    let (code, out, _) = kill_mid_run("killplant", "plant");
+    assert_eq!(code, Some(3));
     let rec = recorder::read(&out).expect("a finished recording");
     assert_eq!(rec.end["reason"], "peer-lost");
     let ticks: usize = rec.end["ticks"].parse().unwrap();
     assert!((20_000..60 * 199_600).contains(&ticks), "{ticks}");
 
-    let p = prefix("killrec");
-    let out = tmp("killrec.mcap");
-    let mut parent = long_hil_run(&p, &out, |c| {
-        c.stderr(Stdio::null());
-    });
-    let record = child_of(&p, "record");
-    assert!(Command::new("kill")
-        .args(["-KILL", &record.to_string()])
-        .status()
-        .unwrap()
-        .success());
-    assert_eq!(parent.wait().unwrap().code(), Some(137));
-    assert!(processes_of(&p).is_empty(), "left: {:?}", processes_of(&p));
+    let (code, out, record) = kill_mid_run("killrec", "record");
+    assert_eq!(code, Some(137));
     assert!(!out.exists());
     let partial = recorder::partial_path_of(&out, record);
     let salvaged = run_ok(&["inspect", "--salvage", "--json", partial.to_str().unwrap()]);

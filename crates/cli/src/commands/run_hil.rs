@@ -12,8 +12,7 @@ use runner::{Plan, RunError};
 use std::process::ExitCode;
 
 /// `servo run --hil`: checks the host (real time), runs the three processes, and returns the
-/// recorder's summary and the exit code: its end reason's when that is not 0 (a lost peer, a
-/// trip, a failed write), else the first failing child's (128 + the signal that killed it).
+/// recorder's summary and the run's exit code ([`runner::hil::Supervised::exit_code`]).
 pub fn run(
     plan: &Plan,
     hil: &HilArgs,
@@ -62,18 +61,9 @@ pub fn run(
         },
         e => e.into(),
     })?;
-    // (An interrupted run's code is its signal's, which the children exit with.)
-    let reason = runner::stop::EndReason::EACH
-        .iter()
-        .filter(|r| !matches!(r, runner::stop::EndReason::Signal(_)))
-        .find(|r| run.summary.meta.end_reason.as_deref() == Some(r.name()))
-        .map_or(0, |r| r.exit_code());
     if let Some(f) = &run.failed {
         eprintln!("servo {} exited with {}", f.process, f.code);
     }
-    let code = match (reason, &run.failed) {
-        (0, Some(f)) => u8::try_from(f.code).unwrap_or(crate::output::FAILED),
-        (reason, _) => reason,
-    };
+    let code = u8::try_from(run.exit_code()).unwrap_or(crate::output::FAILED);
     Ok((run.summary, ExitCode::from(code)))
 }

@@ -39,8 +39,25 @@ pub struct Supervision {
 pub struct Supervised {
     /// The recorder's summary of the run.
     pub summary: Summary,
-    /// The first process that exited with a code other than 0, if any (its code is the run's).
+    /// The first process that exited with a code other than 0, if any.
     pub failed: Option<ChildFailure>,
+}
+
+impl Supervised {
+    /// The run's exit code: its end reason's when that is not 0 (a lost peer, a trip, a failed
+    /// write), else the first failed process's (128 + the signal that killed it), else 0. (An
+    /// interrupted run's code is its signal's, which its processes exit with.)
+    pub fn exit_code(&self) -> i32 {
+        let reason = EndReason::EACH
+            .iter()
+            .filter(|r| !matches!(r, EndReason::Signal(_)))
+            .find(|r| self.summary.meta.end_reason.as_deref() == Some(r.name()))
+            .map_or(0, |r| r.exit_code());
+        match (reason, &self.failed) {
+            (0, Some(f)) => f.code,
+            (reason, _) => i32::from(reason),
+        }
+    }
 }
 
 /// Runs `plan` as three processes of `s.servo`: checks the loop's stability, starts recorder,
@@ -157,12 +174,9 @@ pub fn supervise(
         // loop the same way, with SIGTERM: no loop runs on unrecorded. So does any process
         // that failed before the loop's first tick: the others would wait for it in vain.
         // (A plant or controller lost mid-run is the loop's own to end: a lost peer.)
-        let failed = |name: &str| {
-            codes
-                .iter()
-                .any(|(n, c)| (name.is_empty() || *n == name) && *c != 0)
-        };
-        if (stop.is_set() || failed("record") || (failed("") && !looping)) && stopped_at.is_none() {
+        let recorder_failed = codes.iter().any(|&(n, c)| n == "record" && c != 0);
+        let any_failed = codes.iter().any(|&(_, c)| c != 0);
+        if (stop.is_set() || recorder_failed || (any_failed && !looping)) && stopped_at.is_none() {
             stopped_at = Some(Instant::now());
             let signal = match stop.reason() {
                 EndReason::Signal(n) if stop.is_set() => {
