@@ -434,6 +434,12 @@ pub fn serve<B: Backend>(
             health_pub.prepare();
         }
     }
+    // The final report before the end markers: whoever ends on a marker (the recorder, taking
+    // its end reason and statistics from this report) has it to read.
+    health.state = state::ended(report.faults);
+    progress(&mut health, k, &report, &stats, base_ns + period_ns);
+    health.stop_cause = report.stop_cause;
+    health_pub.send(health);
     sample.flags |= flags::END | report.faults;
     sensor_pub.send(sample);
     truth.flush(&truth_pub, flags::END | report.faults);
@@ -449,10 +455,6 @@ pub fn serve<B: Backend>(
         report.recorder_held_s = p.held_s();
         report.recorder_silent = p.silent();
     }
-    health.state = state::ended(report.faults);
-    progress(&mut health, k, &report, &stats, base_ns + period_ns);
-    health.stop_cause = report.stop_cause;
-    health_pub.send(health);
     crate::ipc::linger(&truth_service, opts.linger);
     Ok(report)
 }

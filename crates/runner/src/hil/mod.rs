@@ -351,13 +351,10 @@ pub fn record(
         EndReason::OverrunBudget
     } else if plant_faults != 0 {
         EndReason::PeerLost
-    } else if ticks < total
-        && !matches!(
-            plant_health.state,
-            daq_io::contract::state::DONE | daq_io::contract::state::FAULTED
-        )
-    {
-        // The plant never reported its end: it was lost (killed or crashed) mid-run.
+    } else if ticks < total && !join.run_over() {
+        // The run ended by silence, without the plant's end marker: the plant was lost
+        // (killed or crashed) mid-run. (Its final health report comes after the marker, so it
+        // may not have been read yet when the marker ends the recording: it cannot tell.)
         EndReason::PeerLost
     } else if ticks < total {
         // The plant's final report says who stopped it (a signal, `servo ctl stop`).

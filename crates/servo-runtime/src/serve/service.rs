@@ -198,15 +198,17 @@ impl Service {
                         while let Ok(t) = telemetry.pop() {
                             self.publish(&mut p, t);
                         }
+                        // The final report before the end markers: whoever ends on a marker
+                        // (the recorder) has it to read.
+                        p.health.state = state::ended(faults);
+                        p.health.faults = faults;
+                        p.health.stop_cause = stop_cause;
+                        report(&mut p, start, ticks, overruns, timing);
                         p.telemetry
                             .flush(&p.telemetry_pub, daq_io::flags::END | faults);
                         if let Some(t) = &p.truth_pub {
                             p.truth.flush(t, daq_io::flags::END | faults);
                         }
-                        p.health.state = state::ended(faults);
-                        p.health.faults = faults;
-                        p.health.stop_cause = stop_cause;
-                        report(&mut p, start, ticks, overruns, timing);
                         if let Ok(s) = p._roles[0].service::<TelemetryBlock>(leaf::TELEMETRY) {
                             daq_io::ipc::linger(&s, self.linger);
                         }
