@@ -215,8 +215,8 @@ fn the_owner_steers_the_view() {
     assert!(secure_url.starts_with("wss://0.0.0.0:"), "{secure_url}");
     let pin = line(secure.stdout.as_mut().unwrap());
     let dir = config.join("fts-servo").join("live-view");
-    let made = live_view::ws::tls::Tls::from_pem_files(&dir.join("cert.pem"), &dir.join("key.pem"))
-        .unwrap();
+    use live_view::ws::tls::{Tls, CERT_FILE, KEY_FILE};
+    let made = Tls::from_pem_files(&dir.join(CERT_FILE), &dir.join(KEY_FILE)).unwrap();
     assert_eq!(pin, format!("sha256 {}", made.fingerprint()));
     let (base, token) = secure_url.split_once("/?token=").unwrap();
     let local = base.replace("wss://0.0.0.0", "ws://127.0.0.1");
