@@ -70,6 +70,14 @@ impl Deployment {
                     Allowed::between(0.0, ZPETC_SECTIONS as f64, "sections"),
                 ));
             }
+            if z.preview > MAX_PREVIEW {
+                return Err(Invalid::new(
+                    "feedforward",
+                    "preview_ticks",
+                    z.preview as f64,
+                    Allowed::between(0.0, MAX_PREVIEW as f64, "ticks"),
+                ));
+            }
             let finite = z.gain.is_finite() && z.sections.iter().flatten().all(|x| x.is_finite());
             if !finite {
                 return Err(Invalid::new(
@@ -94,7 +102,12 @@ impl Deployment {
                 },
             ));
         }
-        let preview = self.feedforward.preview() + self.smoothing_half();
+        // The feedforward's preview is at most MAX_PREVIEW (checked above); the smoothing's half
+        // window is any size a rate and a corner make.
+        let preview = self
+            .feedforward
+            .preview()
+            .saturating_add(self.smoothing_half());
         if preview > MAX_PREVIEW {
             let lowest = rate / (2.0 * (MAX_PREVIEW - self.feedforward.preview()) as f64 + 1.0);
             return Err(Invalid::new(
@@ -321,7 +334,8 @@ fn check_fir(f: &FirSpec) -> Result<(), Invalid> {
             Allowed::between(0.0, MAX_PREVIEW as f64, "ticks"),
         ));
     }
-    if f.stride == 0 || f.taps_used * f.stride > MAX_FIR_SPAN {
+    let span = f.taps_used.checked_mul(f.stride);
+    if f.stride == 0 || span.is_none_or(|span| span > MAX_FIR_SPAN) {
         return Err(Invalid::new(
             "feedforward",
             "stride_ticks",

@@ -58,6 +58,27 @@ fn rich() -> Deployment {
     d
 }
 
+/// A ZPETC's preview beyond what the loop keeps is refused by its own key (it was added to the
+/// smoothing's half window first: found by fuzzing the deployment image, an overflow).
+#[test]
+fn a_zpetc_preview_beyond_the_loop_is_refused_by_key() {
+    let text = deployment_toml(&rich(), None, "zpetc");
+    for preview in ["63", "9223372036854775807"] {
+        let bad = text.replacen(
+            "preview_ticks = 7",
+            &format!("preview_ticks = {preview}"),
+            1,
+        );
+        let e = parse_deployment(&bad, &Origin::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("feedforward.preview_ticks") && e.contains("62"),
+            "{e}"
+        );
+    }
+}
+
 #[test]
 fn a_deployment_read_back_is_the_one_written_bit_for_bit() {
     let d = rich();
@@ -97,6 +118,8 @@ fn an_fir_deployment_reads_back_and_its_reach_is_checked() {
     for (from, to) in [
         ("stride_ticks = 16", "stride_ticks = 22"),
         ("stride_ticks = 16", "stride_ticks = 0"),
+        // 96 taps × this stride is 2⁶⁴ + 32 ticks: a reach that wrapped to 32 was taken.
+        ("stride_ticks = 16", "stride_ticks = 192153584101141163"),
     ] {
         let bad = text.replacen(from, to, 1);
         let e = parse_deployment(&bad, &Origin::default())

@@ -454,12 +454,17 @@ fn serve_client(shared: &Shared, stream: TcpStream) {
     serve_socket(shared, secure);
 }
 
+/// The limits a client's frames are read under: at most 1 MiB a message and a frame.
+pub fn client_limits() -> WebSocketConfig {
+    WebSocketConfig::default()
+        .max_message_size(Some(1 << 20))
+        .max_frame_size(Some(1 << 20))
+}
+
 /// One client over `stream`, from the WebSocket handshake to close.
 fn serve_socket<S: Socket>(shared: &Shared, stream: S) {
     let options = &shared.options;
-    let config = WebSocketConfig::default()
-        .max_message_size(Some(1 << 20))
-        .max_frame_size(Some(1 << 20));
+    let config = client_limits();
     #[allow(clippy::result_large_err)]
     let check = |req: &HttpRequest, res: Response| check_handshake(options, req, res);
     let accepted = tungstenite::accept_hdr_with_config(stream, check, Some(config));

@@ -1,0 +1,62 @@
+//! The processor-in-the-loop link as both ends read it: a byte stream reassembled into
+//! CRC-checked frames, each dispatched by kind as the firmware does (a deployment image builds
+//! the loop, a sample ticks it) and as the host does (boot, ready, tick and report replies).
+
+use crate::deployment::check_command;
+use crate::Scratch;
+use servo_link::{decode_sensor, image, kind, Boot, FrameReader, Ready, Report, TickReply};
+use servo_runtime::Servo;
+
+/// A link's bytes, frame by frame; accepted when a loop was built and ticked.
+pub fn frames(_scratch: &Scratch, data: &[u8]) -> bool {
+    let mut ticked = false;
+    let mut reader = Box::<FrameReader>::default();
+    let mut running: Option<(Servo, f64)> = None;
+    for &byte in data {
+        let Ok(Some((frame_kind, payload))) = reader.push(byte) else {
+            continue;
+        };
+        match frame_kind {
+            kind::LOAD => {
+                running = image::decode(payload).ok().and_then(|d| {
+                    Servo::new(&d)
+                        .ok()
+                        .map(|servo| (servo, d.controller.limit_v))
+                });
+            }
+            kind::SAMPLE => {
+                let (Some(sample), Some((servo, limit_v))) = (decode_sensor(payload), &mut running)
+                else {
+                    continue;
+                };
+                #[cfg(feature = "planted")]
+                planted(&sample);
+                check_command(&servo.tick(&sample), *limit_v);
+                ticked = true;
+            }
+            kind::BOOT => {
+                let _ = Boot::decode(payload);
+            }
+            kind::READY => {
+                let _ = Ready::decode(payload);
+            }
+            kind::TICK => {
+                let _ = TickReply::decode(payload);
+            }
+            kind::REPORT => {
+                let _ = Report::decode(payload);
+            }
+            _ => {}
+        }
+    }
+    ticked
+}
+
+/// The planted fault: a sample whose gap reading is exactly 1234.5 V (reachable only through
+/// a frame with a valid CRC, of kind SAMPLE, after a deployment image that builds).
+#[cfg(feature = "planted")]
+fn planted(sample: &daq_io::Sensor) {
+    if sample.gap_v == 1234.5 {
+        panic!("the planted fault: a sample of exactly 1234.5 V");
+    }
+}

@@ -1,0 +1,2 @@
+#![no_main]
+fts_fuzz::target!(c_abi_open_toml);

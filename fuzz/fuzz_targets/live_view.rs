@@ -1,0 +1,2 @@
+#![no_main]
+fts_fuzz::target!(live_view);

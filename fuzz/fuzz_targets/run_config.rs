@@ -1,0 +1,2 @@
+#![no_main]
+fts_fuzz::target!(run_config);
