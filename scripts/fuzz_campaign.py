@@ -31,17 +31,19 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 FUZZ = ROOT / "fuzz"
 TARGETS = sorted(p.stem for p in (FUZZ / "fuzz_targets").glob("*.rs"))
 STAT = re.compile(r"^stat::(\w+):\s+(\d+)", re.M)
+DONE = re.compile(r"^Done (\d+) runs in (\d+) second", re.M)
 
 
 def cargo_fuzz(*args: str, features: list[str]) -> list[str]:
-    extra = ["--features", ",".join(features)] if features else []
+    # The planted build keeps its own target folder, so it never replaces the real one.
+    extra = (["--features", ",".join(features), "--target-dir", str(FUZZ / "target" / "planted")]
+             if features else [])
     return ["cargo", "+nightly", "fuzz", *args, "--fuzz-dir", str(FUZZ), *extra]
 
 
@@ -59,14 +61,17 @@ def run_target(name: str, args: argparse.Namespace, features: list[str], out: Pa
         "-timeout=10", "-rss_limit_mb=2048", "-malloc_limit_mb=2048",
         "-print_final_stats=1", f"-artifact_prefix={artifacts}/",
     ]
-    start = time.monotonic()
     with open(log, "w") as f:
         code = subprocess.call(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=ROOT,
                                env={**os.environ, "FTS_FUZZ_SCRATCH": str(scratch)})
-    wall = time.monotonic() - start
     shutil.rmtree(scratch, ignore_errors=True)
     text = log.read_text(errors="replace")
     stats = {k: int(v) for k, v in STAT.findall(text)}
+    # libFuzzer's own count of its fuzzing time (the build before it is not the target's);
+    # a target stopped by a finding has no "Done" line: its time is up to the finding.
+    done = DONE.findall(text)
+    wall = float(done[-1][1]) if done else float(stats.get("number_of_executed_units", 0)) / max(
+        stats.get("average_exec_per_sec", 1), 1)
     findings = sorted(p.name for p in artifacts.iterdir())
     if args.merge and not findings:
         dest = FUZZ / "corpus" / name

@@ -52,11 +52,12 @@ pub fn frames(_scratch: &Scratch, data: &[u8]) -> bool {
     ticked
 }
 
-/// The planted fault: a sample whose gap reading is exactly 1234.5 V (reachable only through
-/// a frame with a valid CRC, of kind SAMPLE, after a deployment image that builds).
+/// The planted fault: a sample whose encoder count is one 64-bit value (reachable only through
+/// a frame with a valid CRC-32, of kind SAMPLE, after a deployment image that builds: a random
+/// byte string gets there about once in 2⁹⁶ tries).
 #[cfg(feature = "planted")]
 fn planted(sample: &daq_io::Sensor) {
-    if sample.gap_v == 1234.5 {
-        panic!("the planted fault: a sample of exactly 1234.5 V");
+    if sample.encoder_count == 0x00C0_FFEE_5EED_F00D {
+        panic!("the planted fault: encoder count 0x00C0FFEE5EEDF00D");
     }
 }

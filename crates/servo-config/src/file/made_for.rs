@@ -39,7 +39,7 @@ impl MadeFor {
             "stage {} at {} Hz, plant {}…",
             self.stage,
             self.servo_rate_hz,
-            &self.plant_sha256[..self.plant_sha256.len().min(12)]
+            self.plant_sha256.chars().take(12).collect::<String>()
         )
     }
 
@@ -64,5 +64,23 @@ impl MadeFor {
                 run: Box::new(run.clone()),
             })
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MadeFor;
+
+    /// A digest as a file gives it, not as we write it: the description cuts characters, not
+    /// bytes (found by fuzzing controller files: a character across byte 12 panicked).
+    #[test]
+    fn a_foreign_digest_is_described_by_its_characters() {
+        let m = MadeFor {
+            tool: "fts-servo".into(),
+            plant_sha256: "0123456789aé€xyz".into(),
+            stage: "light".into(),
+            servo_rate_hz: 1.0,
+        };
+        assert_eq!(m.describe(), "stage light at 1 Hz, plant 0123456789aé…");
     }
 }
