@@ -34,10 +34,16 @@ fn main() {
         let n = image::encode(d, &mut img).expect("the prototype fits an image");
         img.truncate(n);
         write("pil_image", &format!("{name}.img"), &img);
+        let (stream, records) = session(d, &img);
         write(
             "pil_link",
-            &format!("{name}-session.bin"),
-            &session(d, &img),
+            &format!("{name}-stream.bin"),
+            &[&[0], &stream[..]].concat(),
+        );
+        write(
+            "pil_link",
+            &format!("{name}-frames.bin"),
+            &[&[1], &records[..]].concat(),
         );
     }
     write(
@@ -63,12 +69,16 @@ fn main() {
 }
 
 /// A processor-in-the-loop session as both ends send it: boot, load, ready, three samples with
-/// the loop's replies, the report.
-fn session(d: &Deployment, img: &[u8]) -> Vec<u8> {
+/// the loop's replies, the report — as the byte stream, and as the records (kind, length,
+/// payload) the fuzz target frames itself.
+fn session(d: &Deployment, img: &[u8]) -> (Vec<u8>, Vec<u8>) {
     let mut servo = servo_runtime::Servo::new(d).expect("the deployment builds");
-    let mut bytes = Vec::new();
+    let (mut bytes, mut records) = (Vec::new(), Vec::new());
     let mut frame = |k: u8, payload: &[u8]| {
         assert!(write_frame(k, payload, |b| bytes.push(b)));
+        records.push(k);
+        records.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+        records.extend_from_slice(payload);
     };
     frame(kind::BOOT, &Boot::default().encode());
     frame(kind::LOAD, img);
@@ -97,7 +107,7 @@ fn session(d: &Deployment, img: &[u8]) -> Vec<u8> {
     }
     frame(kind::REPORT_REQUEST, &[]);
     frame(kind::REPORT, &Report::default().encode());
-    bytes
+    (bytes, records)
 }
 
 /// A client's frames (masked, as a client must send them): subscriptions, parameter requests,
