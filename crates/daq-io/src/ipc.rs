@@ -514,7 +514,7 @@ impl crate::Daq for ControllerLink {
                         got: s.run_id,
                     });
                 }
-                self.next_seq = s.seq + 1;
+                self.next_seq = s.seq.saturating_add(1);
                 Ok(s)
             }
             None => Err(crate::DaqError::PlantLost {

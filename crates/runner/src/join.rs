@@ -51,7 +51,7 @@ impl Joiner {
         self.telemetry_end |= b.flags & flags::END != 0;
         for r in records {
             self.dropped += r.seq.saturating_sub(self.next_telemetry);
-            self.next_telemetry = r.seq + 1;
+            self.next_telemetry = r.seq.saturating_add(1);
             self.telemetry.push_back(*r);
         }
     }
@@ -69,7 +69,7 @@ impl Joiner {
         self.plant_faults |= b.flags & flags::PLANT_FAULTS;
         for r in records {
             self.dropped += r.seq.saturating_sub(self.next_truth);
-            self.next_truth = r.seq + 1;
+            self.next_truth = r.seq.saturating_add(1);
             self.truth.push_back(*r);
         }
     }

@@ -90,7 +90,7 @@ impl RemotePlant {
                 });
             }
         }
-        self.skipped += s.seq - self.last.seq - 1;
+        self.skipped += s.seq.saturating_sub(self.last.seq).saturating_sub(1);
         self.last = s;
         Ok(s)
     }

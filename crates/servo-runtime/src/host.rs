@@ -60,6 +60,7 @@ impl Host {
     /// Records the timing of the tick of `sample` that started at `started_ns`.
     #[inline]
     pub(crate) fn record(&mut self, sample: &Sensor, started_ns: u64) {
+        let expected = core::mem::replace(&mut self.expected_seq, sample.seq.saturating_add(1));
         // Tick 0 sets things up (connections, caches): it is not timed.
         if started_ns == 0 || sample.seq == 0 {
             return;
@@ -68,11 +69,16 @@ impl Host {
             .execution
             .record(monotonic_ns().saturating_sub(started_ns));
         // A loop that fell behind takes the newest sample and skips the rest, a period each.
-        let skipped = sample.seq.saturating_sub(self.expected_seq) * self.period_ns;
-        let late = started_ns.saturating_sub(sample.published_ns) + skipped;
+        // A peer's sequence is not taken on trust: a jump of any size saturates, never wraps.
+        let skipped = sample
+            .seq
+            .saturating_sub(expected)
+            .saturating_mul(self.period_ns);
+        let late = started_ns
+            .saturating_sub(sample.published_ns)
+            .saturating_add(skipped);
         self.stats.lateness.record(late);
         self.overruns += u64::from(late >= self.period_ns);
-        self.expected_seq = sample.seq + 1;
     }
 
     /// Ticks that started a period or more late.
@@ -86,5 +92,45 @@ impl Host {
             lateness: self.stats.lateness.summary(),
             execution: self.stats.execution.summary(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Ticks `seqs` in order, each sample taken and started at one instant; the overruns.
+    fn overruns_of(seqs: &[u64]) -> u64 {
+        let mut host = Host::new(&crate::Deployment::thesis_prototype());
+        let now = monotonic_ns();
+        for &seq in seqs {
+            let sample = Sensor {
+                seq,
+                published_ns: now,
+                ..Sensor::default()
+            };
+            host.record(&sample, now);
+        }
+        host.overruns()
+    }
+
+    /// Tick 1 follows tick 0 (untimed, but a tick): it was counted a period late.
+    #[test]
+    fn ticks_on_time_are_no_overruns() {
+        assert_eq!(overruns_of(&[0, 1, 2, 3]), 0);
+        assert_eq!(overruns_of(&[0, 1, 3]), 1, "one sample skipped");
+    }
+
+    /// A sequence that jumps so far that the skipped periods overflow is one overrun, not a
+    /// wrapped lateness of a few ns (found by fuzzing the PIL link: the product overflowed);
+    /// the last sequence number is no overflow either.
+    #[test]
+    fn a_jump_of_any_size_is_an_overrun() {
+        let period_ns = Host::new(&crate::Deployment::thesis_prototype()).period_ns;
+        // The jump whose skipped periods are 2⁶⁴ plus less than a period.
+        let wraps = u64::MAX / period_ns + 1;
+        assert!(wraps.wrapping_mul(period_ns) < period_ns);
+        assert_eq!(overruns_of(&[0, 1, 2 + wraps]), 1);
+        assert_eq!(overruns_of(&[0, 1, u64::MAX - 1, u64::MAX]), 1);
     }
 }

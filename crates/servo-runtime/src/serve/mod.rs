@@ -173,7 +173,7 @@ pub(crate) fn after_tick(link: &mut Link, sample: &Sensor, v: TickView<'_>) {
                 v.status.gain_scale = scale;
                 let _ = link.events.push(Event::Gain {
                     id,
-                    tick: sample.seq + 1,
+                    tick: sample.seq.saturating_add(1),
                     scale,
                 });
             }
