@@ -15,7 +15,9 @@ fixed and committed to fuzz/regressions/<target>/).
 
 `--merge` adds the inputs that reached new coverage to fuzz/corpus/<target> (what the test
 suite replays). `--planted` builds the planted fault (fuzz-targets' `planted` feature) and runs
-only `pil_link`: the campaign must find it (exit 0 when it does, 1 when it does not).
+only `pil_link`: the campaign must find it (exit 0 when it does, 1 when it does not). The
+planted build replaces the targets' binaries until the next campaign builds them again: do not
+run it beside a campaign.
 
 Needs a nightly toolchain and cargo-fuzz (`cargo install cargo-fuzz`).
 """
@@ -41,9 +43,7 @@ DONE = re.compile(r"^Done (\d+) runs in (\d+) second", re.M)
 
 
 def cargo_fuzz(*args: str, features: list[str]) -> list[str]:
-    # The planted build keeps its own target folder, so it never replaces the real one.
-    extra = (["--features", ",".join(features), "--target-dir", str(FUZZ / "target" / "planted")]
-             if features else [])
+    extra = ["--features", ",".join(features)] if features else []
     return ["cargo", "+nightly", "fuzz", *args, "--fuzz-dir", str(FUZZ), *extra]
 
 
