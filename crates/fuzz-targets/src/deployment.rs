@@ -83,14 +83,7 @@ pub fn from_toml(_scratch: &Scratch, data: &[u8]) -> bool {
 pub fn c_abi_open_toml(_scratch: &Scratch, data: &[u8]) -> bool {
     let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
     let text = CString::new(&data[..end]).expect("no NUL before the end");
-    let abi = fts_servo::FtsServoAbi {
-        abi_version: fts_servo::FTS_SERVO_ABI_VERSION,
-        sensor_size: size_of::<Sensor>() as u32,
-        command_size: size_of::<Command>() as u32,
-        telemetry_size: size_of::<daq_io::Telemetry>() as u32,
-        state_size: size_of::<fts_servo::FtsServoState>() as u32,
-        reserved: 0,
-    };
+    let abi = fts_servo::FtsServoAbi::of_this_library();
     let mut handle = std::ptr::null_mut();
     let mut error = [0 as c_char; 256];
     // SAFETY: a NUL-terminated text, the library's own ABI description, a writable handle

@@ -60,14 +60,7 @@ fn ticks(c: &mut Criterion) {
             })
         });
         let text = CString::new(deployment_toml(&d, None, "bench")).unwrap();
-        let abi = fts_servo::FtsServoAbi {
-            abi_version: fts_servo::FTS_SERVO_ABI_VERSION,
-            sensor_size: size_of::<Sensor>() as u32,
-            command_size: size_of::<Command>() as u32,
-            telemetry_size: size_of::<daq_io::Telemetry>() as u32,
-            state_size: size_of::<fts_servo::FtsServoState>() as u32,
-            reserved: 0,
-        };
+        let abi = fts_servo::FtsServoAbi::of_this_library();
         let mut h = std::ptr::null_mut();
         // SAFETY: a NUL-terminated text, the ABI struct, a writable handle pointer, no buffer.
         let opened = unsafe {

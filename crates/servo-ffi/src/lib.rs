@@ -118,22 +118,36 @@ pub extern "C" fn fts_servo_abi_version() -> u32 {
     FTS_SERVO_ABI_VERSION
 }
 
+impl FtsServoAbi {
+    /// This library's own: what `FTS_SERVO_ABI_INIT` gives a caller built against its header
+    /// (for Rust code calling the C functions).
+    pub fn of_this_library() -> Self {
+        FtsServoAbi {
+            abi_version: FTS_SERVO_ABI_VERSION,
+            sensor_size: size_of::<Sensor>() as u32,
+            command_size: size_of::<Command>() as u32,
+            telemetry_size: size_of::<Telemetry>() as u32,
+            state_size: size_of::<FtsServoState>() as u32,
+            reserved: 0,
+        }
+    }
+
+    /// The version and the four sizes, in that order.
+    fn fields(&self) -> [u32; 5] {
+        [
+            self.abi_version,
+            self.sensor_size,
+            self.command_size,
+            self.telemetry_size,
+            self.state_size,
+        ]
+    }
+}
+
 /// Why `abi` does not match this library, if it does not.
 fn abi_mismatch(abi: &FtsServoAbi) -> Option<String> {
-    let ours = [
-        FTS_SERVO_ABI_VERSION,
-        size_of::<Sensor>() as u32,
-        size_of::<Command>() as u32,
-        size_of::<Telemetry>() as u32,
-        size_of::<FtsServoState>() as u32,
-    ];
-    let theirs = [
-        abi.abi_version,
-        abi.sensor_size,
-        abi.command_size,
-        abi.telemetry_size,
-        abi.state_size,
-    ];
+    let ours = FtsServoAbi::of_this_library().fields();
+    let theirs = abi.fields();
     (ours != theirs).then(|| {
         format!(
             "ABI mismatch: the caller was built against ABI {} with struct sizes sensor {}, command {}, telemetry {}, state {}; this library (fts-servo {}) is ABI {} with {}, {}, {}, {}: rebuild against its fts_servo.h",
