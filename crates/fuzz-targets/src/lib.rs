@@ -62,36 +62,31 @@ impl Scratch {
     }
 }
 
-/// `data` split at its lines `#--NAME--`: the first section (unnamed), then each named one.
+/// `data` split at its lines `#--NAME--`: the first section (unnamed), then each named one
+/// (a section ends before the newline that precedes the next one's marker).
 fn split_sections(data: &[u8]) -> Vec<(&str, &[u8])> {
-    let mut sections = vec![("", data)];
-    let mut start = 0;
-    let mut at = 0;
-    while at < data.len() {
-        let end = data[at..]
-            .iter()
-            .position(|&b| b == b'\n')
-            .map_or(data.len(), |n| at + n);
-        let line = &data[at..end];
-        let name = line
-            .strip_prefix(b"#--")
-            .and_then(|l| l.strip_suffix(b"--"))
-            .and_then(|n| std::str::from_utf8(n).ok())
-            .filter(|n| {
-                (1..=32).contains(&n.len())
-                    && !n.starts_with('.')
-                    && n.bytes()
-                        .all(|b| b.is_ascii_alphanumeric() || b"._-".contains(&b))
-            });
-        if let Some(name) = name {
-            let last = sections.last_mut().expect("a section");
-            last.1 = &data[start..at.saturating_sub(1).max(start)];
-            start = (end + 1).min(data.len());
-            sections.push((name, &data[start..]));
+    let mut sections = Vec::new();
+    let (mut name, mut start, mut at) = ("", 0, 0usize);
+    for line in data.split_inclusive(|&b| b == b'\n') {
+        if let Some(next) = section_name(line) {
+            sections.push((name, &data[start..at.saturating_sub(1).max(start)]));
+            (name, start) = (next, at + line.len());
         }
-        at = end + 1;
+        at += line.len();
     }
+    sections.push((name, &data[start..]));
     sections
+}
+
+/// The name a line `#--NAME--` gives its section (a plain name: 1–32 letters, digits, `.`,
+/// `_`, `-`, not starting with `.`).
+fn section_name(line: &[u8]) -> Option<&str> {
+    let line = line.strip_suffix(b"\n").unwrap_or(line);
+    let name = std::str::from_utf8(line.strip_prefix(b"#--")?.strip_suffix(b"--")?).ok()?;
+    let plain = name
+        .bytes()
+        .all(|b| b.is_ascii_alphanumeric() || b"._-".contains(&b));
+    ((1..=32).contains(&name.len()) && !name.starts_with('.') && plain).then_some(name)
 }
 
 /// A fuzz target: the scratch folder and the input; whether the input was accepted all the

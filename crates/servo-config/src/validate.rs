@@ -61,6 +61,15 @@ impl Deployment {
                 .map_err(|e| e.in_section("controller.stability"))?;
         }
         check_reference(&self.reference, nyquist, "reference")?;
+        let preview = self.feedforward.preview();
+        if preview > MAX_PREVIEW {
+            return Err(Invalid::new(
+                "feedforward",
+                "preview_ticks",
+                preview as f64,
+                Allowed::between(0.0, MAX_PREVIEW as f64, "ticks"),
+            ));
+        }
         if let FeedforwardSpec::Zpetc(z) = &self.feedforward {
             if z.sections_used > ZPETC_SECTIONS {
                 return Err(Invalid::new(
@@ -68,14 +77,6 @@ impl Deployment {
                     "sections",
                     z.sections_used as f64,
                     Allowed::between(0.0, ZPETC_SECTIONS as f64, "sections"),
-                ));
-            }
-            if z.preview > MAX_PREVIEW {
-                return Err(Invalid::new(
-                    "feedforward",
-                    "preview_ticks",
-                    z.preview as f64,
-                    Allowed::between(0.0, MAX_PREVIEW as f64, "ticks"),
                 ));
             }
             let finite = z.gain.is_finite() && z.sections.iter().flatten().all(|x| x.is_finite());
@@ -104,12 +105,8 @@ impl Deployment {
         }
         // The feedforward's preview is at most MAX_PREVIEW (checked above); the smoothing's half
         // window is any size a rate and a corner make.
-        let preview = self
-            .feedforward
-            .preview()
-            .saturating_add(self.smoothing_half());
-        if preview > MAX_PREVIEW {
-            let lowest = rate / (2.0 * (MAX_PREVIEW - self.feedforward.preview()) as f64 + 1.0);
+        if preview.saturating_add(self.smoothing_half()) > MAX_PREVIEW {
+            let lowest = rate / (2.0 * (MAX_PREVIEW - preview) as f64 + 1.0);
             return Err(Invalid::new(
                 "",
                 "smoothing_hz",
@@ -315,8 +312,8 @@ pub fn check_reference(
 const MAX_FIR_GAIN: f64 = 100.0;
 
 /// An FIR feedforward's taps: 1 ..= [`MAX_FIR_TAPS`] of them, finite, their |sum| at most
-/// [`MAX_FIR_GAIN`], the preview within [`MAX_PREVIEW`] and the past it reads within
-/// [`MAX_FIR_SPAN`].
+/// [`MAX_FIR_GAIN`], the past it reads within [`MAX_FIR_SPAN`] (its preview is checked with
+/// every feedforward's).
 fn check_fir(f: &FirSpec) -> Result<(), Invalid> {
     if f.taps_used == 0 || f.taps_used > MAX_FIR_TAPS {
         return Err(Invalid::new(
@@ -324,14 +321,6 @@ fn check_fir(f: &FirSpec) -> Result<(), Invalid> {
             "taps",
             f.taps_used as f64,
             Allowed::between(1.0, MAX_FIR_TAPS as f64, "taps"),
-        ));
-    }
-    if f.preview > MAX_PREVIEW {
-        return Err(Invalid::new(
-            "feedforward",
-            "preview_ticks",
-            f.preview as f64,
-            Allowed::between(0.0, MAX_PREVIEW as f64, "ticks"),
         ));
     }
     let span = f.taps_used.checked_mul(f.stride);

@@ -353,8 +353,7 @@ pub fn record(
         EndReason::PeerLost
     } else if ticks < total && !join.run_over() {
         // The run ended by silence, without the plant's end marker: the plant was lost
-        // (killed or crashed) mid-run. (Its final health report comes after the marker, so it
-        // may not have been read yet when the marker ends the recording: it cannot tell.)
+        // (killed or crashed) mid-run.
         EndReason::PeerLost
     } else if ticks < total {
         // The plant's final report says who stopped it (a signal, `servo ctl stop`).
