@@ -14,7 +14,7 @@ found a crash, a timeout or an out-of-memory input (kept in `--out`/artifacts/<t
 fixed and committed to fuzz/regressions/<target>/).
 
 `--merge` adds the inputs that reached new coverage to fuzz/corpus/<target> (what the test
-suite replays). `--planted` builds the planted fault (fuzz-targets' `planted` feature) and runs
+suite replays; recordings only up to 8 KiB). `--planted` builds the planted fault (fuzz-targets' `planted` feature) and runs
 only `pil_link`: the campaign must find it (exit 0 when it does, 1 when it does not). The
 planted build replaces the targets' binaries until the next campaign builds them again: do not
 run it beside a campaign.
@@ -40,6 +40,8 @@ FUZZ = ROOT / "fuzz"
 TARGETS = sorted(p.stem for p in (FUZZ / "fuzz_targets").glob("*.rs"))
 STAT = re.compile(r"^stat::(\w+):\s+(\d+)", re.M)
 DONE = re.compile(r"^Done (\d+) runs in (\d+) second", re.M)
+# The committed corpus keeps a target's inputs up to this size (recordings grow large).
+KEPT_MAX_BYTES = {"mcap": 8192}
 
 
 def cargo_fuzz(*args: str, features: list[str]) -> list[str]:
@@ -61,10 +63,9 @@ def run_target(name: str, args: argparse.Namespace, features: list[str], out: Pa
         "-timeout=10", "-rss_limit_mb=2048", "-malloc_limit_mb=2048",
         "-print_final_stats=1", f"-artifact_prefix={artifacts}/",
     ]
+    env = {**os.environ, "FTS_FUZZ_SCRATCH": str(scratch)}
     with open(log, "w") as f:
-        code = subprocess.call(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=ROOT,
-                               env={**os.environ, "FTS_FUZZ_SCRATCH": str(scratch)})
-    shutil.rmtree(scratch, ignore_errors=True)
+        code = subprocess.call(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=ROOT, env=env)
     text = log.read_text(errors="replace")
     stats = {k: int(v) for k, v in STAT.findall(text)}
     # libFuzzer's own count of its fuzzing time (the build before it is not the target's);
@@ -79,7 +80,11 @@ def run_target(name: str, args: argparse.Namespace, features: list[str], out: Pa
         subprocess.check_call(
             cargo_fuzz("run", name, features=features)
             + [str(dest), str(work), "--", "-merge=1"],
-            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        for kept in dest.iterdir():
+            if kept.stat().st_size > KEPT_MAX_BYTES.get(name, 1 << 30):
+                kept.unlink()
+    shutil.rmtree(scratch, ignore_errors=True)
     return {
         "target": name,
         "executions": stats.get("number_of_executed_units", 0),
