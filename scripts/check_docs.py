@@ -237,7 +237,8 @@ def run_page(page: Page, stop_after_first_output: bool = False, update: Update |
             where = f"{page.name}:{block.line}"
             out = p.stdout.replace(str(work) + "/", "").replace(str(work), ".")
             if p.returncode != expect:
-                fail(where, f"exit {p.returncode}, expected {expect}", script, out)
+                fail(where, f"exit {p.returncode}, expected {expect}", script,
+                     out + side_logs(work))
             if block.shown is not None:
                 tolerance = DEFAULT_TOLERANCE
                 if "tolerance" in block.shown.marks:
@@ -275,8 +276,18 @@ def rewrite(page: Page, rewrites: list[tuple[Block, str]]) -> None:
     page.path.write_text(text)
 
 
+def side_logs(work: Path) -> str:
+    """The ends of the `.err` and `.log` files a failed block left in `work` (the stderr of
+    its background processes, which the block's own output does not show)."""
+    text = ""
+    for f in sorted([*work.glob("*.err"), *work.glob("*.log")]):
+        tail = f.read_text(errors="replace")[-2000:]
+        text += f"\n--- {f.name}\n{tail}"
+    return text
+
+
 def fail(where: str, why: str, script: str, out: str, diff: str = "") -> None:
-    text = f"FAILED {where}: {why}\n--- block\n{script}\n--- printed\n{out[-4000:]}"
+    text = f"FAILED {where}: {why}\n--- block\n{script}\n--- printed\n{out[-8000:]}"
     if diff:
         text += f"\n--- first difference, {diff}"
     raise PageFailed(text)
