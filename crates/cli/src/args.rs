@@ -6,7 +6,7 @@ use clap::Args;
 use plant_sim::params::NoiseParams;
 use run_config::presets::{ScenarioKind, ScenarioValues, StagePreset};
 use run_config::{ConfigError, ControllerConfig, ControllerKind, FeedforwardKind, Loaded};
-use std::num::NonZeroU32;
+use std::num::{NonZeroU32, NonZeroU64};
 use std::path::{Path, PathBuf};
 
 /// The stage and where the configuration comes from (every command that models the loop).
@@ -331,6 +331,12 @@ pub struct RecordingArgs {
     #[arg(long, value_name = "N", default_value_t = NonZeroU32::MIN,
           value_parser = parse_every, conflicts_with = "no_record")]
     pub record_every: NonZeroU32,
+    /// Write the recording in parts, one per SECONDS of run time, for runs too long for one
+    /// file: run.mcap → run_00000.mcap, run_00001.mcap, …, each a whole MCAP file moved into
+    /// place as soon as the run passes its end (to be checked, copied or removed while the
+    /// run goes on). From 0.001 to 1e6 s.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_split, conflicts_with = "no_record")]
+    pub split_s: Option<NonZeroU64>,
     /// Do not write a file (summary only).
     #[arg(long)]
     pub no_record: bool,
@@ -350,6 +356,7 @@ impl RecordingArgs {
             overwrite: self.overwrite,
             epoch_ns: self.log_epoch.unwrap_or(recorder::DEFAULT_EPOCH_NS),
             every: self.record_every,
+            split_ns: self.split_s,
         })
     }
 }
@@ -381,6 +388,15 @@ fn parse_every(s: &str) -> Result<NonZeroU32, String> {
         .filter(|n| (1..=1_000_000).contains(n))
         .and_then(NonZeroU32::new)
         .ok_or_else(|| format!("{s}: expected a whole number of ticks from 1 to 1000000"))
+}
+
+/// `--split-s`: 0.001 … 1e6 s of run time, as ns.
+fn parse_split(s: &str) -> Result<NonZeroU64, String> {
+    finite(s)
+        .ok()
+        .filter(|v| (1e-3..=1e6).contains(v))
+        .and_then(|v| NonZeroU64::new((v * 1e9).round() as u64))
+        .ok_or_else(|| format!("{s}: expected seconds of run time from 0.001 to 1000000"))
 }
 
 /// `--log-epoch`: an RFC 3339 date or `now`, as ns since the Unix epoch.

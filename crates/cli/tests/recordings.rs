@@ -433,3 +433,68 @@ fn inspect_memory_does_not_grow_with_the_recording() {
         size(&long)
     );
 }
+
+/// `--split-s`: a run written in parts, each intact on its own (`servo inspect` exit 0, its
+/// ticks as its `end` record counts), following on from the part before, together the run's
+/// ticks; the first part replays bit for bit and a later one is refused with the first's name.
+#[test]
+fn a_split_run_is_whole_parts_that_add_up_to_the_run() {
+    let path = tmp("split.mcap");
+    let live = json(
+        &servo()
+            .args([
+                "run",
+                "--json",
+                "-q",
+                "--duration",
+                "0.25",
+                "--split-s",
+                "0.1",
+                "--out",
+            ])
+            .arg(&path)
+            .output()
+            .unwrap(),
+    );
+    assert!(!path.exists());
+    let mut ticks = 0;
+    for part in 0..3 {
+        let file = tmp(&format!("split_{part:05}.mcap"));
+        let read = inspect_json(&file);
+        assert_eq!(read["end"]["part"], part.to_string());
+        assert_eq!(read["end"]["part_first_tick"], ticks.to_string());
+        assert_eq!(
+            read["summary"]["ticks"].to_string(),
+            read["end"]["part_ticks"].as_str().unwrap()
+        );
+        ticks += read["summary"]["ticks"].as_u64().unwrap();
+        let reason = if part < 2 { "split" } else { "completed" };
+        assert_eq!(read["end"]["reason"], reason);
+    }
+    assert!(!tmp("split_00003.mcap").exists());
+    assert_eq!(
+        live["ticks"].as_u64().unwrap(),
+        ticks,
+        "the parts hold every tick"
+    );
+
+    let replayed = servo()
+        .args(["replay", "-q", "--no-record"])
+        .arg(tmp("split_00000.mcap"))
+        .output()
+        .unwrap();
+    succeeded(&replayed);
+    let text = String::from_utf8_lossy(&replayed.stdout);
+    assert!(text.contains("identical, bit for bit"), "{text}");
+    let later = servo()
+        .args(["replay", "-q", "--no-record"])
+        .arg(tmp("split_00001.mcap"))
+        .output()
+        .unwrap();
+    assert_eq!(later.status.code(), Some(1));
+    let why = String::from_utf8_lossy(&later.stderr);
+    assert!(
+        why.contains("part 1 of a split recording") && why.contains("split_00000.mcap"),
+        "{why}"
+    );
+}

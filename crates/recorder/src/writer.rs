@@ -27,8 +27,8 @@ use crate::room::Room;
 use crate::syncer::Syncer;
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::num::NonZeroU32;
-use std::path::Path;
+use std::num::{NonZeroU32, NonZeroU64};
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -65,6 +65,14 @@ pub struct RecordOptions {
     /// The `environment` record: what differs between two runs of the same seed (run id,
     /// host, version, …). The recorder adds `started` (UTC).
     pub environment: BTreeMap<String, String>,
+    /// Run time each part of the recording covers, ns (None: one file). A split recording is
+    /// written as numbered parts ([`part_path`]: `<stem>_00000.mcap`, `<stem>_00001.mcap`, …),
+    /// each a whole MCAP file with the opening records and attachments, finished and moved
+    /// into place when the run passes its end, so a long run can be read, checked and removed
+    /// part by part while it goes on. Message sequence numbers run on across parts; each
+    /// part's `end` record says which part it is and which ticks it holds ([`PART_KEY`],
+    /// [`FIRST_TICK_KEY`], [`PART_TICKS_KEY`]); the last part's is the run's own.
+    pub split_ns: Option<NonZeroU64>,
 }
 
 /// The default log-time epoch: 2026-01-01T00:00:00Z, in ns since the Unix epoch (fixed, so
@@ -81,6 +89,7 @@ impl Default for RecordOptions {
             epoch_ns: DEFAULT_EPOCH_NS,
             every: NonZeroU32::MIN,
             environment: BTreeMap::new(),
+            split_ns: None,
         }
     }
 }
@@ -154,6 +163,63 @@ fn register<M: Message>(w: &mut McapFile<File>, id: u16) {
     w.channel(id, id, M::TOPIC, "cdr");
 }
 
+/// Part `index` of the split recording `path`: `<dir>/<stem>_<index, 5 digits>.mcap`
+/// (`run.mcap` → `run_00000.mcap`, `run_00001.mcap`, …; rosbag2 names its splits alike).
+pub fn part_path(path: &Path, index: u32) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map_or_else(|| "recording".into(), |n| n.to_string_lossy().into_owned());
+    path.with_file_name(format!("{stem}_{index:05}.mcap"))
+}
+
+/// What every file of a recording opens with, kept to open the next part of a split one.
+#[derive(Clone)]
+struct Opening {
+    /// The `run` record.
+    run: BTreeMap<String, String>,
+    /// The `environment` record.
+    environment: BTreeMap<String, String>,
+    /// The attachments written before the first message.
+    inputs: Vec<Input>,
+    epoch_ns: u64,
+}
+
+impl Opening {
+    /// A new file at `partial` with the opening records, the first point a failed write goes
+    /// back to, and its sync thread.
+    fn write(&self, partial: &Path) -> std::io::Result<(McapFile<File>, Syncer)> {
+        let file = create_private(partial)?;
+        let syncer = Syncer::start(&file)?;
+        let mut w = McapFile::create(file, "ros2", 2, CHUNK_BYTES)?;
+        register::<Telemetry>(&mut w, TELEMETRY_CH);
+        register::<Truth>(&mut w, TRUTH_CH);
+        register::<Overview>(&mut w, OVERVIEW_CH);
+        w.metadata("run", &self.run)?;
+        w.metadata("environment", &self.environment)?;
+        for input in &self.inputs {
+            w.attachment(&input.name, &input.media_type, self.epoch_ns, &input.data)?;
+        }
+        w.mark()?;
+        Ok((w, syncer))
+    }
+}
+
+/// The split of a recording into parts.
+struct Split {
+    /// The recording's path (parts are named after it).
+    path: PathBuf,
+    /// Run time each part covers, ns.
+    span_ns: u64,
+    /// The part being written.
+    index: u32,
+    /// Run time at which it ends, ns.
+    ends_ns: u64,
+    /// Ticks seen before it.
+    first_tick: u64,
+    overwrite: Overwrite,
+    opening: Opening,
+}
+
 impl Recorder {
     /// Creates the recording of `path` under a temporary name beside it (failing now, before
     /// any run, if it cannot be written, or if `path` exists and may not be replaced), writes
@@ -164,35 +230,41 @@ impl Recorder {
         metadata: BTreeMap<String, String>,
         options: RecordOptions,
     ) -> Result<Self, RecordError> {
+        let target = match options.split_ns {
+            Some(_) => part_path(path, 0),
+            None => path.to_owned(),
+        };
         let io = |source| RecordError::Io {
-            path: path.to_owned(),
+            path: target.clone(),
             source,
         };
-        check_target(path, options.overwrite)?;
-        let partial = partial_path(path);
-        let file = create_private(&partial).map_err(io)?;
-        let syncer = Syncer::start(&file).map_err(io)?;
-        let mut w = McapFile::create(file, "ros2", 2, CHUNK_BYTES).map_err(io)?;
-        register::<Telemetry>(&mut w, TELEMETRY_CH);
-        register::<Truth>(&mut w, TRUTH_CH);
-        register::<Overview>(&mut w, OVERVIEW_CH);
+        check_target(&target, options.overwrite)?;
+        let partial = partial_path(&target);
         let mut run = metadata;
         run.insert(EPOCH_KEY.into(), options.epoch_ns.to_string());
         run.insert(EVERY_KEY.into(), options.every.to_string());
         run.insert(TELEMETRY_KEY.into(), TELEMETRY_READING_USED.into());
-        w.metadata("run", &run).map_err(io)?;
+        if options.split_ns.is_some() {
+            run.insert(PART_KEY.into(), "0".into());
+        }
         let mut environment = options.environment;
         environment.insert("started".into(), utc_now());
-        w.metadata("environment", &environment).map_err(io)?;
-        for input in &options.inputs {
-            w.attachment(
-                &input.name,
-                &input.media_type,
-                options.epoch_ns,
-                &input.data,
-            )
-            .map_err(io)?;
-        }
+        let opening = Opening {
+            run,
+            environment,
+            inputs: options.inputs,
+            epoch_ns: options.epoch_ns,
+        };
+        let (w, syncer) = opening.write(&partial).map_err(io)?;
+        let split = options.split_ns.map(|span| Split {
+            path: path.to_owned(),
+            span_ns: span.get(),
+            index: 0,
+            ends_ns: span.get(),
+            first_tick: 0,
+            overwrite: options.overwrite,
+            opening,
+        });
         let (ring, consumer) = rtrb::RingBuffer::new(RING_FRAMES);
         let writer_alive = Arc::new(AtomicBool::new(true));
         let written = Arc::new(AtomicU64::new(0));
@@ -200,15 +272,16 @@ impl Recorder {
         let (alive, count, end_record) = (writer_alive.clone(), written.clone(), end.clone());
         let room = Arc::new(Room::default());
         let made = room.clone();
-        let (target, overwrite) = (path.to_owned(), options.overwrite);
+        let overwrite = options.overwrite;
         let (epoch_ns, every) = (options.epoch_ns, options.every);
-        // The opening records are the first point a failed write goes back to.
-        w.mark().map_err(io)?;
+        let first = (partial, target.clone());
         let thread = std::thread::Builder::new()
             .name("mcap-writer".into())
             .spawn(move || {
-                let drain = Drain::new(w, syncer, epoch_ns, every);
-                let result = match drain.run(consumer, &count, &end_record, &made, &alive) {
+                let drain = Drain::new(w, syncer, epoch_ns, every, split, first);
+                let (result, partial, target) =
+                    drain.run(consumer, &count, &end_record, &made, &alive);
+                let result = match result {
                     Ok(n) => publish(&partial, &target, overwrite).map(|()| n),
                     Err(Failure {
                         source,
@@ -338,6 +411,42 @@ pub const WRITE_FAILED_KEY: &str = "write_failed";
 /// (its `ticks` are the run's).
 pub const RECORDED_TICKS_KEY: &str = "recorded_ticks";
 
+/// The `end` reason of a part of a split recording that is not the last
+/// ([`RecordOptions::split_ns`]).
+pub const SPLIT_REASON: &str = "split";
+
+/// The `run` and `end` metadata key of a split recording's part: its index, from 0.
+pub const PART_KEY: &str = "part";
+
+/// The `end` metadata key of a split recording's part: the run's ticks before its first
+/// frame (its first tick's index).
+pub const FIRST_TICK_KEY: &str = "part_first_tick";
+
+/// The `end` metadata key of a split recording's part: the ticks it holds (recorded or
+/// decimated away).
+pub const PART_TICKS_KEY: &str = "part_ticks";
+
+/// The `end` metadata key of a split recording's part that is not the last: the next part's
+/// file name.
+pub const NEXT_PART_KEY: &str = "next_part";
+
+/// A path's file name, for a record.
+fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+}
+
+impl Split {
+    /// What a part's `end` record says about it when the run has seen `ticks`.
+    fn part_record(&self, ticks: u64) -> [(String, String); 3] {
+        [
+            (PART_KEY.into(), self.index.to_string()),
+            (FIRST_TICK_KEY.into(), self.first_tick.to_string()),
+            (PART_TICKS_KEY.into(), (ticks - self.first_tick).to_string()),
+        ]
+    }
+}
+
 /// The `run` metadata key holding the log-time epoch (ns since the Unix epoch).
 pub const EPOCH_KEY: &str = "log_time_epoch_ns";
 
@@ -361,7 +470,13 @@ fn utc_now() -> String {
 /// The writer thread's state.
 struct Drain {
     w: McapFile<File>,
-    syncer: Syncer,
+    /// The sync thread of the file being written (taken when it is finished).
+    syncer: Option<Syncer>,
+    /// The file being written, under its temporary name, and where it goes when finished.
+    partial: PathBuf,
+    target: PathBuf,
+    /// The split into parts, if asked.
+    split: Option<Split>,
     epoch_ns: u64,
     every: u32,
     /// Ticks seen, recorded or not.
@@ -375,10 +490,20 @@ struct Drain {
 }
 
 impl Drain {
-    fn new(w: McapFile<File>, syncer: Syncer, epoch_ns: u64, every: NonZeroU32) -> Self {
+    fn new(
+        w: McapFile<File>,
+        syncer: Syncer,
+        epoch_ns: u64,
+        every: NonZeroU32,
+        split: Option<Split>,
+        (partial, target): (PathBuf, PathBuf),
+    ) -> Self {
         Drain {
             w,
-            syncer,
+            syncer: Some(syncer),
+            partial,
+            target,
+            split,
             epoch_ns,
             every: every.get(),
             ticks: 0,
@@ -399,6 +524,19 @@ impl Drain {
     /// still do not fit ([`McapFile::rewind`]).
     fn run(
         mut self,
+        ring: rtrb::Consumer<Frame>,
+        count: &AtomicU64,
+        end: &Mutex<Ending>,
+        room: &Room,
+        alive: &AtomicBool,
+    ) -> (Result<u64, Failure>, PathBuf, PathBuf) {
+        let result = self.drain(ring, count, end, room, alive);
+        (result, self.partial, self.target)
+    }
+
+    /// [`Drain::run`]'s work, on the part being written.
+    fn drain(
+        &mut self,
         mut ring: rtrb::Consumer<Frame>,
         count: &AtomicU64,
         end: &Mutex<Ending>,
@@ -420,6 +558,9 @@ impl Drain {
             self.overview_message(t, &o);
         }
         let mut end = std::mem::take(&mut *end.lock().unwrap_or_else(|e| e.into_inner()));
+        if let Some(s) = &self.split {
+            end.record.extend(s.part_record(self.ticks));
+        }
         if let Some(e) = &failed {
             end.record.insert(WRITE_FAILED_KEY.into(), e.to_string());
             let _ = self.w.rewind();
@@ -439,7 +580,7 @@ impl Drain {
                     }
                     failed.get_or_insert(e);
                     if !matches!(self.w.rewind(), Ok(true)) {
-                        let _ = self.syncer.stop();
+                        let _ = self.take_syncer().stop();
                         return Err(Failure {
                             source: failed.expect("set above"),
                             finished: None,
@@ -448,7 +589,7 @@ impl Drain {
                 }
             }
         }
-        let synced = self.syncer.stop();
+        let synced = self.take_syncer().stop();
         match (failed, synced) {
             (None, Ok(())) => Ok(self.written),
             (None, Err(source)) => Err(Failure {
@@ -488,10 +629,66 @@ impl Drain {
             room.made();
             count.store(self.written, Ordering::Relaxed);
             if self.synced.elapsed() >= SYNC_INTERVAL {
-                self.syncer.request()?;
+                if let Some(s) = &self.syncer {
+                    s.request()?;
+                }
                 self.synced = Instant::now();
             }
         }
+    }
+
+    /// The sync thread of the file being written, to stop it.
+    fn take_syncer(&mut self) -> Syncer {
+        self.syncer
+            .take()
+            .expect("a file being written has its sync thread")
+    }
+
+    /// Finishes the part being written (its `end` record says it is one, and which ticks it
+    /// holds), moves it into place and goes on in the next. The next part is opened first,
+    /// so whatever fails leaves a file being written that the run's end finishes as any
+    /// failed write ([`Drain::run`]): the part, when the next could not be opened or the
+    /// part not finished; the next one, when the part could not be synced or moved into
+    /// place (then left under its temporary name).
+    fn next_part(&mut self) -> std::io::Result<()> {
+        let split = self.split.as_ref().expect("called on a split recording");
+        let next = part_path(&split.path, split.index + 1);
+        check_target(&next, split.overwrite).map_err(std::io::Error::other)?;
+        let mut record = BTreeMap::from(split.part_record(self.ticks));
+        record.insert("reason".into(), SPLIT_REASON.into());
+        record.insert(NEXT_PART_KEY.into(), file_name(&next));
+        let mut run = split.opening.run.clone();
+        run.insert(PART_KEY.into(), (split.index + 1).to_string());
+        let opening = Opening {
+            run,
+            ..split.opening.clone()
+        };
+        let next_partial = partial_path(&next);
+        let (w, syncer) = opening.write(&next_partial).inspect_err(|_| {
+            let _ = std::fs::remove_file(&next_partial);
+        })?;
+        let ending = Ending {
+            record,
+            attachments: Vec::new(),
+        };
+        if let Err(e) = self.finish(&ending) {
+            let _ = std::fs::remove_file(&next_partial);
+            return Err(e);
+        }
+        let old_syncer = self.syncer.replace(syncer);
+        self.w = w;
+        let done = std::mem::replace(&mut self.partial, next_partial);
+        let done_target = std::mem::replace(&mut self.target, next);
+        let split = self.split.as_mut().expect("called on a split recording");
+        split.index += 1;
+        split.ends_ns = split.ends_ns.saturating_add(split.span_ns);
+        split.first_tick = self.ticks;
+        split.opening = opening;
+        self.started = Instant::now();
+        old_syncer
+            .expect("a file being written has its sync thread")
+            .stop()?;
+        publish(&done, &done_target, split.overwrite).map_err(std::io::Error::other)
     }
 
     /// Closes the open chunks and writes the attachments taken up during the run, the `end`
@@ -520,6 +717,13 @@ impl Drain {
     /// chunks that are full.
     #[inline]
     fn frame(&mut self, frame: &Frame) -> std::io::Result<()> {
+        if self
+            .split
+            .as_ref()
+            .is_some_and(|s| frame.time_ns >= s.ends_ns)
+        {
+            self.next_part()?;
+        }
         if self.ticks.is_multiple_of(u64::from(self.every)) {
             self.full_rate(frame)?;
         }

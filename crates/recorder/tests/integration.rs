@@ -8,3 +8,4 @@ mod fuzz_reader;
 mod late_attachments;
 mod legacy;
 mod round_trip;
+mod split;

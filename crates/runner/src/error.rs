@@ -106,6 +106,16 @@ pub enum RunError {
     /// A recording without the metadata `servo run` writes.
     #[error("{0}: no fts-servo run metadata (was it written by `servo run`?)")]
     NotARun(PathBuf),
+    /// A later part of a split recording: a replay starts at the run's first tick.
+    #[error("{}: part {part} of a split recording; a replay starts at the run's first tick: replay its part 0 ({first})", .path.display())]
+    LaterPart {
+        /// The file.
+        path: PathBuf,
+        /// Its part index.
+        part: u32,
+        /// The name of the recording's first part.
+        first: String,
+    },
     /// The plant served on the prefix ended its run (its duration, a STOP, a fault) before
     /// this side was done with it.
     #[error("the plant ended its run at tick {ticks}{} before this measurement finished: start it with a longer run (run.duration_s)", if *faults != 0 { format!(" with faults {faults:#x}") } else { String::new() })]

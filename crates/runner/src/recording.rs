@@ -13,7 +13,7 @@ use recorder::{FileState, Frame, Overwrite, ReadReport, RecordOptions, Recorder,
 use run_config::sha256_hex;
 use run_config::{ConfigError, Loaded, Origin, RunConfig};
 use std::collections::BTreeMap;
-use std::num::NonZeroU32;
+use std::num::{NonZeroU32, NonZeroU64};
 use std::path::{Path, PathBuf};
 
 /// Where and how a run is recorded.
@@ -29,6 +29,9 @@ pub struct Target {
     /// Full-rate decimation: every n-th tick recorded (1 = all; see
     /// [`RecordOptions::every`]).
     pub every: NonZeroU32,
+    /// Run time each part of a split recording covers, ns (None: one file; see
+    /// [`RecordOptions::split_ns`]).
+    pub split_ns: Option<NonZeroU64>,
 }
 
 impl Target {
@@ -39,6 +42,27 @@ impl Target {
             overwrite: false,
             epoch_ns: recorder::DEFAULT_EPOCH_NS,
             every: NonZeroU32::MIN,
+            split_ns: None,
+        }
+    }
+
+    /// The file the recording starts in: `path`, or its first part when split.
+    pub fn first_file(&self) -> PathBuf {
+        match self.split_ns {
+            Some(_) => recorder::part_path(&self.path, 0),
+            None => self.path.clone(),
+        }
+    }
+
+    /// What a run wrote, for its report: the file, or the parts' pattern and span.
+    pub fn written(&self) -> String {
+        match self.split_ns {
+            None => self.path.display().to_string(),
+            Some(span) => format!(
+                "{} … (a part per {} s of run)",
+                self.first_file().display(),
+                span.get() as f64 * 1e-9
+            ),
         }
     }
 
@@ -49,7 +73,10 @@ impl Target {
 
     /// Fails now if the recording could not be written (see [`recorder::check_target`]).
     pub fn check(&self) -> Result<(), RunError> {
-        Ok(recorder::check_target(&self.path, self.overwrite())?)
+        Ok(recorder::check_target(
+            &self.first_file(),
+            self.overwrite(),
+        )?)
     }
 }
 
@@ -133,6 +160,7 @@ pub fn create_with(
             epoch_ns: to.epoch_ns,
             every: to.every,
             environment,
+            split_ns: to.split_ns,
             ..Default::default()
         },
     )?)
@@ -260,8 +288,10 @@ impl Inspected {
         if !self.read.is_intact() {
             return Some(self.read.to_string());
         }
-        // A recording cut back after a write failure says how many it kept.
+        // A recording cut back after a write failure says how many it kept; a part of a
+        // split one, how many it holds.
         let claimed = (self.end.get(recorder::RECORDED_TICKS_KEY))
+            .or(self.end.get(recorder::PART_TICKS_KEY))
             .or(self.end.get("ticks"))
             .and_then(|t| t.parse::<u64>().ok());
         match claimed {

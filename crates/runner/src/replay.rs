@@ -228,6 +228,25 @@ impl Replay {
         let steered_at = OperatorLog::read(file)?.first_tick();
         let mut rec = Recorded::new(steered_at.unwrap_or(u64::MAX));
         let inspected = inspect_with(file, &mut rec)?.intact(file, salvage)?;
+        let part = inspected
+            .end
+            .get(recorder::PART_KEY)
+            .and_then(|p| p.parse().ok());
+        if let Some(part @ 1..) = part {
+            let name = file.file_name().map(|n| n.to_string_lossy().into_owned());
+            let first = name
+                .as_deref()
+                .and_then(|n| n.rsplit_once('_'))
+                .map_or_else(
+                    || "_00000.mcap".into(),
+                    |(stem, _)| format!("{stem}_00000.mcap"),
+                );
+            return Err(RunError::LaterPart {
+                path: file.to_owned(),
+                part,
+                first,
+            });
+        }
         let (Some(header), Some(recorded_digest)) = (rec.header, rec.digest) else {
             return Err(RunError::NotARun(file.to_owned()));
         };

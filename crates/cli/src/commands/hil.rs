@@ -135,7 +135,7 @@ impl RecordCmd {
         let summary = result?;
         print_summary(&summary, rec.json);
         if let (Some(p), false) = (out, rec.json) {
-            println!("  wrote {}", p.path.display());
+            println!("  wrote {}", p.written());
         }
         // Its own signal is how this process ends (128 + it); the run's end otherwise.
         Ok(crate::interrupt::exit_code(&stop, summary.trip.is_some()))

@@ -172,7 +172,7 @@ impl MachineCmd {
             );
         }
         if let Some(o) = out {
-            println!("  wrote {}", o.path.display());
+            println!("  wrote {}", o.written());
         }
         print_written(&written);
         Ok(code)

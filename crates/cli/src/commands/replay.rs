@@ -72,7 +72,7 @@ impl ReplayCmd {
         } else {
             print_report(&report);
             if let Some(o) = &out {
-                println!("  wrote {}", o.path.display());
+                println!("  wrote {}", o.written());
             }
         }
         Ok(crate::interrupt::exit_code(

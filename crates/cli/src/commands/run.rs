@@ -106,7 +106,7 @@ impl Run {
         if let (Some(o), false) = (out, rec.json) {
             println!(
                 "  wrote {} (open it in Foxglove: topics /overview, /telemetry and /truth)",
-                o.path.display()
+                o.written()
             );
         }
         Ok(code)

@@ -110,14 +110,18 @@ pub fn supervise(
             t.path.display().to_string(),
             humantime::format_rfc3339_nanos(epoch).to_string(),
             t.every.to_string(),
+            t.split_ns.map(|s| format!("{}", s.get() as f64 * 1e-9)),
         )
     });
     let mut record_args = vec![
         "record", "--config", config, "--prefix", &prefix, "--json", "--quiet", mode,
     ];
     match &out_arg {
-        Some((o, epoch, every)) => {
-            record_args.extend(["--out", o, "--log-epoch", epoch, "--record-every", every])
+        Some((o, epoch, every, split)) => {
+            record_args.extend(["--out", o, "--log-epoch", epoch, "--record-every", every]);
+            if let Some(s) = split {
+                record_args.extend(["--split-s", s]);
+            }
         }
         None => record_args.push("--no-record"),
     }
