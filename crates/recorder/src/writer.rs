@@ -221,8 +221,9 @@ struct Split {
 }
 
 impl Recorder {
-    /// Creates the recording of `path` under a temporary name beside it (failing now, before
-    /// any run, if it cannot be written, or if `path` exists and may not be replaced), writes
+    /// Creates the recording of `path` (of its first part, [`part_path`] 0, when split) under
+    /// a temporary name beside it (failing now, before any run, if it cannot be written, or if
+    /// it exists and may not be replaced), writes
     /// the `run` record (`metadata` and the epoch), the `environment` record and the
     /// attachments, and starts the writer thread.
     pub fn create(
