@@ -219,9 +219,16 @@ def judge(r: dict, duration: float) -> list[str]:
     ticks = int(r["end"].get("ticks", -1))
     if r["part_ticks"] != ticks:
         wrong.append(f"the parts hold {r['part_ticks']} ticks, the run ran {ticks}")
-    lost = r["summary"].get("dropped_frames", 0) if r["summary"] else None
-    if lost:
-        wrong.append(f"{lost} frames lost")
+    meta = r["summary"].get("meta", {})
+    hil = meta.get("hil") or {}
+    lost = {"frames dropped by the recorder": meta.get("dropped_frames"),
+            "ticks with truth but no telemetry": hil.get("truth_only_ticks"),
+            "bad blocks": hil.get("bad_blocks")}
+    for what, n in lost.items():
+        if n != 0:
+            wrong.append(f"{what}: {n}")
+    if meta.get("recorded_messages") != 2 * ticks:
+        wrong.append(f"{meta.get('recorded_messages')} messages recorded for {ticks} ticks (two each)")
     wrong += r["part_problems"] + [f"refused: {f}" for f in r["failed_actions"]]
     if r["shm_left"]:
         wrong.append(f"/dev/shm entries left: {r['shm_left']}")
@@ -244,6 +251,10 @@ def report(r: dict, wrong: list[str], duration: float) -> None:
     print(f"soak: {r['wall_s']:.0f} s of wall time, {ticks} ticks ({ticks / 199_600:.1f} s of run at 199.6 kHz), "
           f"{r['parts']} parts of {r['split_s']} s checked and deleted ({r['recorded_bytes'] / 1e9:.2f} GB), "
           f"frames recorded {r['part_ticks']} = ticks {ticks}: {'yes' if r['part_ticks'] == ticks else 'NO'}")
+    meta = r["summary"].get("meta", {})
+    hil = meta.get("hil") or {}
+    print(f"  lost: {meta.get('dropped_frames')} frames dropped, {hil.get('truth_only_ticks')} ticks without "
+          f"telemetry, {hil.get('bad_blocks')} bad blocks; {meta.get('recorded_messages')} messages recorded")
     acts = r["actions"]
     print(f"  done while running: {acts['client']} Foxglove client visits over wss, {acts['gain']} gain changes, "
           f"{acts['load']} controller loads, {acts['pause']} recorder pauses (SIGSTOP {PAUSE_S:g} s)")
