@@ -413,8 +413,8 @@ impl RunConfig {
     /// Checks the run-level values (plant and controller values are checked when built).
     pub fn validate(&self, at: &Origin) -> Result<(), ConfigError> {
         let r = &self.run;
-        if !(r.duration_s > 0.0 && r.duration_s <= 3600.0) {
-            return Err(at.invalid("run.duration_s", r.duration_s, "(0, 3600] s"));
+        if !(r.duration_s > 0.0 && r.duration_s <= 86_400.0) {
+            return Err(at.invalid("run.duration_s", r.duration_s, "(0, 86400] s"));
         }
         if !(r.settle() >= 0.0 && r.settle() < r.duration_s) {
             return Err(at.invalid("run.settle_s", r.settle(), "[0, run.duration_s) s"));

@@ -456,7 +456,7 @@ mod tests {
         assert!(unchecked.is_empty(), "no range found for {unchecked:?}");
         let docs = key_docs(&schema);
         let duration = docs.iter().find(|d| d.key == "run.duration_s").unwrap();
-        assert_eq!(duration.allowed.as_deref(), Some("(0, 3600] s"));
+        assert_eq!(duration.allowed.as_deref(), Some("(0, 86400] s"));
         assert_eq!(duration.default.as_deref(), Some("1.0"));
         let kind = docs.iter().find(|d| d.key == "controller.kind").unwrap();
         assert_eq!(kind.type_text, "`pid` \\| `accel` \\| `ss`");
