@@ -113,7 +113,7 @@ def run_soak(a: argparse.Namespace, work: Path) -> dict:
         subprocess.run([servo, "tune", "--bandwidth-hz", bandwidth, "--out", str(work / name)],
                        check=True, stdout=subprocess.DEVNULL)
     shm_before = shm_of(prefix)
-    run = subprocess.Popen([servo, "run", "--hil", "-q", "--json", "--prefix", prefix, "--duration", "3600",
+    run = subprocess.Popen([servo, "run", "--hil", "-q", "--json", "--prefix", prefix, "--duration", "86400",
                             "--out", str(out), "--split-s", str(a.split_s)],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     view_txt = work / "view.txt"
