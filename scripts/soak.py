@@ -12,7 +12,8 @@ recorder under it) records in parts (`--split-s`, 1 s of run each by default) be
   reads the overview and the parameters, and leaves (every 10 s);
 - `servo ctl gain` changes the gain scale (every 7 s) and `servo ctl load` swaps in a
   controller (every 30 s, two `servo tune` designs in turn);
-- the recorder is paused with SIGSTOP for 1 s and resumed with SIGCONT (every 13 s);
+- the recorder is paused with SIGSTOP for 0.3 s and resumed with SIGCONT (every 13 s): the
+  plant holds the loop for it (up to 0.5 s at a time; a longer pause loses what runs meanwhile);
 - every finished part is checked (`servo inspect`: every CRC and index, and the ticks it holds
   against its `end` record), its ticks followed on from the part before, then deleted — an
   hour at full rate is ~140 GB, more than a disk holds;
@@ -47,7 +48,9 @@ CLIENT = ROOT / "scripts" / "mcap-js" / "soak_client.mjs"
 ROLES = ("run", "plant", "controller", "recorder", "view")
 # What is done, and how often (s of wall time).
 EVERY = {"client": 10.0, "gain": 7.0, "load": 30.0, "pause": 13.0, "sample": 2.0, "parts": 1.0}
-PAUSE_S = 1.0
+# Shorter than the lockstep plant's patience with a recorder (daq_io::recorder_pace::PATIENCE,
+# 0.5 s): a pause the plant holds through. A longer one loses the ticks run meanwhile.
+PAUSE_S = 0.3
 TOLERANCE = 0.05
 # Memory is judged on soaks this long or longer: in a shorter one the end of its first third
 # is still the warm-up (the compressors' buffers, the first controller load, the allocator's

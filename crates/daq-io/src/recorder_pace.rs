@@ -8,8 +8,8 @@
 //!
 //! A hold never silences the plant for longer than [`PATIENCE`] at a time (the controller
 //! declares a plant lost after 1 s of silence); a recorder that reports nothing new for that
-//! long (gone, or a build that does not report) is no longer waited for in this run, and its
-//! own count of dropped frames says what it lost.
+//! long (gone, paused, or a build that does not report) is no longer waited for until it
+//! reports progress again, and its own count of dropped frames says what it lost meanwhile.
 
 use crate::contract::{role, Health, BLOCK_TICKS};
 use crate::ipc::{leaf, settings, take, Endpoint, IpcError, Subscriber};
@@ -30,7 +30,8 @@ pub struct RecorderPace {
     /// Ticks the recorder has taken (its latest report).
     recorded: u64,
     patience: Duration,
-    /// The recorder reported nothing new for `patience`: no longer waited for.
+    /// The recorder reported nothing new for `patience`: not waited for until it reports
+    /// more than it had then.
     silent: bool,
     /// Wall time spent holding, s.
     held_s: f64,
@@ -88,15 +89,17 @@ impl RecorderPace {
         self.held_s
     }
 
-    /// Whether the recorder went silent and was no longer waited for.
+    /// Whether the recorder is silent (reported nothing new for the patience) and not waited
+    /// for.
     pub fn silent(&self) -> bool {
         self.silent
     }
 
     fn update(&mut self) {
         while let Some(h) = take(&self.reports) {
-            if h.role == role::RECORDER {
-                self.recorded = self.recorded.max(h.ticks);
+            if h.role == role::RECORDER && h.ticks > self.recorded {
+                self.recorded = h.ticks;
+                self.silent = false;
             }
         }
     }

@@ -153,7 +153,8 @@ pub struct ServeReport {
     pub run_id: u64,
     /// Lockstep: wall time the plant held for a lagging recorder, s.
     pub recorder_held_s: f64,
-    /// Lockstep: the recorder stopped reporting its progress and was no longer waited for.
+    /// Lockstep: at the run's end the recorder had reported no progress for the patience
+    /// ([`crate::recorder_pace::PATIENCE`]) and was not waited for.
     pub recorder_silent: bool,
 }
 

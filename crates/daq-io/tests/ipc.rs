@@ -69,14 +69,15 @@ fn silent_controller_drives_zero_and_flags_the_fault() {
     let plant = std::thread::spawn(move || {
         let ep = Endpoint::open(&p2, "plant").unwrap();
         let mut opts = ServeOptions::new(1_000_000, 1e-5, Pacing::Lockstep);
-        opts.peer_timeout = Duration::from_millis(20);
+        // Long enough that a starved test thread is not taken for a silent controller.
+        opts.peer_timeout = Duration::from_millis(500);
         opts.safe_ticks = 50;
         serve(&ep, &mut Lag::default(), &opts, &AtomicUsize::new(0)).unwrap()
     });
     // A controller that answers 100 ticks with 2 V, then goes silent.
     let cep = Endpoint::open(&p, "controller").unwrap();
     let mut link =
-        ControllerLink::new(&cep, Duration::from_secs(10), Duration::from_secs(1)).unwrap();
+        ControllerLink::new(&cep, Duration::from_secs(10), Duration::from_secs(10)).unwrap();
     for _ in 0..100 {
         let s = link.read().unwrap();
         link.write(Command {
@@ -112,7 +113,7 @@ fn a_plant_told_to_wait_starts_on_the_control_plane_start() {
     });
     let ep = Endpoint::open(&p, "controller").unwrap();
     let mut link =
-        ControllerLink::new(&ep, Duration::from_millis(200), Duration::from_secs(1)).unwrap();
+        ControllerLink::new(&ep, Duration::from_millis(200), Duration::from_secs(10)).unwrap();
     assert!(
         matches!(link.read(), Err(daq_io::DaqError::PlantLost { seq: 0, .. })),
         "no tick before START"
