@@ -134,18 +134,11 @@ pub const ZSTD_LEVEL: i32 = -3;
 impl<W: Sink> McapFile<W> {
     /// Starts a file: magic and header (`profile`, [`LIBRARY`]), written at once. `lanes`
     /// chunks can be open at the same time, each expected to hold up to `chunk_bytes`.
-    pub fn create(mut out: W, profile: &str, lanes: usize, chunk_bytes: usize) -> io::Result<Self> {
-        let mut head = MAGIC.to_vec();
-        record(&mut head, op::HEADER, |b| {
-            b.str(profile).str(LIBRARY);
-        });
-        out.write_all(&head)?;
-        let mut data_crc = crc32fast::Hasher::new();
-        data_crc.update(&head);
+    pub fn create(out: W, profile: &str, lanes: usize, chunk_bytes: usize) -> io::Result<Self> {
         let compressors = compressor_count();
-        Ok(McapFile {
+        let mut file = McapFile {
             out,
-            position: head.len() as u64,
+            position: 0,
             pending: Vec::with_capacity(1 << 16),
             schemas: Vec::new(),
             channels: Vec::new(),
@@ -161,9 +154,53 @@ impl<W: Sink> McapFile<W> {
             in_flight: VecDeque::new(),
             max_in_flight: compressors + 1,
             spare: Vec::new(),
-            data_crc,
+            data_crc: crc32fast::Hasher::new(),
             marks: Marks::default(),
-        })
+        };
+        file.write_head(profile)?;
+        Ok(file)
+    }
+
+    /// Starts another file on `out` (as [`McapFile::create`]) with this closed one's
+    /// compressors and buffers — a split recording's next part starts no threads and
+    /// allocates no chunk buffers — and gives back the closed file's sink. On an error the
+    /// new file holds less than its header (nothing to go back to).
+    pub fn next_file(&mut self, out: W, profile: &str) -> io::Result<W> {
+        assert!(
+            self.in_flight.is_empty(),
+            "a file is closed before the next"
+        );
+        let closed = std::mem::replace(&mut self.out, out);
+        self.position = 0;
+        self.pending.clear();
+        for v in [
+            &mut self.schemas,
+            &mut self.channels,
+            &mut self.chunk_indexes,
+            &mut self.attachment_indexes,
+            &mut self.metadata_indexes,
+        ] {
+            v.clear();
+        }
+        self.schema_count = 0;
+        self.channel_ids.clear();
+        self.counts = Counts::default();
+        self.data_crc = crc32fast::Hasher::new();
+        self.marks = Marks::default();
+        self.write_head(profile)?;
+        Ok(closed)
+    }
+
+    /// Magic and header (`profile`, [`LIBRARY`]), written at once.
+    fn write_head(&mut self, profile: &str) -> io::Result<()> {
+        let mut head = MAGIC.to_vec();
+        record(&mut head, op::HEADER, |b| {
+            b.str(profile).str(LIBRARY);
+        });
+        self.out.write_all(&head)?;
+        self.data_crc.update(&head);
+        self.position = head.len() as u64;
+        Ok(())
     }
 
     /// Remembers the file as written so far as a point [`McapFile::rewind`] can go back to

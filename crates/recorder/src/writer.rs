@@ -173,7 +173,6 @@ pub fn part_path(path: &Path, index: u32) -> PathBuf {
 }
 
 /// What every file of a recording opens with, kept to open the next part of a split one.
-#[derive(Clone)]
 struct Opening {
     /// The `run` record.
     run: BTreeMap<String, String>,
@@ -185,22 +184,28 @@ struct Opening {
 }
 
 impl Opening {
-    /// A new file at `partial` with the opening records, the first point a failed write goes
-    /// back to, and its sync thread.
+    /// A new file at `partial` with the opening records, and its sync thread.
     fn write(&self, partial: &Path) -> std::io::Result<(McapFile<File>, Syncer)> {
         let file = create_private(partial)?;
         let syncer = Syncer::start(&file)?;
         let mut w = McapFile::create(file, "ros2", 2, CHUNK_BYTES)?;
-        register::<Telemetry>(&mut w, TELEMETRY_CH);
-        register::<Truth>(&mut w, TRUTH_CH);
-        register::<Overview>(&mut w, OVERVIEW_CH);
+        self.records(&mut w)?;
+        Ok((w, syncer))
+    }
+
+    /// The opening records of the file `w` has just begun: schemas, channels, the `run` and
+    /// `environment` records, the attachments; then the first point a failed write goes
+    /// back to.
+    fn records(&self, w: &mut McapFile<File>) -> std::io::Result<()> {
+        register::<Telemetry>(w, TELEMETRY_CH);
+        register::<Truth>(w, TRUTH_CH);
+        register::<Overview>(w, OVERVIEW_CH);
         w.metadata("run", &self.run)?;
         w.metadata("environment", &self.environment)?;
         for input in &self.inputs {
             w.attachment(&input.name, &input.media_type, self.epoch_ns, &input.data)?;
         }
-        w.mark()?;
-        Ok((w, syncer))
+        w.mark()
     }
 }
 
@@ -646,11 +651,11 @@ impl Drain {
     }
 
     /// Finishes the part being written (its `end` record says it is one, and which ticks it
-    /// holds), moves it into place and goes on in the next. The next part is opened first,
-    /// so whatever fails leaves a file being written that the run's end finishes as any
-    /// failed write ([`Drain::run`]): the part, when the next could not be opened or the
-    /// part not finished; the next one, when the part could not be synced or moved into
-    /// place (then left under its temporary name).
+    /// holds), moves it into place and goes on in the next, on the same compressors and
+    /// buffers. Whatever fails leaves a file being written that the run's end finishes as any
+    /// failed write ([`Drain::run`]): the part, when the next could not be created or the part
+    /// not finished; the next one, once the part is closed (a part that could not be synced
+    /// or moved into place is left under its temporary name, whole).
     fn next_part(&mut self) -> std::io::Result<()> {
         let split = self.split.as_ref().expect("called on a split recording");
         let next = part_path(&split.path, split.index + 1);
@@ -658,38 +663,47 @@ impl Drain {
         let mut record = BTreeMap::from(split.part_record(self.ticks));
         record.insert("reason".into(), SPLIT_REASON.into());
         record.insert(NEXT_PART_KEY.into(), file_name(&next));
-        let mut run = split.opening.run.clone();
-        run.insert(PART_KEY.into(), (split.index + 1).to_string());
-        let opening = Opening {
-            run,
-            ..split.opening.clone()
-        };
         let next_partial = partial_path(&next);
-        let (w, syncer) = opening.write(&next_partial).inspect_err(|_| {
-            let _ = std::fs::remove_file(&next_partial);
-        })?;
+        let file = create_private(&next_partial)?;
+        let syncer = match Syncer::start(&file) {
+            Ok(s) => s,
+            Err(e) => {
+                let _ = std::fs::remove_file(&next_partial);
+                return Err(e);
+            }
+        };
         let ending = Ending {
             record,
             attachments: Vec::new(),
         };
         if let Err(e) = self.finish(&ending) {
+            let _ = syncer.stop();
             let _ = std::fs::remove_file(&next_partial);
             return Err(e);
         }
+        // The part is closed: from here on the run goes on in the next file.
         let old_syncer = self.syncer.replace(syncer);
-        self.w = w;
         let done = std::mem::replace(&mut self.partial, next_partial);
         let done_target = std::mem::replace(&mut self.target, next);
         let split = self.split.as_mut().expect("called on a split recording");
         split.index += 1;
         split.ends_ns = split.ends_ns.saturating_add(split.span_ns);
         split.first_tick = self.ticks;
-        split.opening = opening;
+        split
+            .opening
+            .run
+            .insert(PART_KEY.into(), split.index.to_string());
         self.started = Instant::now();
-        old_syncer
+        let opened = self
+            .w
+            .next_file(file, "ros2")
+            .and_then(|_closed| split.opening.records(&mut self.w));
+        let synced = old_syncer
             .expect("a file being written has its sync thread")
-            .stop()?;
-        publish(&done, &done_target, split.overwrite).map_err(std::io::Error::other)
+            .stop();
+        let published =
+            publish(&done, &done_target, split.overwrite).map_err(std::io::Error::other);
+        opened.and(synced).and(published)
     }
 
     /// Closes the open chunks and writes the attachments taken up during the run, the `end`
