@@ -36,8 +36,8 @@ pub use reader::{
     ENVIRONMENT_RECORDS,
 };
 pub use writer::{
-    part_path, Input, RecordOptions, RecordStats, Recorder, WhenFull, CHUNK_SPAN_NS,
-    DEFAULT_EPOCH_NS, EPOCH_KEY, EVERY_KEY, FIRST_TICK_KEY, NEXT_PART_KEY, PART_KEY,
+    first_file, first_part_of, part_path, Input, RecordOptions, RecordStats, Recorder, WhenFull,
+    CHUNK_SPAN_NS, DEFAULT_EPOCH_NS, EPOCH_KEY, EVERY_KEY, FIRST_TICK_KEY, NEXT_PART_KEY, PART_KEY,
     PART_TICKS_KEY, RECORDED_TICKS_KEY, SPLIT_REASON, SYNC_INTERVAL, TELEMETRY_KEY,
     TELEMETRY_READING_USED, WRITE_FAILED_KEY,
 };

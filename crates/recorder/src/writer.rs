@@ -172,6 +172,24 @@ pub fn part_path(path: &Path, index: u32) -> PathBuf {
     path.with_file_name(format!("{stem}_{index:05}.mcap"))
 }
 
+/// The file a recording of `path` starts in: `path` itself, or its part 0 when split every
+/// `split_ns` ([`RecordOptions::split_ns`]).
+pub fn first_file(path: &Path, split_ns: Option<NonZeroU64>) -> PathBuf {
+    match split_ns {
+        Some(_) => part_path(path, 0),
+        None => path.to_owned(),
+    }
+}
+
+/// The first part of the split recording whose part `part` is ([`part_path`] read backwards:
+/// `run_00003.mcap` → `run_00000.mcap`); None for a name that is not a part's.
+pub fn first_part_of(part: &Path) -> Option<PathBuf> {
+    let name = part.file_name()?.to_str()?;
+    let (stem, index) = name.strip_suffix(".mcap")?.rsplit_once('_')?;
+    let numbered = index.len() == 5 && index.bytes().all(|b| b.is_ascii_digit());
+    numbered.then(|| part.with_file_name(format!("{stem}_00000.mcap")))
+}
+
 /// What every file of a recording opens with, kept to open the next part of a split one.
 struct Opening {
     /// The `run` record.
@@ -236,10 +254,7 @@ impl Recorder {
         metadata: BTreeMap<String, String>,
         options: RecordOptions,
     ) -> Result<Self, RecordError> {
-        let target = match options.split_ns {
-            Some(_) => part_path(path, 0),
-            None => path.to_owned(),
-        };
+        let target = first_file(path, options.split_ns);
         let io = |source| RecordError::Io {
             path: target.clone(),
             source,
@@ -476,8 +491,8 @@ fn utc_now() -> String {
 /// The writer thread's state.
 struct Drain {
     w: McapFile<File>,
-    /// The sync thread of the file being written (taken when it is finished).
-    syncer: Option<Syncer>,
+    /// The sync thread of the file being written.
+    syncer: Syncer,
     /// The file being written, under its temporary name, and where it goes when finished.
     partial: PathBuf,
     target: PathBuf,
@@ -506,7 +521,7 @@ impl Drain {
     ) -> Self {
         Drain {
             w,
-            syncer: Some(syncer),
+            syncer,
             partial,
             target,
             split,
@@ -536,11 +551,19 @@ impl Drain {
         room: &Room,
         alive: &AtomicBool,
     ) -> (Result<u64, Failure>, PathBuf, PathBuf) {
-        let result = self.drain(ring, count, end, room, alive);
+        let drained = self.drain(ring, count, end, room, alive);
+        let result = match (drained, self.syncer.stop()) {
+            (Ok(n), Ok(())) => Ok(n),
+            (Ok(_), Err(source)) => Err(Failure {
+                source,
+                finished: None,
+            }),
+            (Err(failure), _) => Err(failure),
+        };
         (result, self.partial, self.target)
     }
 
-    /// [`Drain::run`]'s work, on the part being written.
+    /// [`Drain::run`]'s work but the last sync, on the part being written.
     fn drain(
         &mut self,
         mut ring: rtrb::Consumer<Frame>,
@@ -586,7 +609,6 @@ impl Drain {
                     }
                     failed.get_or_insert(e);
                     if !matches!(self.w.rewind(), Ok(true)) {
-                        let _ = self.take_syncer().stop();
                         return Err(Failure {
                             source: failed.expect("set above"),
                             finished: None,
@@ -595,14 +617,9 @@ impl Drain {
                 }
             }
         }
-        let synced = self.take_syncer().stop();
-        match (failed, synced) {
-            (None, Ok(())) => Ok(self.written),
-            (None, Err(source)) => Err(Failure {
-                source,
-                finished: None,
-            }),
-            (Some(source), _) => Err(Failure {
+        match failed {
+            None => Ok(self.written),
+            Some(source) => Err(Failure {
                 source,
                 finished: Some(self.w.end_ns().saturating_sub(self.epoch_ns) as f64 * 1e-9),
             }),
@@ -635,19 +652,10 @@ impl Drain {
             room.made();
             count.store(self.written, Ordering::Relaxed);
             if self.synced.elapsed() >= SYNC_INTERVAL {
-                if let Some(s) = &self.syncer {
-                    s.request()?;
-                }
+                self.syncer.request()?;
                 self.synced = Instant::now();
             }
         }
-    }
-
-    /// The sync thread of the file being written, to stop it.
-    fn take_syncer(&mut self) -> Syncer {
-        self.syncer
-            .take()
-            .expect("a file being written has its sync thread")
     }
 
     /// Finishes the part being written (its `end` record says it is one, and which ticks it
@@ -682,7 +690,7 @@ impl Drain {
             return Err(e);
         }
         // The part is closed: from here on the run goes on in the next file.
-        let old_syncer = self.syncer.replace(syncer);
+        let old_syncer = std::mem::replace(&mut self.syncer, syncer);
         let done = std::mem::replace(&mut self.partial, next_partial);
         let done_target = std::mem::replace(&mut self.target, next);
         let split = self.split.as_mut().expect("called on a split recording");
@@ -698,9 +706,7 @@ impl Drain {
             .w
             .next_file(file, "ros2")
             .and_then(|_closed| split.opening.records(&mut self.w));
-        let synced = old_syncer
-            .expect("a file being written has its sync thread")
-            .stop();
+        let synced = old_syncer.stop();
         let published =
             publish(&done, &done_target, split.overwrite).map_err(std::io::Error::other);
         opened.and(synced).and(published)

@@ -5,7 +5,7 @@
 use crate::common;
 
 use common::{end, frames, tmp};
-use recorder::{part_path, read, FileState, RecordError, RecordOptions, Recorder};
+use recorder::{first_part_of, part_path, read, FileState, RecordError, RecordOptions, Recorder};
 use std::collections::BTreeMap;
 use std::num::NonZeroU64;
 
@@ -108,4 +108,16 @@ fn a_part_in_the_way_ends_the_run_with_the_parts_before_it_finished() {
         second.frames.len().to_string(),
         "the part says what it holds"
     );
+}
+
+#[test]
+fn a_parts_name_leads_back_to_the_first() {
+    let path = tmp("run.mcap");
+    assert_eq!(
+        first_part_of(&part_path(&path, 17)),
+        Some(part_path(&path, 0))
+    );
+    for other in ["run.mcap", "run_17.mcap", "run_0001x.mcap", "run_00017.txt"] {
+        assert_eq!(first_part_of(&tmp(other)), None, "{other}");
+    }
 }

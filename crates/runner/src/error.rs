@@ -113,7 +113,8 @@ pub enum RunError {
         path: PathBuf,
         /// Its part index.
         part: u32,
-        /// The name of the recording's first part.
+        /// The recording's first part (its path; a name pattern when this file's name is not
+        /// a part's).
         first: String,
     },
     /// The plant served on the prefix ended its run (its duration, a STOP, a fault) before

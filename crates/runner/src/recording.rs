@@ -48,10 +48,7 @@ impl Target {
 
     /// The file the recording starts in: `path`, or its first part when split.
     pub fn first_file(&self) -> PathBuf {
-        match self.split_ns {
-            Some(_) => recorder::part_path(&self.path, 0),
-            None => self.path.clone(),
-        }
+        recorder::first_file(&self.path, self.split_ns)
     }
 
     /// What a run wrote, for its report: the file, or the parts' pattern and span.

@@ -233,14 +233,8 @@ impl Replay {
             .get(recorder::PART_KEY)
             .and_then(|p| p.parse().ok());
         if let Some(part @ 1..) = part {
-            let name = file.file_name().map(|n| n.to_string_lossy().into_owned());
-            let first = name
-                .as_deref()
-                .and_then(|n| n.rsplit_once('_'))
-                .map_or_else(
-                    || "_00000.mcap".into(),
-                    |(stem, _)| format!("{stem}_00000.mcap"),
-                );
+            let first = recorder::first_part_of(file)
+                .map_or_else(|| "its `_00000.mcap`".into(), |f| f.display().to_string());
             return Err(RunError::LaterPart {
                 path: file.to_owned(),
                 part,
