@@ -16,18 +16,25 @@ fn inspect_json(path: &std::path::Path) -> serde_json::Value {
     )
 }
 
+/// The JSON summary of `servo run --json -q ARGS --out PATH`.
+fn live_summary(path: &std::path::Path, args: &[&str]) -> serde_json::Value {
+    json(
+        &servo()
+            .args(["run", "--json", "-q"])
+            .args(args)
+            .arg("--out")
+            .arg(path)
+            .output()
+            .unwrap(),
+    )
+}
+
 /// The default run writes an MCAP that the official reader decodes completely, and `servo
 /// inspect` recomputes exactly the live statistics from it.
 #[test]
 fn inspect_equals_the_live_summary() {
     let path = tmp("live.mcap");
-    let live = json(
-        &servo()
-            .args(["run", "--json", "-q", "--duration", "0.3", "--out"])
-            .arg(&path)
-            .output()
-            .unwrap(),
-    );
+    let live = live_summary(&path, &["--duration", "0.3"]);
     let read = inspect_json(&path);
     for key in [
         "ticks",
@@ -53,22 +60,7 @@ fn inspect_equals_the_live_summary() {
 #[test]
 fn a_decimated_recording_reads_as_a_complete_run() {
     let path = tmp("every10.mcap");
-    let live = json(
-        &servo()
-            .args([
-                "run",
-                "--json",
-                "-q",
-                "--duration",
-                "0.3",
-                "--record-every",
-                "10",
-            ])
-            .arg("--out")
-            .arg(&path)
-            .output()
-            .unwrap(),
-    );
+    let live = live_summary(&path, &["--duration", "0.3", "--record-every", "10"]);
     let read = inspect_json(&path);
     let s = &read["summary"];
     assert_eq!(s["ticks"], live["ticks"].as_u64().unwrap().div_ceil(10));
@@ -440,22 +432,7 @@ fn inspect_memory_does_not_grow_with_the_recording() {
 #[test]
 fn a_split_run_is_whole_parts_that_add_up_to_the_run() {
     let path = tmp("split.mcap");
-    let live = json(
-        &servo()
-            .args([
-                "run",
-                "--json",
-                "-q",
-                "--duration",
-                "0.25",
-                "--split-s",
-                "0.1",
-                "--out",
-            ])
-            .arg(&path)
-            .output()
-            .unwrap(),
-    );
+    let live = live_summary(&path, &["--duration", "0.25", "--split-s", "0.1"]);
     assert!(!path.exists());
     let mut ticks = 0;
     for part in 0..3 {
