@@ -14,10 +14,10 @@ found a crash, a timeout or an out-of-memory input (kept in `--out`/artifacts/<t
 fixed and committed to fuzz/regressions/<target>/).
 
 `--merge` adds the inputs that reached new coverage to fuzz/corpus/<target> (what the test
-suite replays; recordings only up to 8 KiB). `--planted` builds the planted fault (fuzz-targets' `planted` feature) and runs
-only `pil_link`: the campaign must find it (exit 0 when it does, 1 when it does not). The
-planted build replaces the targets' binaries until the next campaign builds them again: do not
-run it beside a campaign.
+suite replays; recordings only up to 8 KiB). `--planted` builds the planted fault
+(fuzz-targets' `planted` feature) and runs only `pil_link`: the campaign must find it (exit 0
+when it does, 1 when it does not). The planted build replaces the targets' binaries until the
+next campaign builds them again: do not run it beside a campaign.
 
 Needs a nightly toolchain and cargo-fuzz (`cargo install cargo-fuzz`).
 """

@@ -115,7 +115,6 @@ def run_soak(a: argparse.Namespace, work: Path) -> dict:
     for name, bandwidth in (("pid_a.toml", "500"), ("pid_b.toml", "800")):
         subprocess.run([servo, "tune", "--bandwidth-hz", bandwidth, "--out", str(work / name)],
                        check=True, stdout=subprocess.DEVNULL)
-    shm_before = shm_of(prefix)
     run = subprocess.Popen([servo, "run", "--hil", "-q", "--json", "--prefix", prefix, "--duration", "86400",
                             "--out", str(out), "--split-s", str(a.split_s)],
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -179,7 +178,7 @@ def run_soak(a: argparse.Namespace, work: Path) -> dict:
                 why = visit[1].stderr.read().decode(errors="replace").strip()
                 failed_actions.append(f"client at {visit[0]:.1f} s: {why}")
         time.sleep(0.05)
-    for at, visit in visits:  # the run's end closes the visits still open: not a failure
+    for _, visit in visits:  # the run's end closes the visits still open: not a failure
         visit.kill()
         visit.wait()
     stopped = subprocess.run([servo, "ctl", "--prefix", prefix, "stop"], capture_output=True).returncode == 0
@@ -201,7 +200,7 @@ def run_soak(a: argparse.Namespace, work: Path) -> dict:
             "view_exit": view_code, "stopped": stopped, "stderr": stderr.strip().splitlines()[-5:],
             "summary": summary, "end": parts.end, "parts": parts.next, "part_ticks": parts.ticks,
             "recorded_bytes": parts.bytes, "part_problems": parts.problems, "actions": actions,
-            "failed_actions": failed_actions, "samples": samples, "shm_before": shm_before, "shm_left": left}
+            "failed_actions": failed_actions, "samples": samples, "shm_left": left}
 
 
 def baseline_and_end(samples: list[dict], role: str, first_s: float) -> tuple[tuple, tuple] | None:
