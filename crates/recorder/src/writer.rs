@@ -187,7 +187,7 @@ pub fn first_part_of(part: &Path) -> Option<PathBuf> {
     let name = part.file_name()?.to_str()?;
     let (stem, index) = name.strip_suffix(".mcap")?.rsplit_once('_')?;
     let numbered = index.len() == 5 && index.bytes().all(|b| b.is_ascii_digit());
-    numbered.then(|| part.with_file_name(format!("{stem}_00000.mcap")))
+    numbered.then(|| part_path(&part.with_file_name(format!("{stem}.mcap")), 0))
 }
 
 /// What every file of a recording opens with, kept to open the next part of a split one.
