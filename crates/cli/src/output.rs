@@ -58,6 +58,9 @@ pub enum CliError {
     /// Starting or supervising the HIL processes.
     #[error("{0}")]
     Processes(String),
+    /// Packing an FMI unit.
+    #[error(transparent)]
+    Fmu(#[from] fmu::PackageError),
     /// A HIL child process failed (it printed why); the command exits with its code.
     #[error("servo {name} exited with {code}")]
     Child {

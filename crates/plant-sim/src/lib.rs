@@ -11,6 +11,7 @@ pub mod convert;
 pub mod cutting;
 mod gaussian;
 pub mod impedance;
+pub mod limits;
 pub mod metrology;
 pub mod model;
 pub mod modes;

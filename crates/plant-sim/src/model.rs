@@ -2,6 +2,7 @@
 //! mechanics (DESIGN.md equations), current loop (eq 5-9), motor, capacitive sensor (eq 5-8),
 //! accelerometer chain (Table 7-2) and the noise shaping filters (eq 6-6..6-8, Table 7-2).
 
+use crate::limits::{check, within};
 use crate::modes::ModeSite;
 use crate::params::{rad, CurrentLoopModel, PlantParams, StageParams};
 use lti::interconnect::{ConnectError, Interconnect, NamedBlock};
@@ -257,78 +258,17 @@ fn with_derivatives(sys: StateSpace) -> StateSpace {
     StateSpace { c, d, ..sys }
 }
 
-pub(crate) fn check(
-    key: &'static str,
-    value: f64,
-    lo: f64,
-    hi: f64,
-    range: &str,
-) -> Result<(), ModelError> {
-    if value.is_finite() && value >= lo && value <= hi {
-        Ok(())
-    } else {
-        Err(ModelError::Parameter {
-            key,
-            value,
-            range: range.to_owned(),
-        })
-    }
-}
-
-/// The coil circuit and analog current controller's settings (`actuator.coil.*`).
-fn check_coil(c: &crate::params::CoilParams) -> Result<(), ModelError> {
-    check(
-        "actuator.coil.resistance_ohm",
-        c.resistance_ohm,
-        1e-6,
-        1e3,
-        "[1e-6, 1e3] Ω",
-    )?;
-    check(
-        "actuator.coil.sense_resistance_ohm",
-        c.sense_resistance_ohm,
-        0.0,
-        1e3,
-        "[0, 1e3] Ω",
-    )?;
-    check(
-        "actuator.coil.inductance_h",
-        c.inductance_h,
-        1e-9,
-        10.0,
-        "[1e-9, 10] H",
-    )?;
-    check("actuator.coil.bus_v", c.bus_v, 0.1, 1e4, "[0.1, 1e4] V")?;
-    check("actuator.coil.peak_a", c.peak_a, 1e-3, 1e4, "[1e-3, 1e4] A")?;
-    check(
-        "actuator.coil.loop_bandwidth_hz",
-        c.loop_bandwidth_hz,
-        1.0,
-        1e8,
-        "[1, 1e8] Hz",
-    )?;
-    check(
-        "actuator.coil.substeps",
-        c.substeps as f64,
-        2.0,
-        4096.0,
-        "[2, 4096]",
-    )
-}
-
 impl PlantModel {
     /// Assembles the model of `p`; rejects unphysical parameters with the key and range.
     pub fn new(p: &PlantParams) -> Result<Self, ModelError> {
         let s = &p.stage;
-        for (key, v) in [
+        let a = &p.actuator;
+        let (c, acc, n) = (&a.coil, &p.accel, &p.noise);
+        for (key, value) in [
             ("stage.m1_kg", s.m1_kg),
             ("stage.m2_kg", s.m2_kg),
             ("stage.m3_kg", s.m3_kg),
             ("stage.m4_kg", s.m4_kg),
-        ] {
-            check(key, v, 1e-6, 1e3, "[1e-6, 1e3] kg")?;
-        }
-        for (key, v) in [
             ("stage.k1_n_per_m", s.k1_n_per_m),
             ("stage.k2_n_per_m", s.k2_n_per_m),
             ("stage.k3_n_per_m", s.k3_n_per_m),
@@ -339,116 +279,43 @@ impl PlantModel {
             ("stage.c3_n_s_per_m", s.c3_n_s_per_m),
             ("stage.c4_n_s_per_m", s.c4_n_s_per_m),
             ("stage.c5_n_s_per_m", s.c5_n_s_per_m),
+            ("actuator.kt_n_per_a", a.kt_n_per_a),
+            ("actuator.current_bandwidth_hz", a.current_bandwidth_hz),
+            ("actuator.current_damping", a.current_damping),
+            ("actuator.current_gain_a_per_v", a.current_gain_a_per_v),
+            ("capa.bandwidth_hz", p.capa.bandwidth_hz),
+            ("capa.sensitivity_v_per_m", p.capa.sensitivity_v_per_m),
+            ("accel.sensitivity_v_per_m_s2", acc.sensitivity_v_per_m_s2),
+            (
+                "accel.highpass_time_constant_s",
+                acc.highpass_time_constant_s,
+            ),
+            ("accel.resonance_hz", acc.resonance_hz),
+            ("accel.resonance_q", acc.resonance_q),
+            ("accel.lowpass_hz", acc.lowpass_hz),
+            ("noise.sensor_v_per_rt_hz", n.sensor_v_per_rt_hz),
+            ("noise.current_a_per_rt_hz", n.current_a_per_rt_hz),
+            ("noise.base_m_per_rt_hz", n.base_m_per_rt_hz),
+            ("noise.base_rolloff_hz", n.base_rolloff_hz),
+            ("noise.accel_scale", n.accel_scale),
+            // Every current-loop setting is checked, whichever model is selected: a file
+            // valid today stays valid when the model is switched.
+            ("actuator.coil.resistance_ohm", c.resistance_ohm),
+            ("actuator.coil.sense_resistance_ohm", c.sense_resistance_ohm),
+            ("actuator.coil.inductance_h", c.inductance_h),
+            ("actuator.coil.bus_v", c.bus_v),
+            ("actuator.coil.peak_a", c.peak_a),
+            ("actuator.coil.loop_bandwidth_hz", c.loop_bandwidth_hz),
+            ("actuator.coil.substeps", c.substeps as f64),
         ] {
-            check(key, v, 0.0, 1e12, "[0, 1e12] (N/m or N·s/m)")?;
+            check(key, value)?;
         }
-        let a = &p.actuator;
-        check(
-            "actuator.kt_n_per_a",
-            a.kt_n_per_a,
-            1e-6,
-            1e4,
-            "[1e-6, 1e4] N/A",
-        )?;
-        check(
-            "actuator.current_bandwidth_hz",
-            a.current_bandwidth_hz,
-            1.0,
-            1e8,
-            "[1, 1e8] Hz",
-        )?;
-        check(
-            "actuator.current_damping",
-            a.current_damping,
-            0.01,
-            10.0,
-            "[0.01, 10]",
-        )?;
-        check(
-            "actuator.current_gain_a_per_v",
-            a.current_gain_a_per_v,
-            1e-6,
-            1e3,
-            "[1e-6, 1e3] A/V",
-        )?;
-        check(
-            "capa.bandwidth_hz",
-            p.capa.bandwidth_hz,
-            1.0,
-            1e8,
-            "[1, 1e8] Hz",
-        )?;
-        check(
-            "capa.sensitivity_v_per_m",
-            p.capa.sensitivity_v_per_m,
-            1.0,
-            1e12,
-            "[1, 1e12] V/m",
-        )?;
-        let acc = &p.accel;
-        check(
-            "accel.sensitivity_v_per_m_s2",
-            acc.sensitivity_v_per_m_s2,
-            1e-9,
-            1e3,
-            "[1e-9, 1e3] V/(m/s²)",
-        )?;
-        check(
-            "accel.highpass_time_constant_s",
-            acc.highpass_time_constant_s,
-            1e-4,
-            1e4,
-            "[1e-4, 1e4] s",
-        )?;
-        check(
-            "accel.resonance_hz",
-            acc.resonance_hz,
-            1.0,
-            1e8,
-            "[1, 1e8] Hz",
-        )?;
-        check("accel.resonance_q", acc.resonance_q, 0.1, 1e4, "[0.1, 1e4]")?;
-        check("accel.lowpass_hz", acc.lowpass_hz, 1.0, 1e8, "[1, 1e8] Hz")?;
-        let n = &p.noise;
-        check(
-            "noise.sensor_v_per_rt_hz",
-            n.sensor_v_per_rt_hz,
-            0.0,
-            1.0,
-            "[0, 1] V/√Hz",
-        )?;
-        check(
-            "noise.current_a_per_rt_hz",
-            n.current_a_per_rt_hz,
-            0.0,
-            1.0,
-            "[0, 1] A/√Hz",
-        )?;
-        check(
-            "noise.base_m_per_rt_hz",
-            n.base_m_per_rt_hz,
-            0.0,
-            1e-3,
-            "[0, 1e-3] m/√Hz",
-        )?;
-        check(
-            "noise.base_rolloff_hz",
-            n.base_rolloff_hz,
-            1.0,
-            1e8,
-            "[1, 1e8] Hz",
-        )?;
-        check("noise.accel_scale", n.accel_scale, 0.0, 1e6, "[0, 1e6]")?;
         let aa = p.adc.anti_alias_hz;
         if aa != 0.0 {
-            check("adc.anti_alias_hz", aa, 1.0, 1e8, "0 (none) or [1, 1e8] Hz")?;
+            within("adc.anti_alias_hz", aa, 1.0, 1e8, "0 (none) or [1, 1e8] Hz")?;
         }
-
-        // Every current-loop setting is checked, whichever model is selected: a file valid
-        // today stays valid when the model is switched.
-        check_coil(&a.coil)?;
         for (key, value, lo, hi, range) in p.modes.ranges() {
-            check(key, value, lo, hi, range)?;
+            within(key, value, lo, hi, range)?;
         }
         let ideal = second_order_lowpass(
             a.current_bandwidth_hz,

@@ -13,6 +13,7 @@ use crate::coil_loop::CoilLoop;
 use crate::convert::Quantizer;
 use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
 use crate::gaussian::Gaussian;
+use crate::limits::{check, within};
 use crate::model::{input, output, ModelError, PlantModel};
 use crate::params::{CurrentLoopModel, PlantParams};
 use crate::quantisation::{averaged_rounding_error, ConversionGrid};
@@ -326,25 +327,35 @@ impl Simulator {
         cutting: &CuttingProfile,
     ) -> Result<Self, SimError> {
         let t = &params.timing;
-        let timing = |key, value: f64, lo: f64, hi: f64| {
-            crate::model::check(key, value, lo, hi, &format!("[{lo}, {hi}]"))
-        };
-        timing("timing.servo_rate_hz", t.servo_rate_hz, 1.0, 10e6)?;
-        let period = 1.0 / t.servo_rate_hz;
-        timing("timing.delay_s", t.delay_s, 0.0, period)?;
         let adc = &params.adc;
-        timing("adc.bits", adc.bits as f64, 0.0, 31.0)?; // 0 = ideal
-        timing("adc.range_v", adc.range_v, 1e-3, 1e3)?;
-        timing("adc.conversion_rate_hz", adc.conversion_rate_hz, 1.0, 1e9)?;
-        let os = adc.oversampling as f64;
-        timing(
-            "adc.oversampling",
-            os,
-            1.0,
-            (period * adc.conversion_rate_hz).floor() + 1.0,
+        for (key, value) in [
+            ("timing.servo_rate_hz", t.servo_rate_hz),
+            ("timing.delay_s", t.delay_s),
+            ("adc.bits", adc.bits as f64), // 0 = ideal
+            ("adc.range_v", adc.range_v),
+            ("adc.conversion_rate_hz", adc.conversion_rate_hz),
+            ("adc.oversampling", adc.oversampling as f64),
+            ("dac.bits", params.dac.bits as f64),
+            ("dac.range_v", params.dac.range_v),
+        ] {
+            check(key, value)?;
+        }
+        let period = 1.0 / t.servo_rate_hz;
+        within(
+            "timing.delay_s",
+            t.delay_s,
+            0.0,
+            period,
+            &format!("[0, {period:e}] s (one servo period)"),
         )?;
-        timing("dac.bits", params.dac.bits as f64, 0.0, 31.0)?;
-        timing("dac.range_v", params.dac.range_v, 1e-3, 1e3)?;
+        let conversions = (period * adc.conversion_rate_hz).floor() + 1.0;
+        within(
+            "adc.oversampling",
+            adc.oversampling as f64,
+            1.0,
+            conversions,
+            &format!("[1, {conversions}] (the conversions in one servo period)"),
+        )?;
 
         let model = PlantModel::new(params)?;
         // Balance the assembled model (mechanics at 10 Hz next to a 400 kHz current loop);

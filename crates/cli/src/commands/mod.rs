@@ -7,6 +7,7 @@ pub mod ctl;
 pub mod deploy;
 pub mod export;
 pub mod fit;
+pub mod fmu;
 pub mod frf;
 pub mod hil;
 pub mod identify;

@@ -1,0 +1,87 @@
+//! What every FMI entry point shares: panics caught at the boundary, the instance pointer
+//! checked, C strings read, the resource folder found.
+
+use crate::instance::{Instance, Status};
+use std::ffi::{c_char, c_void, CStr};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+
+/// Runs `f`, `on_panic` if it panics (a bug; nothing unwinds into the importer).
+pub fn guarded<T>(on_panic: T, f: impl FnOnce() -> T) -> T {
+    catch_unwind(AssertUnwindSafe(f)).unwrap_or(on_panic)
+}
+
+/// Runs `f` on the instance `c`: [`Status::Fatal`] for NULL or a panic.
+///
+/// # Safety
+/// `c` is NULL or a live instance used by this thread alone.
+pub unsafe fn with(c: *mut c_void, f: impl FnOnce(&mut Instance) -> Status) -> i32 {
+    if c.is_null() {
+        return Status::Fatal as i32;
+    }
+    // SAFETY: non-null, live, this thread's (the caller's promise).
+    let i = unsafe { &mut *c.cast::<Instance>() };
+    guarded(Status::Fatal, || f(i)) as i32
+}
+
+/// The string at `s` (lossy UTF-8, at most 64 KiB), or `default` for NULL.
+///
+/// # Safety
+/// `s` is NULL or NUL-terminated.
+pub unsafe fn text_or(s: *const c_char, default: &str) -> String {
+    if s.is_null() {
+        return default.to_owned();
+    }
+    // SAFETY: NUL-terminated (the caller's promise).
+    let bytes = unsafe { CStr::from_ptr(s) }.to_bytes();
+    String::from_utf8_lossy(&bytes[..bytes.len().min(1 << 16)]).into_owned()
+}
+
+/// The folder an FMI 2 resource URI names (`file:///a/b/resources`, `file:/a/b`, with
+/// percent escapes).
+pub fn resources_from_uri(uri: &str) -> Result<PathBuf, String> {
+    let rest = uri
+        .strip_prefix("file://localhost")
+        .or_else(|| uri.strip_prefix("file://"))
+        .or_else(|| uri.strip_prefix("file:"))
+        .ok_or_else(|| {
+            format!("fmuResourceLocation {uri:?}: a file: URI of the unit's resources folder")
+        })?;
+    let bytes = rest.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut k = 0;
+    while k < bytes.len() {
+        if bytes[k] == b'%' && k + 2 < bytes.len() {
+            let hex = std::str::from_utf8(&bytes[k + 1..k + 3]).unwrap_or("");
+            if let Ok(b) = u8::from_str_radix(hex, 16) {
+                out.push(b);
+                k += 3;
+                continue;
+            }
+        }
+        out.push(bytes[k]);
+        k += 1;
+    }
+    let path = String::from_utf8(out).map_err(|e| format!("fmuResourceLocation {uri:?}: {e}"))?;
+    Ok(PathBuf::from(path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn resource_uris_name_their_folders() {
+        let p = |u: &str| resources_from_uri(u).unwrap();
+        assert_eq!(
+            p("file:///tmp/a%20b/resources"),
+            PathBuf::from("/tmp/a b/resources")
+        );
+        assert_eq!(
+            p("file:/tmp/x/resources/"),
+            PathBuf::from("/tmp/x/resources/")
+        );
+        assert_eq!(p("file://localhost/tmp/x"), PathBuf::from("/tmp/x"));
+        assert!(resources_from_uri("http://example.com/x").is_err());
+    }
+}

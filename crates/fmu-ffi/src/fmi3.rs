@@ -1,0 +1,531 @@
+//! The FMI 3.0 co-simulation functions.
+
+use crate::boundary::{guarded, text_or, with};
+use crate::instance::{log_with, Fmi3Logger, Instance, Logger, Status};
+use crate::model::Value;
+use fmu::VarType;
+use std::ffi::{c_char, c_void, CString};
+use std::path::PathBuf;
+
+/// `fmi3GetVersion`.
+#[no_mangle]
+pub extern "C" fn fmi3GetVersion() -> *const c_char {
+    c"3.0".as_ptr()
+}
+
+/// `fmi3InstantiateCoSimulation`: the resources checked against `token`; event mode, early
+/// return and intermediate updates are not offered (the description says so).
+///
+/// # Safety
+/// The strings are NULL or NUL-terminated; `log` is NULL or an FMI 3 log callback.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
+    instance_name: *const c_char,
+    token: *const c_char,
+    resource_path: *const c_char,
+    _visible: bool,
+    logging_on: bool,
+    _event_mode_used: bool,
+    _early_return_allowed: bool,
+    _required_intermediate: *const u32,
+    _n_required_intermediate: usize,
+    environment: *mut c_void,
+    log: Option<Fmi3Logger>,
+    _intermediate_update: *const c_void,
+) -> *mut c_void {
+    guarded(std::ptr::null_mut(), || {
+        let logger = Logger::V3 {
+            callback: log,
+            environment,
+        };
+        // SAFETY: NULL or NUL-terminated (the caller's promise).
+        let (name, token, path) = unsafe {
+            (
+                text_or(instance_name, "fts"),
+                text_or(token, ""),
+                text_or(resource_path, ""),
+            )
+        };
+        match Instance::new(&name, &token, &PathBuf::from(path), logger, logging_on) {
+            Ok(i) => Box::into_raw(Box::new(i)).cast(),
+            Err((logger, e)) => {
+                let name = CString::new(name).unwrap_or_default();
+                log_with(&logger, &name, Status::Error, "logStatusError", &e);
+                std::ptr::null_mut()
+            }
+        }
+    })
+}
+
+/// `fmi3InstantiateModelExchange`: not offered (NULL, logged).
+///
+/// # Safety
+/// `log` is NULL or an FMI 3 log callback.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3InstantiateModelExchange(
+    _instance_name: *const c_char,
+    _token: *const c_char,
+    _resource_path: *const c_char,
+    _visible: bool,
+    _logging_on: bool,
+    environment: *mut c_void,
+    log: Option<Fmi3Logger>,
+) -> *mut c_void {
+    let logger = Logger::V3 {
+        callback: log,
+        environment,
+    };
+    log_with(
+        &logger,
+        &CString::default(),
+        Status::Error,
+        "logStatusError",
+        "this unit is for co-simulation: it has no model-exchange interface",
+    );
+    std::ptr::null_mut()
+}
+
+/// `fmi3InstantiateScheduledExecution`: not offered (NULL).
+#[no_mangle]
+pub extern "C" fn fmi3InstantiateScheduledExecution() -> *mut c_void {
+    std::ptr::null_mut()
+}
+
+/// `fmi3FreeInstance`.
+///
+/// # Safety
+/// `c` is NULL or an instance of `fmi3InstantiateCoSimulation`, not used again.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3FreeInstance(c: *mut c_void) {
+    if !c.is_null() {
+        // SAFETY: an instance from Box::into_raw at instantiation, given back once.
+        drop(unsafe { Box::from_raw(c.cast::<Instance>()) });
+    }
+}
+
+/// `fmi3SetDebugLogging`: categories are not told apart (errors are always logged).
+///
+/// # Safety
+/// `c` is NULL or a live instance.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3SetDebugLogging(
+    c: *mut c_void,
+    logging_on: bool,
+    _n: usize,
+    _categories: *const *const c_char,
+) -> i32 {
+    // SAFETY: the caller's promise about `c`.
+    unsafe {
+        with(c, |i| {
+            i.set_logging(logging_on);
+            Status::Ok
+        })
+    }
+}
+
+/// `fmi3EnterInitializationMode` at `start_time` (a tolerance and stop time are not used).
+///
+/// # Safety
+/// `c` is NULL or a live instance.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3EnterInitializationMode(
+    c: *mut c_void,
+    _tolerance_defined: bool,
+    _tolerance: f64,
+    start_time: f64,
+    _stop_time_defined: bool,
+    _stop_time: f64,
+) -> i32 {
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, |i| i.enter_initialization(start_time)) }
+}
+
+/// `fmi3ExitInitializationMode`: builds the unit from its parameters.
+///
+/// # Safety
+/// `c` is NULL or a live instance.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3ExitInitializationMode(c: *mut c_void) -> i32 {
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, Instance::exit_initialization) }
+}
+
+/// `fmi3EnterStepMode`: step mode is where initialisation ends (no event mode).
+///
+/// # Safety
+/// `c` is NULL or a live instance.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3EnterStepMode(c: *mut c_void) -> i32 {
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, |_| Status::Ok) }
+}
+
+/// `fmi3Terminate`.
+///
+/// # Safety
+/// `c` is NULL or a live instance.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3Terminate(c: *mut c_void) -> i32 {
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, Instance::terminate) }
+}
+
+/// `fmi3Reset`.
+///
+/// # Safety
+/// `c` is NULL or a live instance.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3Reset(c: *mut c_void) -> i32 {
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, Instance::reset) }
+}
+
+/// Gets `n` values of type `ty` at `vr` into `out` (room for `n_out`) through `put`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `out` room for `n_out`.
+unsafe fn get_values<T>(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    out: *mut T,
+    n_out: usize,
+    ty: VarType,
+    put: impl Fn(&mut Instance, Value) -> T,
+) -> i32 {
+    let body = |i: &mut Instance| {
+        if n_out != n {
+            return i.error(&format!(
+                "{n} value references and room for {n_out} values: this unit has scalars only"
+            ));
+        }
+        if n > 0 && (vr.is_null() || out.is_null()) {
+            return i.error("a null value-reference or value array");
+        }
+        for k in 0..n {
+            // SAFETY: `vr` holds `n` references and `out` room for `n` values.
+            let r = unsafe { *vr.add(k) };
+            if r == 0 && ty == VarType::Real {
+                let t = i.time_s();
+                // SAFETY: as above (T is f64 for reals).
+                unsafe { out.add(k).write(put(i, Value::Real(t))) };
+                continue;
+            }
+            match i.get(r, ty) {
+                Ok(v) => {
+                    let x = put(i, v);
+                    // SAFETY: as above.
+                    unsafe { out.add(k).write(x) };
+                }
+                Err(s) => return s,
+            }
+        }
+        Status::Ok
+    };
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, body) }
+}
+
+/// Sets `n` values of type `ty` at `vr` from `values` (`n_values` of them) through `take`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` entries, `values` `n_values`.
+unsafe fn set_values<T: Copy>(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *const T,
+    n_values: usize,
+    ty: VarType,
+    take: impl Fn(T) -> Value,
+) -> i32 {
+    let body = |i: &mut Instance| {
+        if n_values != n {
+            return i.error(&format!(
+                "{n} value references and {n_values} values: this unit has scalars only"
+            ));
+        }
+        if n > 0 && (vr.is_null() || values.is_null()) {
+            return i.error("a null value-reference or value array");
+        }
+        for k in 0..n {
+            // SAFETY: `vr` and `values` hold `n` entries.
+            let (r, x) = unsafe { (*vr.add(k), *values.add(k)) };
+            let s = i.set(r, ty, take(x));
+            if s != Status::Ok {
+                return s;
+            }
+        }
+        Status::Ok
+    };
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, body) }
+}
+
+/// `fmi3GetFloat64` (value reference 0 is the time).
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `values` room for `nv`.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3GetFloat64(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *mut f64,
+    nv: usize,
+) -> i32 {
+    // SAFETY: the caller's promises.
+    unsafe {
+        get_values(c, vr, n, values, nv, VarType::Real, |_, v| match v {
+            Value::Real(x) => x,
+            _ => f64::NAN,
+        })
+    }
+}
+
+/// `fmi3GetInt32`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `values` room for `nv`.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3GetInt32(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *mut i32,
+    nv: usize,
+) -> i32 {
+    // SAFETY: the caller's promises.
+    unsafe {
+        get_values(c, vr, n, values, nv, VarType::Integer, |_, v| match v {
+            Value::Integer(x) => x,
+            _ => 0,
+        })
+    }
+}
+
+/// `fmi3GetBoolean`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `values` room for `nv`.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3GetBoolean(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *mut bool,
+    nv: usize,
+) -> i32 {
+    // SAFETY: the caller's promises.
+    unsafe {
+        get_values(c, vr, n, values, nv, VarType::Boolean, |_, v| {
+            matches!(v, Value::Boolean(true))
+        })
+    }
+}
+
+/// `fmi3GetString`: the strings stay valid until the next call on `c`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `values` room for `nv`.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3GetString(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *mut *const c_char,
+    nv: usize,
+) -> i32 {
+    let clear = |i: &mut Instance| {
+        i.clear_strings();
+        Status::Ok
+    };
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, clear) };
+    // SAFETY: the caller's promises.
+    unsafe {
+        get_values(c, vr, n, values, nv, VarType::String, |i, v| match v {
+            Value::String(s) => i.keep_string(s),
+            _ => std::ptr::null(),
+        })
+    }
+}
+
+/// `fmi3SetFloat64`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `values` `nv` values.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3SetFloat64(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *const f64,
+    nv: usize,
+) -> i32 {
+    // SAFETY: the caller's promises.
+    unsafe { set_values(c, vr, n, values, nv, VarType::Real, Value::Real) }
+}
+
+/// `fmi3SetInt32`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `values` `nv` values.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3SetInt32(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *const i32,
+    nv: usize,
+) -> i32 {
+    // SAFETY: the caller's promises.
+    unsafe { set_values(c, vr, n, values, nv, VarType::Integer, Value::Integer) }
+}
+
+/// `fmi3SetBoolean`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `values` `nv` values.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3SetBoolean(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *const bool,
+    nv: usize,
+) -> i32 {
+    // SAFETY: the caller's promises.
+    unsafe { set_values(c, vr, n, values, nv, VarType::Boolean, Value::Boolean) }
+}
+
+/// `fmi3SetString`.
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `values` `nv` strings, each
+/// NULL or NUL-terminated.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3SetString(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *const *const c_char,
+    nv: usize,
+) -> i32 {
+    // SAFETY: the caller's promises; each string is NULL or NUL-terminated.
+    unsafe {
+        set_values(c, vr, n, values, nv, VarType::String, |s| {
+            Value::String(text_or(s, ""))
+        })
+    }
+}
+
+/// `fmi3DoStep`: a whole number of ticks from `t`; never an event or an early return.
+///
+/// # Safety
+/// `c` is NULL or a live instance; the out-pointers are NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3DoStep(
+    c: *mut c_void,
+    t: f64,
+    h: f64,
+    _no_set_prior: bool,
+    event_handling_needed: *mut bool,
+    terminate_simulation: *mut bool,
+    early_return: *mut bool,
+    last_successful_time: *mut f64,
+) -> i32 {
+    let body = |i: &mut Instance| {
+        let s = i.do_step(t, h);
+        // SAFETY: each NULL or writable (the caller's promise).
+        unsafe {
+            for flag in [event_handling_needed, terminate_simulation, early_return] {
+                if !flag.is_null() {
+                    *flag = false;
+                }
+            }
+            if !last_successful_time.is_null() {
+                *last_successful_time = i.time_s();
+            }
+        }
+        s
+    };
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, body) }
+}
+
+/// The FMI 3 functions this unit does not provide (its description says so): an error
+/// naming the function.
+macro_rules! not_provided {
+    ($($name:ident),* $(,)?) => {$(
+        #[doc = concat!("`", stringify!($name), "`: not provided by this unit (an error).")]
+        ///
+        /// # Safety
+        /// `c` is NULL or a live instance.
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(c: *mut c_void) -> i32 {
+            // SAFETY: the caller's promise about `c`.
+            unsafe {
+                with(c, |i| i.error(concat!(stringify!($name), " is not provided by this unit (see its modelDescription.xml)")))
+            }
+        }
+    )*};
+}
+
+not_provided!(
+    fmi3EnterEventMode,
+    fmi3GetFloat32,
+    fmi3GetInt8,
+    fmi3GetUInt8,
+    fmi3GetInt16,
+    fmi3GetUInt16,
+    fmi3GetUInt32,
+    fmi3GetInt64,
+    fmi3GetUInt64,
+    fmi3GetBinary,
+    fmi3GetClock,
+    fmi3SetFloat32,
+    fmi3SetInt8,
+    fmi3SetUInt8,
+    fmi3SetInt16,
+    fmi3SetUInt16,
+    fmi3SetUInt32,
+    fmi3SetInt64,
+    fmi3SetUInt64,
+    fmi3SetBinary,
+    fmi3SetClock,
+    fmi3GetNumberOfVariableDependencies,
+    fmi3GetVariableDependencies,
+    fmi3GetFMUState,
+    fmi3SetFMUState,
+    fmi3FreeFMUState,
+    fmi3SerializedFMUStateSize,
+    fmi3SerializeFMUState,
+    fmi3DeserializeFMUState,
+    fmi3GetDirectionalDerivative,
+    fmi3GetAdjointDerivative,
+    fmi3EnterConfigurationMode,
+    fmi3ExitConfigurationMode,
+    fmi3GetIntervalDecimal,
+    fmi3GetIntervalFraction,
+    fmi3GetShiftDecimal,
+    fmi3GetShiftFraction,
+    fmi3SetIntervalDecimal,
+    fmi3SetIntervalFraction,
+    fmi3SetShiftDecimal,
+    fmi3SetShiftFraction,
+    fmi3EvaluateDiscreteStates,
+    fmi3UpdateDiscreteStates,
+    fmi3EnterContinuousTimeMode,
+    fmi3CompletedIntegratorStep,
+    fmi3SetTime,
+    fmi3SetContinuousStates,
+    fmi3GetContinuousStateDerivatives,
+    fmi3GetEventIndicators,
+    fmi3GetContinuousStates,
+    fmi3GetNominalsOfContinuousStates,
+    fmi3GetNumberOfEventIndicators,
+    fmi3GetNumberOfContinuousStates,
+    fmi3GetOutputDerivatives,
+    fmi3ActivateModelPartition,
+);
