@@ -264,13 +264,13 @@ impl Instance {
         let ticks = n.round();
         if !(ticks >= 1.0 && (n - ticks).abs() <= TICK_TOLERANCE) {
             return self.error(&format!(
-                "communication step {h_s} s is not a whole number of ticks of {period} s (within {TICK_TOLERANCE} of a tick): this unit steps whole servo ticks and does not interpolate"
+                "communication step {h_s:e} s is not a whole number of ticks of {period:e} s (within {TICK_TOLERANCE:e} of a tick): this unit steps whole servo ticks and does not interpolate"
             ));
         }
         let now = self.start_s + self.ticks as f64 * period;
         if (t_s - now).abs() > 0.5 * period {
             return self.error(&format!(
-                "communication point {t_s} s is not this unit's time {now} s (tick {})",
+                "communication point {t_s:e} s is not this unit's time {now:e} s (tick {})",
                 self.ticks
             ));
         }

@@ -2,7 +2,7 @@
 //! mechanics (DESIGN.md equations), current loop (eq 5-9), motor, capacitive sensor (eq 5-8),
 //! accelerometer chain (Table 7-2) and the noise shaping filters (eq 6-6..6-8, Table 7-2).
 
-use crate::limits::{check, within};
+use crate::limits::limit_of;
 use crate::modes::ModeSite;
 use crate::params::{rad, CurrentLoopModel, PlantParams, StageParams};
 use lti::interconnect::{ConnectError, Interconnect, NamedBlock};
@@ -256,6 +256,31 @@ fn with_derivatives(sys: StateSpace) -> StateSpace {
     let cab = (&ca * &sys.b)[(0, 0)];
     let d = DMatrix::from_column_slice(3, 1, &[0.0, 0.0, cab]);
     StateSpace { c, d, ..sys }
+}
+
+/// `value` at `key` within the table's range, else the parameter error naming both.
+pub(crate) fn check(key: &'static str, value: f64) -> Result<(), ModelError> {
+    let l = limit_of(key).expect("every checked key has a limit");
+    within(key, value, l.min, l.max, l.range)
+}
+
+/// `value` at `key` within `[lo, hi]` (a range narrowed by another value), else the error.
+pub(crate) fn within(
+    key: &'static str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+    range: &str,
+) -> Result<(), ModelError> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(())
+    } else {
+        Err(ModelError::Parameter {
+            key,
+            value,
+            range: range.to_owned(),
+        })
+    }
 }
 
 impl PlantModel {

@@ -1,0 +1,4 @@
+//! libfts_fmu driven in process through its FMI functions, against the simulator's and the
+//! runtime's own calls.
+
+mod units;
