@@ -88,10 +88,8 @@ impl Fmi2 {
     fn get(&self, vr: &[u32]) -> Vec<f64> {
         let mut x = vec![0.0; vr.len()];
         // SAFETY: a live instance; arrays of equal length.
-        assert_eq!(
-            unsafe { fmi2GetReal(self.0, vr.as_ptr(), vr.len(), x.as_mut_ptr()) },
-            OK
-        );
+        let status = unsafe { fmi2GetReal(self.0, vr.as_ptr(), vr.len(), x.as_mut_ptr()) };
+        assert_eq!(status, OK);
         x
     }
     fn step(&self, t: f64, h: f64) -> i32 {
@@ -173,8 +171,8 @@ fn the_controller_unit_ticks_as_servo_holds_its_command_and_refuses_late_reading
         // Before this point's readings: the command held over the last step.
         assert_eq!(unit.get(&[controller::DAC_V]), [held]);
         let r = [
-            1e-3 * (k as f64 * 0.37).sin(),
-            2e-3 * (k as f64 * 0.11).cos(),
+            1e-3 * libm::sin(k as f64 * 0.37),
+            2e-3 * libm::cos(k as f64 * 0.11),
         ];
         assert_eq!(unit.set(&readings, &r), OK);
         let got = unit.get(&[controller::DAC_V, controller::FOLLOWING_ERROR_M]);
@@ -211,4 +209,60 @@ fn resources_of_another_description_are_refused() {
     assert!(fmi3_unit(dir.path(), &other).is_null());
     let unit = Fmi2(fmi2_unit(dir.path(), &token));
     assert!(!unit.0.is_null());
+}
+
+/// The messages an FMI 3 unit logged (tests in this file that log run one at a time through it).
+static LOGGED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+
+extern "C" fn remember(
+    _env: *mut c_void,
+    _status: i32,
+    _category: *const std::ffi::c_char,
+    message: *const std::ffi::c_char,
+) {
+    // SAFETY: the unit passes a NUL-terminated message.
+    let text = unsafe { std::ffi::CStr::from_ptr(message) };
+    LOGGED
+        .lock()
+        .unwrap()
+        .push(text.to_string_lossy().into_owned());
+}
+
+#[test]
+fn a_deployment_the_runtime_refuses_is_refused_at_instantiation_with_its_message() {
+    let plan = runner::Plan::new(&run_config::Loaded::default()).unwrap();
+    let (deployment, text) = runner::deploy::deployment_file(&plan).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("following_error_m = "))
+        .unwrap();
+    let bad = text.replace(line, "following_error_m = -1.0");
+    let files = controller_files(FmiVersion::V3, &bad, deployment.period_s(), 0.1);
+    let dir = tempfile::tempdir().unwrap();
+    let token = resources(dir.path(), &files);
+    let path = CString::new(format!("{}/", dir.path().display())).unwrap();
+    let token = CString::new(token).unwrap();
+    // SAFETY: NUL-terminated strings; a logger that reads the message only.
+    let unit = unsafe {
+        fmi3InstantiateCoSimulation(
+            c"u".as_ptr(),
+            token.as_ptr(),
+            path.as_ptr(),
+            false,
+            false,
+            false,
+            false,
+            std::ptr::null(),
+            0,
+            std::ptr::null_mut(),
+            Some(remember),
+            std::ptr::null(),
+        )
+    };
+    assert!(unit.is_null());
+    let logged = LOGGED.lock().unwrap().join("\n");
+    assert!(
+        logged.contains("protection.following_error_m") && logged.contains("deployment.toml"),
+        "{logged}"
+    );
 }

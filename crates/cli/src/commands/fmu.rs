@@ -23,9 +23,11 @@ pub struct FmuCmd {
 
 #[derive(Subcommand, Debug)]
 enum Unit {
-    /// The simulated stage of a run configuration: the DAC command and an external force in,
-    /// the gap and accelerometer readings (V) and the true tool position (m) out; every plant
-    /// value a parameter with its unit and range.
+    /// The simulated stage as a unit: DAC command and force in, readings and tool position out
+    ///
+    /// The stage of a run configuration: the DAC command (V) and an external force (N) in, the
+    /// gap and accelerometer readings (V), their flags and the true tool position (m) out;
+    /// every plant value a parameter with its unit and range.
     Stage {
         #[command(flatten)]
         #[allow(missing_docs)]
@@ -37,8 +39,11 @@ enum Unit {
         #[allow(missing_docs)]
         out: OutArgs,
     },
-    /// The controller of a deployment (`servo deploy`): the readings in, the DAC command and
-    /// the tick's telemetry out.
+    /// The controller of a deployment as a unit: readings in, DAC command and telemetry out
+    ///
+    /// The deployment's `Servo` (`servo deploy` writes deployments): the gap and accelerometer
+    /// readings (V) in, the DAC command (V) and the tick's reference, measured position,
+    /// following error (m), flags and trip out.
     Controller {
         /// Deployment file.
         deployment: PathBuf,
