@@ -208,6 +208,10 @@ def test_each_refusal_is_an_fmi_error_naming_its_key(units: dict, version: str) 
     with pytest.raises(FMICallException):
         set_real(stage, version, [sv["plant.stage.m1_kg"]], [-1.0])
     assert "plant.stage.m1_kg = -1 is outside its allowed range [1e-6, 1e3] kg" in log.text(), log.text()
+    # An input with a range: the force on the tool.
+    with pytest.raises(FMICallException):
+        set_real(stage, version, [sv["force_n"]], [1e4])
+    assert "force_n = 10000 is outside its allowed range [-1e3, 1e3] N" in log.text(), log.text()
     # A value reference the unit does not have.
     with pytest.raises(FMICallException):
         set_real(stage, version, [99999], [1.0])
@@ -225,6 +229,9 @@ def test_each_refusal_is_an_fmi_error_naming_its_key(units: dict, version: str) 
     with pytest.raises(FMICallException):
         stage.doStep(0.0, 1.5 * PERIOD)
     assert "is not a whole number of ticks" in log.text(), log.text()
+    with pytest.raises(FMICallException):
+        stage.doStep(0.0, 2e6 * PERIOD)
+    assert "at most 1e6 ticks a step" in log.text(), log.text()
     stage.doStep(0.0, 3 * PERIOD)  # three ticks are a step
     (plant_sha256,) = stage.getString([sv["plant_sha256"]])
     plant_sha256 = plant_sha256.decode() if isinstance(plant_sha256, bytes) else plant_sha256

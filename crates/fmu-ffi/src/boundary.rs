@@ -2,6 +2,8 @@
 //! checked, C strings read, the resource folder found.
 
 use crate::instance::{Instance, Status};
+use crate::model::Value;
+use fmu::VarType;
 use std::ffi::{c_char, c_void, CStr};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
@@ -65,6 +67,106 @@ pub fn resources_from_uri(uri: &str) -> Result<PathBuf, String> {
     let path = String::from_utf8(out).map_err(|e| format!("fmuResourceLocation {uri:?}: {e}"))?;
     Ok(PathBuf::from(path))
 }
+
+/// Gets `n` values of type `ty` at `vr` into `out` through `put`; `n_out` is FMI 3's count of
+/// values (None: FMI 2, where it is `n`).
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` holds `n` references, `out` room for `n` values.
+pub unsafe fn get_values<T>(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    out: *mut T,
+    n_out: Option<usize>,
+    ty: VarType,
+    put: impl Fn(&mut Instance, Value) -> T,
+) -> i32 {
+    let body = |i: &mut Instance| {
+        if let Err(e) = counts(n, n_out, vr.is_null() || out.is_null()) {
+            return i.error(&e);
+        }
+        for k in 0..n {
+            // SAFETY: `vr` holds `n` references and `out` room for `n` values.
+            let r = unsafe { *vr.add(k) };
+            match i.get(r, ty) {
+                Ok(v) => {
+                    let x = put(i, v);
+                    // SAFETY: as above.
+                    unsafe { out.add(k).write(x) };
+                }
+                Err(s) => return s,
+            }
+        }
+        Status::Ok
+    };
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, body) }
+}
+
+/// Sets `n` values of type `ty` at `vr` from `values` through `take`; `n_values` is FMI 3's
+/// count of values (None: FMI 2, where it is `n`).
+///
+/// # Safety
+/// `c` is NULL or a live instance; `vr` and `values` hold `n` entries.
+pub unsafe fn set_values<T: Copy>(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    values: *const T,
+    n_values: Option<usize>,
+    ty: VarType,
+    take: impl Fn(T) -> Value,
+) -> i32 {
+    let body = |i: &mut Instance| {
+        if let Err(e) = counts(n, n_values, vr.is_null() || values.is_null()) {
+            return i.error(&e);
+        }
+        for k in 0..n {
+            // SAFETY: `vr` and `values` hold `n` entries.
+            let (r, x) = unsafe { (*vr.add(k), *values.add(k)) };
+            let s = i.set(r, ty, take(x));
+            if s != Status::Ok {
+                return s;
+            }
+        }
+        Status::Ok
+    };
+    // SAFETY: the caller's promise about `c`.
+    unsafe { with(c, body) }
+}
+
+/// The arrays of a get or set agree: as many values as references, none NULL when used.
+fn counts(n: usize, n_values: Option<usize>, null: bool) -> Result<(), String> {
+    match n_values {
+        Some(m) if m != n => Err(format!(
+            "{n} value references and {m} values: this unit has scalars only"
+        )),
+        _ if n > 0 && null => Err("a null value-reference or value array".into()),
+        _ => Ok(()),
+    }
+}
+
+/// FMI functions a unit does not provide (its description says so): each takes the instance
+/// first and answers an error naming the function. The arguments after the instance are not
+/// read; the C calling convention of the target (the caller cleans up) makes the shorter
+/// signature harmless on x86-64 Linux, the one platform the units ship for.
+macro_rules! not_provided {
+    ($($name:ident),* $(,)?) => {$(
+        #[doc = concat!("`", stringify!($name), "`: not provided by this unit (an error).")]
+        ///
+        /// # Safety
+        /// `c` is NULL or a live instance.
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(c: *mut std::ffi::c_void) -> i32 {
+            // SAFETY: the caller's promise about `c`.
+            unsafe {
+                $crate::boundary::with(c, |i| i.error(concat!(stringify!($name), " is not provided by this unit (see its modelDescription.xml)")))
+            }
+        }
+    )*};
+}
+pub(crate) use not_provided;
 
 #[cfg(test)]
 mod tests {

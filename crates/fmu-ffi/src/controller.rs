@@ -14,11 +14,20 @@ use servo_config::{parse_deployment, Deployment, MadeFor, Origin};
 use servo_runtime::Servo;
 
 /// The readings a tick acts on.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, Default)]
 struct Readings {
     gap_v: f64,
     accel_v: f64,
     flags: i32,
+}
+
+impl Readings {
+    /// The same bits (a NaN reading set again is the same reading).
+    fn same_as(&self, other: &Readings) -> bool {
+        self.gap_v.to_bits() == other.gap_v.to_bits()
+            && self.accel_v.to_bits() == other.accel_v.to_bits()
+            && self.flags == other.flags
+    }
 }
 
 /// What the last tick gave.
@@ -35,6 +44,8 @@ struct Outputs {
 /// The controller unit.
 pub struct ControllerUnit {
     vars: Vec<Variable>,
+    /// The deployment's file, for messages.
+    source: String,
     deployment: Deployment,
     made_for: Option<MadeFor>,
     plant_sha256: String,
@@ -54,9 +65,11 @@ impl ControllerUnit {
     pub fn new(text: &str, origin: &Origin) -> Result<Self, String> {
         let d = parse_deployment(text, origin).map_err(|e| e.to_string())?;
         // Built once here so a deployment the runtime refuses is refused at instantiation.
-        Servo::new(&d.deployment).map_err(|e| format!("{}: {e}", origin_name(origin)))?;
+        let source = origin_name(origin);
+        Servo::new(&d.deployment).map_err(|e| format!("{source}: {e}"))?;
         Ok(ControllerUnit {
             vars: controller_variables(),
+            source,
             deployment: d.deployment,
             made_for: d.made_for,
             plant_sha256: String::new(),
@@ -67,6 +80,24 @@ impl ControllerUnit {
             out: Outputs::default(),
             tick: 0,
         })
+    }
+
+    /// The deployment was made for the plant `plant_sha256` names (when set).
+    fn check_made_for(&self) -> Result<(), String> {
+        if !self.plant_sha256.is_empty() {
+            let for_plant = self.made_for.as_ref().map(|m| m.plant_sha256.as_str());
+            if for_plant != Some(self.plant_sha256.as_str()) {
+                return Err(format!(
+                    "{}: controller.made_for: the deployment was made for {}; plant_sha256 = {} is another plant (redesign the deployment for this stage: servo deploy -c with its plant)",
+                    self.source,
+                    self.made_for
+                        .as_ref()
+                        .map_or("an unstated plant".into(), MadeFor::describe),
+                    self.plant_sha256
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Ticks once on the held readings.
@@ -122,12 +153,17 @@ impl Model for ControllerUnit {
             (controller::ACCEL_V, Value::Real(x)) => r.accel_v = x,
             (controller::READING_FLAGS, Value::Integer(n)) => r.flags = n,
             (controller::PLANT_SHA256, Value::String(s)) => {
+                // A loop built early (an output read during initialisation) is built again,
+                // checked against this plant.
                 self.plant_sha256 = s;
+                self.servo = None;
+                self.ticked = false;
+                self.out = Outputs::default();
                 return Ok(());
             }
             (vr, _) => return Err(format!("value reference {vr} is not settable")),
         }
-        if self.ticked && r != self.readings {
+        if self.ticked && !r.same_as(&self.readings) {
             return Err(format!(
                 "tick {} has been taken on this communication point's readings (its command was read): set the readings before reading the command; the next step takes new ones",
                 self.tick
@@ -173,19 +209,9 @@ impl Model for ControllerUnit {
         if self.servo.is_some() {
             return Ok(());
         }
-        if !self.plant_sha256.is_empty() {
-            let for_plant = self.made_for.as_ref().map(|m| m.plant_sha256.as_str());
-            if for_plant != Some(self.plant_sha256.as_str()) {
-                return Err(format!(
-                    "controller.made_for: the deployment was made for {}; plant_sha256 = {} is another plant (redesign the deployment for this stage: servo deploy -c with its plant)",
-                    self.made_for
-                        .as_ref()
-                        .map_or("an unstated plant".into(), MadeFor::describe),
-                    self.plant_sha256
-                ));
-            }
-        }
-        self.servo = Some(Servo::new(&self.deployment).map_err(|e| e.to_string())?);
+        self.check_made_for()?;
+        let servo = Servo::new(&self.deployment).map_err(|e| format!("{}: {e}", self.source))?;
+        self.servo = Some(servo);
         Ok(())
     }
 

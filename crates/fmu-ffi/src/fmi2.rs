@@ -1,6 +1,8 @@
 //! The FMI 2.0 co-simulation functions.
 
-use crate::boundary::{guarded, resources_from_uri, text_or, with};
+use crate::boundary::{
+    get_values, guarded, not_provided, resources_from_uri, set_values, text_or, with,
+};
 use crate::instance::{log_with, Fmi2Logger, Instance, Logger, Status};
 use crate::model::Value;
 use fmu::VarType;
@@ -124,12 +126,7 @@ pub unsafe extern "C" fn fmi2SetupExperiment(
     _stop_time: f64,
 ) -> i32 {
     // SAFETY: the caller's promise about `c`.
-    unsafe {
-        with(c, |i| {
-            i.set_start(start_time);
-            Status::Ok
-        })
-    }
+    unsafe { with(c, |i| i.set_start(start_time)) }
 }
 
 /// `fmi2EnterInitializationMode`.
@@ -172,72 +169,6 @@ pub unsafe extern "C" fn fmi2Reset(c: *mut c_void) -> i32 {
     unsafe { with(c, Instance::reset) }
 }
 
-/// Gets `n` values of type `ty` at `vr` into `out` through `put`.
-///
-/// # Safety
-/// `c` is NULL or a live instance; `vr` holds `n` references, `out` room for `n` values.
-unsafe fn get_values<T>(
-    c: *mut c_void,
-    vr: *const u32,
-    n: usize,
-    out: *mut T,
-    ty: VarType,
-    put: impl Fn(&mut Instance, Value) -> T,
-) -> i32 {
-    if n > 0 && (vr.is_null() || out.is_null()) {
-        // SAFETY: the caller's promise about `c`.
-        return unsafe { with(c, |i| i.error("a null value-reference or value array")) };
-    }
-    let body = |i: &mut Instance| {
-        for k in 0..n {
-            // SAFETY: `vr` holds `n` references and `out` room for `n` values.
-            let r = unsafe { *vr.add(k) };
-            match i.get(r, ty) {
-                Ok(v) => {
-                    let x = put(i, v);
-                    // SAFETY: as above.
-                    unsafe { out.add(k).write(x) };
-                }
-                Err(s) => return s,
-            }
-        }
-        Status::Ok
-    };
-    // SAFETY: the caller's promise about `c`.
-    unsafe { with(c, body) }
-}
-
-/// Sets `n` values of type `ty` at `vr` from `values` through `take`.
-///
-/// # Safety
-/// `c` is NULL or a live instance; `vr` and `values` hold `n` entries.
-unsafe fn set_values<T: Copy>(
-    c: *mut c_void,
-    vr: *const u32,
-    n: usize,
-    values: *const T,
-    ty: VarType,
-    take: impl Fn(T) -> Value,
-) -> i32 {
-    if n > 0 && (vr.is_null() || values.is_null()) {
-        // SAFETY: the caller's promise about `c`.
-        return unsafe { with(c, |i| i.error("a null value-reference or value array")) };
-    }
-    let body = |i: &mut Instance| {
-        for k in 0..n {
-            // SAFETY: `vr` and `values` hold `n` entries.
-            let (r, x) = unsafe { (*vr.add(k), *values.add(k)) };
-            let s = i.set(r, ty, take(x));
-            if s != Status::Ok {
-                return s;
-            }
-        }
-        Status::Ok
-    };
-    // SAFETY: the caller's promise about `c`.
-    unsafe { with(c, body) }
-}
-
 fn real(v: Value) -> f64 {
     match v {
         Value::Real(x) => x,
@@ -268,7 +199,7 @@ pub unsafe extern "C" fn fmi2GetReal(
     value: *mut f64,
 ) -> i32 {
     // SAFETY: the caller's promises.
-    unsafe { get_values(c, vr, n, value, VarType::Real, |_, v| real(v)) }
+    unsafe { get_values(c, vr, n, value, None, VarType::Real, |_, v| real(v)) }
 }
 
 /// `fmi2GetInteger`.
@@ -283,7 +214,7 @@ pub unsafe extern "C" fn fmi2GetInteger(
     value: *mut i32,
 ) -> i32 {
     // SAFETY: the caller's promises.
-    unsafe { get_values(c, vr, n, value, VarType::Integer, |_, v| integer(v)) }
+    unsafe { get_values(c, vr, n, value, None, VarType::Integer, |_, v| integer(v)) }
 }
 
 /// `fmi2GetBoolean`.
@@ -298,7 +229,7 @@ pub unsafe extern "C" fn fmi2GetBoolean(
     value: *mut i32,
 ) -> i32 {
     // SAFETY: the caller's promises.
-    unsafe { get_values(c, vr, n, value, VarType::Boolean, |_, v| boolean(v)) }
+    unsafe { get_values(c, vr, n, value, None, VarType::Boolean, |_, v| boolean(v)) }
 }
 
 /// `fmi2GetString`: the strings stay valid until the next call on `c`.
@@ -320,7 +251,7 @@ pub unsafe extern "C" fn fmi2GetString(
     unsafe { with(c, clear) };
     // SAFETY: the caller's promises.
     unsafe {
-        get_values(c, vr, n, value, VarType::String, |i, v| match v {
+        get_values(c, vr, n, value, None, VarType::String, |i, v| match v {
             Value::String(s) => i.keep_string(s),
             _ => std::ptr::null(),
         })
@@ -339,7 +270,7 @@ pub unsafe extern "C" fn fmi2SetReal(
     value: *const f64,
 ) -> i32 {
     // SAFETY: the caller's promises.
-    unsafe { set_values(c, vr, n, value, VarType::Real, Value::Real) }
+    unsafe { set_values(c, vr, n, value, None, VarType::Real, Value::Real) }
 }
 
 /// `fmi2SetInteger`.
@@ -354,7 +285,7 @@ pub unsafe extern "C" fn fmi2SetInteger(
     value: *const i32,
 ) -> i32 {
     // SAFETY: the caller's promises.
-    unsafe { set_values(c, vr, n, value, VarType::Integer, Value::Integer) }
+    unsafe { set_values(c, vr, n, value, None, VarType::Integer, Value::Integer) }
 }
 
 /// `fmi2SetBoolean`.
@@ -370,7 +301,7 @@ pub unsafe extern "C" fn fmi2SetBoolean(
 ) -> i32 {
     // SAFETY: the caller's promises.
     unsafe {
-        set_values(c, vr, n, value, VarType::Boolean, |b| {
+        set_values(c, vr, n, value, None, VarType::Boolean, |b| {
             Value::Boolean(b != 0)
         })
     }
@@ -390,7 +321,7 @@ pub unsafe extern "C" fn fmi2SetString(
 ) -> i32 {
     // SAFETY: the caller's promises; each string is NULL or NUL-terminated.
     unsafe {
-        set_values(c, vr, n, value, VarType::String, |s| {
+        set_values(c, vr, n, value, None, VarType::String, |s| {
             Value::String(text_or(s, ""))
         })
     }
@@ -436,24 +367,6 @@ pub unsafe extern "C" fn fmi2GetRealStatus(c: *mut c_void, kind: i32, value: *mu
     };
     // SAFETY: the caller's promise about `c`.
     unsafe { with(c, body) }
-}
-
-/// The FMI 2 functions this unit does not provide (its description says so): an error
-/// naming the function.
-macro_rules! not_provided {
-    ($($name:ident),* $(,)?) => {$(
-        #[doc = concat!("`", stringify!($name), "`: not provided by this unit (an error).")]
-        ///
-        /// # Safety
-        /// `c` is NULL or a live instance.
-        #[no_mangle]
-        pub unsafe extern "C" fn $name(c: *mut c_void) -> i32 {
-            // SAFETY: the caller's promise about `c`.
-            unsafe {
-                with(c, |i| i.error(concat!(stringify!($name), " is not provided by this unit (see its modelDescription.xml)")))
-            }
-        }
-    )*};
 }
 
 not_provided!(

@@ -1,6 +1,6 @@
 //! The FMI 3.0 co-simulation functions.
 
-use crate::boundary::{guarded, text_or, with};
+use crate::boundary::{get_values, guarded, not_provided, set_values, text_or, with};
 use crate::instance::{log_with, Fmi3Logger, Instance, Logger, Status};
 use crate::model::Value;
 use fmu::VarType;
@@ -46,6 +46,12 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
                 text_or(resource_path, ""),
             )
         };
+        if path.is_empty() {
+            let name = CString::new(name).unwrap_or_default();
+            let message = "resourcePath is empty: the unit's resources folder is needed";
+            log_with(&logger, &name, Status::Error, "logStatusError", message);
+            return std::ptr::null_mut();
+        }
         match Instance::new(&name, &token, &PathBuf::from(path), logger, logging_on) {
             Ok(i) => Box::into_raw(Box::new(i)).cast(),
             Err((logger, e)) => {
@@ -180,88 +186,6 @@ pub unsafe extern "C" fn fmi3Reset(c: *mut c_void) -> i32 {
     unsafe { with(c, Instance::reset) }
 }
 
-/// Gets `n` values of type `ty` at `vr` into `out` (room for `n_out`) through `put`.
-///
-/// # Safety
-/// `c` is NULL or a live instance; `vr` holds `n` references, `out` room for `n_out`.
-unsafe fn get_values<T>(
-    c: *mut c_void,
-    vr: *const u32,
-    n: usize,
-    out: *mut T,
-    n_out: usize,
-    ty: VarType,
-    put: impl Fn(&mut Instance, Value) -> T,
-) -> i32 {
-    let body = |i: &mut Instance| {
-        if n_out != n {
-            return i.error(&format!(
-                "{n} value references and room for {n_out} values: this unit has scalars only"
-            ));
-        }
-        if n > 0 && (vr.is_null() || out.is_null()) {
-            return i.error("a null value-reference or value array");
-        }
-        for k in 0..n {
-            // SAFETY: `vr` holds `n` references and `out` room for `n` values.
-            let r = unsafe { *vr.add(k) };
-            if r == 0 && ty == VarType::Real {
-                let t = i.time_s();
-                // SAFETY: as above (T is f64 for reals).
-                unsafe { out.add(k).write(put(i, Value::Real(t))) };
-                continue;
-            }
-            match i.get(r, ty) {
-                Ok(v) => {
-                    let x = put(i, v);
-                    // SAFETY: as above.
-                    unsafe { out.add(k).write(x) };
-                }
-                Err(s) => return s,
-            }
-        }
-        Status::Ok
-    };
-    // SAFETY: the caller's promise about `c`.
-    unsafe { with(c, body) }
-}
-
-/// Sets `n` values of type `ty` at `vr` from `values` (`n_values` of them) through `take`.
-///
-/// # Safety
-/// `c` is NULL or a live instance; `vr` holds `n` entries, `values` `n_values`.
-unsafe fn set_values<T: Copy>(
-    c: *mut c_void,
-    vr: *const u32,
-    n: usize,
-    values: *const T,
-    n_values: usize,
-    ty: VarType,
-    take: impl Fn(T) -> Value,
-) -> i32 {
-    let body = |i: &mut Instance| {
-        if n_values != n {
-            return i.error(&format!(
-                "{n} value references and {n_values} values: this unit has scalars only"
-            ));
-        }
-        if n > 0 && (vr.is_null() || values.is_null()) {
-            return i.error("a null value-reference or value array");
-        }
-        for k in 0..n {
-            // SAFETY: `vr` and `values` hold `n` entries.
-            let (r, x) = unsafe { (*vr.add(k), *values.add(k)) };
-            let s = i.set(r, ty, take(x));
-            if s != Status::Ok {
-                return s;
-            }
-        }
-        Status::Ok
-    };
-    // SAFETY: the caller's promise about `c`.
-    unsafe { with(c, body) }
-}
-
 /// `fmi3GetFloat64` (value reference 0 is the time).
 ///
 /// # Safety
@@ -276,7 +200,7 @@ pub unsafe extern "C" fn fmi3GetFloat64(
 ) -> i32 {
     // SAFETY: the caller's promises.
     unsafe {
-        get_values(c, vr, n, values, nv, VarType::Real, |_, v| match v {
+        get_values(c, vr, n, values, Some(nv), VarType::Real, |_, v| match v {
             Value::Real(x) => x,
             _ => f64::NAN,
         })
@@ -297,10 +221,18 @@ pub unsafe extern "C" fn fmi3GetInt32(
 ) -> i32 {
     // SAFETY: the caller's promises.
     unsafe {
-        get_values(c, vr, n, values, nv, VarType::Integer, |_, v| match v {
-            Value::Integer(x) => x,
-            _ => 0,
-        })
+        get_values(
+            c,
+            vr,
+            n,
+            values,
+            Some(nv),
+            VarType::Integer,
+            |_, v| match v {
+                Value::Integer(x) => x,
+                _ => 0,
+            },
+        )
     }
 }
 
@@ -318,7 +250,7 @@ pub unsafe extern "C" fn fmi3GetBoolean(
 ) -> i32 {
     // SAFETY: the caller's promises.
     unsafe {
-        get_values(c, vr, n, values, nv, VarType::Boolean, |_, v| {
+        get_values(c, vr, n, values, Some(nv), VarType::Boolean, |_, v| {
             matches!(v, Value::Boolean(true))
         })
     }
@@ -344,10 +276,18 @@ pub unsafe extern "C" fn fmi3GetString(
     unsafe { with(c, clear) };
     // SAFETY: the caller's promises.
     unsafe {
-        get_values(c, vr, n, values, nv, VarType::String, |i, v| match v {
-            Value::String(s) => i.keep_string(s),
-            _ => std::ptr::null(),
-        })
+        get_values(
+            c,
+            vr,
+            n,
+            values,
+            Some(nv),
+            VarType::String,
+            |i, v| match v {
+                Value::String(s) => i.keep_string(s),
+                _ => std::ptr::null(),
+            },
+        )
     }
 }
 
@@ -364,7 +304,7 @@ pub unsafe extern "C" fn fmi3SetFloat64(
     nv: usize,
 ) -> i32 {
     // SAFETY: the caller's promises.
-    unsafe { set_values(c, vr, n, values, nv, VarType::Real, Value::Real) }
+    unsafe { set_values(c, vr, n, values, Some(nv), VarType::Real, Value::Real) }
 }
 
 /// `fmi3SetInt32`.
@@ -380,7 +320,7 @@ pub unsafe extern "C" fn fmi3SetInt32(
     nv: usize,
 ) -> i32 {
     // SAFETY: the caller's promises.
-    unsafe { set_values(c, vr, n, values, nv, VarType::Integer, Value::Integer) }
+    unsafe { set_values(c, vr, n, values, Some(nv), VarType::Integer, Value::Integer) }
 }
 
 /// `fmi3SetBoolean`.
@@ -392,11 +332,16 @@ pub unsafe extern "C" fn fmi3SetBoolean(
     c: *mut c_void,
     vr: *const u32,
     n: usize,
-    values: *const bool,
+    values: *const u8,
     nv: usize,
 ) -> i32 {
+    // Read as bytes: any nonzero byte is true (a `bool` other than 0 or 1 would be undefined).
     // SAFETY: the caller's promises.
-    unsafe { set_values(c, vr, n, values, nv, VarType::Boolean, Value::Boolean) }
+    unsafe {
+        set_values(c, vr, n, values, Some(nv), VarType::Boolean, |b| {
+            Value::Boolean(b != 0)
+        })
+    }
 }
 
 /// `fmi3SetString`.
@@ -414,7 +359,7 @@ pub unsafe extern "C" fn fmi3SetString(
 ) -> i32 {
     // SAFETY: the caller's promises; each string is NULL or NUL-terminated.
     unsafe {
-        set_values(c, vr, n, values, nv, VarType::String, |s| {
+        set_values(c, vr, n, values, Some(nv), VarType::String, |s| {
             Value::String(text_or(s, ""))
         })
     }
@@ -452,24 +397,6 @@ pub unsafe extern "C" fn fmi3DoStep(
     };
     // SAFETY: the caller's promise about `c`.
     unsafe { with(c, body) }
-}
-
-/// The FMI 3 functions this unit does not provide (its description says so): an error
-/// naming the function.
-macro_rules! not_provided {
-    ($($name:ident),* $(,)?) => {$(
-        #[doc = concat!("`", stringify!($name), "`: not provided by this unit (an error).")]
-        ///
-        /// # Safety
-        /// `c` is NULL or a live instance.
-        #[no_mangle]
-        pub unsafe extern "C" fn $name(c: *mut c_void) -> i32 {
-            // SAFETY: the caller's promise about `c`.
-            unsafe {
-                with(c, |i| i.error(concat!(stringify!($name), " is not provided by this unit (see its modelDescription.xml)")))
-            }
-        }
-    )*};
 }
 
 not_provided!(

@@ -76,6 +76,10 @@ pub struct Instance {
 /// (a master's floating-point step); otherwise it is refused, never interpolated.
 pub const TICK_TOLERANCE: f64 = 1e-6;
 
+/// The most ticks one communication step may take (5 s of run at 199.6 kHz): a step is
+/// computed before the call returns, so its length is bounded.
+pub const MAX_STEP_TICKS: f64 = 1e6;
+
 impl Instance {
     /// The unit whose resources are in the folder `resources`, checked against the
     /// description's instantiation token `token`.
@@ -177,9 +181,14 @@ impl Instance {
                 Value::Integer(n) => n.into(),
                 _ => return Ok(()),
             };
+            // A variable with a range takes finite values within it; one without (the DAC
+            // command, the controller's readings) takes any value, as the hardware's would
+            // (the stage's DAC clips and flags a non-finite command; a non-finite reading trips
+            // the controller).
+            let bounded = v.min.is_some() || v.max.is_some() || v.causality == Causality::Parameter;
             let out_of_range =
                 !x.is_finite() || v.min.is_some_and(|lo| x < lo) || v.max.is_some_and(|hi| x > hi);
-            if out_of_range && v.causality == Causality::Parameter {
+            if out_of_range && bounded {
                 return Err(format!(
                     "{} = {x} is outside its allowed range {}",
                     v.name,
@@ -194,8 +203,11 @@ impl Instance {
         }
     }
 
-    /// The value at `vr` of type `ty`.
+    /// The value at `vr` of type `ty` (FMI 3's value reference 0 is the time).
     pub fn get(&mut self, vr: u32, ty: VarType) -> Result<Value, Status> {
+        if vr == 0 && ty == VarType::Real && matches!(self.logger, Logger::V3 { .. }) {
+            return Ok(Value::Real(self.time_s()));
+        }
         let checked = self.variable(vr, ty).map(|_| ());
         match checked.and_then(|()| self.model.get(vr)) {
             Ok(v) => Ok(v),
@@ -215,11 +227,17 @@ impl Instance {
         self.strings.clear();
     }
 
-    /// Sets the start time in s (before initialisation).
-    pub fn set_start(&mut self, start_s: f64) {
-        if self.mode == Mode::Instantiated {
-            self.start_s = start_s;
+    /// Sets the start time in s (after instantiation, before initialisation).
+    pub fn set_start(&mut self, start_s: f64) -> Status {
+        if self.mode != Mode::Instantiated {
+            return self
+                .error("the experiment is set up after instantiation, before initialisation");
         }
+        if !start_s.is_finite() {
+            return self.error(&format!("start time {start_s}: not a finite number"));
+        }
+        self.start_s = start_s;
+        Status::Ok
     }
 
     /// The start time in s.
@@ -262,6 +280,11 @@ impl Instance {
         let period = self.model.period_s();
         let n = h_s / period;
         let ticks = n.round();
+        if ticks > MAX_STEP_TICKS {
+            return self.error(&format!(
+                "communication step {h_s:e} s is {ticks:e} ticks: at most {MAX_STEP_TICKS:e} ticks a step"
+            ));
+        }
         if !(ticks >= 1.0 && (n - ticks).abs() <= TICK_TOLERANCE) {
             return self.error(&format!(
                 "communication step {h_s:e} s is not a whole number of ticks of {period:e} s (within {TICK_TOLERANCE:e} of a tick): this unit steps whole servo ticks and does not interpolate"

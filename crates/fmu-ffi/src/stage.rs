@@ -3,7 +3,7 @@
 
 use crate::model::{Model, Value};
 use daq_io::{Backend, Sensor};
-use fmu::variables::{plant_scalars, plant_with, stage, stage_variables, Scalar};
+use fmu::variables::{plant_parameters, plant_with, stage, stage_variables, Scalar};
 use fmu::Variable;
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::model::ModelError;
@@ -35,7 +35,7 @@ struct Built {
 impl StageUnit {
     /// The stage of `plant` with noise seed `seed`, parameters at those values.
     pub fn new(plant: PlantParams, seed: u64) -> Self {
-        let scalars = plant_scalars(&plant);
+        let scalars = plant_parameters(&plant);
         StageUnit {
             vars: stage_variables(&plant, seed),
             base: plant,

@@ -118,7 +118,7 @@ fn range_attrs(v: &Variable) -> String {
     s
 }
 
-const LOG_CATEGORIES: &str = "  <LogCategories>\n    <Category name=\"logStatusError\" description=\"Refused calls and their reasons\"/>\n    <Category name=\"logEvents\" description=\"Trips of the loop\"/>\n  </LogCategories>\n";
+const LOG_CATEGORIES: &str = "  <LogCategories>\n    <Category name=\"logStatusError\" description=\"Refused calls and their reasons\"/>\n  </LogCategories>\n";
 
 fn default_experiment(h: &Header) -> String {
     format!(
@@ -176,7 +176,12 @@ fn fmi2(h: &Header, vars: &[Variable]) -> String {
     }
     x.push_str("  </ModelVariables>\n  <ModelStructure>\n");
     // FMI 2 refers to variables by their 1-based index in ModelVariables.
-    let index = |vr: u32| vars.iter().position(|v| v.vr == vr).map_or(0, |i| i + 1);
+    let index = |vr: u32| {
+        1 + vars
+            .iter()
+            .position(|v| v.vr == vr)
+            .expect("an output depends on variables of its unit")
+    };
     let outputs: Vec<(usize, &Variable)> = vars
         .iter()
         .enumerate()

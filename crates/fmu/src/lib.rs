@@ -44,6 +44,8 @@ pub const DEPLOYMENT_FILE: &str = "deployment.toml";
 pub fn token(unit: &[u8], deployment: Option<&[u8]>) -> String {
     use sha2::{Digest, Sha256};
     let mut h = Sha256::new();
+    // Length-prefixed, so the two files' boundary is part of what is hashed.
+    h.update((unit.len() as u64).to_le_bytes());
     h.update(unit);
     if let Some(d) = deployment {
         h.update(d);

@@ -194,6 +194,18 @@ pub fn plant_scalars(plant: &PlantParams) -> Vec<(String, Scalar)> {
     out
 }
 
+/// The plant scalars a stage unit offers as parameters: every one of [`plant_scalars`] but the
+/// servo rate, which fixes the unit's tick (its description's step).
+pub fn plant_parameters(plant: &PlantParams) -> Vec<(String, Scalar)> {
+    plant_scalars(plant)
+        .into_iter()
+        .filter(|(key, _)| key != "timing.servo_rate_hz")
+        .collect()
+}
+
+/// The largest external force on the tool a stage unit takes, N (either sign).
+pub const MAX_FORCE_N: f64 = 1e3;
+
 /// `base` with the scalars `values` (keys as [`plant_scalars`] gives them) put in.
 pub fn plant_with(base: &PlantParams, values: &[(String, Scalar)]) -> Result<PlantParams, String> {
     let mut value = serde_json::to_value(base).map_err(|e| e.to_string())?;
@@ -226,13 +238,18 @@ pub fn stage_variables(plant: &PlantParams, seed: u64) -> Vec<Variable> {
             "DAC command held over the step, V",
         )
         .start(Start::Real(0.0)),
-        real(
-            "force_n",
-            FORCE_N,
-            Causality::Input,
-            "External force on the tool (cutting, a disturbance), N, positive away from the workpiece",
-        )
-        .start(Start::Real(0.0)),
+        Variable {
+            min: Some(-MAX_FORCE_N),
+            max: Some(MAX_FORCE_N),
+            range: Some(format!("[-{MAX_FORCE_N:e}, {MAX_FORCE_N:e}] N")),
+            ..real(
+                "force_n",
+                FORCE_N,
+                Causality::Input,
+                "External force on the tool (cutting, a disturbance), N, positive away from the workpiece",
+            )
+            .start(Start::Real(0.0))
+        },
         real(
             "gap_v",
             GAP_V,
@@ -279,7 +296,7 @@ pub fn stage_variables(plant: &PlantParams, seed: u64) -> Vec<Variable> {
             "SHA-256 of the plant's dynamics: give it to the controller unit's plant_sha256 to check its deployment was made for this stage",
         ),
     ];
-    for (i, (key, value)) in plant_scalars(plant).into_iter().enumerate() {
+    for (i, (key, value)) in plant_parameters(plant).into_iter().enumerate() {
         let name = format!("plant.{key}");
         let vr = FIRST_PLANT_PARAMETER + i as u32;
         let limit = limit_of(&key);
@@ -329,13 +346,18 @@ pub fn controller_variables() -> Vec<Variable> {
             "Accelerometer reading of this tick, V",
             Start::Real(0.0),
         ),
-        input(
-            "reading_flags",
-            READING_FLAGS,
-            VarType::Integer,
-            "The reading's contract flags (the stage unit's flags)",
-            Start::Integer(0),
-        ),
+        Variable {
+            min: Some(0.0),
+            max: Some(255.0),
+            range: Some("[0, 255] (the reading's flag bits)".into()),
+            ..input(
+                "reading_flags",
+                READING_FLAGS,
+                VarType::Integer,
+                "The reading's contract flags (the stage unit's flags)",
+                Start::Integer(0),
+            )
+        },
         output(
             "dac_v",
             DAC_V,
@@ -392,6 +414,7 @@ mod tests {
         let plant = PlantParams::heavy();
         let scalars = plant_scalars(&plant);
         assert!(scalars.len() > 40, "{} scalars", scalars.len());
+        assert_eq!(plant_parameters(&plant).len(), scalars.len() - 1);
         assert_eq!(
             plant_with(&PlantParams::default(), &scalars).unwrap(),
             plant
@@ -410,6 +433,7 @@ mod tests {
             .find(|v| v.name == "plant.noise.sensor")
             .unwrap();
         assert_eq!(noise.ty, VarType::Boolean);
+        assert!(vars.iter().all(|v| v.name != "plant.timing.servo_rate_hz"));
         let mut vrs: Vec<u32> = vars.iter().map(|v| v.vr).collect();
         vrs.sort_unstable();
         vrs.dedup();

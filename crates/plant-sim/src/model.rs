@@ -337,7 +337,8 @@ impl PlantModel {
         }
         let aa = p.adc.anti_alias_hz;
         if aa != 0.0 {
-            within("adc.anti_alias_hz", aa, 1.0, 1e8, "0 (none) or [1, 1e8] Hz")?;
+            let range = limit_of("adc.anti_alias_hz").map_or("", |l| l.range);
+            within("adc.anti_alias_hz", aa, 1.0, 1e8, range)?;
         }
         for (key, value, lo, hi, range) in p.modes.ranges() {
             within(key, value, lo, hi, range)?;

@@ -1,12 +1,10 @@
-//! `fmi-import STAGE.fmu CONTROLLER.fmu TICKS`: loads both units with the Rust `fmi` crate (FMI
-//! 2.0 or 3.0, as their descriptions say), closes the loop in its order (the stage's reading k
+//! `fmi-import STAGE.fmu CONTROLLER.fmu TICKS`: loads both FMI 2.0 units with the Rust `fmi`
+//! crate, closes the loop in its order (the stage's reading k
 //! → the controller → command k → the stage for tick k) and prints the loop's digest as
 //! `servo run --digest` computes it (FNV-1a over each tick's index, readings and command).
 
 use fmi::fmi2::import::Fmi2Import;
 use fmi::fmi2::instance::{CoSimulation as _, Common as _};
-use fmi::fmi3::import::Fmi3Import;
-use fmi::fmi3::{CoSimulation as _, Common as _, Fmi3Model as _, GetSet as _};
 use fmi::schema::{traits::FmiModelDescription as _, MajorVersion};
 use fmi::traits::FmiImport as _;
 use std::process::ExitCode;
@@ -30,20 +28,6 @@ fn vrs2(import: &Fmi2Import, names: &[&str]) -> Result<Vec<u32>, Fail> {
             vars.iter()
                 .find(|v| v.name == *n)
                 .map(|v| v.value_reference)
-                .ok_or_else(|| format!("no variable {n}").into())
-        })
-        .collect()
-}
-
-/// The value references of `names` in an FMI 3 description.
-fn vrs3(import: &Fmi3Import, names: &[&str]) -> Result<Vec<u32>, Fail> {
-    let vars = &import.model_description().model_variables;
-    names
-        .iter()
-        .map(|n| {
-            vars.iter_abstract()
-                .find(|v| v.name() == *n)
-                .map(|v| v.value_reference())
                 .ok_or_else(|| format!("no variable {n}").into())
         })
         .collect()
@@ -94,47 +78,6 @@ fn loop2(stage: &str, controller: &str, ticks: u64) -> Result<u64, Fail> {
     Ok(digest)
 }
 
-fn loop3(stage: &str, controller: &str, ticks: u64) -> Result<u64, Fail> {
-    let (si, ci): (Fmi3Import, Fmi3Import) = (
-        fmi::import::from_path(stage)?,
-        fmi::import::from_path(controller)?,
-    );
-    let h = step_size(
-        si.model_description()
-            .default_experiment
-            .as_ref()
-            .and_then(|d| d.step_size),
-    )?;
-    let (s_out, s_in) = (vrs3(&si, &["gap_v", "accel_v"])?, vrs3(&si, &["dac_v"])?);
-    let (c_in, c_out) = (vrs3(&ci, &["gap_v", "accel_v"])?, vrs3(&ci, &["dac_v"])?);
-    let mut s = si.instantiate_cs("stage", false, false, false, false, &[])?;
-    let mut c = ci.instantiate_cs("controller", false, false, false, false, &[])?;
-    for u in [&mut s, &mut c] {
-        u.enter_initialization_mode(None, 0.0, None)?;
-        u.exit_initialization_mode()?;
-    }
-    let (mut reading, mut command) = ([0.0; 2], [0.0; 1]);
-    let mut digest = 0xcbf29ce484222325u64;
-    let (mut a, mut b, mut e, mut last) = (false, false, false, 0.0);
-    for k in 0..ticks {
-        s.get_float64(&s_out, &mut reading)?;
-        c.set_float64(&c_in, &reading)?;
-        c.get_float64(&c_out, &mut command)?;
-        digest = fnv(
-            fnv(
-                fnv(fnv(digest, k), reading[0].to_bits()),
-                reading[1].to_bits(),
-            ),
-            command[0].to_bits(),
-        );
-        s.set_float64(&s_in, &command)?;
-        let t = k as f64 * h;
-        c.do_step(t, h, true, &mut a, &mut b, &mut e, &mut last)?;
-        s.do_step(t, h, true, &mut a, &mut b, &mut e, &mut last)?;
-    }
-    Ok(digest)
-}
-
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [stage, controller, ticks] = args.as_slice() else {
@@ -146,8 +89,9 @@ fn main() -> ExitCode {
         let version = fmi::import::peek_descr_path(stage)?.major_version()?;
         Ok(match version {
             MajorVersion::FMI2 => (loop2(stage, controller, ticks)?, "2.0"),
-            MajorVersion::FMI3 => (loop3(stage, controller, ticks)?, "3.0"),
-            other => return Err(format!("FMI version {other:?}").into()),
+            // fmi-schema 0.8 reads an FMI 3.0 BaseUnit's ampere exponent as `a` where the
+            // schema has `A`: it refuses every description with an electrical unit.
+            other => return Err(format!("FMI version {other:?}: this check reads FMI 2.0 units (fmi 0.8 cannot read our FMI 3.0 descriptions)").into()),
         })
     };
     match run() {

@@ -47,8 +47,8 @@ enum Unit {
     Controller {
         /// Deployment file.
         deployment: PathBuf,
-        /// The default experiment's length in s.
-        #[arg(long, value_parser = crate::args::finite, default_value_t = 0.1)]
+        /// The default experiment's length in s (positive).
+        #[arg(long, value_parser = positive, default_value_t = 0.1)]
         duration: f64,
         #[command(flatten)]
         #[allow(missing_docs)]
@@ -84,6 +84,14 @@ impl From<Version> for FmiVersion {
             Version::V2 => FmiVersion::V2,
             Version::V3 => FmiVersion::V3,
         }
+    }
+}
+
+/// A positive number of seconds.
+fn positive(s: &str) -> Result<f64, String> {
+    match crate::args::finite(s)? {
+        x if x > 0.0 => Ok(x),
+        x => Err(format!("{x}: a duration in s greater than 0")),
     }
 }
 
