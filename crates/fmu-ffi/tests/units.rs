@@ -266,3 +266,34 @@ fn a_deployment_the_runtime_refuses_is_refused_at_instantiation_with_its_message
         "{logged}"
     );
 }
+
+#[test]
+fn a_controller_built_early_is_checked_again_when_the_stages_plant_is_given() {
+    let heavy = run_config::Loaded {
+        config: run_config::RunConfig {
+            plant: PlantParams::heavy(),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let plan = runner::Plan::new(&heavy).unwrap();
+    let (deployment, text) = runner::deploy::deployment_file(&plan).unwrap();
+    let files = controller_files(FmiVersion::V2, &text, deployment.period_s(), 0.1);
+    let dir = tempfile::tempdir().unwrap();
+    let token = resources(dir.path(), &files);
+    let unit = Fmi2(fmi2_unit(dir.path(), &token));
+    let light = run_config::made_for_plant(&PlantParams::default()).plant_sha256;
+    let light = CString::new(light).unwrap();
+    // SAFETY: a live instance; one reference, one string.
+    unsafe {
+        assert_eq!(fmi2SetupExperiment(unit.0, 0, 0.0, 0.0, 0, 0.0), OK);
+        assert_eq!(fmi2EnterInitializationMode(unit.0), OK);
+        // The command read during initialisation builds the loop early ...
+        assert_eq!(unit.set(&[controller::GAP_V], &[1e-3]), OK);
+        assert_eq!(unit.get(&[controller::DAC_V]).len(), 1);
+        // ... and the light stage's plant given afterwards is still checked.
+        let vr = [controller::PLANT_SHA256];
+        assert_eq!(fmi2SetString(unit.0, vr.as_ptr(), 1, &light.as_ptr()), OK);
+        assert_eq!(fmi2ExitInitializationMode(unit.0), ERROR);
+    }
+}
