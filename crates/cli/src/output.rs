@@ -58,9 +58,14 @@ pub enum CliError {
     /// Starting or supervising the HIL processes.
     #[error("{0}")]
     Processes(String),
-    /// Packing an FMI unit.
-    #[error(transparent)]
-    Fmu(#[from] fmu::PackageError),
+    /// The library an FMI unit carries cannot be read.
+    #[error("cannot read the FMU library {}: {source} (build it with `cargo build --release -p fmu-ffi`, or name it with FTS_FMU_LIBRARY)", path.display())]
+    FmuLibrary {
+        /// The library's path.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
     /// A HIL child process failed (it printed why); the command exits with its code.
     #[error("servo {name} exited with {code}")]
     Child {

@@ -14,49 +14,27 @@ use fts_fmu::fmi2::*;
 use fts_fmu::fmi3::*;
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::{PlantParams, Simulator};
-use std::ffi::{c_void, CString};
+use std::ffi::c_void;
 use std::hint::black_box;
+
+#[path = "../tests/support.rs"]
+mod support;
 
 /// A started stage unit of `version` whose resources are in `dir`.
 fn unit(dir: &std::path::Path, version: FmiVersion) -> *mut c_void {
-    let files = stage_files(version, &PlantParams::default(), 1, 1.0);
-    std::fs::write(dir.join(fmu::UNIT_FILE), &files.unit).unwrap();
-    let token = CString::new(fmu::token(files.unit.as_bytes(), None)).unwrap();
-    // SAFETY: NUL-terminated strings; no callbacks; the instance is live for the bench.
+    let token = support::resources(dir, &stage_files(version, &PlantParams::default(), 1, 1.0));
+    // SAFETY: a live instance, started once.
     unsafe {
         match version {
             FmiVersion::V2 => {
-                let uri = CString::new(format!("file://{}", dir.display())).unwrap();
-                let c = fmi2Instantiate(
-                    c"b".as_ptr(),
-                    1,
-                    token.as_ptr(),
-                    uri.as_ptr(),
-                    std::ptr::null(),
-                    0,
-                    0,
-                );
+                let c = support::fmi2_unit(dir, &token);
                 assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), 0);
                 assert_eq!(fmi2EnterInitializationMode(c), 0);
                 assert_eq!(fmi2ExitInitializationMode(c), 0);
                 c
             }
             FmiVersion::V3 => {
-                let path = CString::new(format!("{}/", dir.display())).unwrap();
-                let c = fmi3InstantiateCoSimulation(
-                    c"b".as_ptr(),
-                    token.as_ptr(),
-                    path.as_ptr(),
-                    false,
-                    false,
-                    false,
-                    false,
-                    std::ptr::null(),
-                    0,
-                    std::ptr::null_mut(),
-                    None,
-                    std::ptr::null(),
-                );
+                let c = support::fmi3_unit(dir, &token, None);
                 assert_eq!(
                     fmi3EnterInitializationMode(c, false, 0.0, 0.0, false, 0.0),
                     0

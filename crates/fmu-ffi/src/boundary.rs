@@ -1,16 +1,42 @@
 //! What every FMI entry point shares: panics caught at the boundary, the instance pointer
 //! checked, C strings read, the resource folder found.
 
-use crate::instance::{Instance, Status};
+use crate::instance::{log_with, Instance, Logger, Status};
 use crate::model::Value;
 use fmu::VarType;
-use std::ffi::{c_char, c_void, CStr};
+use std::ffi::{c_char, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
 /// Runs `f`, `on_panic` if it panics (a bug; nothing unwinds into the importer).
 pub fn guarded<T>(on_panic: T, f: impl FnOnce() -> T) -> T {
     catch_unwind(AssertUnwindSafe(f)).unwrap_or(on_panic)
+}
+
+/// Frees the instance `c` (NULL is ignored).
+///
+/// # Safety
+/// `c` is NULL or an instance made by an instantiate function, not used again.
+pub unsafe fn free(c: *mut c_void) {
+    if !c.is_null() {
+        // SAFETY: an instance from Box::into_raw at instantiation, given back once.
+        drop(unsafe { Box::from_raw(c.cast::<Instance>()) });
+    }
+}
+
+/// The instance `instance`, or NULL with `logger` told why it was not made.
+pub fn instance_or_refusal(
+    name: &str,
+    instance: Result<Instance, (Logger, String)>,
+) -> *mut c_void {
+    match instance {
+        Ok(i) => Box::into_raw(Box::new(i)).cast(),
+        Err((logger, message)) => {
+            let name = CString::new(name.replace('\0', "")).unwrap_or_default();
+            log_with(&logger, &name, Status::Error, "logStatusError", &message);
+            std::ptr::null_mut()
+        }
+    }
 }
 
 /// Runs `f` on the instance `c`: [`Status::Fatal`] for NULL or a panic.
@@ -176,14 +202,14 @@ mod tests {
     fn resource_uris_name_their_folders() {
         let p = |u: &str| resources_from_uri(u).unwrap();
         assert_eq!(
-            p("file:///tmp/a%20b/resources"),
-            PathBuf::from("/tmp/a b/resources")
+            p("file:///srv/units/a%20b/resources"),
+            PathBuf::from("/srv/units/a b/resources")
         );
         assert_eq!(
-            p("file:/tmp/x/resources/"),
-            PathBuf::from("/tmp/x/resources/")
+            p("file:/srv/x/resources/"),
+            PathBuf::from("/srv/x/resources/")
         );
-        assert_eq!(p("file://localhost/tmp/x"), PathBuf::from("/tmp/x"));
+        assert_eq!(p("file://localhost/srv/x"), PathBuf::from("/srv/x"));
         assert!(resources_from_uri("http://example.com/x").is_err());
     }
 }

@@ -1,12 +1,13 @@
 //! The FMI 2.0 co-simulation functions.
 
 use crate::boundary::{
-    get_values, guarded, not_provided, resources_from_uri, set_values, text_or, with,
+    free, get_values, guarded, instance_or_refusal, not_provided, resources_from_uri, set_values,
+    text_or, with,
 };
-use crate::instance::{log_with, Fmi2Logger, Instance, Logger, Status};
+use crate::instance::{Fmi2Logger, Instance, Logger, Status};
 use crate::model::Value;
 use fmu::VarType;
-use std::ffi::{c_char, c_void, CString};
+use std::ffi::{c_char, c_void};
 
 /// `fmi2CallbackFunctions`.
 #[repr(C)]
@@ -56,27 +57,20 @@ pub unsafe extern "C" fn fmi2Instantiate(
         };
         // SAFETY: NULL or NUL-terminated (the caller's promise).
         let name = unsafe { text_or(instance_name, "fts") };
-        let fail = |logger: &Logger, message: &str| {
-            let name = CString::new(name.as_str()).unwrap_or_default();
-            log_with(logger, &name, Status::Error, "logStatusError", message);
-            std::ptr::null_mut()
-        };
-        if fmu_type != 1 {
-            return fail(
-                &logger,
-                "this unit is for co-simulation (fmi2CoSimulation): it has no model-exchange interface",
-            );
-        }
         // SAFETY: NULL or NUL-terminated (the caller's promise).
         let (guid, uri) = unsafe { (text_or(guid, ""), text_or(resource_location, "")) };
-        let resources = match resources_from_uri(&uri) {
-            Ok(p) => p,
-            Err(e) => return fail(&logger, &e),
+        let made = if fmu_type != 1 {
+            Err((
+                logger,
+                "this unit is for co-simulation (fmi2CoSimulation): it has no model-exchange interface".to_owned(),
+            ))
+        } else {
+            match resources_from_uri(&uri) {
+                Ok(resources) => Instance::new(&name, &guid, &resources, logger, logging_on != 0),
+                Err(e) => Err((logger, e)),
+            }
         };
-        match Instance::new(&name, &guid, &resources, logger, logging_on != 0) {
-            Ok(i) => Box::into_raw(Box::new(i)).cast(),
-            Err((logger, e)) => fail(&logger, &e),
-        }
+        instance_or_refusal(&name, made)
     })
 }
 
@@ -86,10 +80,8 @@ pub unsafe extern "C" fn fmi2Instantiate(
 /// `c` is NULL or an instance of `fmi2Instantiate`, not used again.
 #[no_mangle]
 pub unsafe extern "C" fn fmi2FreeInstance(c: *mut c_void) {
-    if !c.is_null() {
-        // SAFETY: an instance from Box::into_raw in fmi2Instantiate, given back once.
-        drop(unsafe { Box::from_raw(c.cast::<Instance>()) });
-    }
+    // SAFETY: the caller's promise about `c`.
+    unsafe { free(c) }
 }
 
 /// `fmi2SetDebugLogging`: categories are not told apart (errors are always logged).
@@ -104,12 +96,7 @@ pub unsafe extern "C" fn fmi2SetDebugLogging(
     _categories: *const *const c_char,
 ) -> i32 {
     // SAFETY: the caller's promise about `c`.
-    unsafe {
-        with(c, |i| {
-            i.set_logging(logging_on != 0);
-            Status::Ok
-        })
-    }
+    unsafe { with(c, |i| i.set_logging(logging_on != 0)) }
 }
 
 /// `fmi2SetupExperiment`: the start time (a tolerance and stop time are not used).

@@ -1,6 +1,8 @@
 //! The FMI 3.0 co-simulation functions.
 
-use crate::boundary::{get_values, guarded, not_provided, set_values, text_or, with};
+use crate::boundary::{
+    free, get_values, guarded, instance_or_refusal, not_provided, set_values, text_or, with,
+};
 use crate::instance::{log_with, Fmi3Logger, Instance, Logger, Status};
 use crate::model::Value;
 use fmu::VarType;
@@ -46,20 +48,13 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
                 text_or(resource_path, ""),
             )
         };
-        if path.is_empty() {
-            let name = CString::new(name).unwrap_or_default();
+        let made = if path.is_empty() {
             let message = "resourcePath is empty: the unit's resources folder is needed";
-            log_with(&logger, &name, Status::Error, "logStatusError", message);
-            return std::ptr::null_mut();
-        }
-        match Instance::new(&name, &token, &PathBuf::from(path), logger, logging_on) {
-            Ok(i) => Box::into_raw(Box::new(i)).cast(),
-            Err((logger, e)) => {
-                let name = CString::new(name).unwrap_or_default();
-                log_with(&logger, &name, Status::Error, "logStatusError", &e);
-                std::ptr::null_mut()
-            }
-        }
+            Err((logger, message.to_owned()))
+        } else {
+            Instance::new(&name, &token, &PathBuf::from(path), logger, logging_on)
+        };
+        instance_or_refusal(&name, made)
     })
 }
 
@@ -103,10 +98,8 @@ pub extern "C" fn fmi3InstantiateScheduledExecution() -> *mut c_void {
 /// `c` is NULL or an instance of `fmi3InstantiateCoSimulation`, not used again.
 #[no_mangle]
 pub unsafe extern "C" fn fmi3FreeInstance(c: *mut c_void) {
-    if !c.is_null() {
-        // SAFETY: an instance from Box::into_raw at instantiation, given back once.
-        drop(unsafe { Box::from_raw(c.cast::<Instance>()) });
-    }
+    // SAFETY: the caller's promise about `c`.
+    unsafe { free(c) }
 }
 
 /// `fmi3SetDebugLogging`: categories are not told apart (errors are always logged).
@@ -121,12 +114,7 @@ pub unsafe extern "C" fn fmi3SetDebugLogging(
     _categories: *const *const c_char,
 ) -> i32 {
     // SAFETY: the caller's promise about `c`.
-    unsafe {
-        with(c, |i| {
-            i.set_logging(logging_on);
-            Status::Ok
-        })
-    }
+    unsafe { with(c, |i| i.set_logging(logging_on)) }
 }
 
 /// `fmi3EnterInitializationMode` at `start_time` (a tolerance and stop time are not used).

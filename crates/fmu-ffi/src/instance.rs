@@ -138,8 +138,9 @@ impl Instance {
     }
 
     /// Turns logging of the non-error categories on or off.
-    pub fn set_logging(&mut self, on: bool) {
+    pub fn set_logging(&mut self, on: bool) -> Status {
         self.logging_on = on;
+        Status::Ok
     }
 
     fn variable(&self, vr: u32, ty: VarType) -> Result<&fmu::Variable, String> {

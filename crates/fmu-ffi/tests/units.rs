@@ -3,71 +3,20 @@
 //! arrive and refuses readings changed after its tick; resources of another description are
 //! refused.
 
+use crate::support::{fmi2_unit, fmi3_unit, resources};
 use daq_io::Backend;
 use fmu::unit::{controller_files, stage_files};
 use fmu::variables::{controller, stage};
-use fmu::{FmiVersion, UnitFiles};
+use fmu::FmiVersion;
 use fts_fmu::fmi2::*;
 use fts_fmu::fmi3::*;
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::{PlantParams, Simulator};
 use rand::{Rng, SeedableRng};
 use std::ffi::{c_void, CString};
-use std::path::Path;
 
 const OK: i32 = 0;
 const ERROR: i32 = 3;
-
-/// Writes `files`' resources into `dir` and returns the instantiation token.
-fn resources(dir: &Path, files: &UnitFiles) -> String {
-    std::fs::write(dir.join(fmu::UNIT_FILE), &files.unit).unwrap();
-    if let Some(d) = &files.deployment {
-        std::fs::write(dir.join(fmu::DEPLOYMENT_FILE), d).unwrap();
-    }
-    fmu::token(
-        files.unit.as_bytes(),
-        files.deployment.as_deref().map(str::as_bytes),
-    )
-}
-
-fn fmi2_unit(dir: &Path, token: &str) -> *mut c_void {
-    let uri = CString::new(format!("file://{}", dir.display())).unwrap();
-    let token = CString::new(token).unwrap();
-    // SAFETY: NUL-terminated strings; no callbacks.
-    unsafe {
-        fmi2Instantiate(
-            c"u".as_ptr(),
-            1,
-            token.as_ptr(),
-            uri.as_ptr(),
-            std::ptr::null(),
-            0,
-            0,
-        )
-    }
-}
-
-fn fmi3_unit(dir: &Path, token: &str) -> *mut c_void {
-    let path = CString::new(format!("{}/", dir.display())).unwrap();
-    let token = CString::new(token).unwrap();
-    // SAFETY: NUL-terminated strings; no callbacks.
-    unsafe {
-        fmi3InstantiateCoSimulation(
-            c"u".as_ptr(),
-            token.as_ptr(),
-            path.as_ptr(),
-            false,
-            false,
-            false,
-            false,
-            std::ptr::null(),
-            0,
-            std::ptr::null_mut(),
-            None,
-            std::ptr::null(),
-        )
-    }
-}
 
 /// FMI 2 calls on a unit (each returns its status).
 struct Fmi2(*mut c_void);
@@ -112,7 +61,7 @@ fn the_stage_unit_with_a_force_steps_as_the_simulator_does_bit_for_bit() {
     let files = stage_files(FmiVersion::V3, &plant, seed, 0.1);
     let dir = tempfile::tempdir().unwrap();
     let token = resources(dir.path(), &files);
-    let unit = fmi3_unit(dir.path(), &token);
+    let unit = fmi3_unit(dir.path(), &token, None);
     assert!(!unit.is_null());
     let mut sim = Simulator::new(&plant, seed, &CuttingProfile::None).unwrap();
     let first = sim.initial();
@@ -206,7 +155,7 @@ fn resources_of_another_description_are_refused() {
     let other = fmu::token(b"kind = \"stage\"\n", None);
     assert_ne!(token, other);
     assert!(fmi2_unit(dir.path(), &other).is_null());
-    assert!(fmi3_unit(dir.path(), &other).is_null());
+    assert!(fmi3_unit(dir.path(), &other, None).is_null());
     let unit = Fmi2(fmi2_unit(dir.path(), &token));
     assert!(!unit.0.is_null());
 }
@@ -240,25 +189,7 @@ fn a_deployment_the_runtime_refuses_is_refused_at_instantiation_with_its_message
     let files = controller_files(FmiVersion::V3, &bad, deployment.period_s(), 0.1);
     let dir = tempfile::tempdir().unwrap();
     let token = resources(dir.path(), &files);
-    let path = CString::new(format!("{}/", dir.path().display())).unwrap();
-    let token = CString::new(token).unwrap();
-    // SAFETY: NUL-terminated strings; a logger that reads the message only.
-    let unit = unsafe {
-        fmi3InstantiateCoSimulation(
-            c"u".as_ptr(),
-            token.as_ptr(),
-            path.as_ptr(),
-            false,
-            false,
-            false,
-            false,
-            std::ptr::null(),
-            0,
-            std::ptr::null_mut(),
-            Some(remember),
-            std::ptr::null(),
-        )
-    };
+    let unit = fmi3_unit(dir.path(), &token, Some(remember));
     assert!(unit.is_null());
     let logged = LOGGED.lock().unwrap().join("\n");
     assert!(

@@ -12,7 +12,7 @@ pub mod unit;
 pub mod units;
 pub mod variables;
 
-pub use package::{write_fmu, PackageError, UnitFiles};
+pub use package::{write_archive, UnitFiles};
 pub use variables::{Causality, Kind, Start, VarType, Variable};
 
 /// The FMI version of a unit.

@@ -1,9 +1,8 @@
 //! The `.fmu` archive: the description, the x86-64 Linux binary under the model identifier's
-//! name and the resources libfts_fmu reads, written whole or not at all.
+//! name and the resources libfts_fmu reads.
 
 use crate::{FmiVersion, DEPLOYMENT_FILE, UNIT_FILE};
 use std::io::Write;
-use std::path::{Path, PathBuf};
 
 /// What goes into a unit's archive besides its binary.
 #[derive(Debug, Clone)]
@@ -20,73 +19,15 @@ pub struct UnitFiles {
     pub deployment: Option<String>,
 }
 
-/// Why an archive was not written.
-#[derive(Debug, thiserror::Error)]
-pub enum PackageError {
-    /// The library to carry cannot be read.
-    #[error("cannot read the FMU library {}: {source} (build it with `cargo build --release -p fmu-ffi`, or name it with FTS_FMU_LIBRARY)", path.display())]
-    Library {
-        /// The library's path.
-        path: PathBuf,
-        /// Cause.
-        source: std::io::Error,
-    },
-    /// The archive cannot be written.
-    #[error("cannot write {}: {source}", path.display())]
-    Write {
-        /// The archive's path.
-        path: PathBuf,
-        /// Cause.
-        source: std::io::Error,
-    },
-}
-
-/// Writes the archive of `files` with the shared library `library` to `out` and returns its
-/// size in bytes. The archive is written beside `out` and moved into place when whole; an
-/// existing `out` is kept (an error) unless `overwrite`.
-pub fn write_fmu(
-    out: &Path,
+/// Writes the archive of `files` with the shared library `binary` (its bytes) to `out`:
+/// `modelDescription.xml`, the binary under the model identifier's name in the platform's
+/// folder, the resources.
+pub fn write_archive(
+    out: impl std::io::Write + std::io::Seek,
     files: &UnitFiles,
-    library: &Path,
-    overwrite: bool,
-) -> Result<u64, PackageError> {
-    let binary = std::fs::read(library).map_err(|source| PackageError::Library {
-        path: library.to_owned(),
-        source,
-    })?;
-    let write_err = |source| PackageError::Write {
-        path: out.to_owned(),
-        source,
-    };
-    if !overwrite && out.exists() {
-        return Err(write_err(std::io::Error::other(
-            "it exists: not overwritten (pass --overwrite to replace it)",
-        )));
-    }
-    let mut partial = out.as_os_str().to_owned();
-    partial.push(format!(".{}.partial", std::process::id()));
-    let partial = PathBuf::from(partial);
-    let written = archive(&partial, files, &binary).and_then(|()| {
-        if overwrite {
-            std::fs::rename(&partial, out)
-        } else {
-            // A hard link never replaces an existing file: a file made meanwhile is kept.
-            std::fs::hard_link(&partial, out).and_then(|()| std::fs::remove_file(&partial))
-        }
-    });
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&partial);
-        return Err(write_err(e));
-    }
-    std::fs::metadata(out).map(|m| m.len()).map_err(write_err)
-}
-
-fn archive(path: &Path, files: &UnitFiles, binary: &[u8]) -> std::io::Result<()> {
-    let file = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(path)?;
-    let mut zip = zip::ZipWriter::new(std::io::BufWriter::new(file));
+    binary: &[u8],
+) -> std::io::Result<()> {
+    let mut zip = zip::ZipWriter::new(out);
     let options = zip::write::SimpleFileOptions::default()
         .compression_method(zip::CompressionMethod::Stored)
         .unix_permissions(0o644);

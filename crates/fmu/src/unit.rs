@@ -51,24 +51,14 @@ pub struct Resources {
     pub deployment: Option<String>,
 }
 
+/// The bytes of the resource `path` (a regular file of at most [`MAX_RESOURCE_BYTES`]; None when
+/// it is not there).
 fn read_bounded(path: &Path) -> Result<Option<Vec<u8>>, String> {
-    use std::io::Read;
-    let file = match std::fs::File::open(path) {
-        Ok(f) => f,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(format!("{}: {e}", path.display())),
-    };
-    let mut bytes = Vec::new();
-    file.take(MAX_RESOURCE_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    if bytes.len() as u64 > MAX_RESOURCE_BYTES {
-        return Err(format!(
-            "{}: larger than {MAX_RESOURCE_BYTES} bytes",
-            path.display()
-        ));
+    match daq_io::input_file::read_regular(path, MAX_RESOURCE_BYTES) {
+        Ok(bytes) => Ok(Some(bytes)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(format!("{}: {e}", path.display())),
     }
-    Ok(Some(bytes))
 }
 
 /// Reads the resources in the folder `dir` and checks them against the instantiation token

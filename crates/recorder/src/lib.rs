@@ -30,7 +30,9 @@ pub use error::{Kept, RecordError};
 pub use frame::{Frame, Message, Telemetry, Truth};
 pub use index::visit_indexed;
 pub use overview::{Overview, OverviewBin, Signals, OVERVIEW_PERIOD_NS};
-pub use placement::{check_target, create_private, partial_path, partial_path_of, Overwrite};
+pub use placement::{
+    check_target, create_private, partial_path, partial_path_of, publish, Overwrite,
+};
 pub use reader::{
     fingerprint, read, stream, BadRecord, FileState, ReadError, ReadReport, Recording, Visit,
     ENVIRONMENT_RECORDS,

@@ -72,11 +72,7 @@ pub fn partial_path_of(path: &Path, pid: u32) -> PathBuf {
 
 /// Moves the finished `partial` file to `target`: without replacing an existing one (a hard
 /// link fails if `target` exists, atomically) unless `overwrite` is `Replace`.
-pub(crate) fn publish(
-    partial: &Path,
-    target: &Path,
-    overwrite: Overwrite,
-) -> Result<(), RecordError> {
+pub fn publish(partial: &Path, target: &Path, overwrite: Overwrite) -> Result<(), RecordError> {
     let io = |source| RecordError::Io {
         path: target.to_owned(),
         source,

@@ -48,7 +48,7 @@ enum Unit {
         /// Deployment file.
         deployment: PathBuf,
         /// The default experiment's length in s (positive).
-        #[arg(long, value_parser = positive, default_value_t = 0.1)]
+        #[arg(long, value_parser = crate::args::positive, default_value_t = 0.1)]
         duration: f64,
         #[command(flatten)]
         #[allow(missing_docs)]
@@ -84,14 +84,6 @@ impl From<Version> for FmiVersion {
             Version::V2 => FmiVersion::V2,
             Version::V3 => FmiVersion::V3,
         }
-    }
-}
-
-/// A positive number of seconds.
-fn positive(s: &str) -> Result<f64, String> {
-    match crate::args::finite(s)? {
-        x if x > 0.0 => Ok(x),
-        x => Err(format!("{x}: a duration in s greater than 0")),
     }
 }
 
@@ -163,8 +155,41 @@ impl FmuCmd {
     }
 }
 
+/// The largest library a unit carries, bytes.
+const MAX_LIBRARY_BYTES: u64 = 256 << 20;
+
 fn write(files: &UnitFiles, out: &OutArgs) -> Result<ExitCode, CliError> {
-    let bytes = fmu::write_fmu(&out.out, files, &library(), out.overwrite)?;
+    let library = library();
+    let binary =
+        daq_io::input_file::read_regular(&library, MAX_LIBRARY_BYTES).map_err(|source| {
+            CliError::FmuLibrary {
+                path: library,
+                source,
+            }
+        })?;
+    // Placed as a recording is: written privately beside the target, moved into place whole,
+    // an existing file kept unless --overwrite.
+    let overwrite = recorder::Overwrite::from_flag(out.overwrite);
+    recorder::check_target(&out.out, overwrite).map_err(runner::RunError::from)?;
+    let partial = recorder::partial_path(&out.out);
+    let io = |source| CliError::Write {
+        path: out.out.clone(),
+        source,
+    };
+    let written = recorder::create_private(&partial).and_then(|file| {
+        let mut file = std::io::BufWriter::new(file);
+        fmu::write_archive(&mut file, files, &binary)?;
+        file.into_inner().map_err(|e| e.into_error())?.sync_all()
+    });
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&partial);
+        return Err(io(e));
+    }
+    if let Err(e) = recorder::publish(&partial, &out.out, overwrite) {
+        let _ = std::fs::remove_file(&partial);
+        return Err(runner::RunError::from(e).into());
+    }
+    let bytes = std::fs::metadata(&out.out).map_err(io)?.len();
     let version = match files.version {
         FmiVersion::V2 => "2.0",
         FmiVersion::V3 => "3.0",
