@@ -99,6 +99,27 @@ impl ToolPath {
         self.contact(r_m, theta_rad).map(|c| c.tip_height_m)
     }
 
+    /// The height error (m toward the tool; NaN without contact) that tool-setting errors
+    /// leave at `(r_m, theta_rad)` on the part: the tool set `centre_height_m` above the
+    /// spindle axis and `x_offset_m` further out cuts, when the table stands at radius r, the
+    /// point at radius `√((r + e)² + h²)` and angle `θ + atan2(h, r + e)`, leaving there the
+    /// height commanded for r (attributed to `(r, θ)`: first order in the errors).
+    pub fn setting_error_m(
+        &self,
+        r_m: f64,
+        theta_rad: f64,
+        centre_height_m: f64,
+        x_offset_m: f64,
+    ) -> f64 {
+        let tip = |r: f64, theta: f64| self.tip_height_m(r, theta).unwrap_or(f64::NAN);
+        let out = r_m + x_offset_m;
+        tip(r_m, theta_rad)
+            - tip(
+                libm::hypot(out, centre_height_m),
+                theta_rad + libm::atan2(centre_height_m, out),
+            )
+    }
+
     /// The rotationally symmetric part at radius `r_m` (m), m: the table interpolated by
     /// cubic convolution (continuous slope).
     pub fn symmetric_m(&self, r_m: f64) -> f64 {

@@ -11,23 +11,19 @@ mod files;
 
 use crate::error::StudyError;
 use demands::{feasibility, prescription_of, Feasibility, RingLoop, RING_SAMPLES};
-use nalgebra::{DMatrix, DVector};
 use optics::toolpath::ToolPath;
-use optics::{Zernike, ZernikeOrder};
 use runner::Plan;
 use serde::Serialize;
 use std::f64::consts::TAU;
 
 pub use files::{write_data, TableSize};
+pub use metrology::{Form, Residual};
 
 /// Grid nodes per side of the aperture's maps.
 pub const MAP_NODES: usize = 129;
 
 /// Rings of the predicted error from the edge to the axis.
 const RINGS: usize = 64;
-
-/// Zernike terms fitted to the error (Standard, Noll order, on the aperture).
-pub const FITTED_TERMS: usize = 37;
 
 /// The size of the tool-setting errors whose effect is reported, m.
 pub const SETTING_ERROR_M: f64 = 1e-6;
@@ -73,27 +69,6 @@ fn node_xy(i: usize, pitch: f64) -> (f64, f64) {
     ((col as f64 - half) * pitch, (half - row as f64) * pitch)
 }
 
-/// PV and RMS of a map with a set of Zernike terms fitted and removed.
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct Residual {
-    /// Peak-to-valley, m.
-    pub pv_m: f64,
-    /// RMS, m.
-    pub rms_m: f64,
-}
-
-/// A map's form as an optician reports it.
-#[derive(Debug, Clone, Serialize)]
-pub struct Form {
-    /// Piston and tilt removed (Noll 1–3).
-    pub tilt_removed: Residual,
-    /// Piston, tilt and power removed (Noll 1–4).
-    pub power_removed: Residual,
-    /// Standard (Noll, unit-RMS) Zernike coefficients of the map on the aperture, m, term j at
-    /// index j − 1.
-    pub zernike_standard_m: Vec<f64>,
-}
-
 /// One tool-setting error's effect on the part (geometry alone).
 #[derive(Debug, Clone, Serialize)]
 pub struct Sensitivity {
@@ -123,14 +98,8 @@ pub struct ToolpathStudy {
     pub error_map: ApertureMap,
 }
 
-/// Fits the first `terms` Standard Zernike terms to `map` (on `aperture_m`); the coefficients
-/// and the residual's PV and RMS after removing the first `removed` of them.
-fn fit(map: &ApertureMap, aperture_m: f64, terms: usize) -> (Vec<f64>, Vec<Residual>) {
-    let basis = Zernike {
-        order: ZernikeOrder::Standard,
-        norm_radius_m: aperture_m,
-        coefficients_m: Vec::new(),
-    };
+/// `map`'s form on the aperture.
+fn form_of(map: &ApertureMap, aperture_m: f64) -> Form {
     let points: Vec<(f64, f64, f64)> = map
         .values
         .iter()
@@ -141,38 +110,7 @@ fn fit(map: &ApertureMap, aperture_m: f64, terms: usize) -> (Vec<f64>, Vec<Resid
             (x, y, v)
         })
         .collect();
-    let a = DMatrix::from_fn(points.len(), terms, |i, j| {
-        basis.basis(j + 1, points[i].0, points[i].1).z_m
-    });
-    let b = DVector::from_iterator(points.len(), points.iter().map(|p| p.2));
-    let solve = |k: usize| {
-        let sub = a.columns(0, k).into_owned();
-        sub.clone()
-            .svd(true, true)
-            .solve(&b, 1e-12)
-            .map(|c| (c.clone(), &b - sub * c))
-            .unwrap_or_else(|_| (DVector::zeros(k), b.clone()))
-    };
-    let residual = |r: DVector<f64>| {
-        let n = r.len().max(1) as f64;
-        Residual {
-            pv_m: r.max() - r.min(),
-            rms_m: (r.norm_squared() / n).sqrt(),
-        }
-    };
-    let (all, _) = solve(terms);
-    let residuals = [3, 4].iter().map(|&k| residual(solve(k).1)).collect();
-    (all.iter().copied().collect(), residuals)
-}
-
-/// `map`'s form on the aperture.
-fn form_of(map: &ApertureMap, aperture_m: f64) -> Form {
-    let (zernike, residuals) = fit(map, aperture_m, FITTED_TERMS);
-    Form {
-        tilt_removed: residuals[0],
-        power_removed: residuals[1],
-        zernike_standard_m: zernike,
-    }
+    metrology::form_of(&points, aperture_m)
 }
 
 /// The predicted error, ring by ring: each ring's contact radii and errors at the
@@ -233,18 +171,12 @@ pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
         path.fts_m(libm::hypot(x, y), libm::atan2(y, x))
     });
     let form = form_of(&error_map, aperture);
-    let tip = |r: f64, theta: f64| path.tip_height_m(r, theta).unwrap_or(f64::NAN);
     let h = SETTING_ERROR_M;
-    // The tool set `h` above the axis: at X position r it touches the part at radius
-    // √(r² + h²), angle θ + atan(h/r); what it cuts there is what the table commands at r.
     let centre_height = ApertureMap::of(aperture, |x, y| {
-        let (r, theta) = (libm::hypot(x, y), libm::atan2(y, x));
-        tip(r, theta) - tip(libm::hypot(r, h), theta + libm::atan2(h, r))
+        path.setting_error_m(libm::hypot(x, y), libm::atan2(y, x), h, 0.0)
     });
-    // The tool set `h` further out: at X position r it cuts radius r + h.
     let x_offset = ApertureMap::of(aperture, |x, y| {
-        let (r, theta) = (libm::hypot(x, y), libm::atan2(y, x));
-        tip(r, theta) - tip(r + h, theta)
+        path.setting_error_m(libm::hypot(x, y), libm::atan2(y, x), 0.0, h)
     });
     let sensitivity = vec![
         Sensitivity {
