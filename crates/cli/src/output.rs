@@ -106,6 +106,7 @@ impl CliError {
             CliError::Config(_) => BAD_INPUT,
             CliError::Run(r) | CliError::Study(StudyError::Run(r)) if input(r) => BAD_INPUT,
             CliError::Study(StudyError::Config(_)) => BAD_INPUT,
+            CliError::Study(StudyError::Map(_) | StudyError::Registration { .. }) => BAD_INPUT,
             CliError::Export(recorder::export::ExportError::Selection(_)) => BAD_INPUT,
             CliError::Child { code, .. } => u8::try_from(*code).unwrap_or(1),
             _ => FAILED,
@@ -211,6 +212,12 @@ impl CliError {
             CliError::Run(RunError::Damaged { .. }) => return Some("--salvage".into()),
             CliError::Study(StudyError::NoTuningStart { .. }) => return Some("--ms, --mt".into()),
             CliError::Study(StudyError::FrfAborted { .. }) => return Some("--amplitude".into()),
+            CliError::Study(StudyError::Map(m)) if m.reason.contains("map.height_unit") => {
+                return Some("--height-unit".into())
+            }
+            CliError::Study(StudyError::Map(m)) if m.reason.contains("map.pitch_m") => {
+                return Some("--pitch-mm".into())
+            }
             CliError::Run(RunError::Record(recorder::RecordError::Exists { .. }))
             | CliError::Export(recorder::export::ExportError::Write(
                 recorder::RecordError::Exists { .. },

@@ -10,11 +10,13 @@
 //! Conventions: heights in m toward the instrument (which faces the part as the tool did);
 //! maps in image order, row 0 at +y and column 0 at −x.
 
+mod aperture;
 mod form;
 mod formats;
 mod map;
 mod register;
 
+pub use aperture::ApertureMap;
 pub use form::{form_of, Form, Residual, FITTED_TERMS};
 pub use formats::{read_map, ReadOptions, MAX_MAP_BYTES, MAX_PIXELS};
 pub use map::{LengthUnit, MapFormat, MeasuredMap};

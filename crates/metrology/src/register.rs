@@ -15,6 +15,7 @@
 //! spatial correlation (the area of its autocorrelation, in pixels): a smooth residual holds
 //! fewer independent pixels than it has.
 
+use crate::aperture::ApertureMap;
 use crate::form::{form_of, Form};
 use crate::map::MeasuredMap;
 use nalgebra::{DMatrix, DVector};
@@ -91,6 +92,8 @@ pub struct Registration {
     pub variance_inflation: f64,
     /// Gauss–Newton iterations.
     pub iterations: usize,
+    /// The design's aperture radius, m.
+    pub aperture_m: f64,
     /// The residual's form on the part's aperture (part's frame).
     pub residual: Form,
     /// The residual on the map's grid, m (NaN off the part or without data).
@@ -442,6 +445,7 @@ pub fn register(
         aperture_covered: covered.min(1.0),
         variance_inflation: inflation,
         iterations,
+        aperture_m: aperture,
         residual: form_of(&points, aperture),
         residual_map,
     })
@@ -531,4 +535,42 @@ fn correlation_area(r: &MeasuredMap) -> f64 {
         total
     };
     sum_along(1, r.cols) * sum_along(r.cols, r.rows)
+}
+
+impl Registration {
+    /// The residual in the part's frame on a `nodes × nodes` grid over its aperture: the
+    /// measured residual interpolated (bilinear) where its four neighbouring pixels have data,
+    /// else its Standard Zernike fit ([`Form::zernike_standard_m`]): a map the next cut's
+    /// compensation can be made from.
+    pub fn part_map(&self, nodes: usize) -> ApertureMap {
+        let map = &self.residual_map;
+        let phi = self.rotation_rad.map_or(0.0, |r| r.value);
+        let (s, c) = (libm::sin(phi), libm::cos(phi));
+        let d = [self.decentre_m[0].value, self.decentre_m[1].value];
+        let fit = Zernike {
+            order: ZernikeOrder::Standard,
+            norm_radius_m: self.aperture_m,
+            coefficients_m: self.residual.zernike_standard_m.clone(),
+        };
+        ApertureMap::of(nodes, self.aperture_m, |x, y| {
+            // The part's point in the instrument's frame, then in pixels.
+            let (u, v) = (c * x - s * y + d[0], s * x + c * y + d[1]);
+            let col = u / map.pitch_m[0] + (map.cols as f64 - 1.0) / 2.0;
+            let row = (map.rows as f64 - 1.0) / 2.0 - v / map.pitch_m[1];
+            let inside = col >= 0.0
+                && row >= 0.0
+                && col < (map.cols - 1) as f64
+                && row < (map.rows - 1) as f64;
+            if inside {
+                let (i, j) = (col as usize, row as usize);
+                let (tx, ty) = (col - i as f64, row - j as f64);
+                let at = |r: usize, q: usize| map.heights_m[r * map.cols + q];
+                let (a, b, e, f) = (at(j, i), at(j, i + 1), at(j + 1, i), at(j + 1, i + 1));
+                if a.is_finite() && b.is_finite() && e.is_finite() && f.is_finite() {
+                    return (1.0 - ty) * ((1.0 - tx) * a + tx * b) + ty * ((1.0 - tx) * e + tx * f);
+                }
+            }
+            fit.sag(x, y).z_m
+        })
+    }
 }

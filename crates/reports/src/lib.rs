@@ -11,6 +11,7 @@ pub mod fit;
 pub mod form;
 pub mod frf;
 pub mod intermittent;
+pub mod measured;
 pub mod plot;
 pub mod spectrum;
 pub mod spindle;

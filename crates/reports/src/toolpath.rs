@@ -9,7 +9,7 @@ use studies::report::{ReportError, Written};
 use studies::toolpath::{write_data, ApertureMap, TableSize, ToolpathStudy};
 
 /// The square picture of `map` (values in nm).
-fn picture(map: &ApertureMap, title: String, value_label: &str) -> SquareMap {
+pub(crate) fn picture(map: &ApertureMap, title: String, value_label: &str) -> SquareMap {
     let n = map.nodes;
     let half = map.pitch_m * (n as f64) / 2.0 * 1e3;
     // Rows bottom up for the picture.

@@ -14,6 +14,17 @@ pub enum StudyError {
     /// Building or running the loop.
     #[error(transparent)]
     Run(#[from] RunError),
+    /// A measured surface map was refused (the file and why).
+    #[error(transparent)]
+    Map(#[from] metrology::MapError),
+    /// A measured map could not be registered against its design.
+    #[error("{}: {reason}", path.display())]
+    Registration {
+        /// The map file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
     /// A measured FRF file was refused.
     #[error(transparent)]
     FrfFile(#[from] run_config::frf_file::FrfFileError),

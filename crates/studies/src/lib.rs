@@ -30,6 +30,7 @@ pub mod frf;
 pub mod identify;
 pub mod intermittent;
 pub mod margins;
+pub mod measured;
 pub mod report;
 pub mod spectrum;
 pub mod spindle;

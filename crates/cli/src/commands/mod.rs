@@ -15,6 +15,7 @@ pub mod inspect;
 pub mod intermittent;
 pub mod latency;
 pub mod machine;
+pub mod register;
 pub mod replay;
 pub mod run;
 pub mod run_hil;

@@ -17,7 +17,7 @@ use serde::Serialize;
 use std::f64::consts::TAU;
 
 pub use files::{write_data, TableSize};
-pub use metrology::{Form, Residual};
+pub use metrology::{ApertureMap, Form, Residual};
 
 /// Grid nodes per side of the aperture's maps.
 pub const MAP_NODES: usize = 129;
@@ -27,47 +27,6 @@ const RINGS: usize = 64;
 
 /// The size of the tool-setting errors whose effect is reported, m.
 pub const SETTING_ERROR_M: f64 = 1e-6;
-
-/// A map over the aperture: `nodes × nodes`, row 0 at +y, column 0 at −x (Zemax's grid
-/// layout), NaN outside the aperture.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ApertureMap {
-    /// Nodes per side.
-    pub nodes: usize,
-    /// Node spacing, m.
-    pub pitch_m: f64,
-    /// Row-major values, m.
-    pub values: Vec<f64>,
-}
-
-impl ApertureMap {
-    /// `f(x, y)` at every node inside the aperture of radius `aperture_m`.
-    fn of(aperture_m: f64, f: impl Fn(f64, f64) -> f64) -> Self {
-        let pitch = 2.0 * aperture_m / (MAP_NODES - 1) as f64;
-        let values = (0..MAP_NODES * MAP_NODES)
-            .map(|i| {
-                let (x, y) = node_xy(i, pitch);
-                if libm::hypot(x, y) <= aperture_m * (1.0 + 1e-12) {
-                    f(x, y)
-                } else {
-                    f64::NAN
-                }
-            })
-            .collect();
-        ApertureMap {
-            nodes: MAP_NODES,
-            pitch_m: pitch,
-            values,
-        }
-    }
-}
-
-/// Position of node `i` of the square grid of `pitch` (m), centred.
-fn node_xy(i: usize, pitch: f64) -> (f64, f64) {
-    let half = (MAP_NODES - 1) as f64 / 2.0;
-    let (row, col) = (i / MAP_NODES, i % MAP_NODES);
-    ((col as f64 - half) * pitch, (half - row as f64) * pitch)
-}
 
 /// One tool-setting error's effect on the part (geometry alone).
 #[derive(Debug, Clone, Serialize)]
@@ -100,17 +59,7 @@ pub struct ToolpathStudy {
 
 /// `map`'s form on the aperture.
 fn form_of(map: &ApertureMap, aperture_m: f64) -> Form {
-    let points: Vec<(f64, f64, f64)> = map
-        .values
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.is_finite())
-        .map(|(i, &v)| {
-            let (x, y) = node_xy(i, map.pitch_m);
-            (x, y, v)
-        })
-        .collect();
-    metrology::form_of(&points, aperture_m)
+    metrology::form_of(&map.points(), aperture_m)
 }
 
 /// The predicted error, ring by ring: each ring's contact radii and errors at the
@@ -157,7 +106,7 @@ pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
     let ring_loop = RingLoop::new(plan, m.rad_per_s() / TAU);
     let rings = predicted_rings(path, &ring_loop);
     let step = TAU / RING_SAMPLES as f64;
-    let error_map = ApertureMap::of(aperture, |x, y| {
+    let error_map = ApertureMap::of(MAP_NODES, aperture, |x, y| {
         let theta = libm::atan2(y, x).rem_euclid(TAU);
         let rho = libm::hypot(x, y);
         let u = theta / step;
@@ -167,15 +116,15 @@ pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
         // The part against the design: a [compensation] moved the path off it.
         (1.0 - t) * along(&rings, k, rho) + t * along(&rings, next, rho) + path.compensation_m(x, y)
     });
-    let fts_map = ApertureMap::of(aperture, |x, y| {
+    let fts_map = ApertureMap::of(MAP_NODES, aperture, |x, y| {
         path.fts_m(libm::hypot(x, y), libm::atan2(y, x))
     });
     let form = form_of(&error_map, aperture);
     let h = SETTING_ERROR_M;
-    let centre_height = ApertureMap::of(aperture, |x, y| {
+    let centre_height = ApertureMap::of(MAP_NODES, aperture, |x, y| {
         path.setting_error_m(libm::hypot(x, y), libm::atan2(y, x), h, 0.0)
     });
-    let x_offset = ApertureMap::of(aperture, |x, y| {
+    let x_offset = ApertureMap::of(MAP_NODES, aperture, |x, y| {
         path.setting_error_m(libm::hypot(x, y), libm::atan2(y, x), 0.0, h)
     });
     let sensitivity = vec![
