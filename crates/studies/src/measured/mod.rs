@@ -99,7 +99,7 @@ pub fn design_of(loaded: &Loaded) -> Result<ToolPath, StudyError> {
             .origin
             .invalid(
                 "scenario.tool_nose_radius_m",
-                &format!(
+                format!(
                     "{} (no contact at r = {:.4} mm)",
                     path.nose_radius_m(),
                     e.radius_m * 1e3
