@@ -233,6 +233,7 @@ impl CliError {
             } if !key.contains('.') && !key.starts_with('-') => Some(match key.as_str() {
                 // The one field whose flag is shorter than its name.
                 "probe_noise_rms_m" => "--probe-noise-m".into(),
+                "lowpass_m" => "--lowpass-mm".into(),
                 key => format!("--{}", key.replace('_', "-")),
             }),
             _ => None,

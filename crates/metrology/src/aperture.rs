@@ -2,6 +2,8 @@
 //! prediction, a registered measurement and a compensation share, and its CSV form (a sag grid
 //! that a prescription's `[compensation]` loads back).
 
+use optics::SagGrid;
+
 /// `nodes × nodes` values (m), row 0 at +y, column 0 at −x (Zemax's grid layout), centred on
 /// the part's axis, NaN outside the aperture or without data.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,6 +49,22 @@ impl ApertureMap {
         )
     }
 
+    /// The value at `(x_m, y_m)` (m), bilinear between the four nodes around it (NaN beyond
+    /// the grid or beside a node without a value).
+    pub fn at(&self, x_m: f64, y_m: f64) -> f64 {
+        let n = self.nodes;
+        let half = (n - 1) as f64 / 2.0;
+        let (col, row) = (x_m / self.pitch_m + half, half - y_m / self.pitch_m);
+        if !(col >= 0.0 && row >= 0.0 && col <= (n - 1) as f64 && row <= (n - 1) as f64) {
+            return f64::NAN;
+        }
+        let (i, j) = ((col as usize).min(n - 2), (row as usize).min(n - 2));
+        let (tx, ty) = (col - i as f64, row - j as f64);
+        let v = |r: usize, c: usize| self.values[r * n + c];
+        (1.0 - ty) * ((1.0 - tx) * v(j, i) + tx * v(j, i + 1))
+            + ty * ((1.0 - tx) * v(j + 1, i) + tx * v(j + 1, i + 1))
+    }
+
     /// The nodes with a value: position (m) and value (m).
     pub fn points(&self) -> Vec<(f64, f64, f64)> {
         self.values
@@ -60,35 +78,56 @@ impl ApertureMap {
             .collect()
     }
 
-    /// The map, a height toward the tool, as a sag grid CSV in mm (sag = −height; `what` names
-    /// it in the first line, with the layout and the pitch); nodes without a value take the
-    /// value of the nearest one inside along their radius, so the grid's interpolation has
-    /// neighbours there.
-    pub fn to_sag_csv(&self, what: &str) -> String {
+    /// The map, a height toward the tool, as sag values (m, sag = −height) on every node:
+    /// a node without a value takes the value of the nearest one inside along its radius, so
+    /// a grid's interpolation has neighbours there.
+    fn filled_sag_m(&self) -> Vec<f64> {
         let n = self.nodes;
         let half = (n - 1) as f64 / 2.0;
+        (0..n * n)
+            .map(|i| {
+                let (row, col) = (i / n, i % n);
+                let mut v = self.values[i];
+                // Walk inward along the radius to a node with a value.
+                let (x, y) = (col as f64 - half, half - row as f64);
+                let mut f = 1.0;
+                while !v.is_finite() && f > 0.0 {
+                    f -= 1.0 / half;
+                    let (c, r) = (
+                        (x * f + half).round() as usize,
+                        (half - y * f).round() as usize,
+                    );
+                    v = self.values[r.min(n - 1) * n + c.min(n - 1)];
+                }
+                if v.is_finite() {
+                    -v
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// The map as a sag grid (see [`ApertureMap::to_sag_csv`]).
+    pub fn to_sag_grid(&self) -> SagGrid {
+        SagGrid {
+            pitch_m: [self.pitch_m; 2],
+            columns: self.nodes,
+            rows: self.nodes,
+            sag_m: self.filled_sag_m(),
+        }
+    }
+
+    /// The map, a height toward the tool, as a sag grid CSV in mm (sag = −height; `what`
+    /// names it in the first line, with the layout and the pitch), nodes outside filled as
+    /// [`ApertureMap::to_sag_grid`]'s.
+    pub fn to_sag_csv(&self, what: &str) -> String {
         let mut s = format!(
             "# {what} as sag in mm, row 0 at +y, column 0 at -x, pitch {} mm\n",
             self.pitch_m * 1e3
         );
-        for row in 0..n {
-            let cells: Vec<String> = (0..n)
-                .map(|col| {
-                    let mut v = self.values[row * n + col];
-                    // Walk inward along the radius to a node with a value.
-                    let (x, y) = (col as f64 - half, half - row as f64);
-                    let mut f = 1.0;
-                    while !v.is_finite() && f > 0.0 {
-                        f -= 1.0 / half;
-                        let (c, r) = (
-                            (x * f + half).round() as usize,
-                            (half - y * f).round() as usize,
-                        );
-                        v = self.values[r.min(n - 1) * n + c.min(n - 1)];
-                    }
-                    format!("{:.6e}", if v.is_finite() { -v * 1e3 } else { 0.0 })
-                })
-                .collect();
+        for row in self.filled_sag_m().chunks(self.nodes) {
+            let cells: Vec<String> = row.iter().map(|v| format!("{:.6e}", v * 1e3)).collect();
             s += &cells.join(",");
             s.push('\n');
         }

@@ -13,12 +13,14 @@
 mod aperture;
 mod form;
 mod formats;
+mod instrument;
 mod map;
 mod register;
 
 pub use aperture::ApertureMap;
 pub use form::{form_of, Form, Residual, FITTED_TERMS};
-pub use formats::{read_map, ReadOptions, MAX_MAP_BYTES, MAX_PIXELS};
+pub use formats::{read_map, to_zygo_xyz, ReadOptions, MAX_MAP_BYTES, MAX_PIXELS};
+pub use instrument::{Instrument, Mounting};
 pub use map::{LengthUnit, MapFormat, MeasuredMap};
 pub use register::{
     register, Estimate, RegisterError, RegisterOptions, Registration, MIN_VALID_PIXELS,

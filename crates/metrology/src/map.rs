@@ -2,6 +2,11 @@
 
 use serde::Serialize;
 
+/// A pixel reads the mean height over its area: taken as this many points per side (an
+/// instrument's lateral resolution, as the simulated instrument makes it and the registration
+/// models it).
+pub(crate) const PIXEL_SUBSAMPLES: usize = 3;
+
 /// A length unit a map's heights or pitch may be written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum LengthUnit {

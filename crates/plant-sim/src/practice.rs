@@ -38,6 +38,9 @@ pub const MOUNT_ZETA_POLE: f64 = 0.01;
 pub const MOUNT_ZETA_ZERO: f64 = 0.02;
 /// Range of the in-band stage mode, Hz.
 pub const BAND_HZ: (f64, f64) = (1_200.0, 2_000.0);
+
+/// The size of each tool-setting error, m.
+pub const TOOL_SETTING_M: (f64, f64) = (0.5e-6, 3e-6);
 /// Damping of the in-band mode's pole pair.
 pub const BAND_ZETA_POLE: f64 = 0.02;
 /// Damping of its zero pair (peak +6 dB).
@@ -53,8 +56,8 @@ pub const DRIFT: (f64, f64) = (-0.08, -0.03);
 /// Time constant of the drift τ, s.
 pub const DRIFT_TIME_CONSTANT_S: f64 = 2.0;
 
-/// Which effects beyond the Table 5-2 draw and the mount a practice stage has (all by
-/// default; `run.practice_effects` in a run file).
+/// Which effects beyond the Table 5-2 draw and the mount a practice stage has (all but the
+/// tool's setting by default; `run.practice_effects` in a run file).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(deny_unknown_fields, default)]
@@ -66,6 +69,11 @@ pub struct PracticeEffects {
     /// The suspension stiffness drifting by −3 to −8 % with a 2 s time constant from the start
     /// of the run.
     pub suspension_drift: bool,
+    /// The machine's tool set off by 0.5–3 µm in centre height and in X (either sign): the
+    /// setting errors a simulated cut and `servo measure` carry, hidden. Off by default (the
+    /// only effect that is): it changes the part, not the loop, and the form errors the book
+    /// reports on the practice stage are the loop's.
+    pub tool_setting: bool,
 }
 
 impl PracticeEffects {
@@ -74,6 +82,7 @@ impl PracticeEffects {
         band_mode: false,
         force_constant: false,
         suspension_drift: false,
+        tool_setting: false,
     };
 }
 
@@ -83,6 +92,7 @@ impl Default for PracticeEffects {
             band_mode: true,
             force_constant: true,
             suspension_drift: true,
+            tool_setting: false,
         }
     }
 }
@@ -104,6 +114,9 @@ pub struct PracticeTruth {
     pub force_falloff: f64,
     /// The suspension stiffness's relative drift Δ.
     pub drift: f64,
+    /// The tool's setting errors drawn, m: centre height and X offset (drawn whether or not
+    /// the effect is on; [`PracticeTruth::tool_setting_m`] says what the machine has).
+    pub tool_setting_drawn_m: [f64; 2],
     /// The effects that are on.
     pub effects: PracticeEffects,
 }
@@ -137,7 +150,28 @@ impl PracticeTruth {
             force_slope: within(FORCE_SLOPE),
             force_falloff: within(FORCE_FALLOFF),
             drift: within(DRIFT),
+            tool_setting_drawn_m: {
+                let (lo, hi) = TOOL_SETTING_M;
+                let mut one = || {
+                    let size = lo + (hi - lo) * rng.random::<f64>();
+                    if rng.random::<bool>() {
+                        size
+                    } else {
+                        -size
+                    }
+                };
+                [one(), one()]
+            },
             effects,
+        }
+    }
+
+    /// The tool's centre height and X offset on the machine, m (zero without the effect).
+    pub fn tool_setting_m(&self) -> [f64; 2] {
+        if self.effects.tool_setting {
+            self.tool_setting_drawn_m
+        } else {
+            [0.0; 2]
         }
     }
 

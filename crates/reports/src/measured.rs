@@ -6,7 +6,8 @@ use crate::plot::{Map, SquareMap};
 use crate::plot_file;
 use crate::toolpath::picture;
 use std::path::Path;
-use studies::measured::{write_data, MeasuredStudy};
+use studies::measured::compensate::NextCompensation;
+use studies::measured::{write_compensation, write_data, MeasuredStudy};
 use studies::report::{ReportError, Written};
 
 /// Writes the study's files into `dir`: its data and its pictures.
@@ -55,5 +56,23 @@ pub fn write(s: &MeasuredStudy, dir: &Path) -> Result<Written, ReportError> {
         .note
         .take()
         .or_else(|| plot_file(&part, &dir.join("part_residual"), &mut out.files));
+    Ok(out)
+}
+
+/// Writes a compensation cycle's files into `dir` (the grid only when `write_grid`) and the
+/// picture `compensation`.
+pub fn write_cycle(s: &NextCompensation, write_grid: bool, dir: &Path) -> Result<Written, ReportError> {
+    let mut out = write_compensation(s, write_grid, dir)?;
+    let t = s.next.tilt_removed;
+    let map = picture(
+        &s.next_map,
+        format!(
+            "Next compensation (part − design to subtract): {:.1} nm PV, {:.2} nm RMS after piston and tilt",
+            t.pv_m * 1e9,
+            t.rms_m * 1e9
+        ),
+        "compensation (nm)",
+    );
+    out.note = plot_file(&map, &dir.join("compensation"), &mut out.files);
     Ok(out)
 }

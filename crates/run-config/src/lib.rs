@@ -80,10 +80,12 @@ pub struct RunSection {
     /// The configured plant is then only the controller's model (its feedforward, its checks):
     /// a run on a stage that is not the model. Unset: the configured stage.
     pub practice_seed: Option<u64>,
-    /// The practice stage's effects beyond the draw and the mount, each on unless set false:
+    /// The practice stage's effects beyond the draw and the mount, each on unless set false
+    /// (`tool_setting` off unless set true):
     /// `band_mode` (a stage mode at 1.2–2 kHz), `force_constant` (K_T varying by a few per cent
     /// over the stroke), `suspension_drift` (k2 drifting by −3 to −8 % with a 2 s time
-    /// constant).
+    /// constant), `tool_setting` (the machine's tool set off by 0.5–3 µm in centre height and
+    /// in X: what a simulated cut and `servo measure` carry).
     pub practice_effects: PracticeEffects,
 }
 

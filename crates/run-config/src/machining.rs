@@ -125,6 +125,14 @@ pub struct Machining {
     pub start_radius_m: f64,
     /// Tool nose radius in m (Tables 7-3 and 8-2: 0.5 mm): the feed marks' shape.
     pub tool_nose_radius_m: f64,
+    /// The simulated machine's tool centre height: the tool's tip above the spindle axis, m
+    /// (0; ±100e-6). Geometry alone — the servo does not see it: the simulated cut and
+    /// `servo measure` carry it, `servo toolpath` reports what 1 µm of it does. A practice
+    /// stage adds a hidden one.
+    pub tool_centre_height_m: f64,
+    /// The simulated machine's tool X offset: the tool cutting further out than the slide's
+    /// reading, m (0; ±100e-6); as `tool_centre_height_m`.
+    pub tool_x_offset_m: f64,
     /// Thrust force per unit uncut chip area (feed × depth of cut) in N/m²
     /// (`plant_sim::cutting::SPECIFIC_THRUST_N_PER_M2`, ★ 5e9).
     pub specific_thrust_n_per_m2: f64,
@@ -158,6 +166,8 @@ impl Default for Machining {
             feed_m_per_rev: 5e-6,
             start_radius_m: GRID_EDGE_RADIUS_M,
             tool_nose_radius_m: 0.5e-3,
+            tool_centre_height_m: 0.0,
+            tool_x_offset_m: 0.0,
             specific_thrust_n_per_m2: plant_sim::cutting::SPECIFIC_THRUST_N_PER_M2,
             finish_depth_m: Some(2e-6),
             tracker_bandwidth_hz: 10.0,
@@ -171,6 +181,23 @@ impl Default for Machining {
 }
 
 impl Machining {
+    /// The simulated machine's tool centre height and X offset, m: the configured ones plus,
+    /// on the practice stage of `run`, its hidden ones.
+    pub fn tool_setting_m(&self, run: &super::RunSection) -> [f64; 2] {
+        let hidden = run.practice_seed.map_or([0.0; 2], |seed| {
+            plant_sim::practice::PracticeTruth::draw(
+                seed,
+                &plant_sim::PlantParams::default().stage,
+                run.practice_effects,
+            )
+            .tool_setting_m()
+        });
+        [
+            self.tool_centre_height_m + hidden[0],
+            self.tool_x_offset_m + hidden[1],
+        ]
+    }
+
     /// Spindle speed in rad/s.
     pub fn rad_per_s(&self) -> f64 {
         self.spindle_rpm * TAU / 60.0
@@ -274,6 +301,14 @@ impl Machining {
             1e6,
             "s",
         )?;
+        within(
+            "tool_centre_height_m",
+            self.tool_centre_height_m,
+            -100e-6,
+            100e-6,
+            "m",
+        )?;
+        within("tool_x_offset_m", self.tool_x_offset_m, -100e-6, 100e-6, "m")?;
         if let Some(r) = &self.repetitive {
             r.validate(at)?;
         }

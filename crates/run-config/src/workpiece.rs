@@ -37,6 +37,23 @@ impl SpiralCut {
         self.surface.depth_m(self.radius_m(theta_rad), theta_rad)
     }
 
+    /// The error the tool's setting (`[centre height, X offset]`, m) leaves on the part at
+    /// spindle angle `theta_rad`, m toward the tool: a prescription's geometry
+    /// ([`optics::toolpath::ToolPath::setting_error_m`]), 0 for every other surface.
+    pub fn setting_error_m(&self, theta_rad: f64, setting_m: [f64; 2]) -> f64 {
+        match &self.surface {
+            LoadedSurface::Prescription(p) if setting_m != [0.0; 2] => {
+                let e = p.setting_error_m(self.radius_m(theta_rad), theta_rad, setting_m[0], setting_m[1]);
+                if e.is_finite() {
+                    e
+                } else {
+                    0.0
+                }
+            }
+            _ => 0.0,
+        }
+    }
+
     /// The cut path's height above the design's at spindle angle `theta_rad`, m: a
     /// prescription's `[compensation]`, 0 for every other surface (add it to `tool − path`
     /// for the part against the design).

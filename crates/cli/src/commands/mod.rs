@@ -2,6 +2,7 @@
 
 pub mod budget;
 pub mod completions;
+pub mod compensate;
 pub mod config;
 pub mod ctl;
 pub mod deploy;
@@ -15,6 +16,7 @@ pub mod inspect;
 pub mod intermittent;
 pub mod latency;
 pub mod machine;
+pub mod measure;
 pub mod register;
 pub mod replay;
 pub mod run;

@@ -5,7 +5,10 @@ mod csv;
 mod datx;
 mod metropro;
 mod npy;
+mod write;
 mod xyz;
+
+pub use write::to_zygo_xyz;
 
 use crate::map::{LengthUnit, MapFormat, MeasuredMap};
 use crate::MapError;

@@ -99,6 +99,8 @@ pub struct FormAnalysis {
     grid: Option<SinusoidalGrid>,
     /// The configured speed in rad/s (the segment's window and the motion frequency).
     rad_per_s: f64,
+    /// The machine's tool centre height and X offset, m.
+    tool_setting_m: [f64; 2],
     /// The spindle's true angle over time (with its drift and step).
     spindle: SpindleMotion,
     settle_s: f64,
@@ -145,6 +147,7 @@ impl FormAnalysis {
             },
             cut: SpiralCut::new(m, surface),
             rad_per_s: m.rad_per_s(),
+            tool_setting_m: m.tool_setting_m(&c.run),
             spindle,
             settle_s: c.run.settle(),
             form: Acc::default(),
@@ -174,8 +177,11 @@ impl FormAnalysis {
         let theta = self.spindle.angle_rad(t);
         let design = self.cut.height_m(theta);
         let tool = f.truth.tool_m as f64;
-        // Against the design, not a compensated path (a prescription's [compensation]).
-        let e = tool - design + self.cut.compensation_m(theta);
+        // Against the design, not a compensated path (a prescription's [compensation]); where
+        // the tool's setting put it (first order: the error of the point it was sent to).
+        let e = tool - design
+            + self.cut.compensation_m(theta)
+            + self.cut.setting_error_m(theta, self.tool_setting_m);
         self.form.add(e);
         if let Some(w) = &mut self.roughness {
             w.add(theta, e);

@@ -1,7 +1,9 @@
 //! The files of a registered measurement: `registration.json` (the [`MeasuredStudy`]),
 //! `residual.csv` (the residual on the instrument's grid, nm) and `part_error.csv` (the
-//! residual in the part's frame as a sag grid, what `servo compensate` takes).
+//! residual in the part's frame as a sag grid, what `servo compensate` takes); a compensation
+//! cycle's `compensation.json` and `compensation.csv`.
 
+use super::compensate::NextCompensation;
 use super::MeasuredStudy;
 use crate::report::{to_json, write_files, ReportError, Written};
 use std::path::Path;
@@ -51,4 +53,27 @@ pub fn write_data(s: &MeasuredStudy, dir: &Path) -> Result<Written, ReportError>
             ),
         ],
     )
+}
+
+/// Writes a compensation cycle's data into `dir`: `compensation.json` and, when the tool path
+/// with it stays within the stage (`write_grid`), `compensation.csv` (the sag grid a
+/// prescription's `[compensation]` loads).
+pub fn write_compensation(
+    s: &NextCompensation,
+    write_grid: bool,
+    dir: &Path,
+) -> Result<Written, ReportError> {
+    let json = to_json(
+        "the next cut's compensation from a registered residual, and the tool path with it (servo compensate)",
+        "report",
+        s,
+    );
+    let grid = s
+        .next_map
+        .to_sag_csv("next compensation: the part's error to subtract (part − design)");
+    let mut files = vec![("compensation.json", json.as_str())];
+    if write_grid {
+        files.push(("compensation.csv", grid.as_str()));
+    }
+    write_files(dir, &files)
 }

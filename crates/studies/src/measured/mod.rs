@@ -3,7 +3,9 @@
 //! residual in the part's frame (what the next cut's `[compensation]` is made from) and the
 //! tool-setting correction the fit implies.
 
+pub mod compensate;
 mod files;
+pub mod simulate;
 
 use crate::error::StudyError;
 use metrology::{ApertureMap, MeasuredMap, ReadOptions, RegisterOptions, Registration};
@@ -14,7 +16,7 @@ use run_config::{Loaded, Scenario};
 use serde::Serialize;
 use std::path::Path;
 
-pub use files::write_data;
+pub use files::{write_compensation, write_data};
 
 /// Nodes per side of the residual's map in the part's frame (as `servo toolpath`'s maps).
 pub const PART_NODES: usize = crate::toolpath::MAP_NODES;

@@ -98,8 +98,14 @@ impl RingLoop {
     /// The loop of `plan` (its reference path and closed loop) at a spindle turning at
     /// `spindle_hz` Hz.
     pub fn new(plan: &Plan, spindle_hz: f64) -> Self {
-        let tool = reference_path_response(&plan.closed_loop, &plan.deployment, output::TOOL_M);
-        let dac = reference_path_response(&plan.closed_loop, &plan.deployment, output::CONTROL_V);
+        Self::of(&plan.closed_loop, plan, spindle_hz)
+    }
+
+    /// The loop `closed_loop` (a stage's sampled loop with `plan`'s controller) with `plan`'s
+    /// reference path (its feedforward) at a spindle turning at `spindle_hz` Hz.
+    pub fn of(closed_loop: &runner::closed_loop::ClosedLoop, plan: &Plan, spindle_hz: f64) -> Self {
+        let tool = reference_path_response(closed_loop, &plan.deployment, output::TOOL_M);
+        let dac = reference_path_response(closed_loop, &plan.deployment, output::CONTROL_V);
         let harmonics = 0..=RING_SAMPLES / 2;
         let mut planner = RealFftPlanner::<f64>::new();
         RingLoop {

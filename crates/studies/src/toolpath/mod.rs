@@ -98,15 +98,13 @@ fn along(rings: &[(Vec<f64>, Vec<f64>)], k: usize, rho: f64) -> f64 {
     }
 }
 
-/// Runs the study on `plan` (a machining run of a prescription) with `bands` radius bands.
-pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
-    let feasibility = feasibility(plan, bands)?;
-    let (m, path, _) = prescription_of(plan)?;
-    let aperture = path.prescription().aperture_radius_m;
-    let ring_loop = RingLoop::new(plan, m.rad_per_s() / TAU);
-    let rings = predicted_rings(path, &ring_loop);
+/// The part `path` leaves through `ring_loop`: its error against the design at `(x, y)` in
+/// the part's frame, m toward the tool (the loop's error each point's nose contact took, and a
+/// `[compensation]`'s move of the path).
+pub fn predicted_part<'a>(path: &'a ToolPath, ring_loop: &RingLoop) -> impl Fn(f64, f64) -> f64 + 'a {
+    let rings = predicted_rings(path, ring_loop);
     let step = TAU / RING_SAMPLES as f64;
-    let error_map = ApertureMap::of(MAP_NODES, aperture, |x, y| {
+    move |x, y| {
         let theta = libm::atan2(y, x).rem_euclid(TAU);
         let rho = libm::hypot(x, y);
         let u = theta / step;
@@ -115,7 +113,16 @@ pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
         let next = (k + 1) % RING_SAMPLES;
         // The part against the design: a [compensation] moved the path off it.
         (1.0 - t) * along(&rings, k, rho) + t * along(&rings, next, rho) + path.compensation_m(x, y)
-    });
+    }
+}
+
+/// Runs the study on `plan` (a machining run of a prescription) with `bands` radius bands.
+pub fn study(plan: &Plan, bands: usize) -> Result<ToolpathStudy, StudyError> {
+    let feasibility = feasibility(plan, bands)?;
+    let (m, path, _) = prescription_of(plan)?;
+    let aperture = path.prescription().aperture_radius_m;
+    let ring_loop = RingLoop::new(plan, m.rad_per_s() / TAU);
+    let error_map = ApertureMap::of(MAP_NODES, aperture, predicted_part(path, &ring_loop));
     let fts_map = ApertureMap::of(MAP_NODES, aperture, |x, y| {
         path.fts_m(libm::hypot(x, y), libm::atan2(y, x))
     });
