@@ -29,6 +29,7 @@ from ._native import Plant, Servo, ServoError
 from .study import run_study_ray, study_info, study_rows
 
 __all__ = [
+    "read_map",
     "ServoError",
     "Servo",
     "Plant",
@@ -414,3 +415,19 @@ def prescription_sag(
     x = np.ascontiguousarray(x_m, dtype=np.float64).ravel()
     y = np.ascontiguousarray(y_m, dtype=np.float64).ravel()
     return _native.prescription_sag(os.fspath(path), x, y)
+
+
+def read_map(
+    path: Union[str, "os.PathLike[str]"],
+    height_unit: Optional[str] = None,
+    pitch_m: Optional[float] = None,
+) -> Dict[str, Any]:
+    """A measured surface map read as ``servo register`` reads it.
+
+    ``path`` is a Zygo ``.datx``, MetroPro ``.dat``, Zygo ``.xyz``, NumPy ``.npy`` or CSV grid;
+    ``height_unit`` (``"m"``, ``"mm"``, ``"um"``, ``"nm"``) and ``pitch_m`` (m) only for a file
+    that does not state them. Returns ``heights_m`` (rows × cols, image order: row 0 at +y,
+    NaN without data), ``pitch_m`` (x, y) and ``format``.
+    """
+    heights, pitch, fmt = _native.read_map(os.fspath(path), height_unit, pitch_m)
+    return {"heights_m": heights, "pitch_m": pitch, "format": fmt}

@@ -51,6 +51,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(design_api::identify, m)?)?;
     m.add_function(wrap_pyfunction!(design_api::fit_frd, m)?)?;
     m.add_function(wrap_pyfunction!(optics_api::prescription_sag, m)?)?;
+    m.add_function(wrap_pyfunction!(optics_api::read_map, m)?)?;
     m.add_function(wrap_pyfunction!(study_api::study_info, m)?)?;
     m.add_function(wrap_pyfunction!(study_api::study_rows, m)?)?;
     m.add_function(wrap_pyfunction!(study_api::study_open, m)?)?;

@@ -82,7 +82,8 @@ impl Instrument {
             format: MapFormat::ZygoXyz,
             wavelength_m: Some(632.8e-9),
         };
-        let noise = Normal::new(0.0, self.noise_m.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("zero"));
+        let noise =
+            Normal::new(0.0, self.noise_m.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("zero"));
         let (s, c) = (libm::sin(pose.rotation_rad), libm::cos(pose.rotation_rad));
         for i in 0..n * n {
             let (u0, v0) = map.xy(i);

@@ -61,7 +61,11 @@ pub fn write(s: &MeasuredStudy, dir: &Path) -> Result<Written, ReportError> {
 
 /// Writes a compensation cycle's files into `dir` (the grid only when `write_grid`) and the
 /// picture `compensation`.
-pub fn write_cycle(s: &NextCompensation, write_grid: bool, dir: &Path) -> Result<Written, ReportError> {
+pub fn write_cycle(
+    s: &NextCompensation,
+    write_grid: bool,
+    dir: &Path,
+) -> Result<Written, ReportError> {
     let mut out = write_compensation(s, write_grid, dir)?;
     let t = s.next.tilt_removed;
     let map = picture(

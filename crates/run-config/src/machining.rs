@@ -308,7 +308,13 @@ impl Machining {
             100e-6,
             "m",
         )?;
-        within("tool_x_offset_m", self.tool_x_offset_m, -100e-6, 100e-6, "m")?;
+        within(
+            "tool_x_offset_m",
+            self.tool_x_offset_m,
+            -100e-6,
+            100e-6,
+            "m",
+        )?;
         if let Some(r) = &self.repetitive {
             r.validate(at)?;
         }

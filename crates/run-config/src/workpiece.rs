@@ -43,7 +43,12 @@ impl SpiralCut {
     pub fn setting_error_m(&self, theta_rad: f64, setting_m: [f64; 2]) -> f64 {
         match &self.surface {
             LoadedSurface::Prescription(p) if setting_m != [0.0; 2] => {
-                let e = p.setting_error_m(self.radius_m(theta_rad), theta_rad, setting_m[0], setting_m[1]);
+                let e = p.setting_error_m(
+                    self.radius_m(theta_rad),
+                    theta_rad,
+                    setting_m[0],
+                    setting_m[1],
+                );
                 if e.is_finite() {
                     e
                 } else {

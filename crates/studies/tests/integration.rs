@@ -4,6 +4,7 @@
 mod budget;
 mod budget_exact;
 mod common;
+mod compensation;
 mod design_space;
 mod frf_fit;
 mod frf_practice;

@@ -4,22 +4,11 @@
 //! prescription's `[compensation]`, removing most of the error of the next cut.
 
 use crate::common;
+use common::GENTLE;
 
 use common::machine;
 use run_config::{Loaded, Machining, Origin, RunConfig, RunSection, Scenario, SurfaceConfig};
 use std::path::Path;
-
-/// The book's gentle freeform: a 500 mm sphere, 3 µm astigmatism, 2 µm coma, 1.5 µm trefoil
-/// (Fringe) over a 20 mm aperture.
-const GENTLE: &str = r#"
-aperture_radius_mm = 10.0
-[base]
-radius_mm = 500.0
-[zernike]
-order = "fringe"
-norm_radius_mm = 10.0
-coefficients_mm = [0.0, 0.0, 0.0, 0.0, 0.003, 0.0, 0.002, 0.0, 0.0, 0.0015]
-"#;
 
 /// A plan cutting the prescription file `path` at 600 rpm from the aperture's edge.
 fn plan(path: &Path, duration_s: f64) -> runner::Plan {

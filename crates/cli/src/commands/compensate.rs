@@ -112,7 +112,10 @@ fn print(s: &NextCompensation) {
         s.options.gain,
         s.options.lowpass_m * 1e3
     );
-    println!("  measured residual      {} after piston and tilt", nm(&s.residual));
+    println!(
+        "  measured residual      {} after piston and tilt",
+        nm(&s.residual)
+    );
     if let Some(p) = &s.previous_residual {
         println!("  previous residual      {}", nm(p));
     }

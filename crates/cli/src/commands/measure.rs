@@ -10,8 +10,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::measured::simulate::{simulate_measurement, SimulatedMeasurement};
 
-/// Cut the configured prescription in simulation and measure the part with a simulated
-/// instrument.
+/// Cut the prescription in simulation and measure the part.
 ///
 /// The part over the whole aperture is the loop's steady-state error ring by ring (as `servo
 /// toolpath` predicts it) through the stage the run simulates — with `[run] practice_seed`, the
@@ -67,7 +66,10 @@ impl MeasureCmd {
         }
         let plan = Plan::new(&l)?;
         if !(0.0..=1000.0).contains(&self.noise_nm) {
-            return Err(l.origin.invalid("noise_nm", self.noise_nm, "[0, 1000] nm").into());
+            return Err(l
+                .origin
+                .invalid("noise_nm", self.noise_nm, "[0, 1000] nm")
+                .into());
         }
         let instrument = Instrument {
             pixels: usize::from(self.pixels),

@@ -1,8 +1,8 @@
 //! One module per `servo` subcommand: its flags (clap) and what it does with the libraries.
 
 pub mod budget;
-pub mod completions;
 pub mod compensate;
+pub mod completions;
 pub mod config;
 pub mod ctl;
 pub mod deploy;

@@ -124,7 +124,9 @@ fn residual_on_grid(file: &Path, aperture_m: f64) -> Result<ApertureMap, StudyEr
             ),
         });
     }
-    Ok(ApertureMap::of(PART_NODES, aperture_m, |x, y| sample(&m, x, y)))
+    Ok(ApertureMap::of(PART_NODES, aperture_m, |x, y| {
+        sample(&m, x, y)
+    }))
 }
 
 /// The next compensation of `plan`'s prescription (its `[compensation]`, if any, is the
@@ -149,7 +151,10 @@ pub fn next_compensation(
             .invalid(
                 "lowpass_m",
                 options.lowpass_m,
-                &format!("[0, {}] m: a quarter of the aperture's radius", aperture / 4.0),
+                &format!(
+                    "[0, {}] m: a quarter of the aperture's radius",
+                    aperture / 4.0
+                ),
             )
             .into());
     }

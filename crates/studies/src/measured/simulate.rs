@@ -53,9 +53,12 @@ pub fn simulate_measurement(
     let (closed_loop, stage) = match plan.config.run.practice_seed {
         Some(s) => {
             let practice = run_config::practice_stage(&plan.config, &plan.origin, s)?;
-            let tick = practice.simulator().linear_tick().ok_or(StudyError::NeedsLinearPlant {
-                what: "a simulated measurement",
-            })?;
+            let tick = practice
+                .simulator()
+                .linear_tick()
+                .ok_or(StudyError::NeedsLinearPlant {
+                    what: "a simulated measurement",
+                })?;
             (
                 ClosedLoop::new(
                     &tick,
@@ -75,18 +78,18 @@ pub fn simulate_measurement(
         let s = path.setting_error_m(libm::hypot(x, y), libm::atan2(y, x), setting[0], setting[1]);
         servo(x, y) + if s.is_finite() { s } else { 0.0 }
     };
-    let part = form_of(&ApertureMap::of(PART_NODES, aperture, error).points(), aperture);
+    let part = form_of(
+        &ApertureMap::of(PART_NODES, aperture, error).points(),
+        aperture,
+    );
     // A margin beyond the aperture, so that interpolation at its edge has neighbours.
     let fine = ApertureMap::of(ERROR_NODES, aperture * 1.02, error);
     let design = Prescription {
         compensation: None,
         ..path.prescription().clone()
     };
-    let (map, mounting) = instrument.measure(
-        |x, y| -design.sag(x, y).z_m + fine.at(x, y),
-        aperture,
-        seed,
-    );
+    let (map, mounting) =
+        instrument.measure(|x, y| -design.sag(x, y).z_m + fine.at(x, y), aperture, seed);
     Ok(SimulatedMeasurement {
         stage,
         part,

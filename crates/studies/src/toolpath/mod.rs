@@ -101,7 +101,10 @@ fn along(rings: &[(Vec<f64>, Vec<f64>)], k: usize, rho: f64) -> f64 {
 /// The part `path` leaves through `ring_loop`: its error against the design at `(x, y)` in
 /// the part's frame, m toward the tool (the loop's error each point's nose contact took, and a
 /// `[compensation]`'s move of the path).
-pub fn predicted_part<'a>(path: &'a ToolPath, ring_loop: &RingLoop) -> impl Fn(f64, f64) -> f64 + 'a {
+pub fn predicted_part<'a>(
+    path: &'a ToolPath,
+    ring_loop: &RingLoop,
+) -> impl Fn(f64, f64) -> f64 + 'a {
     let rings = predicted_rings(path, ring_loop);
     let step = TAU / RING_SAMPLES as f64;
     move |x, y| {

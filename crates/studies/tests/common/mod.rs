@@ -36,3 +36,15 @@ pub fn open_loop_frf(p: &runner::Plan, freqs: &[f64]) -> Vec<studies::frf::FrfPo
     let settings = FrfSettings::for_loop(FrfLoop::Open);
     stepped_sine(p, FrfLoop::Open, freqs, &settings, &mut |_, _| {}).unwrap()
 }
+
+/// The book's gentle freeform: a 500 mm sphere, 3 µm astigmatism, 2 µm coma, 1.5 µm trefoil
+/// (Fringe) over a 20 mm aperture.
+pub const GENTLE: &str = r#"
+aperture_radius_mm = 10.0
+[base]
+radius_mm = 500.0
+[zernike]
+order = "fringe"
+norm_radius_mm = 10.0
+coefficients_mm = [0.0, 0.0, 0.0, 0.0, 0.003, 0.0, 0.002, 0.0, 0.0, 0.0015]
+"#;
