@@ -5,7 +5,8 @@ the design (a sphere with Standard Zernike astigmatism and trefoil) is evaluated
 placed on the instrument with a known pose, with noise and missing pixels.
 
 The pose (the registration test's truth, crates/metrology/tests/registration.rs):
-piston 120 nm, tilt (30, -20) µrad, decentre (0.21, -0.13) mm, rotation 7°.
+piston 120 nm, tilt (30, -20) µrad, decentre (0.21, -0.13) mm, rotation 7°; each pixel the
+mean of the surface over its area (3 x 3 points).
 Needs numpy and h5py. Run from the project root: python3 scripts/make_metrology_testdata.py
 """
 import struct
@@ -40,10 +41,18 @@ def measured():
     col, row = np.meshgrid(np.arange(COLS), np.arange(ROWS))
     u = (col - (COLS - 1) / 2) * PITCH_M
     v = ((ROWS - 1) / 2 - row) * PITCH_M
-    wx, wy = u - DECENTRE_M[0], v - DECENTRE_M[1]
     c, s = np.cos(ROT), np.sin(ROT)
-    qx, qy = c * wx + s * wy, -s * wx + c * wy
-    h = design_height(qx, qy) + PISTON_M + TILT[0] * u + TILT[1] * v
+
+    def part(u, v):
+        wx, wy = u - DECENTRE_M[0], v - DECENTRE_M[1]
+        return c * wx + s * wy, -s * wx + c * wy
+
+    # A pixel reads the mean height over its area (3 x 3 points), as an instrument integrates.
+    offsets = [(i + 0.5) / 3 - 0.5 for i in range(3)]
+    h = sum(design_height(*part(u + du * PITCH_M, v + dv * PITCH_M))
+            for du in offsets for dv in offsets) / 9
+    qx, qy = part(u, v)
+    h += PISTON_M + TILT[0] * u + TILT[1] * v
     h += NOISE_M * rng.standard_normal(h.shape)
     missing = (np.hypot(qx, qy) > APERTURE_M) | (rng.random(h.shape) < 0.03)
     missing |= (np.abs(qx - 1.5e-3) < 0.4e-3) & (np.abs(qy + 2e-3) < 0.6e-3)  # a dust patch

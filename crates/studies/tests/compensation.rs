@@ -102,3 +102,56 @@ fn a_cycle_finds_the_setting_errors_and_the_next_part_meets_the_tolerance() {
     assert!(part.pv_m < 20e-9 && part.rms_m < 3e-9, "{part:?}");
     assert!(part.rms_m < cut.part.tilt_removed.rms_m / 5.0);
 }
+
+#[test]
+fn a_compensation_beyond_the_stroke_is_refused_and_a_map_of_another_aperture_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let design = dir.path().join("gentle.toml");
+    std::fs::write(&design, GENTLE).unwrap();
+    let plan = common::plan(&loaded(&design, [0.0; 2]));
+    // ±30 µm of astigmatism in the part's frame: beyond the gap sensor's ±25.6 µm.
+    let write = |name: &str, nodes: usize, pitch_mm: f64| {
+        let half = (nodes - 1) as f64 / 2.0;
+        let mut text =
+            format!("# heights in nm, row 0 at +y, column 0 at -x, pitch {pitch_mm} mm\n");
+        for row in 0..nodes {
+            let cells: Vec<String> = (0..nodes)
+                .map(|col| {
+                    let (x, y) = (
+                        (col as f64 - half) * pitch_mm,
+                        (half - row as f64) * pitch_mm,
+                    );
+                    format!("{:.3}", 30_000.0 * (x * x - y * y) / 100.0)
+                })
+                .collect();
+            text += &cells.join(",");
+            text.push('\n');
+        }
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let options = CompensationOptions {
+        gain: 1.0,
+        lowpass_m: 0.0,
+    };
+    let big = write("big.csv", 129, 0.15625);
+    let next = next_compensation(&plan, &big, None, &options, 4).unwrap();
+    assert!(
+        next.toolpath
+            .feasibility
+            .exceeded
+            .iter()
+            .any(|e| e.contains("stroke") || e.contains("gap") || e.contains("DAC")),
+        "{:?}",
+        next.toolpath.feasibility.exceeded
+    );
+    // A residual over ±5 mm for a part of ±10 mm.
+    let small = write("small.csv", 65, 0.15625);
+    let e = next_compensation(&plan, &small, None, &options, 4).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("small.csv") && text.contains("another aperture"),
+        "{text}"
+    );
+}
