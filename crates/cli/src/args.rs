@@ -183,6 +183,38 @@ impl FeedforwardArgs {
     }
 }
 
+/// A cut of a prescription planned as `servo toolpath`, `servo measure` and `servo compensate`
+/// plan it: the stage, the controller, the feedforward and the spindle speed.
+#[derive(Args, Debug)]
+pub struct PrescriptionCutArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub plant: PlantArgs,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub controller: ControllerArgs,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub feedforward: FeedforwardArgs,
+    /// Spindle speed in rpm (default: the configured one).
+    #[arg(value_parser = crate::args::finite, long)]
+    pub rpm: Option<f64>,
+}
+
+impl PrescriptionCutArgs {
+    /// The plan of the configuration with these flags applied.
+    pub fn plan(&self) -> Result<runner::Plan, crate::output::CliError> {
+        let mut l = self.plant.load()?;
+        self.controller.apply(&mut l.config.controller);
+        self.feedforward
+            .apply(&mut l.config.controller, l.origin.path.as_deref());
+        if let run_config::Scenario::Machine(m) = &mut l.config.scenario {
+            set(&mut m.spindle_rpm, self.rpm);
+        }
+        Ok(runner::Plan::new(&l)?)
+    }
+}
+
 /// A path given on the command line, which names a file from the working directory: as given
 /// where the configuration's paths are resolved there too (no file, or a file in this folder),
 /// else made absolute, so the configuration file's folder does not move it.

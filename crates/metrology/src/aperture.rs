@@ -52,17 +52,9 @@ impl ApertureMap {
     /// The value at `(x_m, y_m)` (m), bilinear between the four nodes around it (NaN beyond
     /// the grid or beside a node without a value).
     pub fn at(&self, x_m: f64, y_m: f64) -> f64 {
-        let n = self.nodes;
-        let half = (n - 1) as f64 / 2.0;
+        let half = (self.nodes - 1) as f64 / 2.0;
         let (col, row) = (x_m / self.pitch_m + half, half - y_m / self.pitch_m);
-        if !(col >= 0.0 && row >= 0.0 && col <= (n - 1) as f64 && row <= (n - 1) as f64) {
-            return f64::NAN;
-        }
-        let (i, j) = ((col as usize).min(n - 2), (row as usize).min(n - 2));
-        let (tx, ty) = (col - i as f64, row - j as f64);
-        let v = |r: usize, c: usize| self.values[r * n + c];
-        (1.0 - ty) * ((1.0 - tx) * v(j, i) + tx * v(j, i + 1))
-            + ty * ((1.0 - tx) * v(j + 1, i) + tx * v(j + 1, i + 1))
+        crate::map::bilinear(&self.values, self.nodes, self.nodes, col, row)
     }
 
     /// The nodes with a value: position (m) and value (m).

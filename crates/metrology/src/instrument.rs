@@ -3,7 +3,7 @@
 //! rotation about the axis, tilt, piston), each pixel the mean height over its area (the
 //! lateral resolution), white noise, no data beyond the part's edge and at random dropouts.
 
-use crate::map::{MapFormat, MeasuredMap, PIXEL_SUBSAMPLES as SUBSAMPLES};
+use crate::map::{pixel_points, MapFormat, MeasuredMap, Placement, PIXEL_SUBSAMPLES};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -84,17 +84,13 @@ impl Instrument {
         };
         let noise =
             Normal::new(0.0, self.noise_m.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("zero"));
-        let (s, c) = (libm::sin(pose.rotation_rad), libm::cos(pose.rotation_rad));
+        let placed = Placement::new(pose.decentre_m, pose.rotation_rad);
         for i in 0..n * n {
             let (u0, v0) = map.xy(i);
             let mut sum = 0.0;
             let mut on_part = true;
-            for k in 0..SUBSAMPLES * SUBSAMPLES {
-                let du = ((k % SUBSAMPLES) as f64 + 0.5) / SUBSAMPLES as f64 - 0.5;
-                let dv = ((k / SUBSAMPLES) as f64 + 0.5) / SUBSAMPLES as f64 - 0.5;
-                let (u, v) = (u0 + du * pitch, v0 + dv * pitch);
-                let (wx, wy) = (u - pose.decentre_m[0], v - pose.decentre_m[1]);
-                let (qx, qy) = (c * wx + s * wy, -s * wx + c * wy);
+            for (du, dv) in pixel_points(PIXEL_SUBSAMPLES) {
+                let (qx, qy) = placed.part_point(u0 + du * pitch, v0 + dv * pitch);
                 if libm::hypot(qx, qy) > aperture_m {
                     on_part = false;
                     break;
@@ -103,7 +99,7 @@ impl Instrument {
             }
             let dropped = rng.random::<f64>() < self.dropout;
             if on_part && !dropped {
-                map.heights_m[i] = sum / (SUBSAMPLES * SUBSAMPLES) as f64
+                map.heights_m[i] = sum / (PIXEL_SUBSAMPLES * PIXEL_SUBSAMPLES) as f64
                     + pose.piston_m
                     + pose.tilt_rad[0] * u0
                     + pose.tilt_rad[1] * v0

@@ -17,7 +17,7 @@
 
 use crate::aperture::ApertureMap;
 use crate::form::{form_of, Form};
-use crate::map::{MeasuredMap, PIXEL_SUBSAMPLES};
+use crate::map::{pixel_points, MeasuredMap, Placement, PIXEL_SUBSAMPLES};
 use nalgebra::{DMatrix, DVector};
 use optics::toolpath::ToolPath;
 use optics::{Zernike, ZernikeOrder};
@@ -109,58 +109,22 @@ pub struct Registration {
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegisterError(pub String);
 
-/// The setting-error signatures on a square grid over the aperture, per metre of error.
-struct Signatures {
-    half_m: f64,
-    pitch_m: f64,
-    centre_height: Vec<f64>,
-    x_offset: Vec<f64>,
-}
-
-impl Signatures {
-    fn new(path: &ToolPath) -> Self {
-        // A margin beyond the aperture so that interpolation at its edge has neighbours.
-        let half = path.prescription().aperture_radius_m * 1.05;
-        let n = SIGNATURE_NODES;
-        let pitch = 2.0 * half / (n - 1) as f64;
-        let at = |i: usize, h: f64, e: f64| {
-            let (x, y) = (
-                -half + (i % n) as f64 * pitch,
-                -half + (i / n) as f64 * pitch,
-            );
-            let r = libm::hypot(x, y);
-            if r > half {
-                return 0.0;
-            }
-            let v = path.setting_error_m(r, libm::atan2(y, x), h, e) / SIGNATURE_STEP_M;
+/// The setting-error signatures over the aperture (and a margin beyond it, so that
+/// interpolation at its edge has neighbours), per metre of error: centre height, X offset.
+fn signatures(path: &ToolPath) -> [ApertureMap; 2] {
+    let half = path.prescription().aperture_radius_m * 1.05;
+    let map = |h: f64, e: f64| {
+        ApertureMap::of(SIGNATURE_NODES, half, |x, y| {
+            let v =
+                path.setting_error_m(libm::hypot(x, y), libm::atan2(y, x), h, e) / SIGNATURE_STEP_M;
             if v.is_finite() {
                 v
             } else {
                 0.0
             }
-        };
-        Signatures {
-            half_m: half,
-            pitch_m: pitch,
-            centre_height: (0..n * n).map(|i| at(i, SIGNATURE_STEP_M, 0.0)).collect(),
-            x_offset: (0..n * n).map(|i| at(i, 0.0, SIGNATURE_STEP_M)).collect(),
-        }
-    }
-
-    /// Both signatures at `(x, y)` (bilinear).
-    fn at(&self, x: f64, y: f64) -> (f64, f64) {
-        let n = SIGNATURE_NODES;
-        let fx = ((x + self.half_m) / self.pitch_m).clamp(0.0, (n - 1) as f64 - 1e-9);
-        let fy = ((y + self.half_m) / self.pitch_m).clamp(0.0, (n - 1) as f64 - 1e-9);
-        let (i, j) = (fx as usize, fy as usize);
-        let (tx, ty) = (fx - i as f64, fy - j as f64);
-        let lerp = |v: &[f64]| {
-            let k = j * n + i;
-            (1.0 - ty) * ((1.0 - tx) * v[k] + tx * v[k + 1])
-                + ty * ((1.0 - tx) * v[k + n] + tx * v[k + n + 1])
-        };
-        (lerp(&self.centre_height), lerp(&self.x_offset))
-    }
+        })
+    };
+    [map(SIGNATURE_STEP_M, 0.0), map(0.0, SIGNATURE_STEP_M)]
 }
 
 /// The fit's unknowns, in the order of the Jacobian's columns.
@@ -198,24 +162,18 @@ struct Model<'a> {
     subsamples: usize,
     aperture_m: f64,
     power: Zernike,
-    signatures: Option<Signatures>,
+    signatures: Option<[ApertureMap; 2]>,
 }
 
 /// One pixel's model value and Jacobian row (all nine columns), None off the part: the
 /// design is the mean over the pixel's area ([`PIXEL_SUBSAMPLES`]² points, as an instrument's
 /// pixel integrates it), the smooth terms at its centre.
 fn evaluate(m: &Model, pose: &Pose, u: f64, v: f64) -> Option<(f64, [f64; 9])> {
-    let (s, c) = (libm::sin(pose.phi), libm::cos(pose.phi));
-    let part = |u: f64, v: f64| {
-        let (wx, wy) = (u - pose.d[0], v - pose.d[1]);
-        (c * wx + s * wy, -s * wx + c * wy)
-    };
+    let placed = Placement::new(pose.d, pose.phi);
     let n = m.subsamples;
     let (mut h, mut hx, mut hy, mut turn) = (0.0, 0.0, 0.0, 0.0);
-    for k in 0..n * n {
-        let du = ((k % n) as f64 + 0.5) / n as f64 - 0.5;
-        let dv = ((k / n) as f64 + 0.5) / n as f64 - 0.5;
-        let (qx, qy) = part(u + du * m.pitch_m[0], v + dv * m.pitch_m[1]);
+    for (du, dv) in pixel_points(n) {
+        let (qx, qy) = placed.part_point(u + du * m.pitch_m[0], v + dv * m.pitch_m[1]);
         if libm::hypot(qx, qy) > m.aperture_m {
             return None;
         }
@@ -227,25 +185,21 @@ fn evaluate(m: &Model, pose: &Pose, u: f64, v: f64) -> Option<(f64, [f64; 9])> {
     }
     let count = (n * n) as f64;
     let (h, hx, hy, turn) = (h / count, hx / count, hy / count, turn / count);
-    let (qx, qy) = part(u, v);
+    let (qx, qy) = placed.part_point(u, v);
     let z4 = m.power.basis(4, qx, qy).z_m;
-    let (sh, se) = m.signatures.as_ref().map_or((0.0, 0.0), |g| g.at(qx, qy));
+    let (sh, se) = m
+        .signatures
+        .as_ref()
+        .map_or((0.0, 0.0), |[h, e]| (h.at(qx, qy), e.at(qx, qy)));
     let basis = [1.0, u, v, z4, sh, se];
     let value = h + basis
         .iter()
         .zip(&pose.linear)
         .map(|(b, k)| b * k)
         .sum::<f64>();
+    let [dx, dy] = placed.decentre_sensitivity(hx, hy);
     let row = [
-        basis[0],
-        basis[1],
-        basis[2],
-        basis[3],
-        basis[4],
-        basis[5],
-        -(hx * c - hy * s),
-        -(hx * s + hy * c),
-        turn,
+        basis[0], basis[1], basis[2], basis[3], basis[4], basis[5], dx, dy, turn,
     ];
     Some((value, row))
 }
@@ -349,7 +303,7 @@ pub fn register(
             norm_radius_m: aperture,
             coefficients_m: Vec::new(),
         },
-        signatures: options.setting_errors.then(|| Signatures::new(path)),
+        signatures: options.setting_errors.then(|| signatures(path)),
     };
     let stride = valid.len().div_ceil(MAX_FIT_PIXELS);
     let fit: Vec<(f64, f64, f64)> = valid.iter().step_by(stride).copied().collect();
@@ -447,14 +401,14 @@ pub fn register(
         std: 0.0,
     };
     let stride = on_part.len().div_ceil(MAX_FORM_PIXELS).max(1);
-    let (s, c) = (libm::sin(pose.phi), libm::cos(pose.phi));
+    let placed = Placement::new(pose.d, pose.phi);
     let points: Vec<(f64, f64, f64)> = on_part
         .iter()
         .step_by(stride)
         .map(|&i| {
             let (u, v) = map.xy(i);
-            let (wx, wy) = (u - pose.d[0], v - pose.d[1]);
-            (c * wx + s * wy, -s * wx + c * wy, residual_map.heights_m[i])
+            let (x, y) = placed.part_point(u, v);
+            (x, y, residual_map.heights_m[i])
         })
         .collect();
     let covered = on_part.len() as f64 * area / (std::f64::consts::PI * aperture * aperture);
@@ -585,34 +539,23 @@ impl Registration {
     /// else its Standard Zernike fit ([`Form::zernike_standard_m`]): a map the next cut's
     /// compensation can be made from.
     pub fn part_map(&self, nodes: usize) -> ApertureMap {
-        let map = &self.residual_map;
-        let phi = self.rotation_rad.map_or(0.0, |r| r.value);
-        let (s, c) = (libm::sin(phi), libm::cos(phi));
-        let d = [self.decentre_m[0].value, self.decentre_m[1].value];
+        let placed = Placement::new(
+            [self.decentre_m[0].value, self.decentre_m[1].value],
+            self.rotation_rad.map_or(0.0, |r| r.value),
+        );
         let fit = Zernike {
             order: ZernikeOrder::Standard,
             norm_radius_m: self.aperture_m,
             coefficients_m: self.residual.zernike_standard_m.clone(),
         };
         ApertureMap::of(nodes, self.aperture_m, |x, y| {
-            // The part's point in the instrument's frame, then in pixels.
-            let (u, v) = (c * x - s * y + d[0], s * x + c * y + d[1]);
-            let col = u / map.pitch_m[0] + (map.cols as f64 - 1.0) / 2.0;
-            let row = (map.rows as f64 - 1.0) / 2.0 - v / map.pitch_m[1];
-            let inside = col >= 0.0
-                && row >= 0.0
-                && col < (map.cols - 1) as f64
-                && row < (map.rows - 1) as f64;
-            if inside {
-                let (i, j) = (col as usize, row as usize);
-                let (tx, ty) = (col - i as f64, row - j as f64);
-                let at = |r: usize, q: usize| map.heights_m[r * map.cols + q];
-                let (a, b, e, f) = (at(j, i), at(j, i + 1), at(j + 1, i), at(j + 1, i + 1));
-                if a.is_finite() && b.is_finite() && e.is_finite() && f.is_finite() {
-                    return (1.0 - ty) * ((1.0 - tx) * a + tx * b) + ty * ((1.0 - tx) * e + tx * f);
-                }
+            let (u, v) = placed.instrument_point(x, y);
+            let measured = self.residual_map.at(u, v);
+            if measured.is_finite() {
+                measured
+            } else {
+                fit.sag(x, y).z_m
             }
-            fit.sag(x, y).z_m
         })
     }
 }

@@ -7,7 +7,7 @@ use crate::common;
 use common::GENTLE;
 
 use metrology::{Instrument, ReadOptions, RegisterOptions};
-use run_config::{Loaded, Machining, Origin, RunConfig, Scenario, SurfaceConfig};
+use run_config::{Loaded, Machining, Origin, RunConfig, Scenario};
 use std::path::Path;
 use studies::measured::compensate::{next_compensation, CompensationOptions};
 use studies::measured::simulate::simulate_measurement;
@@ -16,16 +16,9 @@ use studies::measured::simulate::simulate_measurement;
 fn loaded(path: &Path, setting: [f64; 2]) -> Loaded {
     let mut config = RunConfig {
         scenario: Scenario::Machine(Machining {
-            surface: SurfaceConfig::Prescription {
-                path: path.to_owned(),
-                nose_compensation: true,
-                clearance_angle_rad: 0.12,
-            },
-            spindle_rpm: 600.0,
-            start_radius_m: 10e-3,
             tool_centre_height_m: setting[0],
             tool_x_offset_m: setting[1],
-            ..Machining::default()
+            ..common::gentle_cut(path)
         }),
         ..RunConfig::default()
     };

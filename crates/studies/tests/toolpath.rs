@@ -7,7 +7,7 @@ use crate::common;
 use common::GENTLE;
 
 use common::machine;
-use run_config::{Loaded, Machining, Origin, RunConfig, RunSection, Scenario, SurfaceConfig};
+use run_config::{Loaded, Origin, RunConfig, RunSection, Scenario};
 use std::path::Path;
 
 /// A plan cutting the prescription file `path` at 600 rpm from the aperture's edge.
@@ -17,16 +17,7 @@ fn plan(path: &Path, duration_s: f64) -> runner::Plan {
             duration_s,
             ..RunSection::default()
         },
-        scenario: Scenario::Machine(Machining {
-            surface: SurfaceConfig::Prescription {
-                path: path.to_owned(),
-                nose_compensation: true,
-                clearance_angle_rad: 0.12,
-            },
-            spindle_rpm: 600.0,
-            start_radius_m: 10e-3,
-            ..Machining::default()
-        }),
+        scenario: Scenario::Machine(common::gentle_cut(path)),
         ..RunConfig::default()
     };
     common::plan(&Loaded {

@@ -1,10 +1,8 @@
 //! `servo compensate`: the next cut's compensation from a registered measurement.
 
-use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs};
+use crate::args::PrescriptionCutArgs;
 use crate::output::{print_json, print_written, CliError, BAD_INPUT};
 use clap::Args;
-use run_config::Scenario;
-use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::measured::compensate::{next_compensation, CompensationOptions, NextCompensation};
@@ -25,11 +23,7 @@ use studies::measured::compensate::{next_compensation, CompensationOptions, Next
 #[derive(Args, Debug)]
 pub struct CompensateCmd {
     #[command(flatten)]
-    plant: PlantArgs,
-    #[command(flatten)]
-    controller: ControllerArgs,
-    #[command(flatten)]
-    feedforward: FeedforwardArgs,
+    cut: PrescriptionCutArgs,
     /// The registered residual in the part's frame (`servo register`'s part_error.csv).
     #[arg(long)]
     residual: PathBuf,
@@ -42,9 +36,6 @@ pub struct CompensateCmd {
     /// Standard deviation of the Gaussian low-pass on the residual in mm (0: none).
     #[arg(long, default_value_t = 0.0, value_parser = crate::args::finite)]
     lowpass_mm: f64,
-    /// Spindle speed in rpm (default: the configured one).
-    #[arg(value_parser = crate::args::finite, long)]
-    rpm: Option<f64>,
     /// Radius bands of the tool path's check.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(1..=100))]
     bands: u16,
@@ -59,14 +50,7 @@ pub struct CompensateCmd {
 impl CompensateCmd {
     /// Plans, accumulates, checks, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let mut l = self.plant.load()?;
-        self.controller.apply(&mut l.config.controller);
-        self.feedforward
-            .apply(&mut l.config.controller, l.origin.path.as_deref());
-        if let Scenario::Machine(m) = &mut l.config.scenario {
-            crate::args::set(&mut m.spindle_rpm, self.rpm);
-        }
-        let plan = Plan::new(&l)?;
+        let plan = self.cut.plan()?;
         let options = CompensationOptions {
             gain: self.gain,
             lowpass_m: self.lowpass_mm * 1e-3,

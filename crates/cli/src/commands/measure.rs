@@ -1,11 +1,9 @@
 //! `servo measure`: a part cut and measured in simulation.
 
-use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs};
+use crate::args::PrescriptionCutArgs;
 use crate::output::{print_json, write_result, CliError};
 use clap::Args;
 use metrology::Instrument;
-use run_config::Scenario;
-use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::measured::simulate::{simulate_measurement, SimulatedMeasurement};
@@ -26,14 +24,7 @@ use studies::measured::simulate::{simulate_measurement, SimulatedMeasurement};
 #[derive(Args, Debug)]
 pub struct MeasureCmd {
     #[command(flatten)]
-    plant: PlantArgs,
-    #[command(flatten)]
-    controller: ControllerArgs,
-    #[command(flatten)]
-    feedforward: FeedforwardArgs,
-    /// Spindle speed in rpm (default: the configured one).
-    #[arg(value_parser = crate::args::finite, long)]
-    rpm: Option<f64>,
+    cut: PrescriptionCutArgs,
     /// The measured map (Zygo XYZ).
     #[arg(long, default_value = "part.xyz")]
     out: PathBuf,
@@ -57,16 +48,9 @@ pub struct MeasureCmd {
 impl MeasureCmd {
     /// Plans, cuts, measures, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let mut l = self.plant.load()?;
-        self.controller.apply(&mut l.config.controller);
-        self.feedforward
-            .apply(&mut l.config.controller, l.origin.path.as_deref());
-        if let Scenario::Machine(m) = &mut l.config.scenario {
-            crate::args::set(&mut m.spindle_rpm, self.rpm);
-        }
-        let plan = Plan::new(&l)?;
+        let plan = self.cut.plan()?;
         if !(0.0..=1000.0).contains(&self.noise_nm) {
-            return Err(l
+            return Err(plan
                 .origin
                 .invalid("noise_nm", self.noise_nm, "[0, 1000] nm")
                 .into());

@@ -1,10 +1,8 @@
 //! `servo toolpath`: what a prescription's tool path asks of the stage, before it is cut.
 
-use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs};
+use crate::args::PrescriptionCutArgs;
 use crate::output::{print_json, print_written, CliError, BAD_INPUT};
 use clap::Args;
-use run_config::Scenario;
-use runner::Plan;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use studies::toolpath::TableSize;
@@ -25,14 +23,7 @@ use studies::toolpath::TableSize;
 #[derive(Args, Debug)]
 pub struct ToolpathCmd {
     #[command(flatten)]
-    plant: PlantArgs,
-    #[command(flatten)]
-    controller: ControllerArgs,
-    #[command(flatten)]
-    feedforward: FeedforwardArgs,
-    /// Spindle speed in rpm (default: the configured one).
-    #[arg(value_parser = crate::args::finite, long)]
-    rpm: Option<f64>,
+    cut: PrescriptionCutArgs,
     /// Radius bands from the aperture's edge to the axis.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(1..=100))]
     bands: u16,
@@ -53,14 +44,7 @@ pub struct ToolpathCmd {
 impl ToolpathCmd {
     /// Plans, checks, writes and prints.
     pub fn exec(&self) -> Result<ExitCode, CliError> {
-        let mut l = self.plant.load()?;
-        self.controller.apply(&mut l.config.controller);
-        self.feedforward
-            .apply(&mut l.config.controller, l.origin.path.as_deref());
-        if let Scenario::Machine(m) = &mut l.config.scenario {
-            crate::args::set(&mut m.spindle_rpm, self.rpm);
-        }
-        let plan = Plan::new(&l)?;
+        let plan = self.cut.plan()?;
         let study = studies::toolpath::study(&plan, usize::from(self.bands))?;
         let (m, path, _) = studies::toolpath::demands::prescription_of(&plan)?;
         let table = TableSize {

@@ -9,28 +9,28 @@ use crate::map::LengthUnit;
 /// Decodes a CSV grid's text.
 pub(super) fn read(text: &str) -> Result<Raw, String> {
     let mut lines = text.lines().peekable();
-    let mut unit_m = None;
-    let mut pitch_m = None;
+    let (mut unit_m, mut pitch_m) = (None, None);
     let mut sign = 1.0;
     if let Some(head) = lines.peek().and_then(|l| l.strip_prefix('#')) {
         let words: Vec<&str> = head.split([' ', ',']).filter(|w| !w.is_empty()).collect();
-        for w in words.windows(2) {
-            match w {
-                ["in", u] => unit_m = LengthUnit::parse(u).map(LengthUnit::metres),
-                ["pitch", p] => {
-                    let mm = words
-                        .iter()
-                        .skip_while(|x| *x != &"pitch")
-                        .nth(2)
-                        .copied()
-                        .and_then(LengthUnit::parse)
-                        .ok_or("the header's pitch has no unit (pitch P mm)")?;
-                    let p: f64 = p.parse().map_err(|_| format!("the header's pitch '{p}'"))?;
-                    pitch_m = Some([p * mm.metres(); 2]);
-                }
-                _ => {}
+        let after = |key: &str| {
+            let at = words.iter().position(|w| *w == key)?;
+            Some(&words[at + 1..])
+        };
+        unit_m = after("in")
+            .and_then(|rest| rest.first())
+            .and_then(|u| LengthUnit::parse(u))
+            .map(LengthUnit::metres);
+        pitch_m = match after("pitch") {
+            Some([p, unit, ..]) => {
+                let unit =
+                    LengthUnit::parse(unit).ok_or("the header's pitch has no unit (pitch P mm)")?;
+                let p: f64 = p.parse().map_err(|_| format!("the header's pitch '{p}'"))?;
+                Some([p * unit.metres(); 2])
             }
-        }
+            Some(_) => return Err("the header's pitch has no unit (pitch P mm)".into()),
+            None => None,
+        };
         if words.contains(&"sag") {
             sign = -1.0;
         }

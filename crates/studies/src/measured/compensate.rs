@@ -6,7 +6,7 @@
 use super::PART_NODES;
 use crate::error::StudyError;
 use crate::toolpath::{self, ToolpathStudy};
-use metrology::{form_of, ApertureMap, Form, MeasuredMap, ReadOptions};
+use metrology::{form_of, ApertureMap, Form, ReadOptions};
 use optics::toolpath::ToolPath;
 use optics::Prescription;
 use run_config::surface::LoadedSurface;
@@ -50,24 +50,6 @@ pub struct NextCompensation {
     /// The next compensation, m toward the tool (part − design, as a measurement reports it).
     #[serde(skip)]
     pub next_map: ApertureMap,
-}
-
-/// A part-frame residual file (centred grid) sampled at `(x, y)` (bilinear; NaN where a
-/// neighbour has no data).
-fn sample(m: &MeasuredMap, x: f64, y: f64) -> f64 {
-    let col = x / m.pitch_m[0] + (m.cols as f64 - 1.0) / 2.0;
-    let row = (m.rows as f64 - 1.0) / 2.0 - y / m.pitch_m[1];
-    if !(col >= 0.0 && row >= 0.0 && col <= (m.cols - 1) as f64 && row <= (m.rows - 1) as f64) {
-        return f64::NAN;
-    }
-    let (i, j) = (
-        (col as usize).min(m.cols - 2),
-        (row as usize).min(m.rows - 2),
-    );
-    let (tx, ty) = (col - i as f64, row - j as f64);
-    let at = |r: usize, c: usize| m.heights_m[r * m.cols + c];
-    (1.0 - ty) * ((1.0 - tx) * at(j, i) + tx * at(j, i + 1))
-        + ty * ((1.0 - tx) * at(j + 1, i) + tx * at(j + 1, i + 1))
 }
 
 /// `map` smoothed by a Gaussian of standard deviation `sigma_m` (m) over the nodes with a
@@ -124,9 +106,7 @@ fn residual_on_grid(file: &Path, aperture_m: f64) -> Result<ApertureMap, StudyEr
             ),
         });
     }
-    Ok(ApertureMap::of(PART_NODES, aperture_m, |x, y| {
-        sample(&m, x, y)
-    }))
+    Ok(ApertureMap::of(PART_NODES, aperture_m, |x, y| m.at(x, y)))
 }
 
 /// The next compensation of `plan`'s prescription (its `[compensation]`, if any, is the

@@ -80,36 +80,30 @@ pub fn design_of(loaded: &Loaded) -> Result<ToolPath, StudyError> {
             )
             .into());
     };
-    let file = run_config::surface_file(&m.surface, &loaded.origin)?;
-    let bytes = file.as_ref().map(|f| f.bytes.as_slice());
-    let LoadedSurface::Prescription(path) = LoadedSurface::load(m, &loaded.origin, bytes)? else {
-        return Err(loaded
+    // The prescription as a run embeds it (JSON), its compensation dropped before the tool
+    // path is built: the design alone.
+    let file =
+        run_config::surface_file(&m.surface, &loaded.origin)?.map(
+            |f| match serde_json::from_slice::<Prescription>(&f.bytes) {
+                Ok(p) => serde_json::to_vec(&Prescription {
+                    compensation: None,
+                    ..p
+                })
+                .unwrap_or(f.bytes),
+                Err(_) => f.bytes,
+            },
+        );
+    match LoadedSurface::load(m, &loaded.origin, file.as_deref())? {
+        LoadedSurface::Prescription(path) => Ok(*path),
+        _ => Err(loaded
             .origin
             .invalid(
                 "scenario.surface.kind",
                 "(not a prescription)",
                 "\"prescription\": a measured part is registered against its prescription",
             )
-            .into());
-    };
-    let design = Prescription {
-        compensation: None,
-        ..path.prescription().clone()
-    };
-    ToolPath::new(design, path.nose_radius_m()).map_err(|e| {
-        loaded
-            .origin
-            .invalid(
-                "scenario.tool_nose_radius_m",
-                format!(
-                    "{} (no contact at r = {:.4} mm)",
-                    path.nose_radius_m(),
-                    e.radius_m * 1e3
-                ),
-                "a nose that finds the design everywhere",
-            )
-            .into()
-    })
+            .into()),
+    }
 }
 
 /// Reads `map_file` and registers it against the design of `loaded`.

@@ -1,6 +1,5 @@
 //! What the study tests share.
 
-/// The resolved plan of `l` (every test configuration is valid).
 /// The practice stage's linear and time-invariant effects (the in-band mode): a stage whose
 /// drawn model with its modes is the truth a measurement is judged against.
 pub const STEADY: plant_sim::practice::PracticeEffects = plant_sim::practice::PracticeEffects {
@@ -8,6 +7,7 @@ pub const STEADY: plant_sim::practice::PracticeEffects = plant_sim::practice::Pr
     ..plant_sim::practice::PracticeEffects::NONE
 };
 
+/// The resolved plan of `l` (every test configuration is valid).
 pub fn plan(l: &run_config::Loaded) -> runner::Plan {
     runner::Plan::new(l).unwrap()
 }
@@ -48,3 +48,19 @@ order = "fringe"
 norm_radius_mm = 10.0
 coefficients_mm = [0.0, 0.0, 0.0, 0.0, 0.003, 0.0, 0.002, 0.0, 0.0, 0.0015]
 "#;
+
+/// A cut of the prescription file `path` at 600 rpm from the aperture's edge (the gentle
+/// freeform's 10 mm), its nose compensated.
+#[allow(dead_code)] // Used by the tool-path and compensation tests, not by every test binary.
+pub fn gentle_cut(path: &std::path::Path) -> run_config::Machining {
+    run_config::Machining {
+        surface: run_config::SurfaceConfig::Prescription {
+            path: path.to_owned(),
+            nose_compensation: true,
+            clearance_angle_rad: 0.12,
+        },
+        spindle_rpm: 600.0,
+        start_radius_m: 10e-3,
+        ..run_config::Machining::default()
+    }
+}
