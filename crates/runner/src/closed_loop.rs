@@ -73,6 +73,10 @@ pub mod output {
     ];
 }
 
+/// The smallest Hankel singular value, relative to the largest, of a state
+/// [`ClosedLoop::slowest_command_pole`] counts as seen in the response.
+pub const VISIBLE_HANKEL: f64 = 1e-9;
+
 /// The sampled closed loop.
 #[derive(Debug, Clone)]
 pub struct ClosedLoop {
@@ -263,6 +267,28 @@ impl ClosedLoop {
     /// alone for [`ClosedLoop::open`]).
     pub fn command_response(&self, f_hz: f64) -> Result<num_complex::Complex64, LtiError> {
         self.response(output::MEASURED_M, input::CONTROL_DISTURBANCE_V, f_hz)
+    }
+
+    /// The slowest decaying pole (z-plane) the command response shows, if any: of the balanced
+    /// realisation of the controller output → measured position, the states whose Hankel
+    /// singular value is at least [`VISIBLE_HANKEL`] of the largest (the noise shaping's slow
+    /// states, reached only by rounding, are not). Its time constant `−T/ln|p|` is how long a
+    /// transient the command starts rings.
+    pub fn slowest_command_pole(&self) -> Result<Option<num_complex::Complex64>, LtiError> {
+        let siso = self.subsystem(&[(output::MEASURED_M, 1.0)], input::CONTROL_DISTURBANCE_V);
+        let balancing = lti::reduce::Balancing::new(&siso)?;
+        let hankel = balancing.truncate(0).hankel;
+        let largest = hankel.first().copied().unwrap_or(0.0);
+        let visible = hankel
+            .iter()
+            .filter(|&&h| h >= VISIBLE_HANKEL * largest)
+            .count();
+        Ok(balancing
+            .truncate(visible)
+            .sys
+            .poles()
+            .into_iter()
+            .max_by(|a, b| a.norm().total_cmp(&b.norm())))
     }
 
     /// [`ClosedLoop::command_response`] at each of `freq_hz` (the loop reduced once), each

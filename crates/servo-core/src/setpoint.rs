@@ -291,9 +291,10 @@ impl Chirp {
 generator_block!(Chirp, self, t => self.at(t));
 
 /// The stepped-sine sweep of thesis §5.5.1: one segment per frequency, each with a linear
-/// amplitude ramp from zero, a settling time, and a measurement window of a whole number of
-/// periods. Each frequency is nudged so the window holds an integer number of samples as well,
-/// which puts it exactly on a DFT bin (eq 5-11).
+/// amplitude ramp from zero, a settling time, a measurement window of a whole number of
+/// periods, and a linear ramp back to zero (so the next frequency does not start on the ring
+/// an abrupt stop leaves in a lightly damped mode). Each frequency is nudged so the window
+/// holds an integer number of samples as well, which puts it exactly on a DFT bin (eq 5-11).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SteppedSineConfig<'a> {
     /// Requested frequencies in Hz (each below Nyquist).
@@ -306,6 +307,8 @@ pub struct SteppedSineConfig<'a> {
     pub settle_periods: u32,
     /// Periods in the measurement window (`≥ 1`).
     pub measure_periods: u32,
+    /// Periods of the amplitude ramp back to zero after the window (0: an abrupt stop).
+    pub ramp_down_periods: u32,
 }
 
 /// The layout of one stepped-sine segment, in samples from the start of the sweep.
@@ -321,12 +324,19 @@ pub struct SweepSegment {
     pub measure_start: u64,
     /// Samples in the measurement window (`measure_periods / frequency_hz` seconds exactly).
     pub measure_len: u64,
+    /// Samples of the ramp back to zero after the window.
+    pub ramp_down_len: u64,
 }
 
 impl SweepSegment {
-    /// One past the last sample of the segment.
-    pub fn end(&self) -> u64 {
+    /// One past the last sample of the measurement window.
+    pub fn measure_end(&self) -> u64 {
         self.measure_start + self.measure_len
+    }
+
+    /// One past the last sample of the segment (its ramp down included).
+    pub fn end(&self) -> u64 {
+        self.measure_end() + self.ramp_down_len
     }
 }
 
@@ -360,6 +370,7 @@ impl<'a> SteppedSineConfig<'a> {
 /// let f = [100.0, 1000.0];
 /// let cfg = SteppedSineConfig {
 ///     frequencies_hz: &f, amplitude: 1.0, ramp_periods: 2, settle_periods: 3, measure_periods: 10,
+///     ramp_down_periods: 2,
 /// };
 /// let sweep = cfg.try_build(1.0 / 199_600.0).unwrap();
 /// let seg = sweep.segment(1).unwrap();
@@ -385,12 +396,15 @@ impl SteppedSine<'_> {
         let samples_per_period = measure_len / periods;
         let ramp_len = libm::round(self.config.ramp_periods as f64 * samples_per_period) as u64;
         let settle_len = libm::round(self.config.settle_periods as f64 * samples_per_period) as u64;
+        let ramp_down_len =
+            libm::round(self.config.ramp_down_periods as f64 * samples_per_period) as u64;
         Some(SweepSegment {
             frequency_hz: fs / samples_per_period,
             start,
             ramp_len,
             measure_start: start + ramp_len + settle_len,
             measure_len: measure_len as u64,
+            ramp_down_len,
         })
     }
 
@@ -424,9 +438,21 @@ impl SteppedSine<'_> {
         let t = self.clock.period_s;
         let n = (k - seg.start) as f64;
         let w = 2.0 * PI * seg.frequency_hz;
+        // Raised-cosine ramps: the envelope and its slope are continuous, so a mode away from
+        // the frequency is barely kicked (a linear ramp's corners kick it by ~1/(T_r·ω)).
+        let raised_cosine = |u: f64, ramp_s: f64| {
+            (
+                0.5 * (1.0 - libm::cos(PI * u)),
+                0.5 * PI * libm::sin(PI * u) / ramp_s,
+            )
+        };
         let (env, slope) = if (k - seg.start) < seg.ramp_len {
             let ramp_s = seg.ramp_len as f64 * t;
-            (n * t / ramp_s, 1.0 / ramp_s)
+            raised_cosine(n * t / ramp_s, ramp_s)
+        } else if k >= seg.measure_end() {
+            let ramp_s = seg.ramp_down_len as f64 * t;
+            let (env, slope) = raised_cosine((seg.end() - k) as f64 * t / ramp_s, ramp_s);
+            (env, -slope)
         } else {
             (1.0, 0.0)
         };
@@ -530,6 +556,7 @@ mod tests {
             ramp_periods: 3,
             settle_periods: 5,
             measure_periods: 20,
+            ramp_down_periods: 2,
         };
         let mut g = cfg.try_build(1.0 / fs).unwrap();
         let segs: [SweepSegment; 3] = core::array::from_fn(|i| g.segment(i).unwrap());
@@ -544,7 +571,14 @@ mod tests {
                 if k == s.start {
                     assert_eq!(p, 0.0, "segment {i} starts from zero amplitude");
                 }
-                if k >= s.measure_start && k < s.end() {
+                if k + 1 == s.end() {
+                    let last_sample_envelope = 1.0 / s.ramp_down_len as f64;
+                    assert!(
+                        p.abs() <= 0.5 * last_sample_envelope,
+                        "segment {i} ends near zero"
+                    );
+                }
+                if k >= s.measure_start && k < s.measure_end() {
                     let ph = 2.0 * PI * s.frequency_hz * (k - s.measure_start) as f64 / fs;
                     re[i] += p * libm::cos(ph);
                     im[i] += p * libm::sin(ph);

@@ -38,6 +38,7 @@ fn every_block_ticks_without_allocating() {
         ramp_periods: 2,
         settle_periods: 2,
         measure_periods: 4,
+        ramp_down_periods: 1,
     }
     .try_build(T)
     .unwrap();

@@ -146,7 +146,7 @@ impl FrfCmd {
         let ticks = match self.method {
             FrfMethod::Stepped => {
                 let (settings, freqs) = self.stepped();
-                frf::stepped_sine_ticks(plan, &freqs, &settings)?
+                frf::stepped_sine_ticks(plan, self.which, &freqs, &settings)?
             }
             FrfMethod::Chirp => self.chirp().ticks(fs),
         };

@@ -118,8 +118,16 @@ pub struct FrfSettings {
     pub knee_hz: f64,
     /// Largest amplitude in V.
     pub max_amplitude_v: f64,
-    /// Settling time per frequency in s (the suspension mode rings ≈ 70 ms in open loop).
+    /// Least settling time per frequency in s.
     pub settle_s: f64,
+    /// Settling time, in time constants of the slowest mode the model's command response shows
+    /// ([`ClosedLoop::slowest_command_pole`]; the suspension mode rings 72 ms in open loop on
+    /// the 0.074 kg stage, 160 ms on the 0.174 kg one), of the frequencies below
+    /// [`SLOW_MODE_REACH`] times its natural frequency, when longer than `settle_s`: a
+    /// transient left after `n` of them is `e^−n` of its start. 8 by default: on the 0.174 kg
+    /// stage near its resonance, noise off, the measurement then lies within 2·10⁻⁵ of the
+    /// model (6: 4·10⁻⁴, 4: 3·10⁻³; 0.3 s: 2 %).
+    pub settle_time_constants: f64,
     /// Blocks averaged (coherence needs ≥ 2).
     pub blocks: usize,
     /// Minimum length of a block in s.
@@ -140,6 +148,7 @@ impl FrfSettings {
             knee_hz: 150.0,
             max_amplitude_v: 5.0,
             settle_s: 0.3,
+            settle_time_constants: 8.0,
             blocks: 8,
             block_s: 0.02,
         }
@@ -243,51 +252,75 @@ struct Rig<'p> {
     which: FrfLoop,
     sample: Sensor,
     sensitivity: f64,
+    dac: plant_sim::convert::Quantizer,
+}
+
+/// The model of the loop `which` of `plan` (the simulator's linear tick, no controller open
+/// loop).
+fn model_loop(plan: &Plan, which: FrfLoop) -> Result<ClosedLoop, StudyError> {
+    loop_of(plan, which, &plan.sim)
+}
+
+/// The loop `which` of `plan` on the stage `sim` simulates.
+fn loop_of(
+    plan: &Plan,
+    which: FrfLoop,
+    sim: &plant_sim::Simulator,
+) -> Result<ClosedLoop, StudyError> {
+    let linear = sim
+        .linear_tick()
+        .ok_or(StudyError::NeedsLinearPlant { what: "the FRF" })?;
+    let model_ctrl = match which {
+        FrfLoop::Open => LinearController::none(),
+        FrfLoop::Closed => plan.controller.linear.clone(),
+    };
+    Ok(ClosedLoop::new(
+        &linear,
+        &model_ctrl,
+        plan.config.plant.capa.sensitivity_v_per_m,
+        plan.sim.period_s(),
+    ))
 }
 
 impl<'p> Rig<'p> {
     /// The rig of `plan`'s controller and model driving `plant`.
     fn new(plan: &Plan, which: FrfLoop, plant: &'p mut dyn FrfPlant) -> Result<Self, StudyError> {
-        let c = &plan.config;
         let ctrl = servo_config::Controller::build(
             &plan.controller.spec,
             &plan.deployment.stage,
             plan.period_s(),
         )
         .map_err(|e| runner::RunError::from(plan.origin.located(&e)))?;
-        let linear = plan
-            .sim
-            .linear_tick()
-            .ok_or(StudyError::NeedsLinearPlant { what: "the FRF" })?;
-        let model_ctrl = match which {
-            FrfLoop::Open => LinearController::none(),
-            FrfLoop::Closed => plan.controller.linear.clone(),
-        };
-        let sensitivity = c.plant.capa.sensitivity_v_per_m;
-        let model = ClosedLoop::new(&linear, &model_ctrl, sensitivity, plan.sim.period_s());
         Ok(Rig {
             sample: plant.initial(),
             plant,
             ctrl,
-            model,
+            model: model_loop(plan, which)?,
             which,
-            sensitivity,
+            sensitivity: plan.config.plant.capa.sensitivity_v_per_m,
+            dac: *plan.sim.dac(),
         })
     }
 
     /// One tick at frequency `f_hz` with injection `d` (V) added to the controller output (or
-    /// alone, open loop); returns the measured position (m) the tick started from, paired
-    /// with `d` as the model pairs them. On a plant that aborts on a clip, a clipped reading
-    /// or command ends the measurement.
+    /// alone, open loop): the excitation as applied (open loop, the DAC's output: the
+    /// quantised command is what the plant responds to — a few dozen steps of a small sine
+    /// are 0.04 % short of it), and the measured position (m) and accelerometer reading (V)
+    /// the tick started from, paired with it as the model pairs them. On a plant that aborts
+    /// on a clip, a clipped reading or command ends the measurement.
     #[inline]
-    /// One tick with excitation `d` (V): the measured position (m) and the accelerometer
-    /// reading (V) the tick starts with.
-    fn tick(&mut self, f_hz: f64, d: f64) -> Result<(f64, f64), StudyError> {
-        let u = match self.which {
-            FrfLoop::Open => 0.0,
-            FrfLoop::Closed => self.ctrl.update(-self.sample.gap_v, self.sample.accel_v),
-        } + d;
-        let measured = (self.sample.gap_v / self.sensitivity, self.sample.accel_v);
+    fn tick(&mut self, f_hz: f64, d: f64) -> Result<(f64, f64, f64), StudyError> {
+        let (u, d) = match self.which {
+            FrfLoop::Open => {
+                let applied = self.dac.convert(d).0;
+                (applied, applied)
+            }
+            FrfLoop::Closed => (
+                self.ctrl.update(-self.sample.gap_v, self.sample.accel_v) + d,
+                d,
+            ),
+        };
+        let (y, a) = (self.sample.gap_v / self.sensitivity, self.sample.accel_v);
         self.sample = self.plant.step(u)?;
         let clip = self.sample.flags & (daq_io::flags::GAP_CLIPPED | daq_io::flags::DAC_CLIPPED);
         if clip != 0 && self.plant.aborts_on_clip() {
@@ -300,7 +333,7 @@ impl<'p> Rig<'p> {
                 },
             });
         }
-        Ok(measured)
+        Ok((d, y, a))
     }
 
     fn clipped(&self) -> bool {
@@ -433,8 +466,7 @@ pub fn chirp_on(
                 .invalid("chirp", e, &format!("(0, {}) Hz", fs / 2.0))
         })?;
         for _ in 0..per {
-            let d = gen.update(()).position;
-            let (y, a) = rig.tick(from_hz, d)?;
+            let (d, y, a) = rig.tick(from_hz, gen.update(()).position)?;
             if pass > 0 {
                 u_rec.push(d);
                 y_rec.push(y);
@@ -487,23 +519,79 @@ pub fn stepped_sine(
     stepped_sine_on(plan, which, freqs_hz, s, &mut plan.stage(), progress)
 }
 
+/// How far above its natural frequency a slow mode needs its long settling: a raised-cosine
+/// ramp at a frequency beyond it leaves less than 10⁻⁵ of the response ringing in the mode
+/// after `settle_s` (measured on the 0.174 kg stage: 9·10⁻⁵ at 3 times, 0 at 6).
+pub const SLOW_MODE_REACH: f64 = 4.0;
+
+/// The settling time of a stepped sine on one loop.
+#[derive(Debug, Clone, Copy)]
+struct Settling {
+    /// At every frequency, s.
+    least_s: f64,
+    /// Near the slow mode, s.
+    slow_s: f64,
+    /// Up to where the slow mode's settling applies, Hz.
+    slow_below_hz: f64,
+}
+
+impl Settling {
+    /// The settling of the loop `which` of `plan` with settings `s`, from the model's
+    /// dynamics alone (its noise off: the noise shaping's slow states, which the command
+    /// does not excite, are then not in the loop to be mistaken for it).
+    fn of(plan: &Plan, which: FrfLoop, s: &FrfSettings) -> Result<Self, StudyError> {
+        let t = plan.sim.period_s();
+        let mut quiet = plan.config.plant;
+        let n = &mut quiet.noise;
+        (n.sensor, n.current, n.base, n.accel) = (false, false, false, false);
+        let sim = plant_sim::Simulator::new(&quiet, 0, &Default::default())
+            .map_err(|e| StudyError::from(runner::RunError::Sim(e)))?;
+        let (slow_s, natural_hz) = match loop_of(plan, which, &sim)?.slowest_command_pole()? {
+            Some(p) if p.norm() < 1.0 => (
+                -s.settle_time_constants * t / libm::log(p.norm()),
+                p.ln().norm() / (2.0 * std::f64::consts::PI * t),
+            ),
+            _ => (0.0, 0.0),
+        };
+        Ok(Settling {
+            least_s: s.settle_s,
+            slow_s,
+            slow_below_hz: SLOW_MODE_REACH * natural_hz,
+        })
+    }
+
+    /// The settling time at `f_hz`, s.
+    fn at(&self, f_hz: f64) -> f64 {
+        if f_hz < self.slow_below_hz {
+            self.least_s.max(self.slow_s)
+        } else {
+            self.least_s
+        }
+    }
+}
+
 /// The excitation of the one stepped-sine frequency in `one` (Hz), its periods per block and
-/// its amplitude (V).
+/// its amplitude (V). The amplitude ramps up over a fifth of the settling time and down as
+/// long after the window.
 fn one_frequency<'f>(
     plan: &Plan,
     one: &'f [f64; 1],
     s: &FrfSettings,
+    settling: &Settling,
 ) -> Result<(servo_core::SteppedSine<'f>, u32, f64), StudyError> {
     let fs = plan.config.plant.timing.servo_rate_hz;
     let f_hz = one[0];
+    let settle_s = settling.at(f_hz);
     let periods_per_block = ((s.block_s * f_hz).ceil() as u32).max(4);
     let amplitude = s.amplitude_at(f_hz);
+    let ramp_periods = ((0.2 * settle_s * f_hz).ceil() as u32).max(3);
     let sweep_cfg = SteppedSineConfig {
         frequencies_hz: one,
         amplitude,
-        ramp_periods: ((0.2 * s.settle_s * f_hz).ceil() as u32).max(3),
-        settle_periods: ((s.settle_s * f_hz).ceil() as u32).max(10),
+        ramp_periods,
+        settle_periods: ((settle_s * f_hz).ceil() as u32).max(10),
         measure_periods: periods_per_block * s.blocks as u32,
+        ramp_down_periods: ramp_periods,
     };
     let gen = sweep_cfg.try_build(1.0 / fs).map_err(|e| {
         plan.origin
@@ -512,15 +600,17 @@ fn one_frequency<'f>(
     Ok((gen, periods_per_block, amplitude))
 }
 
-/// Ticks the stepped sine of `plan` at `freqs_hz` takes.
+/// Ticks the stepped sine of the loop `which` of `plan` at `freqs_hz` takes.
 pub fn stepped_sine_ticks(
     plan: &Plan,
+    which: FrfLoop,
     freqs_hz: &[f64],
     s: &FrfSettings,
 ) -> Result<u64, StudyError> {
+    let settling = Settling::of(plan, which, s)?;
     freqs_hz.iter().try_fold(0u64, |sum, &f| {
         let one = [f];
-        let (gen, _, _) = one_frequency(plan, &one, s)?;
+        let (gen, _, _) = one_frequency(plan, &one, s, &settling)?;
         Ok(sum + gen.segment(0).expect("one segment").end())
     })
 }
@@ -535,11 +625,12 @@ pub fn stepped_sine_on(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<FrfPoint>, StudyError> {
     let mut rig = Rig::new(plan, which, plant)?;
+    let settling = Settling::of(plan, which, s)?;
     let mut out = Vec::new();
     for (i, &f) in freqs_hz.iter().enumerate() {
         progress(i, freqs_hz.len());
         let one = [f];
-        let (mut gen, periods_per_block, amplitude) = one_frequency(plan, &one, s)?;
+        let (mut gen, periods_per_block, amplitude) = one_frequency(plan, &one, s, &settling)?;
         let seg = gen.segment(0).expect("one segment");
         let (mut u_rec, mut y_rec, mut a_rec) = (
             Vec::with_capacity(seg.measure_len as usize),
@@ -548,9 +639,8 @@ pub fn stepped_sine_on(
         );
         let mut clipped = false;
         for k in 0..seg.end() {
-            let d = gen.update(()).position;
-            let (y, a) = rig.tick(seg.frequency_hz, d)?;
-            if k >= seg.measure_start {
+            let (d, y, a) = rig.tick(seg.frequency_hz, gen.update(()).position)?;
+            if (seg.measure_start..seg.measure_end()).contains(&k) {
                 u_rec.push(d);
                 y_rec.push(y);
                 a_rec.push(a);
