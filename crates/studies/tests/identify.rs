@@ -9,7 +9,7 @@ use run_config::Loaded;
 use studies::identify::{identify, table_5_2, with_table_5_2};
 
 #[test]
-fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
+fn recovers_the_simulators_table_5_2_parameters_within_half_a_percent() {
     let truth_cfg = Loaded::default(); // thesis stage, all noise on
     let freqs: Vec<f64> = (0..80)
         .map(|i| 20.0 * libm::pow(500.0f64, i as f64 / 79.0))
@@ -45,8 +45,10 @@ fn recovers_the_simulators_table_5_2_parameters_within_2_percent() {
             100.0 * err,
             100.0 * id.rel_std[i]
         );
+        // Measured: every one within 0.06 % (c2's 1σ 0.34 %); 3 % before the stepped sine
+        // lost its own bias.
         assert!(
-            err.abs() < 0.02,
+            err.abs() < 0.005,
             "{} off by {:.2} %",
             id.names[i],
             100.0 * err
