@@ -6,7 +6,8 @@ compensate` wrote.
     python3 scripts/next_cut.py CUT.toml REGISTRATION.json COMPENSATION.csv K
 
 writes cut-K.toml (CUT.toml with [scenario] tool_centre_height_m and tool_x_offset_m moved by
-the registration's setting_correction, and its prescription path set to prescription-K.toml)
+the registration's setting_correction, unmoved when it fitted none, and its prescription path set
+to prescription-K.toml)
 and prescription-K.toml (the design, i.e. CUT.toml's prescription without a [compensation],
 with [compensation] path = COMPENSATION.csv and the grid's pitch from its first line).
 Needs Python 3.11 (tomllib).
@@ -23,7 +24,9 @@ def main():
     cut_text = Path(cut_path).read_text()
     cut = tomllib.loads(cut_text)
     scenario = cut["scenario"]
-    correction = json.loads(Path(registration).read_text())["setting_correction"]
+    # None when the registration fitted no setting errors (no --setting-errors): the tool stays.
+    correction = json.loads(Path(registration).read_text())["setting_correction"] or {
+        "centre_height_m": 0.0, "x_offset_m": 0.0}
     for key, move in [("tool_centre_height_m", correction["centre_height_m"]),
                       ("tool_x_offset_m", correction["x_offset_m"])]:
         value = scenario.get(key, 0.0) + move
