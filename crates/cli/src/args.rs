@@ -183,10 +183,9 @@ impl FeedforwardArgs {
     }
 }
 
-/// A cut of a prescription planned as `servo toolpath`, `servo measure` and `servo compensate`
-/// plan it: the stage, the controller, the feedforward and the spindle speed.
-#[derive(Args, Debug)]
-pub struct PrescriptionCutArgs {
+/// The stage, the controller and its feedforward: what every closed loop is made of.
+#[derive(Args, Debug, Clone)]
+pub struct LoopArgs {
     #[command(flatten)]
     #[allow(missing_docs)]
     pub plant: PlantArgs,
@@ -196,6 +195,26 @@ pub struct PrescriptionCutArgs {
     #[command(flatten)]
     #[allow(missing_docs)]
     pub feedforward: FeedforwardArgs,
+}
+
+impl LoopArgs {
+    /// The configuration with these flags applied.
+    pub fn load(&self) -> Result<Loaded, ConfigError> {
+        let mut l = self.plant.load()?;
+        self.controller.apply(&mut l.config.controller);
+        self.feedforward
+            .apply(&mut l.config.controller, l.origin.path.as_deref());
+        Ok(l)
+    }
+}
+
+/// A cut of a prescription planned as `servo toolpath`, `servo measure` and `servo compensate`
+/// plan it: the stage, the controller, the feedforward and the spindle speed.
+#[derive(Args, Debug)]
+pub struct PrescriptionCutArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub closed_loop: LoopArgs,
     /// Spindle speed in rpm (default: the configured one).
     #[arg(value_parser = crate::args::finite, long)]
     pub rpm: Option<f64>,
@@ -204,10 +223,7 @@ pub struct PrescriptionCutArgs {
 impl PrescriptionCutArgs {
     /// The plan of the configuration with these flags applied.
     pub fn plan(&self) -> Result<runner::Plan, crate::output::CliError> {
-        let mut l = self.plant.load()?;
-        self.controller.apply(&mut l.config.controller);
-        self.feedforward
-            .apply(&mut l.config.controller, l.origin.path.as_deref());
+        let mut l = self.closed_loop.load()?;
         if let run_config::Scenario::Machine(m) = &mut l.config.scenario {
             set(&mut m.spindle_rpm, self.rpm);
         }
@@ -276,16 +292,10 @@ impl ScenarioArgs {
 pub struct RunArgs {
     #[command(flatten)]
     #[allow(missing_docs)]
-    pub plant: PlantArgs,
+    pub closed_loop: LoopArgs,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub length: RunLengthArgs,
-    #[command(flatten)]
-    #[allow(missing_docs)]
-    pub controller: ControllerArgs,
-    #[command(flatten)]
-    #[allow(missing_docs)]
-    pub feedforward: FeedforwardArgs,
     #[command(flatten)]
     #[allow(missing_docs)]
     pub scenario: ScenarioArgs,
@@ -294,11 +304,8 @@ pub struct RunArgs {
 impl RunArgs {
     /// The run's configuration.
     pub fn load(&self) -> Result<Loaded, ConfigError> {
-        let mut l = self.plant.load()?;
+        let mut l = self.closed_loop.load()?;
         self.length.apply(&mut l);
-        self.controller.apply(&mut l.config.controller);
-        self.feedforward
-            .apply(&mut l.config.controller, l.origin.path.as_deref());
         self.scenario.apply(&mut l);
         Ok(l)
     }

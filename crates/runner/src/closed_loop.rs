@@ -75,7 +75,7 @@ pub mod output {
 
 /// The smallest Hankel singular value, relative to the largest, of a state
 /// [`ClosedLoop::slowest_command_pole`] counts as seen in the response.
-pub const VISIBLE_HANKEL: f64 = 1e-9;
+const VISIBLE_HANKEL: f64 = 1e-9;
 
 /// The sampled closed loop.
 #[derive(Debug, Clone)]
@@ -271,9 +271,10 @@ impl ClosedLoop {
 
     /// The slowest decaying pole (z-plane) the command response shows, if any: of the balanced
     /// realisation of the controller output → measured position, the states whose Hankel
-    /// singular value is at least [`VISIBLE_HANKEL`] of the largest (the noise shaping's slow
-    /// states, reached only by rounding, are not). Its time constant `−T/ln|p|` is how long a
-    /// transient the command starts rings.
+    /// singular value is at least 10⁻⁹ of the largest. Its time constant `−T/ln|p|` is how
+    /// long a transient the command starts rings. Ask it of a loop whose plant has its noise
+    /// off: the discretisation's rounding reaches the noise shaping's slow states (1–3 s) from
+    /// the command by ~10⁻²², which the gap sees enough to count.
     pub fn slowest_command_pole(&self) -> Result<Option<num_complex::Complex64>, LtiError> {
         let siso = self.subsystem(&[(output::MEASURED_M, 1.0)], input::CONTROL_DISTURBANCE_V);
         let balancing = lti::reduce::Balancing::new(&siso)?;

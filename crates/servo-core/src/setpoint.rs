@@ -29,13 +29,13 @@ impl Setpoint {
     };
 
     /// `a·sin φ(t)` with phase rate `dphi` (rad/s) and phase acceleration `ddphi` (rad/s²),
-    /// and an envelope `a` with slope `da` (unit/s, piecewise linear so no curvature).
-    fn sine(phi: f64, dphi: f64, ddphi: f64, a: f64, da: f64) -> Setpoint {
+    /// and an envelope `(a, da, dda)`: its value, slope (unit/s) and curvature (unit/s²).
+    fn sine(phi: f64, dphi: f64, ddphi: f64, (a, da, dda): (f64, f64, f64)) -> Setpoint {
         let (s, c) = (libm::sin(phi), libm::cos(phi));
         Setpoint {
             position: a * s,
             velocity: da * s + a * dphi * c,
-            acceleration: 2.0 * da * dphi * c + a * (ddphi * c - dphi * dphi * s),
+            acceleration: dda * s + 2.0 * da * dphi * c + a * (ddphi * c - dphi * dphi * s),
         }
     }
 }
@@ -199,7 +199,12 @@ pub struct Sine {
 }
 
 generator_block!(Sine, self, t => {
-    let mut s = Setpoint::sine(self.w * t + self.phase, self.w, 0.0, self.amplitude, 0.0);
+    let mut s = Setpoint::sine(
+        self.w * t + self.phase,
+        self.w,
+        0.0,
+        (self.amplitude, 0.0, 0.0),
+    );
     s.position += self.offset;
     s
 });
@@ -284,16 +289,21 @@ impl Chirp {
             Sweep::Exponential if self.rate == 0.0 => (2.0 * PI * self.f0 * t, 0.0),
             Sweep::Exponential => (2.0 * PI * (f - self.f0) / self.rate, self.rate * f),
         };
-        Setpoint::sine(phi, 2.0 * PI * f, 2.0 * PI * dfdt, self.amplitude, 0.0)
+        Setpoint::sine(
+            phi,
+            2.0 * PI * f,
+            2.0 * PI * dfdt,
+            (self.amplitude, 0.0, 0.0),
+        )
     }
 }
 
 generator_block!(Chirp, self, t => self.at(t));
 
-/// The stepped-sine sweep of thesis §5.5.1: one segment per frequency, each with a linear
-/// amplitude ramp from zero, a settling time, a measurement window of a whole number of
-/// periods, and a linear ramp back to zero (so the next frequency does not start on the ring
-/// an abrupt stop leaves in a lightly damped mode). Each frequency is nudged so the window
+/// The stepped-sine sweep of thesis §5.5.1: one segment per frequency, each with a
+/// raised-cosine amplitude ramp from zero, a settling time, a measurement window of a whole
+/// number of periods, and a raised-cosine ramp back to zero (so the next frequency does not
+/// start on the ring an abrupt stop leaves in a lightly damped mode). Each frequency is nudged so the window
 /// holds an integer number of samples as well, which puts it exactly on a DFT bin (eq 5-11).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SteppedSineConfig<'a> {
@@ -440,29 +450,25 @@ impl SteppedSine<'_> {
         let w = 2.0 * PI * seg.frequency_hz;
         // Raised-cosine ramps: the envelope and its slope are continuous, so a mode away from
         // the frequency is barely kicked (a linear ramp's corners kick it by ~1/(T_r·ω)).
+        // Value, slope and curvature of the envelope at `u` ∈ [0, 1] of a ramp `ramp_s` long.
         let raised_cosine = |u: f64, ramp_s: f64| {
-            (
-                0.5 * (1.0 - libm::cos(PI * u)),
-                0.5 * PI * libm::sin(PI * u) / ramp_s,
-            )
+            let (s, c) = (libm::sin(PI * u), libm::cos(PI * u));
+            let rate = PI / ramp_s;
+            (0.5 * (1.0 - c), 0.5 * rate * s, 0.5 * rate * rate * c)
         };
-        let (env, slope) = if (k - seg.start) < seg.ramp_len {
+        let (env, slope, curvature) = if (k - seg.start) < seg.ramp_len {
             let ramp_s = seg.ramp_len as f64 * t;
             raised_cosine(n * t / ramp_s, ramp_s)
         } else if k >= seg.measure_end() {
             let ramp_s = seg.ramp_down_len as f64 * t;
-            let (env, slope) = raised_cosine((seg.end() - k) as f64 * t / ramp_s, ramp_s);
-            (env, -slope)
+            let (env, slope, curvature) =
+                raised_cosine((seg.end() - k) as f64 * t / ramp_s, ramp_s);
+            (env, -slope, curvature)
         } else {
-            (1.0, 0.0)
+            (1.0, 0.0, 0.0)
         };
-        Setpoint::sine(
-            w * n * t,
-            w,
-            0.0,
-            self.amplitude * env,
-            self.amplitude * slope,
-        )
+        let a = self.amplitude;
+        Setpoint::sine(w * n * t, w, 0.0, (a * env, a * slope, a * curvature))
     }
 }
 

@@ -60,7 +60,7 @@ impl Run {
         let (summary, code) = if self.hil {
             let host = runner::stall::HostCheck {
                 qualification: self.qualification.clone(),
-                force: self.run.controller.force,
+                force: self.run.closed_loop.controller.force,
             };
             super::run_hil::run(
                 &plan,
@@ -73,7 +73,7 @@ impl Run {
         } else {
             let pil = self.pil.as_ref().map(|firmware| {
                 let mut pil = PilOptions::new(firmware);
-                pil.force = self.run.controller.force;
+                pil.force = self.run.closed_loop.controller.force;
                 if let Some(hz) = self.target_clock_hz {
                     pil.model.clock_hz = hz;
                 }

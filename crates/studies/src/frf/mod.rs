@@ -122,8 +122,8 @@ pub struct FrfSettings {
     pub settle_s: f64,
     /// Settling time, in time constants of the slowest mode the model's command response shows
     /// ([`ClosedLoop::slowest_command_pole`]; the suspension mode rings 72 ms in open loop on
-    /// the 0.074 kg stage, 160 ms on the 0.174 kg one), of the frequencies below
-    /// [`SLOW_MODE_REACH`] times its natural frequency, when longer than `settle_s`: a
+    /// the 0.074 kg stage, 160 ms on the 0.174 kg one), of the frequencies below four times
+    /// its natural frequency, when longer than `settle_s`: a
     /// transient left after `n` of them is `e^−n` of its start. 8 by default: on the 0.174 kg
     /// stage near its resonance, noise off, the measurement then lies within 2·10⁻⁵ of the
     /// model (6: 4·10⁻⁴, 4: 3·10⁻³; 0.3 s: 2 %).
@@ -255,14 +255,9 @@ struct Rig<'p> {
     dac: plant_sim::convert::Quantizer,
 }
 
-/// The model of the loop `which` of `plan` (the simulator's linear tick, no controller open
-/// loop).
-fn model_loop(plan: &Plan, which: FrfLoop) -> Result<ClosedLoop, StudyError> {
-    loop_of(plan, which, &plan.sim)
-}
-
-/// The loop `which` of `plan` on the stage `sim` simulates.
-fn loop_of(
+/// The model of the loop `which` of `plan` (no controller open loop) on the stage `sim`
+/// simulates (the plan's own, or the same with its noise off).
+fn model_loop(
     plan: &Plan,
     which: FrfLoop,
     sim: &plant_sim::Simulator,
@@ -295,7 +290,7 @@ impl<'p> Rig<'p> {
             sample: plant.initial(),
             plant,
             ctrl,
-            model: model_loop(plan, which)?,
+            model: model_loop(plan, which, &plan.sim)?,
             which,
             sensitivity: plan.config.plant.capa.sensitivity_v_per_m,
             dac: *plan.sim.dac(),
@@ -522,7 +517,7 @@ pub fn stepped_sine(
 /// How far above its natural frequency a slow mode needs its long settling: a raised-cosine
 /// ramp at a frequency beyond it leaves less than 10⁻⁵ of the response ringing in the mode
 /// after `settle_s` (measured on the 0.174 kg stage: 9·10⁻⁵ at 3 times, 0 at 6).
-pub const SLOW_MODE_REACH: f64 = 4.0;
+const SLOW_MODE_REACH: f64 = 4.0;
 
 /// The settling time of a stepped sine on one loop.
 #[derive(Debug, Clone, Copy)]
@@ -546,7 +541,7 @@ impl Settling {
         (n.sensor, n.current, n.base, n.accel) = (false, false, false, false);
         let sim = plant_sim::Simulator::new(&quiet, 0, &Default::default())
             .map_err(|e| StudyError::from(runner::RunError::Sim(e)))?;
-        let (slow_s, natural_hz) = match loop_of(plan, which, &sim)?.slowest_command_pole()? {
+        let (slow_s, natural_hz) = match model_loop(plan, which, &sim)?.slowest_command_pole()? {
             Some(p) if p.norm() < 1.0 => (
                 -s.settle_time_constants * t / libm::log(p.norm()),
                 p.ln().norm() / (2.0 * std::f64::consts::PI * t),
