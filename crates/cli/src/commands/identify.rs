@@ -72,14 +72,11 @@ impl IdentifyCmd {
                 band(m)
             );
         }
+        println!("  {}", id.uncertainty_note());
         for (r, site) in id.extra_modes.iter().zip(&id.sites) {
             println!(
-                "  fitted beside the stage: a resonance at {:.0} Hz (ζ {:.4}), zeros at {:.0} Hz (ζ {:.4}), {:+.1} dB — in the model, {}",
-                r.hz,
-                r.zeta,
-                r.zero_hz,
-                r.zero_zeta,
-                r.peak_db(),
+                "  fitted beside the stage: {} — in the model, {}",
+                id.describe_mode(r),
                 studies::identify::describe_site(site)
             );
         }
