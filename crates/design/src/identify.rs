@@ -8,8 +8,9 @@
 //! is fitted everywhere, not only where it is large.
 //!
 //! Uncertainties, reported as relative 1σ of each parameter, come in two forms; the caller
-//! chooses. The noise's, [`Fit::rel_std`]: `σ² (JᵀJ)⁻¹` at the optimum (`σ²` from the
-//! residual), right when the model structure is. A model that lacks something (a resonance
+//! chooses. The noise's, [`Fit::rel_std`]: the linearised covariance at the optimum, a
+//! sandwich over each point's noise variance (estimated from the residual around it: an FRF's
+//! relative noise grows where the response is small), right when the model structure is. A model that lacks something (a resonance
 //! above the band, a sensor filter) bends its parameters toward it, a bias the noise's part
 //! cannot show (at the optimum the residual is orthogonal to every parameter's direction);
 //! [`Fit::rel_std_with_structure`] adds how far the parameters move when each sixth of the band
@@ -28,7 +29,8 @@ pub struct Fit {
     /// Parameters (the model's units).
     pub params: Vec<f64>,
     /// Relative 1σ uncertainty of each parameter from the noise alone (0.01 = 1 %):
-    /// `σ² (JᵀJ)⁻¹`, right when the model structure is.
+    /// the linearised covariance with each point's noise variance from the residual around it,
+    /// right when the model structure is.
     pub rel_std: Vec<f64>,
     /// Relative 1σ of each parameter with the structure's part added: the noise's and the
     /// delete-a-band jackknife's, combined (conservative; for a model that may lack something).
@@ -156,6 +158,40 @@ fn jackknife(
         .collect()
 }
 
+/// Points either side whose residuals give a point's noise variance.
+const LOCAL_VARIANCE_REACH: usize = 4;
+
+/// The noise's covariance of the parameters (in θ = ln p) at the optimum, a sandwich
+/// `(JᵀJ)⁻¹ Jᵀ S J (JᵀJ)⁻¹` with `S` each point's noise variance: the mean square of the
+/// residual over the [`LOCAL_VARIANCE_REACH`] points either side (real and imaginary parts
+/// alike), scaled by `m/(m − n)` for the parameters fitted. The relative noise of an FRF is not
+/// the same at every frequency (larger where the response is small), so one `σ²` for all points
+/// would understate the parameters the weak end informs; with equal variances this is
+/// `σ² (JᵀJ)⁻¹`. `inverse` is `(JᵀJ)⁻¹`; `r` and `J`'s rows are real parts first, then
+/// imaginary parts.
+fn noise_covariance(j: &DMatrix<f64>, inverse: &DMatrix<f64>, r: &DVector<f64>) -> DMatrix<f64> {
+    let (m, n) = (r.len(), j.ncols());
+    let bins = m / 2;
+    let dof = m as f64 / (m.saturating_sub(n).max(1)) as f64;
+    let mut meat = DMatrix::<f64>::zeros(n, n);
+    for k in 0..bins {
+        let (from, to) = (
+            k.saturating_sub(LOCAL_VARIANCE_REACH),
+            (k + LOCAL_VARIANCE_REACH + 1).min(bins),
+        );
+        let variance = (from..to)
+            .map(|i| r[i] * r[i] + r[bins + i] * r[bins + i])
+            .sum::<f64>()
+            / (2 * (to - from)) as f64
+            * dof;
+        for row in [k, bins + k] {
+            let jr = j.row(row).transpose();
+            meat += &jr * jr.transpose() * variance;
+        }
+    }
+    inverse * meat * inverse
+}
+
 /// The Durbin–Watson statistic of residual `r` (real parts first, then imaginary parts, each in
 /// the points' order): successive differences within each half over the sum of squares.
 fn durbin_watson(r: &DVector<f64>) -> f64 {
@@ -281,14 +317,12 @@ pub fn fit(
     let params: Vec<f64> = theta.iter().map(|t| libm::exp(*t)).collect();
     // Uncertainty: the noise's (Gauss–Newton at the optimum) and the model structure's (the
     // delete-a-band jackknife), combined.
-    let m = r.len();
-    let sigma2 = cost / (m.saturating_sub(n).max(1)) as f64;
     let jtj = j.transpose() * &j;
     let structure = jackknife(&j, &jtj, &r, n, JACKKNIFE_BANDS);
-    let (rel_std, rel_std_with_structure) = match jtj.try_inverse() {
-        Some(cov) => (0..n)
+    let (rel_std, rel_std_with_structure) = match jtj.clone().try_inverse() {
+        Some(inverse) => (0..n)
             .map(|i| {
-                let noise = sigma2 * cov[(i, i)];
+                let noise = noise_covariance(&j, &inverse, &r)[(i, i)];
                 (noise.sqrt(), (noise + structure[i] * structure[i]).sqrt())
             })
             .unzip(),

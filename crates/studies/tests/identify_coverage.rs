@@ -3,7 +3,7 @@
 //! mode at 1.2–2 kHz the four-mass model lacks; no drift, so that the drawn k2 is the truth),
 //! each measured open loop by stepped sine (150 points, 20 Hz – 5 kHz)
 //! and identified, the drawn values lie within the stated 1σ at 60–76 % of the 180
-//! parameters (68 % expected) and within 2σ at ≥ 90 % (95 %): 73.3 % and 97.8 %. Both extra
+//! parameters (68 % expected) and within 2σ at ≥ 90 % (95 %): 66.7 % and 93.3 %. Both extra
 //! modes are found on every stage — the mount above the band by its tail, within 5 % of its
 //! drawn frequency (3.0 % at worst, a mount at 8.5 kHz) — so every residual is white and the
 //! 1σ is the noise's. Five minutes, so not in the default run:

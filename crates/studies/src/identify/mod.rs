@@ -41,7 +41,7 @@ pub const WHITE_RESIDUAL_DURBIN_WATSON: f64 = 1.5;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum UncertaintyBasis {
-    /// The noise alone (`σ² (JᵀJ)⁻¹`): every misfit band was explained by a fitted mode and the
+    /// The noise alone (a sandwich over each point's noise variance, `design::identify`): every misfit band was explained by a fitted mode and the
     /// residual is white ([`WHITE_RESIDUAL_DURBIN_WATSON`]) — the model structure is complete
     /// as far as the measurement can tell.
     Noise,
