@@ -277,7 +277,9 @@ pub(crate) fn open_loop(
 /// Fits the Table 5-2 parameters to `(freq_hz, measured)`, starting from `plan`'s stage, each
 /// bounded to a factor 4 around its start. Points the four-mass model cannot explain are
 /// found and left out (the `misfit` module); where they show a resonance, it is fitted as a factor
-/// beside the stage on every point (the `resonance` module) and reported. Fails with
+/// beside the stage on every point (the `resonance` module) and reported; a mode above the
+/// measured band is fitted to its tail when it explains more than noise (the `tail` module).
+/// The 1σ is the noise's when nothing is left unexplained ([`UncertaintyBasis`]). Fails with
 /// [`StudyError::FitNotCredible`] when the fit explains less than [`MIN_CREDIBLE_FIT_PERCENT`]
 /// of the data.
 pub fn identify(
