@@ -111,7 +111,7 @@ pub struct Identified {
     /// The highest measured frequency, Hz: an extra mode above it was fitted to its tail.
     pub top_hz: f64,
     /// For each extra mode, why it is where it is (None: on the reading, as the gap's FRF
-    /// cannot tell; [`Identified::place_modes`] decides from the accelerometer's).
+    /// cannot tell; [`place_modes`] decides from the accelerometer's).
     pub sites: Vec<Option<SiteEvidence>>,
     /// Bands the fit with those modes still cannot explain and leaves out (a point measured
     /// while the stage was changing, say); empty without modes (the misfits are left out).
