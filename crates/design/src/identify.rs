@@ -1,6 +1,7 @@
 //! Grey-box identification from a frequency response: the physical parameters of a model
-//! structure fitted to a measured FRF by bounded Levenberg–Marquardt, each step a box-constrained
-//! quadratic program solved by clarabel (as MATLAB's `greyest` in thesis §5.5.3).
+//! structure fitted to a measured FRF by bounded Levenberg–Marquardt (as MATLAB's `greyest` in
+//! thesis §5.5.3): each step solved directly when it stays within the bounds, else as a
+//! box-constrained quadratic program by clarabel.
 //!
 //! Parameters are fitted in logarithmic coordinates (θ = ln p: positive, relative steps, good
 //! scaling across kg and N/m). Residuals are the real and imaginary parts of
@@ -293,7 +294,10 @@ pub fn fit(
             }
             Err(e) => return Err(e),
         };
-        let trial: Vec<f64> = (0..n).map(|i| theta[i] + delta[i]).collect();
+        // Kept within the bounds exactly (the QP's solution may cross one by its tolerance).
+        let trial: Vec<f64> = (0..n)
+            .map(|i| (theta[i] + delta[i]).clamp(ln_lo[i], ln_hi[i]))
+            .collect();
         let r_trial = residual(model, &trial, measured)?;
         let trial_cost = r_trial.norm_squared();
         if trial_cost < cost {
@@ -303,10 +307,11 @@ pub fn fit(
             cost = trial_cost;
             lambda = (lambda / 3.0).max(1e-12);
             let small_step = delta.iter().all(|d| d.abs() < 1e-9);
+            // The Jacobian at the accepted point: the uncertainty below is taken from it.
+            j = jacobian(model, &theta, measured)?;
             if gain < 1e-12 || small_step {
                 break;
             }
-            j = jacobian(model, &theta, measured)?;
         } else {
             lambda *= 4.0;
             if lambda > 1e12 {
@@ -315,17 +320,20 @@ pub fn fit(
         }
     }
     let params: Vec<f64> = theta.iter().map(|t| libm::exp(*t)).collect();
-    // Uncertainty: the noise's (Gauss–Newton at the optimum) and the model structure's (the
-    // delete-a-band jackknife), combined.
+    // Uncertainty: the noise's (the linearised covariance at the optimum) alone, and with the
+    // model structure's (the delete-a-band jackknife) added.
     let jtj = j.transpose() * &j;
     let structure = jackknife(&j, &jtj, &r, n, JACKKNIFE_BANDS);
     let (rel_std, rel_std_with_structure) = match jtj.clone().try_inverse() {
-        Some(inverse) => (0..n)
-            .map(|i| {
-                let noise = noise_covariance(&j, &inverse, &r)[(i, i)];
-                (noise.sqrt(), (noise + structure[i] * structure[i]).sqrt())
-            })
-            .unzip(),
+        Some(inverse) => {
+            let covariance = noise_covariance(&j, &inverse, &r);
+            (0..n)
+                .map(|i| {
+                    let noise = covariance[(i, i)];
+                    (noise.sqrt(), (noise + structure[i] * structure[i]).sqrt())
+                })
+                .unzip()
+        }
         None => (vec![f64::INFINITY; n], vec![f64::INFINITY; n]),
     };
     let g = model(&params).map_err(|message| IdentifyError::Model {

@@ -64,7 +64,7 @@ fn recovers_mass_damping_and_stiffness_from_a_noisy_frf() {
 #[test]
 fn a_structure_the_model_lacks_shows_in_the_residual() {
     // The same noisy stage seen through a mode at 2 kHz, above the 1 kHz band (poles and zeros
-    // at 2 kHz, damping 0.01 and 0.02: a phase lead growing to 1.3° at the band's top),
+    // at 2 kHz, damping 0.01 and 0.02: a phase lead growing to 0.76° at the band's top),
     // fitted with the mass-spring-damper alone: the residual follows the mode's tail, so
     // neighbouring points are alike and the Durbin–Watson statistic falls far below 2.
     let freq_hz: Vec<f64> = (0..200)

@@ -45,10 +45,13 @@ pub enum UncertaintyBasis {
     /// residual is white ([`WHITE_RESIDUAL_DURBIN_WATSON`]) — the model structure is complete
     /// as far as the measurement can tell.
     Noise,
-    /// The noise's part and the structure's (a delete-a-band jackknife), combined: a band was
-    /// left out or the residual is smooth along frequency — the model lacks something, and
-    /// the 1σ is conservative.
-    NoiseAndStructure,
+    /// The noise's part and the structure's (a delete-a-band jackknife), combined, because a
+    /// band of the measurement is left unexplained (a misfit no mode explains, or points the
+    /// fit with its modes leaves out): conservative.
+    BandsLeftOut,
+    /// The same, because the residual is smooth along frequency (Durbin–Watson below
+    /// [`WHITE_RESIDUAL_DURBIN_WATSON`]): the model lacks something; conservative.
+    SmoothResidual,
 }
 
 /// Table 5-2 values of a stage.
@@ -105,8 +108,9 @@ pub struct Identified {
     /// disturbed measurement): reported rather than absorbed.
     pub misfits: Vec<Misfit>,
     /// The resonances fitted beside the stage where the misfits were (the worst bands first,
-    /// as many as explain their bands and the plant has room for): extra modes on the reading,
-    /// written into the model file with the stage.
+    /// as many as explain their bands and the plant has room for), then a mode above the
+    /// measured band fitted to its tail when it explains more than noise: extra modes on the
+    /// reading, written into the model file with the stage.
     pub extra_modes: Vec<ExtraMode>,
     /// The highest measured frequency, Hz: an extra mode above it was fitted to its tail.
     pub top_hz: f64,
@@ -174,16 +178,10 @@ impl Identified {
                 "1σ from the noise alone: every misfit explained and the residual white (Durbin–Watson {:.2})",
                 self.durbin_watson
             ),
-            UncertaintyBasis::NoiseAndStructure => format!(
-                "1σ with the model structure's part (a delete-a-band jackknife; conservative): {}",
-                if self.misfits.len() > self.extra_modes.len() || !self.left_out.is_empty() {
-                    "bands of the measurement are left unexplained".to_string()
-                } else {
-                    format!(
-                        "the residual is smooth along frequency (Durbin–Watson {:.2} < {WHITE_RESIDUAL_DURBIN_WATSON})",
-                        self.durbin_watson
-                    )
-                }
+            UncertaintyBasis::BandsLeftOut => "1σ with the model structure's part (a delete-a-band jackknife; conservative): bands of the measurement are left unexplained".into(),
+            UncertaintyBasis::SmoothResidual => format!(
+                "1σ with the model structure's part (a delete-a-band jackknife; conservative): the residual is smooth along frequency (Durbin–Watson {:.2} < {WHITE_RESIDUAL_DURBIN_WATSON})",
+                self.durbin_watson
             ),
         }
     }
@@ -199,7 +197,7 @@ impl Identified {
             m.zero_zeta,
             m.peak_db()
         );
-        if m.hz.min(m.zero_hz) > self.top_hz {
+        if m.hz.min(m.zero_hz) >= self.top_hz {
             words += &format!(
                 ", above the measured band (to {:.0} Hz): fitted to its tail",
                 self.top_hz
@@ -279,7 +277,8 @@ pub(crate) fn open_loop(
 /// found and left out (the `misfit` module); where they show a resonance, it is fitted as a factor
 /// beside the stage on every point (the `resonance` module) and reported; a mode above the
 /// measured band is fitted to its tail when it explains more than noise (the `tail` module).
-/// The 1σ is the noise's when nothing is left unexplained ([`UncertaintyBasis`]). Fails with
+/// The 1σ is the noise's when no band is left unexplained and the residual is white along
+/// frequency ([`UncertaintyBasis`]). `freq_hz` must increase. Fails with
 /// [`StudyError::FitNotCredible`] when the fit explains less than [`MIN_CREDIBLE_FIT_PERCENT`]
 /// of the data.
 pub fn identify(
@@ -296,6 +295,10 @@ pub fn identify(
         open_loop(plan, with_table_5_2(&base, p), f)
     };
     let invalid = |e: String| StudyError::from(design::identify::IdentifyError::Invalid(e));
+    if !freq_hz.windows(2).all(|w| w[0] < w[1]) {
+        return Err(invalid("the frequencies must increase".into()));
+    }
+    let top_hz = freq_hz.last().copied().unwrap_or(f64::NAN);
     let (f, keep, fitted) = misfit::fit_excluding(
         freq_hz,
         measured,
@@ -334,17 +337,21 @@ pub fn identify(
             };
             let data = (freq_hz, measured, &ratio[..]);
             let bounds = (&base[..], &base_bounds.0[..], &base_bounds.1[..]);
-            let top = *freq_hz.last()?;
-            with_modes(data, fitted_bands, left, Some(top), stage, bounds)
+            with_modes(data, fitted_bands, left, Some(top_hz), stage, bounds)
         })
         .flatten()
         .filter(|t| {
-            let (without, points) = match &resonances {
-                Some((_, w)) => (w.fit.cost, w.points),
-                None => (f.cost, keep.iter().filter(|k| **k).count()),
+            let (without, points, kept_hz) = match &resonances {
+                Some((_, w)) => (w.fit.cost, w.points, w.kept_hz.clone()),
+                None => (
+                    f.cost,
+                    keep.iter().filter(|k| **k).count(),
+                    kept(freq_hz, &keep),
+                ),
             };
-            // Keeping more points (a top band the stage alone left out) only adds to its cost.
-            t.points >= points
+            // Compared on the points the fit without it kept: the fit with it keeps each of them
+            // (and any more only add to its cost).
+            kept_hz.iter().all(|hz| t.kept_hz.contains(hz))
                 && tail::explains_more_than_noise(without, t.fit.cost, points, t.fit.params.len())
         });
     let (f, points, extra_modes, left_out, bands_fitted) =
@@ -358,15 +365,16 @@ pub fn identify(
                 0,
             ),
         };
-    let explained = bands_fitted == misfits.len() && left_out.is_empty();
-    let uncertainty = if explained && f.durbin_watson >= WHITE_RESIDUAL_DURBIN_WATSON {
-        UncertaintyBasis::Noise
+    let uncertainty = if bands_fitted < misfits.len() || !left_out.is_empty() {
+        UncertaintyBasis::BandsLeftOut
+    } else if f.durbin_watson < WHITE_RESIDUAL_DURBIN_WATSON {
+        UncertaintyBasis::SmoothResidual
     } else {
-        UncertaintyBasis::NoiseAndStructure
+        UncertaintyBasis::Noise
     };
     let rel_std = match uncertainty {
         UncertaintyBasis::Noise => &f.rel_std,
-        UncertaintyBasis::NoiseAndStructure => &f.rel_std_with_structure,
+        _ => &f.rel_std_with_structure,
     };
     if f.fit_percent.is_nan() || f.fit_percent < MIN_CREDIBLE_FIT_PERCENT {
         return Err(StudyError::FitNotCredible {
@@ -385,7 +393,7 @@ pub fn identify(
         iterations: f.iterations,
         points,
         misfits,
-        top_hz: freq_hz.iter().copied().fold(f64::NAN, f64::max),
+        top_hz,
         sites: vec![None; extra_modes.len()],
         extra_modes,
         left_out,
@@ -412,6 +420,9 @@ fn with_modes(
         .filter(|&i| !left.iter().any(|b| within(freq_hz[i], b)))
         .map(|i| (freq_hz[i], measured[i]))
         .unzip();
+    if ratio.is_empty() {
+        return None;
+    }
     let (mut p0, mut lo, mut hi) = (start.to_vec(), lower.to_vec(), upper.to_vec());
     // The resonances already in `start` (a fit with them) are not started again.
     for band in bands.iter().skip((start.len() - 6) / 4) {
@@ -427,6 +438,10 @@ fn with_modes(
         p0.extend(t0);
         lo.extend(tlo);
         hi.extend(thi);
+    }
+    // A fit ending on a bound may sit a rounding outside it.
+    for i in 0..p0.len() {
+        p0[i] = p0[i].clamp(lo[i], hi[i]);
     }
     let modes = |p: &[f64]| -> Vec<ExtraMode> { p[6..].chunks(4).map(sensor_mode).collect() };
     let response = |p: &[f64], f: &[f64]| -> Result<Vec<Complex64>, String> {
@@ -450,10 +465,14 @@ fn with_modes(
     for (m, band) in extra.iter().zip(bands) {
         resonance::plausible(m, band).ok()?;
     }
+    if let (Some(top_hz), Some(m)) = (tail_above, extra.last()) {
+        tail::off_its_bounds(m, top_hz).then_some(())?;
+    }
     let explained = (0..fu.len()).all(|i| keep[i] || !bands.iter().any(|b| within(fu[i], b)));
     let residual: Vec<Complex64> = mu.iter().zip(&fitted).map(|(m, g)| m / g).collect();
     explained.then(|| WithModes {
         points: keep.iter().filter(|k| **k).count(),
+        kept_hz: kept(&fu, &keep),
         left_out: misfit::misfit_bands(&fu, &keep, &residual),
         fit: f,
         extra_modes: extra,
@@ -469,4 +488,14 @@ struct WithModes {
     left_out: Vec<Misfit>,
     /// The parameters' bounds (stage, then four per mode).
     bounds: (Vec<f64>, Vec<f64>),
+    /// The frequencies of the points kept, Hz.
+    kept_hz: Vec<f64>,
+}
+
+/// The frequencies of `freq_hz` whose `keep` is set.
+fn kept(freq_hz: &[f64], keep: &[bool]) -> Vec<f64> {
+    (0..freq_hz.len())
+        .filter(|&i| keep[i])
+        .map(|i| freq_hz[i])
+        .collect()
 }

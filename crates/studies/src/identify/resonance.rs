@@ -13,7 +13,7 @@ use crate::StudyError;
 use plant_sim::modes::ExtraMode;
 
 /// Damping ratios the fit may take.
-const ZETA_RANGE: (f64, f64) = (1e-3, 0.7);
+pub(super) const ZETA_RANGE: (f64, f64) = (1e-3, 0.7);
 /// How far outside its misfit band the resonance may move (a factor on frequency).
 const BAND_MARGIN: f64 = 1.3;
 

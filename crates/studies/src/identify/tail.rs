@@ -7,12 +7,14 @@
 
 use num_complex::Complex64;
 
+use super::resonance::ZETA_RANGE;
+use plant_sim::modes::ExtraMode;
+
 /// How far above the top measured frequency the mode may lie (a factor on frequency).
 const REACH: f64 = 4.0;
-/// Damping ratios the fit may take.
-const ZETA_RANGE: (f64, f64) = (1e-3, 0.7);
 /// The F statistic the mode must reach to be kept: the cost it removes per parameter over the
-/// residual's variance per degree of freedom, at 99.9 % of F(4, ∞) (χ²₄ at 99.9 %, 18.47, over 4).
+/// residual's variance per degree of freedom; a threshold at F(4, ∞)'s 99.9 % point (χ²₄ at
+/// 99.9 %, 18.47, over 4) — nominal, as without the mode its dampings are not identified.
 const KEEP_F: f64 = 4.62;
 /// Parameters the mode adds (pole and zero frequency, Hz; their damping ratios).
 const PARAMETERS: usize = 4;
@@ -39,6 +41,13 @@ pub(super) fn start_and_bounds(top_hz: f64, top: &[Complex64]) -> ([f64; 4], [f6
         [top_hz, ZETA_RANGE.0, top_hz, ZETA_RANGE.0],
         [REACH * top_hz, ZETA_RANGE.1, REACH * top_hz, ZETA_RANGE.1],
     )
+}
+
+/// Whether fitted mode `m` above `top_hz` stays off its frequency bounds (a mode pinned to
+/// the band's top or to the reach stands in for something else).
+pub(super) fn off_its_bounds(m: &ExtraMode, top_hz: f64) -> bool {
+    let inside = |hz: f64| hz > top_hz * (1.0 + 1e-3) && hz < REACH * top_hz * (1.0 - 1e-3);
+    inside(m.hz) && inside(m.zero_hz)
 }
 
 /// Whether the mode explains more than noise: with costs `without` and `with` it (the sums of
