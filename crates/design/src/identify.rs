@@ -222,6 +222,13 @@ fn step(
     for i in 0..n {
         jtj[(i, i)] *= 1.0 + lambda;
     }
+    let gradient = j.transpose() * r;
+    // The unconstrained step when it stays within the bounds (most steps; no QP to solve).
+    if let Some(free) = jtj.clone().cholesky().map(|c| -c.solve(&gradient)) {
+        if (0..n).all(|i| lo[i] <= free[i] && free[i] <= hi[i]) {
+            return Ok(free.iter().copied().collect());
+        }
+    }
     // clarabel reads the upper triangle of P.
     let upper: Vec<Vec<f64>> = (0..n)
         .map(|a| {
@@ -230,13 +237,6 @@ fn step(
                 .collect()
         })
         .collect();
-    let gradient = j.transpose() * r;
-    // The unconstrained step when it stays within the bounds (most steps; no QP to solve).
-    if let Some(free) = jtj.clone().cholesky().map(|c| -c.solve(&gradient)) {
-        if (0..n).all(|i| lo[i] <= free[i] && free[i] <= hi[i]) {
-            return Ok(free.iter().copied().collect());
-        }
-    }
     let q: Vec<f64> = gradient.iter().copied().collect();
     let mut rows: Vec<Vec<f64>> = Vec::with_capacity(2 * n);
     let mut b = Vec::with_capacity(2 * n);

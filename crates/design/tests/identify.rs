@@ -19,11 +19,16 @@ fn response(p: &[f64], freq_hz: &[f64]) -> Vec<Complex64> {
         .collect()
 }
 
+/// 200 frequencies, logarithmically spaced from 1 Hz to 1 kHz.
+fn one_hz_to_one_khz() -> Vec<f64> {
+    (0..200)
+        .map(|i| libm::pow(10f64, 3.0 * i as f64 / 199.0))
+        .collect()
+}
+
 #[test]
 fn recovers_mass_damping_and_stiffness_from_a_noisy_frf() {
-    let freq_hz: Vec<f64> = (0..200)
-        .map(|i| libm::pow(10f64, 3.0 * i as f64 / 199.0))
-        .collect();
+    let freq_hz = one_hz_to_one_khz();
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
     let noise = Normal::new(0.0, 0.005).unwrap(); // 0.5 % per component
     let measured: Vec<Complex64> = response(&TRUTH, &freq_hz)
@@ -67,9 +72,7 @@ fn a_structure_the_model_lacks_shows_in_the_residual() {
     // at 2 kHz, damping 0.01 and 0.02: a phase lead growing to 0.76° at the band's top),
     // fitted with the mass-spring-damper alone: the residual follows the mode's tail, so
     // neighbouring points are alike and the Durbin–Watson statistic falls far below 2.
-    let freq_hz: Vec<f64> = (0..200)
-        .map(|i| libm::pow(10f64, 3.0 * i as f64 / 199.0))
-        .collect();
+    let freq_hz = one_hz_to_one_khz();
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
     let noise = Normal::new(0.0, 0.001).unwrap();
     let w0 = 2.0 * std::f64::consts::PI * 2000.0;

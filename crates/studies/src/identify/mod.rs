@@ -37,6 +37,10 @@ pub const NAMES: [&str; 6] = [
 /// band 0.05–0.11.
 pub const WHITE_RESIDUAL_DURBIN_WATSON: f64 = 1.5;
 
+/// How a report opens the reason for a 1σ that includes the structure's part.
+const WITH_STRUCTURE: &str =
+    "1σ with the model structure's part (a delete-a-band jackknife; conservative)";
+
 /// What an identification's 1σ rests on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -178,9 +182,11 @@ impl Identified {
                 "1σ from the noise alone: every misfit explained and the residual white (Durbin–Watson {:.2})",
                 self.durbin_watson
             ),
-            UncertaintyBasis::BandsLeftOut => "1σ with the model structure's part (a delete-a-band jackknife; conservative): bands of the measurement are left unexplained".into(),
+            UncertaintyBasis::BandsLeftOut => {
+                format!("{WITH_STRUCTURE}: bands of the measurement are left unexplained")
+            }
             UncertaintyBasis::SmoothResidual => format!(
-                "1σ with the model structure's part (a delete-a-band jackknife; conservative): the residual is smooth along frequency (Durbin–Watson {:.2} < {WHITE_RESIDUAL_DURBIN_WATSON})",
+                "{WITH_STRUCTURE}: the residual is smooth along frequency (Durbin–Watson {:.2} < {WHITE_RESIDUAL_DURBIN_WATSON})",
                 self.durbin_watson
             ),
         }
@@ -342,7 +348,7 @@ pub fn identify(
         .flatten()
         .filter(|t| {
             let (without, points, kept_hz) = match &resonances {
-                Some((_, w)) => (w.fit.cost, w.points, w.kept_hz.clone()),
+                Some((_, w)) => (w.fit.cost, w.kept_hz.len(), w.kept_hz.clone()),
                 None => (
                     f.cost,
                     keep.iter().filter(|k| **k).count(),
@@ -356,7 +362,7 @@ pub fn identify(
         });
     let (f, points, extra_modes, left_out, bands_fitted) =
         match with_tail.or(resonances.map(|(_, w)| w)) {
-            Some(w) => (w.fit, w.points, w.extra_modes, w.left_out, k),
+            Some(w) => (w.fit, w.kept_hz.len(), w.extra_modes, w.left_out, k),
             None => (
                 f,
                 keep.iter().filter(|k| **k).count(),
@@ -415,14 +421,14 @@ fn with_modes(
     stage: impl Fn(&[f64], &[f64]) -> Result<Vec<Complex64>, String>,
     (start, lower, upper): (&[f64], &[f64], &[f64]),
 ) -> Option<WithModes> {
+    if ratio.is_empty() {
+        return None;
+    }
     let within = |f: f64, b: &Misfit| (b.from_hz..=b.to_hz).contains(&f);
     let (fu, mu): (Vec<f64>, Vec<Complex64>) = (0..freq_hz.len())
         .filter(|&i| !left.iter().any(|b| within(freq_hz[i], b)))
         .map(|i| (freq_hz[i], measured[i]))
         .unzip();
-    if ratio.is_empty() {
-        return None;
-    }
     let (mut p0, mut lo, mut hi) = (start.to_vec(), lower.to_vec(), upper.to_vec());
     // The resonances already in `start` (a fit with them) are not started again.
     for band in bands.iter().skip((start.len() - 6) / 4) {
@@ -471,7 +477,6 @@ fn with_modes(
     let explained = (0..fu.len()).all(|i| keep[i] || !bands.iter().any(|b| within(fu[i], b)));
     let residual: Vec<Complex64> = mu.iter().zip(&fitted).map(|(m, g)| m / g).collect();
     explained.then(|| WithModes {
-        points: keep.iter().filter(|k| **k).count(),
         kept_hz: kept(&fu, &keep),
         left_out: misfit::misfit_bands(&fu, &keep, &residual),
         fit: f,
@@ -483,7 +488,6 @@ fn with_modes(
 /// What [`with_modes`] found.
 struct WithModes {
     fit: design::identify::Fit,
-    points: usize,
     extra_modes: Vec<ExtraMode>,
     left_out: Vec<Misfit>,
     /// The parameters' bounds (stage, then four per mode).
