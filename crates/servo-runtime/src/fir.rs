@@ -152,8 +152,11 @@ mod tests {
         };
         let y = |k: isize| libm::sin(0.05 * k.max(0) as f64) + 1e-3 * k.max(0) as f64;
         let mut w = Window::new(preview, 0).unwrap();
-        let ahead: Vec<f64> = (0..=preview as isize).map(y).collect();
-        w.prime(&ahead);
+        w.prime(|ahead| {
+            for (j, v) in ahead.iter_mut().enumerate() {
+                *v = y(j as isize);
+            }
+        });
         let mut fir = Fir::new(&spec);
         fir.prime(&w);
         for k in 0..2600isize {

@@ -5,12 +5,24 @@
 
 use servo_config::{hann_weights, MAX_PREVIEW};
 
+/// The longest window: the past a smoothing needs, now, and the preview.
 const LEN: usize = 2 * MAX_PREVIEW + 2;
 
+/// The ring's storage: room for the longest window twice, a power of two so that an index
+/// masked with `RING - 1` needs no bounds check.
+const RING: usize = (2 * LEN).next_power_of_two();
+
 /// `y_d[k + j]` for `j ∈ −past..=preview`, with Hann weights for smoothing.
+///
+/// A ring written twice (at `i` and `i + len`), so the window is always the contiguous
+/// `y[start..start + len]`: a tick writes two values instead of sliding the window.
 #[derive(Debug, Clone)]
 pub(crate) struct Window {
-    y: [f64; LEN],
+    y: [f64; RING],
+    /// Where the window's oldest value sits (`0..len`).
+    start: usize,
+    /// The window's length, `past + preview + 1`.
+    len: usize,
     past: usize,
     preview: usize,
     /// Normalised Hann weights `w[|i|]`, `i ∈ −half..=half`.
@@ -27,9 +39,12 @@ impl Window {
             return None;
         }
         let weights = hann_weights(half);
+        let past = half + 1;
         Some(Window {
-            y: [0.0; LEN],
-            past: half + 1,
+            y: [0.0; RING],
+            start: 0,
+            len: past + preview + 1,
+            past,
             preview,
             weights,
             half,
@@ -41,27 +56,33 @@ impl Window {
         self.preview
     }
 
-    /// Fills the window at the first tick: `ahead[j] = y_d[j]` for `j = 0..=preview`; the
-    /// past is taken as at rest at `y_d[0]`.
-    pub(crate) fn prime(&mut self, ahead: &[f64]) {
-        let (past, p) = (self.past, self.preview);
-        self.y[past..=past + p].copy_from_slice(&ahead[..=p]);
+    /// Fills the window at the first tick: `fill` writes `ahead[j] = y_d[j]` for
+    /// `j = 0..=preview` into the slice it is given; the past is taken as at rest at `y_d[0]`.
+    pub(crate) fn prime(&mut self, fill: impl FnOnce(&mut [f64])) {
+        let (past, len) = (self.past, self.len);
+        self.start = 0;
+        fill(&mut self.y[past..len]);
         let now = self.y[past];
-        self.y[..past].iter_mut().for_each(|v| *v = now);
+        self.y[..past].fill(now);
+        for i in 0..len {
+            self.y[(i + len) & (RING - 1)] = self.y[i & (RING - 1)];
+        }
     }
 
     /// Slides by one tick with `y_d[k + preview]`.
     #[inline]
     pub(crate) fn push(&mut self, ahead: f64) {
-        let last = self.past + self.preview;
-        self.y.copy_within(1..=last, 0);
-        self.y[last] = ahead;
+        let (start, len) = (self.start, self.len);
+        // The oldest value's two places take the newest: the window moves one on.
+        self.y[start & (RING - 1)] = ahead;
+        self.y[(start + len) & (RING - 1)] = ahead;
+        self.start = if start + 1 == len { 0 } else { start + 1 };
     }
 
     /// `y_d[k + j]`.
     #[inline]
     pub(crate) fn at(&self, j: isize) -> f64 {
-        self.y[(self.past as isize + j) as usize]
+        self.y[(self.start + self.past).wrapping_add_signed(j) & (RING - 1)]
     }
 
     /// The smoothed trajectory at `k + j` (needs `|j| + half` inside the window).
@@ -83,8 +104,12 @@ mod tests {
     #[test]
     fn hann_smoothing_keeps_lines_and_has_unit_gain() {
         let mut w = Window::new(1, 10).unwrap();
-        let ramp: Vec<f64> = (0..=w.preview()).map(|j| j as f64).collect();
-        w.prime(&ramp);
+        w.prime(|ahead| {
+            ahead
+                .iter_mut()
+                .enumerate()
+                .for_each(|(j, v)| *v = j as f64)
+        });
         for k in 1..=30 {
             w.push((w.preview() + k) as f64);
         }

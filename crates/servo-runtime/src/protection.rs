@@ -88,6 +88,8 @@ pub(crate) struct Protection {
     after_ticks: u64,
     saturated_for: u64,
     trip: Option<(TripCause, u64)>,
+    /// Trips since the start (a clear does not reset it).
+    trips: u64,
     safe_v: f64,
 }
 
@@ -111,6 +113,7 @@ impl Protection {
             after_ticks: libm::round(p.after_trip_s * rate) as u64,
             saturated_for: 0,
             trip: None,
+            trips: 0,
             safe_v: 0.0,
         }
     }
@@ -169,8 +172,14 @@ impl Protection {
         self.safe_v = 0.0;
     }
 
+    /// Trips since the start, re-armed ones included.
+    pub fn trips(&self) -> u64 {
+        self.trips
+    }
+
     fn trip_now(&mut self, cause: TripCause, seq: u64, last_v: f64) {
         self.trip = Some((cause, seq));
+        self.trips += 1;
         self.safe_v = if last_v.is_finite() { last_v } else { 0.0 };
     }
 

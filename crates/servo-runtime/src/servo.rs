@@ -37,7 +37,9 @@ pub struct Servo {
     stage: Stage,
     period_s: f64,
     stability: Option<Stability>,
-    last: Option<Telemetry>,
+    /// The last tick's telemetry, written in place by the tick; valid when `has_last`.
+    last: Telemetry,
+    has_last: bool,
     status: Status,
     #[cfg(feature = "std")]
     host: crate::host::Host,
@@ -57,7 +59,8 @@ impl Servo {
             stage: deployment.stage,
             period_s: deployment.period_s(),
             stability: deployment.stability,
-            last: None,
+            last: Telemetry::default(),
+            has_last: false,
             status: Status {
                 ticks: 0,
                 trip: None,
@@ -83,8 +86,8 @@ impl Servo {
     pub fn tick(&mut self, sample: &Sensor) -> Command {
         #[cfg(feature = "std")]
         let started = self.host.start(sample);
-        let (command, telemetry) = self.core.tick(sample, &mut self.generator);
-        let command = self.close_tick(sample, command, telemetry);
+        let command = self.core.tick(sample, &mut self.generator, &mut self.last);
+        let command = self.close_tick(sample, command);
         #[cfg(feature = "std")]
         self.after_tick(sample, started);
         command
@@ -100,62 +103,57 @@ impl Servo {
     ) -> Command {
         #[cfg(feature = "std")]
         let started = self.host.start(sample);
-        let (command, telemetry) = self.core.tick(sample, reference);
-        let command = self.close_tick(sample, command, telemetry);
+        let command = self.core.tick(sample, reference, &mut self.last);
+        let command = self.close_tick(sample, command);
         #[cfg(feature = "std")]
         self.after_tick(sample, started);
         command
     }
 
-    /// Keeps tick `sample`'s telemetry and counts what it did; the command (0 V with
-    /// [`flags::END`] for a closing sample).
+    /// Counts what tick `sample` did; the command (0 V with [`flags::END`] for a closing
+    /// sample, which leaves no telemetry).
     #[inline]
-    fn close_tick(
-        &mut self,
-        sample: &Sensor,
-        command: Option<Command>,
-        telemetry: Option<Telemetry>,
-    ) -> Command {
-        self.last = telemetry;
+    fn close_tick(&mut self, sample: &Sensor, command: Option<Command>) -> Command {
+        self.has_last = command.is_some();
         let command = command.unwrap_or(Command {
             seq: sample.seq,
             dac_v: 0.0,
             flags: flags::END,
             reserved: 0,
         });
-        self.account(sample, &command);
+        self.account(&command);
         command
     }
 
-    /// Counts what tick `sample` did.
+    /// Counts what tick `sample` did: the ticks and the saturated ones (the rest of
+    /// [`Status`] is read from the loop when asked for).
     #[inline]
-    fn account(&mut self, sample: &Sensor, command: &Command) {
-        let st = &mut self.status;
+    fn account(&mut self, command: &Command) {
         if command.flags & flags::END != 0 {
             return;
         }
-        if let Some(t) = &self.last {
-            st.saturated_ticks += u64::from(t.flags & flags::SATURATED != 0);
-        }
+        let st = &mut self.status;
+        st.saturated_ticks += u64::from(self.last.flags & flags::SATURATED != 0);
         st.ticks += 1;
-        let trip = self.core.trip().map(|(cause, tick)| Trip { cause, tick });
-        if trip.is_some() && st.trip.is_none() {
-            st.trips += 1;
-        }
-        st.trip = trip;
-        st.handovers = self.core.handovers();
-        st.trip_settled = self.core.trip_settled(sample.seq);
     }
 
     /// The last tick's telemetry: its reference, the reading it acted on, the following error
     /// and the feedback's own error, its command and flags. None before the first tick and
     /// after a closing sample.
     pub fn telemetry(&self) -> Option<&Telemetry> {
-        self.last.as_ref()
+        self.has_last.then_some(&self.last)
     }
 
     /// What the loop has done so far.
     pub fn status(&self) -> Status {
+        let status = Status {
+            trip: self.core.trip().map(|(cause, tick)| Trip { cause, tick }),
+            // The last tick's sample (a closing sample leaves its telemetry in place).
+            trip_settled: self.core.trip_settled(self.last.seq),
+            handovers: self.core.handovers(),
+            trips: self.core.trips(),
+            ..self.status
+        };
         #[cfg(feature = "std")]
         {
             #[cfg(feature = "serve")]
@@ -165,12 +163,12 @@ impl Servo {
             Status {
                 overruns: self.host.overruns(),
                 telemetry_dropped: dropped,
-                ..self.status
+                ..status
             }
         }
         #[cfg(not(feature = "std"))]
         {
-            self.status
+            status
         }
     }
 
@@ -200,8 +198,6 @@ impl Servo {
     /// difference fades in 5 ms. A stop request is cleared too.
     pub fn reset(&mut self) {
         self.core.rearm();
-        self.status.trip = None;
-        self.status.trip_settled = false;
         self.status.stop = None;
     }
 
@@ -225,7 +221,7 @@ impl Servo {
                     core: &mut self.core,
                     status: &mut self.status,
                     stability: &mut self.stability,
-                    telemetry: self.last.as_ref(),
+                    telemetry: self.has_last.then_some(&self.last),
                     host: &self.host,
                 },
             );

@@ -11,14 +11,10 @@ use servo_config::Controller;
 use servo_config::{Allowed, Invalid};
 use servo_config::{Deployment, MAX_PREVIEW};
 
-/// A controller on its way into the loop: boxed with the standard library (it crosses threads
-/// and the one it replaces is freed off the ticking thread), by value without.
+/// A controller on its way into the loop (loads need the standard library): boxed, as it
+/// crosses threads and the one it replaces is freed off the ticking thread.
 #[cfg(feature = "std")]
 pub(crate) type Slot = std::boxed::Box<Controller>;
-/// A controller on its way into the loop: boxed with the standard library (it crosses threads
-/// and the one it replaces is freed off the ticking thread), by value without.
-#[cfg(not(feature = "std"))]
-pub(crate) type Slot = Controller;
 
 /// Time constant of a bumpless handover (s): the difference between the old and the new
 /// controller's output at the swap tick fades with it (5 ms: slower than the loop's 1–3 kHz
@@ -51,11 +47,13 @@ pub(crate) struct ServoLoop {
     accel_scale: f64,
     period_s: f64,
     /// A controller handed over, taking the loop at the next tick.
+    #[cfg(feature = "std")]
     incoming: Option<Slot>,
     /// The controller the last handover replaced, to be freed off the ticking thread.
     #[cfg(feature = "std")]
     replaced: Option<Slot>,
     /// The tick the last handover took effect.
+    #[cfg(feature = "std")]
     handed_over_at: Option<u64>,
     /// Handovers that took effect.
     handovers: u64,
@@ -97,9 +95,11 @@ impl ServoLoop {
             sensitivity: d.stage.gap_sensitivity_v_per_m,
             accel_scale: 1.0 / d.stage.accel_sensitivity_v_per_m_s2,
             period_s: period,
+            #[cfg(feature = "std")]
             incoming: None,
             #[cfg(feature = "std")]
             replaced: None,
+            #[cfg(feature = "std")]
             handed_over_at: None,
             handovers: 0,
             rearm: false,
@@ -143,6 +143,11 @@ impl ServoLoop {
         self.protection.trip()
     }
 
+    /// Trips since the start, re-armed ones included.
+    pub(crate) fn trips(&self) -> u64 {
+        self.protection.trips()
+    }
+
     /// Tripped, and the safe state has been held for `protection.after_trip_s` at tick `seq`.
     pub(crate) fn trip_settled(&self, seq: u64) -> bool {
         self.protection.run_over(seq)
@@ -181,9 +186,7 @@ impl ServoLoop {
         self.next_seq = s.seq.saturating_add(1);
         if !self.primed || skipped {
             self.primed = true;
-            let mut ahead = [0.0; MAX_PREVIEW + 1];
-            source.prime(s, &mut ahead[..=p]);
-            self.window.prime(&ahead);
+            self.window.prime(|ahead| source.prime(s, ahead));
             self.feedforward.follow(&self.window, true);
             return;
         }
@@ -192,17 +195,18 @@ impl ServoLoop {
         self.feedforward.follow(&self.window, false);
     }
 
-    /// One tick for sample `s` with the trajectory `source`: the command and the tick's
-    /// telemetry (its reference with the reading it acted on); both None when `s` closes the
-    /// run.
+    /// One tick for sample `s` with the trajectory `source`: the command, the tick's telemetry
+    /// (its reference with the reading it acted on) written into `telemetry`; None, and
+    /// `telemetry` untouched, when `s` closes the run.
     #[inline]
     pub(crate) fn tick<R: Reference + ?Sized>(
         &mut self,
         s: &Sensor,
         source: &mut R,
-    ) -> (Option<Command>, Option<Telemetry>) {
+        telemetry: &mut Telemetry,
+    ) -> Option<Command> {
         if s.flags & flags::END != 0 {
-            return (None, None);
+            return None;
         }
         let measured = s.gap_v / self.sensitivity;
         self.advance(s, source);
@@ -239,7 +243,7 @@ impl ServoLoop {
         let controller_flags =
             if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.last_trip_flags;
         let saturated = libm::fabs(u) >= self.controller.limit_v();
-        let telemetry = Telemetry {
+        *telemetry = Telemetry {
             seq: s.seq,
             time_s: s.time_s,
             reference_m: desired,
@@ -253,13 +257,27 @@ impl ServoLoop {
                 | controller_flags,
             reserved: 0,
         };
-        let command = Command {
+        Some(Command {
             seq: s.seq,
             dac_v: u,
             flags: controller_flags,
             reserved: 0,
-        };
-        (Some(command), Some(telemetry))
+        })
+    }
+
+    /// The handover at tick `seq`: `new` takes the loop, both having seen this tick's errors
+    /// (`raw` the old one's output); returns the new one's output, the difference left to fade.
+    #[cfg(feature = "std")]
+    #[cold]
+    #[inline(never)]
+    fn take_over(&mut self, mut new: Slot, raw: f64, error_v: f64, accel_v: f64, seq: u64) -> f64 {
+        core::mem::swap(&mut self.controller, &mut *new);
+        self.replaced = Some(new);
+        let raw_new = self.controller.update(error_v, accel_v);
+        self.handover_v = (raw - raw_new) * self.gain_scale;
+        self.handed_over_at = Some(seq);
+        self.handovers += 1;
+        raw_new
     }
 
     /// The controller's command for sample `s` (feedback on the smoothed reference plus the
@@ -269,25 +287,16 @@ impl ServoLoop {
     fn control(&mut self, s: &Sensor) -> (f64, f64) {
         let (reference, u_ff) = self.feedforward.evaluate(&self.window, self.period_s);
         let (error_v, accel_v) = (reference * self.sensitivity - s.gap_v, s.accel_v);
-        let mut raw = self.controller.update(error_v, accel_v);
-        if let Some(new) = self.incoming.take() {
-            // The swap: both see this tick; the command stays the old one's.
-            #[cfg(feature = "std")]
-            {
-                let mut new = new;
-                core::mem::swap(&mut self.controller, &mut *new);
-                self.replaced = Some(new);
+        #[cfg(not(feature = "std"))]
+        let raw = self.controller.update(error_v, accel_v);
+        #[cfg(feature = "std")]
+        let raw = {
+            let raw = self.controller.update(error_v, accel_v);
+            match self.incoming.take() {
+                Some(new) => self.take_over(new, raw, error_v, accel_v, s.seq),
+                None => raw,
             }
-            #[cfg(not(feature = "std"))]
-            {
-                self.controller = new;
-            }
-            let raw_new = self.controller.update(error_v, accel_v);
-            self.handover_v = (raw - raw_new) * self.gain_scale;
-            raw = raw_new;
-            self.handed_over_at = Some(s.seq);
-            self.handovers += 1;
-        }
+        };
         if self.rearm {
             // Re-armed: this tick's command is the safe state's; the difference fades.
             self.rearm = false;
