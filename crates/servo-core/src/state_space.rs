@@ -246,19 +246,17 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     #[inline(always)]
     fn tick_by_rows(&mut self, e: [f64; NU]) -> [f64; NY] {
         let y = self.output(&e);
-        let [x0, x1] = &mut self.x;
-        let (x, next) = if self.now == 0 {
-            (&*x0, x1)
-        } else {
-            (&*x1, x0)
-        };
-        let (blocks, rest) = next.as_chunks_mut::<ROWS>();
-        for (b, block) in blocks.iter_mut().enumerate() {
-            *block = rows(&self.a_cols, &self.b_cols, x, &e, b * ROWS);
+        // The new state is written into the same array the old one is read from: the compiler
+        // cannot tell the halves apart, so it reads `x` where it is used instead of copying
+        // the whole of it to the stack first (which it does with two separate borrows).
+        let (now, xs) = (self.now, &mut self.x);
+        let blocks = NX / ROWS;
+        for b in 0..blocks {
+            let block: [f64; ROWS] = rows(&self.a_cols, &self.b_cols, &xs[now], &e, b * ROWS);
+            xs[1 - now][b * ROWS..(b + 1) * ROWS].copy_from_slice(&block);
         }
-        let done = blocks.len() * ROWS;
-        for (r, next) in rest.iter_mut().enumerate() {
-            *next = rows::<NX, NU, 1>(&self.a_cols, &self.b_cols, x, &e, done + r)[0];
+        for i in blocks * ROWS..NX {
+            xs[1 - now][i] = rows::<NX, NU, 1>(&self.a_cols, &self.b_cols, &xs[now], &e, i)[0];
         }
         self.now = 1 - self.now;
         self.checked(y)

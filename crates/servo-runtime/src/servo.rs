@@ -52,7 +52,7 @@ impl Servo {
     /// state.
     pub fn new(deployment: &Deployment) -> Result<Self, Invalid> {
         deployment.check()?;
-        Ok(Servo {
+        let mut servo = Servo {
             core: ServoLoop::new(deployment)?,
             generator: Generator::build(&deployment.reference, deployment.period_s())?,
             #[cfg(feature = "std")]
@@ -77,7 +77,9 @@ impl Servo {
             host: crate::host::Host::new(deployment),
             #[cfg(feature = "serve")]
             link: None,
-        })
+        };
+        servo.core.prime_for_tick_zero(&mut servo.generator);
+        Ok(servo)
     }
 
     /// One tick on the deployment's own reference: reads sample `k`, returns command `k`.
@@ -103,6 +105,7 @@ impl Servo {
     ) -> Command {
         #[cfg(feature = "std")]
         let started = self.host.start(sample);
+        self.core.forget_tick_zero();
         let command = self.core.tick(sample, reference, &mut self.last);
         let command = self.close_tick(sample, command);
         #[cfg(feature = "std")]

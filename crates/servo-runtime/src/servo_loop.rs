@@ -28,12 +28,24 @@ pub(crate) const HANDOVER_TIME_CONSTANT_S: f64 = 5e-3;
 /// Machine protection checks every sample; once tripped, the command is the configured safe
 /// state and carries [`flags::TRIPPED`] with the cause's bit (0 V on a fault when protection
 /// is disabled).
+/// What the preview window holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Primed {
+    /// Nothing yet: the next tick fills it.
+    No,
+    /// Tick 0's view of the deployment's own reference, filled when the loop was built (so
+    /// that the first tick costs what every other does).
+    ForTickZero,
+    /// The last tick's view: the next tick slides it on.
+    Yes,
+}
+
 #[derive(Debug, Clone)]
 pub(crate) struct ServoLoop {
     controller: Controller,
     feedforward: Feedforward,
     window: Window,
-    primed: bool,
+    primed: Primed,
     /// The sample tick expected next (`seq` of the last one + 1).
     next_seq: u64,
     last_u: f64,
@@ -85,7 +97,7 @@ impl ServoLoop {
             controller,
             feedforward,
             window,
-            primed: false,
+            primed: Primed::No,
             next_seq: 0,
             last_u: 0.0,
             output_fault: false,
@@ -184,15 +196,41 @@ impl ServoLoop {
         let p = self.window.preview();
         let skipped = s.seq > self.next_seq;
         self.next_seq = s.seq.saturating_add(1);
-        if !self.primed || skipped {
-            self.primed = true;
-            self.window.prime(|ahead| source.prime(s, ahead));
-            self.feedforward.follow(&self.window, true);
-            return;
+        match self.primed {
+            Primed::Yes if !skipped => {
+                let ahead = source.next(s, p);
+                self.window.push(ahead);
+                self.feedforward.follow(&self.window, false);
+            }
+            Primed::ForTickZero if s.seq == 0 => self.primed = Primed::Yes,
+            _ => self.prime(s, source),
         }
-        let ahead = source.next(s, p);
-        self.window.push(ahead);
-        self.feedforward.follow(&self.window, false);
+    }
+
+    /// Fills the window with `source`'s view from sample `s` on (and the feedforward's state
+    /// with it).
+    #[cold]
+    #[inline(never)]
+    fn prime<R: Reference + ?Sized>(&mut self, s: &Sensor, source: &mut R) {
+        self.primed = Primed::Yes;
+        self.window.prime(|ahead| source.prime(s, ahead));
+        self.feedforward.follow(&self.window, true);
+    }
+
+    /// Fills the window with tick 0's view of `source` (the deployment's own reference) now,
+    /// at build time; the first tick of `source` then costs what every other does.
+    pub(crate) fn prime_for_tick_zero<R: Reference + ?Sized>(&mut self, source: &mut R) {
+        self.prime(&Sensor::default(), source);
+        self.primed = Primed::ForTickZero;
+    }
+
+    /// Forgets a window filled at build time (a host's own reference is about to be ticked:
+    /// the first tick fills the window from it).
+    #[inline]
+    pub(crate) fn forget_tick_zero(&mut self) {
+        if self.primed == Primed::ForTickZero {
+            self.primed = Primed::No;
+        }
     }
 
     /// One tick for sample `s` with the trajectory `source`: the command, the tick's telemetry
