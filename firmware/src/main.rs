@@ -12,6 +12,7 @@
 #![no_std]
 #![no_main]
 
+mod clock;
 mod console;
 mod stack;
 
@@ -272,9 +273,15 @@ fn main() -> ! {
             cortex_m::asm::wfi();
         }
     };
+    let mut run = clock::RunClock::start();
     loop {
         let byte = console.get();
-        match reader.push(byte) {
+        let frame = reader.push(byte);
+        if let Ok(Some(_)) = frame {
+            // Every frame: the clock's 32 bits never wrap between two readings.
+            run.read();
+        }
+        match frame {
             Ok(None) => {}
             Ok(Some((kind::SAMPLE, p))) => tick(p, console),
             Ok(Some((kind::LOAD, p))) => {
@@ -285,9 +292,11 @@ fn main() -> ! {
                             probe_counts,
                             load_stack_bytes: stack::used(),
                         };
-                        // The high-water mark from here on is the running loop's.
+                        // The high-water mark from here on is the running loop's, and the
+                        // run's clock counts from here.
                         stack::paint();
                         send(console, kind::READY, &ready.encode());
+                        run.restart();
                     }
                     None => send(console, kind::REFUSED, why.bytes()),
                 }
@@ -300,6 +309,7 @@ fn main() -> ! {
                         .unwrap_or_default()
                 });
                 report.stack_used_bytes = stack::used();
+                report.run_counts = run.read();
                 send(console, kind::REPORT, &report.encode());
             }
             Ok(Some(_)) => send(console, kind::REFUSED, b"unknown frame kind"),

@@ -62,15 +62,8 @@ macro_rules! state_space_orders {
     };
 }
 
-state_space_orders! {
-    1 => N1, 2 => N2, 3 => N3, 4 => N4, 5 => N5, 6 => N6, 7 => N7, 8 => N8, 9 => N9, 10 => N10,
-    11 => N11, 12 => N12, 13 => N13, 14 => N14, 15 => N15, 16 => N16, 17 => N17, 18 => N18,
-    19 => N19, 20 => N20, 21 => N21, 22 => N22, 23 => N23, 24 => N24, 25 => N25, 26 => N26,
-    27 => N27, 28 => N28, 29 => N29, 30 => N30, 31 => N31, 32 => N32, 33 => N33, 34 => N34,
-    35 => N35, 36 => N36, 37 => N37, 38 => N38, 39 => N39, 40 => N40,
-}
-
-const _: () = assert!(MAX_SS_ORDER == 40, "the orders above list 1..=MAX_SS_ORDER");
+// Orders 1..=MAX_SS_ORDER (the build's cap, `FTS_SERVO_MAX_SS_ORDER`; build.rs).
+include!(concat!(env!("OUT_DIR"), "/orders.rs"));
 
 /// The state space of order `N` of `m`, built in a stack frame of its own.
 #[inline(never)]

@@ -6,8 +6,9 @@
 use crate::protection::ProtectionConfig;
 
 /// Largest state-space controller order a loop runs (the thesis's full order is 27; `servo
-/// synth` writes up to 29 with the loop delay).
-pub const MAX_SS_ORDER: usize = 40;
+/// synth` writes up to 29 with the loop delay): 40, or the cap a microcontroller build chose
+/// with `FTS_SERVO_MAX_SS_ORDER` (1–40) at build time.
+pub const MAX_SS_ORDER: usize = include!(concat!(env!("OUT_DIR"), "/max_order.rs"));
 
 /// Sections of the largest ZPETC filter a loop runs (second-order sections).
 pub const ZPETC_SECTIONS: usize = 12;

@@ -14,11 +14,11 @@ pub const BOOT_BYTES: usize = 2 + 2 + 2 + 1 + 4 + 4;
 /// Bytes of an encoded [`Ready`].
 pub const READY_BYTES: usize = 4 + 4;
 /// Bytes of an encoded [`Report`].
-pub const REPORT_BYTES: usize = 8 + 4;
+pub const REPORT_BYTES: usize = 8 + 4 + 8;
 
 /// The version of the link's frames and payloads (the first field of [`Boot`]): a host and a
 /// firmware of different versions refuse each other before anything else is read.
-pub const LINK_VERSION: u16 = 1;
+pub const LINK_VERSION: u16 = 2;
 
 /// Writes `s`'s fields in declaration order.
 pub fn encode_sensor(s: &Sensor, out: &mut [u8; SENSOR_BYTES]) {
@@ -274,6 +274,10 @@ pub struct Report {
     pub ticks: u64,
     /// Deepest stack use while the loop ran, bytes (the painted stack's high-water mark).
     pub stack_used_bytes: u32,
+    /// Counts of the target's free-running clock (the rate its BOOT frame names) from READY to
+    /// this report: everything the target did over the run — ticks, link, waiting — so work
+    /// moved out of the timed tick still shows.
+    pub run_counts: u64,
 }
 
 impl Report {
@@ -281,7 +285,8 @@ impl Report {
     pub fn encode(&self) -> [u8; REPORT_BYTES] {
         let mut out = [0; REPORT_BYTES];
         out[..8].copy_from_slice(&self.ticks.to_le_bytes());
-        out[8..].copy_from_slice(&self.stack_used_bytes.to_le_bytes());
+        out[8..12].copy_from_slice(&self.stack_used_bytes.to_le_bytes());
+        out[12..].copy_from_slice(&self.run_counts.to_le_bytes());
         out
     }
 
@@ -291,6 +296,7 @@ impl Report {
         let rep = Report {
             ticks: r.u64()?,
             stack_used_bytes: r.u32()?,
+            run_counts: r.u64()?,
         };
         (r.rest() == 0).then_some(rep)
     }
@@ -392,6 +398,7 @@ mod tests {
         let rep = Report {
             ticks: 2000,
             stack_used_bytes: 4321,
+            run_counts: 5_000_000_000,
         };
         assert_eq!(Report::decode(&rep.encode()), Some(rep));
     }

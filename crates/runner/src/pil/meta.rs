@@ -18,6 +18,10 @@ pub struct TargetMeta {
     pub instructions_per_tick_mean: f64,
     /// The most guest instructions one tick took.
     pub instructions_per_tick_max: f64,
+    /// Every instruction the target ran from READY to its report (ticks, the link, waiting)
+    /// divided by the ticks: what work moved out of the timed tick would show in.
+    #[serde(default)]
+    pub instructions_per_tick_run: f64,
     /// The worst tick as time on the modelled part, s (at the assumed cycles per instruction:
     /// a floor for the state-space tick).
     pub tick_max_s: f64,
@@ -50,6 +54,10 @@ pub fn end_facts(t: &TargetMeta) -> Vec<(String, String)> {
         (
             "target_instructions_per_tick_max".to_string(),
             t.instructions_per_tick_max.to_string(),
+        ),
+        (
+            "target_instructions_per_tick_run".to_string(),
+            t.instructions_per_tick_run.to_string(),
         ),
         ("target_clock_hz".to_string(), t.clock_hz.to_string()),
         (
@@ -102,6 +110,7 @@ impl TargetMeta {
             firmware: text("target_firmware"),
             instructions_per_tick_mean: number("target_instructions_per_tick_mean"),
             instructions_per_tick_max: max,
+            instructions_per_tick_run: number("target_instructions_per_tick_run"),
             tick_max_s: if model.clock_hz > 0.0 {
                 model.seconds(max)
             } else {

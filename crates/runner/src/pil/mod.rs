@@ -145,7 +145,7 @@ fn check_boot(boot: &Boot, d: &Deployment) -> Result<(), PilError> {
     let order = order_of(d);
     if order > usize::from(boot.max_order) {
         return Err(PilError::Refused(format!(
-            "controller order {order} is above the firmware's build (at most {}): reduce it (servo synth --order) or build the firmware for it",
+            "controller order {order} is above the firmware's build (at most {}): reduce it (servo synth --order) or build the firmware with a higher FTS_SERVO_MAX_SS_ORDER (at most 40)",
             boot.max_order
         )));
     }

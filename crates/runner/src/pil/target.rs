@@ -324,14 +324,16 @@ impl TargetLoop {
     /// Asks the target for its report and returns what was measured (the emulator stops when
     /// `self` drops, at the end).
     pub fn finish(mut self) -> TargetMeta {
-        let mut stack_used_bytes = 0;
+        let (mut stack_used_bytes, mut run_counts) = (0, 0);
         if self.lost.is_none() {
             let asked = self
                 .send(kind::REPORT_REQUEST, &[])
                 .and_then(|()| self.expect(kind::REPORT));
             match asked.map(|()| Report::decode(&self.frame)) {
                 // The target counts the closing sample's tick too.
-                Ok(Some(r)) if r.ticks == self.samples => stack_used_bytes = r.stack_used_bytes,
+                Ok(Some(r)) if r.ticks == self.samples => {
+                    (stack_used_bytes, run_counts) = (r.stack_used_bytes, r.run_counts)
+                }
                 Ok(Some(r)) => {
                     self.lost = Some(format!(
                         "the target ticked {} times for {} samples",
@@ -349,12 +351,18 @@ impl TargetLoop {
             self.counts_total as f64 / self.ticks as f64 * self.per_count
         };
         let max = f64::from(self.counts_max) * self.per_count;
+        let run = if self.samples == 0 {
+            0.0
+        } else {
+            run_counts as f64 / self.samples as f64 * self.per_count
+        };
         TargetMeta {
             machine: self.machine(),
             build: self.build(),
             firmware: self.opts.firmware.display().to_string(),
             instructions_per_tick_mean: mean,
             instructions_per_tick_max: max,
+            instructions_per_tick_run: run,
             tick_max_s: m.seconds(max),
             clock_hz: m.clock_hz,
             cycles_per_instruction: m.cycles_per_instruction,
