@@ -21,7 +21,7 @@ fn main() {
     };
     let mut orders = String::from("state_space_orders! {\n");
     for n in 1..=cap {
-        let _ = writeln!(orders, "    {n} => N{n},");
+        let _ = writeln!(orders, "    {n},");
     }
     orders.push_str("}\n");
     let out = std::path::PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));

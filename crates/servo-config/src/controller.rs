@@ -1,61 +1,66 @@
 //! The feedback controller of a loop, built from its [`ControllerSpec`]: PID, the acceleration
 //! cascade, or a state-space controller of any order up to [`MAX_SS_ORDER`] held in fixed
-//! storage (a `StateSpace<N>` of servo-core for the file's order, chosen once at build: the
-//! tick runs the const-generic product of that order, and nothing is allocated).
+//! storage (servo-core's `StateSpace` for the largest order, loaded in place with the file's;
+//! the tick runs the const-generic product of that order, and nothing is allocated).
 
 use crate::check::{Allowed, Invalid};
 use crate::deployment::{ControllerKind, ControllerSpec, SsMatrices, Stage, MAX_SS_ORDER};
-use nalgebra::SMatrix;
 use servo_core::{
     kg, AccelCascade, AccelCascadeConfig, BiquadDesign, Block, CascadeInput, Iir, IirCoeffs,
-    Limits, Pid, PidConfig, StateSpace, StateSpaceConfig,
+    Limits, Pid, PidConfig, StateSpace,
 };
 
+/// A single-input single-output state-space controller of order 1 to [`MAX_SS_ORDER`], in
+/// storage for the largest: loaded in place (a microcontroller builds its loop where it runs),
+/// ticked by the const-generic product of its order.
+#[derive(Debug, Clone)]
+#[repr(C)]
+struct AnyStateSpace {
+    /// The order loaded (0: none; the output is then 0).
+    order: usize,
+    ss: StateSpace<MAX_SS_ORDER, 1, 1>,
+}
+
+impl AnyStateSpace {
+    /// Nothing loaded.
+    const EMPTY: Self = AnyStateSpace {
+        order: 0,
+        ss: StateSpace::EMPTY,
+    };
+
+    /// Loads `m` in place (the storage untouched when refused).
+    fn load(
+        &mut self,
+        m: &SsMatrices,
+        period_s: f64,
+        limits: Limits,
+    ) -> Result<(), servo_core::Error> {
+        self.ss
+            .load(m.order(), |i, j| m.entry(i, j), limits, period_s)?;
+        self.order = m.order();
+        Ok(())
+    }
+
+    fn faulted(&self) -> bool {
+        self.ss.faulted()
+    }
+
+    fn reset(&mut self) {
+        self.ss.reset()
+    }
+}
+
+/// [`AnyStateSpace::update`] for the orders `1..=MAX_SS_ORDER` (the list build.rs writes).
 macro_rules! state_space_orders {
-    ($($n:literal => $v:ident),+ $(,)?) => {
-        /// A single-input single-output state-space controller of order 1 to
-        /// [`MAX_SS_ORDER`].
-        // Fixed storage for the largest order is the point: nothing is allocated.
-        #[allow(clippy::large_enum_variant)]
-        #[derive(Debug, Clone)]
-        enum AnyStateSpace {
-            $(
-                #[doc = concat!("Order ", stringify!($n), ".")]
-                $v(StateSpace<$n, 1, 1>),
-            )+
-        }
-
+    ($($n:literal),+ $(,)?) => {
         impl AnyStateSpace {
-            fn build(m: &SsMatrices, period_s: f64, limits: Limits) -> Result<Self, servo_core::Error> {
-                // Each order in a frame of its own (`built`): one match arm's temporaries on the
-                // stack at a time, not forty (a microcontroller builds this on its stack).
-                match m.order() {
-                    $($n => built::<$n>(m, period_s, limits).map(AnyStateSpace::$v),)+
-                    _ => Err(servo_core::Error::OutOfRange {
-                        param: "order",
-                        value: m.order() as f64,
-                        min: 1.0,
-                        max: MAX_SS_ORDER as f64,
-                    }),
-                }
-            }
-
-            #[inline]
+            // Out of line: the storage's own address is the base of every matrix load (one
+            // instruction each on a Cortex-M7) instead of the loop's, tens of KiB away.
+            #[inline(never)]
             fn update(&mut self, e: f64) -> f64 {
-                match self {
-                    $(AnyStateSpace::$v(s) => s.update([e])[0],)+
-                }
-            }
-
-            fn faulted(&self) -> bool {
-                match self {
-                    $(AnyStateSpace::$v(s) => s.faulted(),)+
-                }
-            }
-
-            fn reset(&mut self) {
-                match self {
-                    $(AnyStateSpace::$v(s) => s.reset(),)+
+                match self.order {
+                    $($n => self.ss.update_order::<$n>([e])[0],)+
+                    _ => 0.0,
                 }
             }
         }
@@ -65,34 +70,13 @@ macro_rules! state_space_orders {
 // Orders 1..=MAX_SS_ORDER (the build's cap, `FTS_SERVO_MAX_SS_ORDER`; build.rs).
 include!(concat!(env!("OUT_DIR"), "/orders.rs"));
 
-/// The state space of order `N` of `m`, built in a stack frame of its own.
-#[inline(never)]
-fn built<const N: usize>(
-    m: &SsMatrices,
-    period_s: f64,
-    limits: Limits,
-) -> Result<StateSpace<N, 1, 1>, servo_core::Error> {
-    config::<N>(m, limits).try_build(period_s)
-}
-
-/// The servo-core configuration of `m` (order `N`).
-fn config<const N: usize>(m: &SsMatrices, limits: Limits) -> StateSpaceConfig<N, 1, 1> {
-    StateSpaceConfig::<N, 1, 1> {
-        a: SMatrix::from_fn(|i, j| m.entry(i, j)),
-        b: SMatrix::from_fn(|i, _| m.entry(i, N)),
-        c: SMatrix::from_fn(|_, j| m.entry(N, j)),
-        d: SMatrix::from_element(m.entry(N, N)),
-        limits,
-    }
-}
-
-// Fixed storage for the largest order is the point: nothing is allocated.
-#[allow(clippy::large_enum_variant)]
+/// Which law a controller runs (a state space's storage is beside it, not in it: the variant
+/// changes in place, the storage is loaded in place).
 #[derive(Debug, Clone)]
 enum Kind {
+    Ss,
     Pid(Pid),
     Accel(AccelCascade<Iir<2>>),
-    Ss(AnyStateSpace),
 }
 
 /// The feedback law of a loop alone, in its running state: position error and accelerometer
@@ -109,8 +93,11 @@ enum Kind {
 /// # Ok::<(), servo_config::Invalid>(())
 /// ```
 #[derive(Debug, Clone)]
+#[repr(C)] // the law first, a state space's storage last (see `servo_runtime::Servo`)
 pub struct Controller {
     kind: Kind,
+    /// A state-space law's storage (loaded when `kind` is `Ss`).
+    ss: AnyStateSpace,
     /// Output limit in V.
     limit_v: f64,
 }
@@ -200,11 +187,33 @@ fn pid_key(param: &str) -> Option<&'static str> {
 }
 
 impl Controller {
+    /// No law yet: its output is 0 V. Storage for [`Controller::rebuild`] (a
+    /// microcontroller's static loop).
+    pub const UNBUILT: Controller = Controller {
+        kind: Kind::Ss,
+        ss: AnyStateSpace::EMPTY,
+        limit_v: 0.0,
+    };
+
     /// The controller of `c` on `stage` at `period_s` (s), in its initial state.
     pub fn build(c: &ControllerSpec, stage: &Stage, period_s: f64) -> Result<Self, Invalid> {
+        let mut built = Controller::UNBUILT;
+        built.rebuild(c, stage, period_s)?;
+        Ok(built)
+    }
+
+    /// [`Controller::build`] in place: the controller of `c` on `stage` at `period_s` (s), in
+    /// its initial state, written where `self` lies (no copy of a state space's storage on
+    /// the stack). Refused, `self` untouched, as `build` refuses.
+    pub fn rebuild(
+        &mut self,
+        c: &ControllerSpec,
+        stage: &Stage,
+        period_s: f64,
+    ) -> Result<(), Invalid> {
         let pid_cfg = position_pid(c, stage)?;
         let limits = pid_cfg.limits;
-        let kind = match c.kind {
+        self.kind = match c.kind {
             ControllerKind::Pid => Kind::Pid(
                 pid_cfg
                     .try_build(period_s)
@@ -237,16 +246,14 @@ impl Controller {
                     f64::NAN,
                     Allowed::Text("the matrices of a state-space controller for kind = \"ss\""),
                 ))?;
-                Kind::Ss(
-                    AnyStateSpace::build(m, period_s, limits)
-                        .map_err(|e| block_error(e, "ss.a"))?,
-                )
+                self.ss
+                    .load(m, period_s, limits)
+                    .map_err(|e| block_error(e, "ss.a"))?;
+                Kind::Ss
             }
         };
-        Ok(Controller {
-            kind,
-            limit_v: c.limit_v,
-        })
+        self.limit_v = c.limit_v;
+        Ok(())
     }
 
     /// The output limit in V (the command is clipped to ±this).
@@ -260,7 +267,7 @@ impl Controller {
         match &self.kind {
             Kind::Pid(p) => p.faulted(),
             Kind::Accel(a) => a.faulted(),
-            Kind::Ss(s) => s.faulted(),
+            Kind::Ss => self.ss.faulted(),
         }
     }
 
@@ -269,7 +276,7 @@ impl Controller {
         match &mut self.kind {
             Kind::Pid(p) => p.reset(),
             Kind::Accel(a) => a.reset(),
-            Kind::Ss(s) => s.reset(),
+            Kind::Ss => self.ss.reset(),
         }
     }
 
@@ -282,7 +289,7 @@ impl Controller {
                 error: error_v,
                 accel: accel_v,
             }),
-            Kind::Ss(s) => s.update(error_v),
+            Kind::Ss => self.ss.update(error_v),
         }
     }
 }

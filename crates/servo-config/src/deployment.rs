@@ -3,7 +3,7 @@
 //! checked once by [`Deployment::check`]. Plain data: no allocation, so a microcontroller build
 //! can hold one in a `static`.
 
-use crate::protection::ProtectionConfig;
+use crate::protection::{ProtectionConfig, SafeState};
 
 /// Largest state-space controller order a loop runs (the thesis's full order is 27; `servo
 /// synth` writes up to 29 with the loop delay): 40, or the cap a microcontroller build chose
@@ -128,6 +128,12 @@ pub struct SsMatrices {
 }
 
 impl SsMatrices {
+    /// Order 0, every entry zero: storage for [`SsMatrices::refill`].
+    pub const BLANK: SsMatrices = SsMatrices {
+        order: 0,
+        m: [[0.0; MAX_SS_ORDER + 1]; MAX_SS_ORDER + 1],
+    };
+
     /// `[[A, B], [C, D]]` of order `n` from `entry(i, j)` for `i, j ∈ 0..=n`; None unless
     /// `1 ≤ n ≤` [`MAX_SS_ORDER`].
     pub fn from_fn(n: usize, mut entry: impl FnMut(usize, usize) -> f64) -> Option<Self> {
@@ -141,6 +147,21 @@ impl SsMatrices {
             }
         }
         Some(SsMatrices { order: n, m })
+    }
+
+    /// [`SsMatrices::from_fn`] in place (no copy of the storage on the stack): false, `self`
+    /// untouched, unless `1 ≤ n ≤` [`MAX_SS_ORDER`].
+    pub fn refill(&mut self, n: usize, mut entry: impl FnMut(usize, usize) -> f64) -> bool {
+        if n == 0 || n > MAX_SS_ORDER {
+            return false;
+        }
+        for (i, row) in self.m.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = if i <= n && j <= n { entry(i, j) } else { 0.0 };
+            }
+        }
+        self.order = n;
+        true
     }
 
     /// The order n.
@@ -395,6 +416,51 @@ impl FeedforwardSpec {
 }
 
 impl Deployment {
+    /// Every number zero, every choice its first (not a loop [`Deployment::check`] accepts):
+    /// storage a microcontroller decodes its deployment image into, in place, in a `static`.
+    pub const BLANK: Deployment = Deployment {
+        servo_rate_hz: 0.0,
+        stage: Stage {
+            gap_sensitivity_v_per_m: 0.0,
+            accel_sensitivity_v_per_m_s2: 0.0,
+            suspended_mass_kg: 0.0,
+            damping_n_s_per_m: 0.0,
+            stiffness_n_per_m: 0.0,
+            current_gain_a_per_v: 0.0,
+            kt_n_per_a: 0.0,
+            dc_gain_m_per_v: 0.0,
+        },
+        controller: ControllerSpec {
+            kind: ControllerKind::Pid,
+            pid: PidGains {
+                kp: 0.0,
+                ki: 0.0,
+                kd: 0.0,
+                tf_s: 0.0,
+            },
+            ka: 0.0,
+            kg_scaling: false,
+            accel_filter_hz: 0.0,
+            accel_filter_order: 0,
+            ss: None,
+            limit_v: 0.0,
+        },
+        stability: None,
+        reference: ReferenceSpec::Hold,
+        feedforward: FeedforwardSpec::None,
+        smoothing_hz: 0.0,
+        protection: ProtectionConfig {
+            enabled: false,
+            following_error_m: 0.0,
+            position_limit_m: None,
+            saturation_s: 0.0,
+            safe_state: SafeState::Zero,
+            retract_m: 0.0,
+            retract_speed_m_per_s: 0.0,
+            after_trip_s: 0.0,
+        },
+    };
+
     /// The thesis prototype as `servo deploy` writes it with no configuration: the Table 5-2
     /// stage (0.074 kg moving mass) at 199.6 kHz under the Chapter 7 PID (§7.5.3), holding
     /// position, default protection; its loop checked on the model: stable for output scales

@@ -99,6 +99,99 @@ pub struct StateSpace<const NX: usize, const NU: usize, const NY: usize> {
 }
 
 impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
+    /// Storage for a realisation of any order up to `NX`, loaded in place with
+    /// [`StateSpace::load`] (a microcontroller builds its loop where it will run, not on its
+    /// stack): every matrix and the state zero, output 0.
+    pub const EMPTY: Self = StateSpace {
+        a_cols: [[0.0; NX]; NX],
+        b_cols: [[0.0; NX]; NU],
+        c_rows: [[0.0; NX]; NY],
+        d_cols: [[0.0; NY]; NU],
+        limits: Limits::UNLIMITED,
+        sample_period_s: 0.0,
+        x: [[0.0; NX]; 2],
+        now: 0,
+        fault: FaultLatch::CLEAR,
+    };
+
+    /// Loads the realisation of order `order` (`1 ≤ order ≤ NX`) in place: `entry(i, j)` is
+    /// row `i`, column `j` of `[[A, B], [C, D]]` (`order + NY` rows, `order + NU` columns),
+    /// sampled every `sample_period_s` s; the rest of the storage and the state are zeroed and
+    /// a fault cleared. Run it with [`StateSpace::update_order`] of the same order. Refused,
+    /// the storage untouched, when the order or the period is out of range or an entry is not
+    /// finite (naming the matrix).
+    pub fn load(
+        &mut self,
+        order: usize,
+        entry: impl Fn(usize, usize) -> f64,
+        limits: Limits,
+        sample_period_s: f64,
+    ) -> Result<(), Error> {
+        let sample_period_s = check_period(sample_period_s)?;
+        if !(1..=NX).contains(&order) {
+            return Err(Error::OutOfRange {
+                param: "order",
+                value: order as f64,
+                min: 1.0,
+                max: NX as f64,
+            });
+        }
+        // Which matrix an entry of [[A, B], [C, D]] belongs to.
+        let matrix = |i: usize, j: usize| match (i < order, j < order) {
+            (true, true) => "a",
+            (true, false) => "b",
+            (false, true) => "c",
+            (false, false) => "d",
+        };
+        for i in 0..order + NY {
+            for j in 0..order + NU {
+                if !entry(i, j).is_finite() {
+                    return Err(Error::NotFinite {
+                        param: matrix(i, j),
+                    });
+                }
+            }
+        }
+        // Every array written where it lies: no copy of the storage on the stack. A's columns
+        // are packed `order` long (the layout of a `StateSpace` of that order).
+        for (k, a) in self.a_cols.as_flattened_mut().iter_mut().enumerate() {
+            let (j, i) = (k / order, k % order);
+            *a = if j < order { entry(i, j) } else { 0.0 };
+        }
+        for (u, col) in self.b_cols.iter_mut().enumerate() {
+            for (i, b) in col.iter_mut().enumerate() {
+                *b = if i < order { entry(i, order + u) } else { 0.0 };
+            }
+        }
+        for (k, row) in self.c_rows.iter_mut().enumerate() {
+            for (j, c) in row.iter_mut().enumerate() {
+                *c = if j < order { entry(order + k, j) } else { 0.0 };
+            }
+        }
+        for (u, col) in self.d_cols.iter_mut().enumerate() {
+            for (k, d) in col.iter_mut().enumerate() {
+                *d = entry(order + k, order + u);
+            }
+        }
+        self.x.iter_mut().for_each(|x| x.fill(0.0));
+        self.now = 0;
+        self.fault = FaultLatch::CLEAR;
+        self.limits = limits;
+        self.sample_period_s = sample_period_s;
+        Ok(())
+    }
+
+    /// One tick of the order-`N` realisation [`StateSpace::load`] put here (`N ≤ NX`, checked
+    /// when it compiles): the bits of a `StateSpace<N, NU, NY>` of the same matrices.
+    #[inline]
+    pub fn update_order<const N: usize>(&mut self, e: [f64; NU]) -> [f64; NY] {
+        const { assert!(N <= NX, "the order runs in the storage's top-left corner") };
+        simd::vectorised(
+            #[inline(always)]
+            || self.tick::<N>(e),
+        )
+    }
+
     /// The current state vector.
     pub fn state(&self) -> &[f64; NX] {
         &self.x[self.now]
@@ -135,6 +228,21 @@ fn dot<const N: usize>(a: &[f64; N], b: &[f64; N]) -> f64 {
     (part[0] + part[1]) + (part[2] + part[3])
 }
 
+/// The first `N` entries of `a` (`N ≤ M`, checked where the order is chosen).
+#[inline(always)]
+fn head<const N: usize, const M: usize>(a: &[f64; M]) -> &[f64; N] {
+    a.first_chunk().unwrap_or(&[0.0; N])
+}
+
+/// Column `j` of the order-`N` realisation's `A`: its columns are packed `N` long from the
+/// start of the storage (for `N = NX`, the storage's own columns).
+#[inline(always)]
+fn column<const N: usize, const NX: usize>(a_cols: &[[f64; NX]; NX], j: usize) -> &[f64; N] {
+    a_cols.as_flattened()[j * N..]
+        .first_chunk()
+        .unwrap_or(&[0.0; N])
+}
+
 /// Rows of the state update the row kernel computes together: each column's `x[j]` is loaded
 /// once for four rows, and the eight accumulators, four entries of `A` and `x[j]` fit in a
 /// Cortex-M7's sixteen double registers.
@@ -144,26 +252,37 @@ const ROWS: usize = 4;
 /// summed in the order the column kernel sums them (one accumulator each, from 0; the inputs'
 /// columns after the odd ones), then flushed.
 #[inline(always)]
-fn rows<const NX: usize, const NU: usize, const R: usize>(
-    a_cols: &[[f64; NX]; NX],
-    b_cols: &[[f64; NX]; NU],
-    x: &[f64; NX],
+fn rows<const N: usize, const CAP: usize, const NU: usize, const R: usize>(
+    a_cols: &[[f64; CAP]; CAP],
+    b_cols: &[[f64; CAP]; NU],
+    x: &[f64; CAP],
     e: &[f64; NU],
     first: usize,
 ) -> [f64; R] {
+    let a = a_cols.as_flattened();
+    // Column `j`'s entries of these rows (contiguous).
+    let part = |j: usize| -> &[f64; R] { a[j * N + first..].first_chunk().unwrap_or(&[0.0; R]) };
     let (mut even, mut odd) = ([0.0; R], [0.0; R]);
+    // A loop the optimiser does not unroll (its count hidden from it): the addresses then
+    // advance with the columns and every load is one instruction at a small offset, where an
+    // unrolled body (constant offsets kilobytes in) costs an extra add per entry on a
+    // Cortex-M7.
+    let pairs = core::hint::black_box(N / 2);
     let mut j = 0;
-    while j + 1 < NX {
+    while j / 2 < pairs {
         let (x_even, x_odd) = (x[j], x[j + 1]);
+        let (a_even, a_odd) = (part(j), part(j + 1));
         for r in 0..R {
-            even[r] = mul_add(a_cols[j][first + r], x_even, even[r]);
-            odd[r] = mul_add(a_cols[j + 1][first + r], x_odd, odd[r]);
+            even[r] = mul_add(a_even[r], x_even, even[r]);
+            odd[r] = mul_add(a_odd[r], x_odd, odd[r]);
         }
         j += 2;
     }
-    if j < NX {
+    if N % 2 == 1 {
+        let j = N - 1;
+        let a_even = part(j);
         for r in 0..R {
-            even[r] = mul_add(a_cols[j][first + r], x[j], even[r]);
+            even[r] = mul_add(a_even[r], x[j], even[r]);
         }
     }
     for (col, &ek) in b_cols.iter().zip(e) {
@@ -181,30 +300,31 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
         simd::with(
             simd,
             #[inline(always)]
-            || self.tick(e),
+            || self.tick::<NX>(e),
         )
     }
 
-    /// One tick with the kernel written for this processor: by column where there are wide
-    /// vector units (x86-64), by row elsewhere (a microcontroller's FPU). Both give the same
-    /// bits.
+    /// One tick of the order-`N` realisation in the top-left of the matrices (`N ≤ NX`), with
+    /// the kernel written for this processor: by column where there are wide vector units
+    /// (x86-64), by row elsewhere (a microcontroller's FPU). Both give the same bits, and the
+    /// bits of a `StateSpace<N, NU, NY>` of the same matrices.
     #[inline(always)]
-    fn tick(&mut self, e: [f64; NU]) -> [f64; NY] {
+    fn tick<const N: usize>(&mut self, e: [f64; NU]) -> [f64; NY] {
         #[cfg(target_arch = "x86_64")]
         {
-            self.tick_by_columns(e)
+            self.tick_by_columns::<N>(e)
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
-            self.tick_by_rows(e)
+            self.tick_by_rows::<N>(e)
         }
     }
 
-    /// The output `C x + D e` (before the limits).
+    /// The output `C x + D e` of the order-`N` realisation (before the limits).
     #[inline(always)]
-    fn output(&self, e: &[f64; NU]) -> [f64; NY] {
-        let x = self.state();
-        let mut y: [f64; NY] = core::array::from_fn(|i| dot(&self.c_rows[i], x));
+    fn output<const N: usize>(&self, e: &[f64; NU]) -> [f64; NY] {
+        let x = head::<N, NX>(self.state());
+        let mut y: [f64; NY] = core::array::from_fn(|i| dot(head::<N, NX>(&self.c_rows[i]), x));
         for (col, &ej) in self.d_cols.iter().zip(e) {
             axpy(&mut y, col, ej);
         }
@@ -215,27 +335,27 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     /// lane independent: what wide vector units run best).
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))] // the host's tests hold the row kernel to it
     #[inline(always)]
-    fn tick_by_columns(&mut self, e: [f64; NU]) -> [f64; NY] {
-        let y = self.output(&e);
-        let mut even = [0.0; NX];
-        let mut odd = [0.0; NX];
-        let (pairs, last) = self.a_cols.as_chunks::<2>();
-        let (x_pairs, x_last) = self.x[self.now].as_chunks::<2>();
-        for (cols, xs) in pairs.iter().zip(x_pairs) {
-            axpy(&mut even, &cols[0], xs[0]);
-            axpy(&mut odd, &cols[1], xs[1]);
+    fn tick_by_columns<const N: usize>(&mut self, e: [f64; NU]) -> [f64; NY] {
+        let y = self.output::<N>(&e);
+        let mut even = [0.0; N];
+        let mut odd = [0.0; N];
+        let x = head::<N, NX>(&self.x[self.now]);
+        let (x_pairs, x_last) = x.as_chunks::<2>();
+        for (p, xs) in x_pairs.iter().enumerate() {
+            axpy(&mut even, column::<N, NX>(&self.a_cols, 2 * p), xs[0]);
+            axpy(&mut odd, column::<N, NX>(&self.a_cols, 2 * p + 1), xs[1]);
         }
-        for (col, &xj) in last.iter().zip(x_last) {
-            axpy(&mut even, col, xj);
+        if let [xj] = x_last {
+            axpy(&mut even, column::<N, NX>(&self.a_cols, N - 1), *xj);
         }
         for (col, &ej) in self.b_cols.iter().zip(&e) {
-            axpy(&mut odd, col, ej);
+            axpy(&mut odd, head(col), ej);
         }
         self.now = 1 - self.now;
         for ((x, a), b) in self.x[self.now].iter_mut().zip(&even).zip(&odd) {
             *x = flush(a + b);
         }
-        self.checked(y)
+        self.checked::<N>(y)
     }
 
     /// The state update row by row, each row's even and odd columns summed in the order
@@ -244,29 +364,30 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     /// FPv5-D16) runs best — a load and a multiply-add per entry.
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))] // the host's tests hold it to the column kernel
     #[inline(always)]
-    fn tick_by_rows(&mut self, e: [f64; NU]) -> [f64; NY] {
-        let y = self.output(&e);
+    fn tick_by_rows<const N: usize>(&mut self, e: [f64; NU]) -> [f64; NY] {
+        let y = self.output::<N>(&e);
         // The new state is written into the same array the old one is read from: the compiler
         // cannot tell the halves apart, so it reads `x` where it is used instead of copying
         // the whole of it to the stack first (which it does with two separate borrows).
         let (now, xs) = (self.now, &mut self.x);
-        let blocks = NX / ROWS;
+        let blocks = N / ROWS;
         for b in 0..blocks {
-            let block: [f64; ROWS] = rows(&self.a_cols, &self.b_cols, &xs[now], &e, b * ROWS);
+            let block: [f64; ROWS] =
+                rows::<N, NX, NU, ROWS>(&self.a_cols, &self.b_cols, &xs[now], &e, b * ROWS);
             xs[1 - now][b * ROWS..(b + 1) * ROWS].copy_from_slice(&block);
         }
-        for i in blocks * ROWS..NX {
-            xs[1 - now][i] = rows::<NX, NU, 1>(&self.a_cols, &self.b_cols, &xs[now], &e, i)[0];
+        for i in blocks * ROWS..N {
+            xs[1 - now][i] = rows::<N, NX, NU, 1>(&self.a_cols, &self.b_cols, &xs[now], &e, i)[0];
         }
         self.now = 1 - self.now;
-        self.checked(y)
+        self.checked::<N>(y)
     }
 
-    /// `y` within the limits, or 0 with the fault latched when `y` or the new state is not
-    /// finite.
+    /// `y` within the limits, or 0 with the fault latched when `y` or the new state (its
+    /// first `N`) is not finite.
     #[inline(always)]
-    fn checked(&mut self, y: [f64; NY]) -> [f64; NY] {
-        if self.fault.check_all(&y) | self.fault.check_all(&self.x[self.now]) {
+    fn checked<const N: usize>(&mut self, y: [f64; NY]) -> [f64; NY] {
+        if self.fault.check_all(&y) | self.fault.check_all(head::<N, NX>(&self.x[self.now])) {
             return [0.0; NY];
         }
         y.map(|v| self.limits.clamp(v))
@@ -282,7 +403,7 @@ impl<const NX: usize, const NU: usize, const NY: usize> Block for StateSpace<NX,
     fn update(&mut self, e: [f64; NU]) -> [f64; NY] {
         simd::vectorised(
             #[inline(always)]
-            || self.tick(e),
+            || self.tick::<NX>(e),
         )
     }
 
@@ -380,7 +501,10 @@ mod tests {
                 (cfg.try_build(5e-5).unwrap(), cfg.try_build(5e-5).unwrap());
             for _ in 0..2000 {
                 let e: [f64; NU] = core::array::from_fn(|_| lcg(&mut seed));
-                let (yc, yr) = (by_cols.tick_by_columns(e), by_rows.tick_by_rows(e));
+                let (yc, yr) = (
+                    by_cols.tick_by_columns::<NX>(e),
+                    by_rows.tick_by_rows::<NX>(e),
+                );
                 assert_eq!(yc[0].to_bits(), yr[0].to_bits());
                 let bits = |x: &[f64; NX]| x.map(f64::to_bits);
                 assert_eq!(bits(by_cols.state()), bits(by_rows.state()));
@@ -391,6 +515,47 @@ mod tests {
         same::<13, 1>(33);
         same::<28, 2>(34);
         same::<29, 1>(35);
+    }
+
+    /// An order-`N` realisation loaded in place into storage for 40 states runs with the bits
+    /// of a `StateSpace<N>` of the same matrices; loading another order over it starts afresh.
+    #[test]
+    fn a_realisation_loaded_in_place_runs_with_its_own_orders_bits() {
+        fn same<const N: usize>(storage: &mut StateSpace<40, 1, 1>, seed: u64) {
+            let mut seed = seed;
+            let cfg = random_config::<N, 1, 1>(&mut seed);
+            let mut own = cfg.try_build(5e-5).unwrap();
+            let entry = |i: usize, j: usize| match (i < N, j < N) {
+                (true, true) => cfg.a[(i, j)],
+                (true, false) => cfg.b[(i, 0)],
+                (false, true) => cfg.c[(0, j)],
+                (false, false) => cfg.d[(0, 0)],
+            };
+            storage.load(N, entry, Limits::UNLIMITED, 5e-5).unwrap();
+            for _ in 0..2000 {
+                let e = [lcg(&mut seed)];
+                let (y, y_own) = (storage.update_order::<N>(e), own.update(e));
+                assert_eq!(y[0].to_bits(), y_own[0].to_bits());
+            }
+            for (a, b) in storage.state().iter().zip(own.state()) {
+                assert_eq!(a.to_bits(), b.to_bits());
+            }
+            assert!(storage.state()[N..].iter().all(|&v| v == 0.0));
+        }
+        let mut storage = StateSpace::<40, 1, 1>::EMPTY;
+        same::<29>(&mut storage, 41);
+        same::<13>(&mut storage, 42);
+        same::<1>(&mut storage, 43);
+        same::<40>(&mut storage, 44);
+        let bad = |i, j| if (i, j) == (2, 3) { f64::NAN } else { 0.5 };
+        assert_eq!(
+            storage.load(5, bad, Limits::UNLIMITED, 5e-5),
+            Err(Error::NotFinite { param: "a" })
+        );
+        assert!(matches!(
+            storage.load(41, |_, _| 0.0, Limits::UNLIMITED, 5e-5),
+            Err(Error::OutOfRange { param: "order", .. })
+        ));
     }
 
     #[test]

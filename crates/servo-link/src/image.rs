@@ -6,9 +6,9 @@
 
 use super::{Reader, Writer};
 use servo_config::{
-    ControllerKind, ControllerSpec, Deployment, FeedforwardSpec, FirSpec, PidGains, ReferenceSpec,
-    Seal, SsMatrices, Stability, Stage, ZpetcSpec, MAX_FIR_SPAN, MAX_FIR_TAPS, MAX_PREVIEW,
-    MAX_SS_ORDER, ZPETC_SECTIONS,
+    ControllerKind, Deployment, FeedforwardSpec, FirSpec, PidGains, ReferenceSpec, Seal,
+    SsMatrices, Stability, Stage, ZpetcSpec, MAX_FIR_SPAN, MAX_FIR_TAPS, MAX_PREVIEW, MAX_SS_ORDER,
+    ZPETC_SECTIONS,
 };
 use servo_config::{ProtectionConfig, SafeState};
 
@@ -197,6 +197,15 @@ fn flag(v: u8, key: &'static str) -> Result<bool, ImageError> {
 
 /// The deployment an image holds (its values still to be checked by [`servo_runtime::Servo::new`]).
 pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
+    let mut d = Deployment::BLANK;
+    decode_into(bytes, &mut d)?;
+    Ok(d)
+}
+
+/// [`decode`] in place: the deployment an image holds written into `d` (a microcontroller's
+/// static: the state-space matrices are written where they lie, not built on the stack). A
+/// refused image leaves `d` partly written: decode another before using it.
+pub fn decode_into(bytes: &[u8], d: &mut Deployment) -> Result<(), ImageError> {
     let mut r = Reader::new(bytes);
     if r.take::<4>() != Some(MAGIC) {
         return Err(ImageError { field: "magic" });
@@ -239,32 +248,27 @@ pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
     let accel_filter_hz = field!(r, f64, "controller.accel_filter_hz");
     let accel_filter_order = field!(r, u8, "controller.accel_filter_order");
     let limit_v = field!(r, f64, "controller.limit_v");
-    let ss = match usize::from(field!(r, u8, "controller.ss")) {
-        0 => None,
+    match usize::from(field!(r, u8, "controller.ss")) {
+        0 => d.controller.ss = None,
         n if n <= MAX_SS_ORDER => {
             if r.rest() < 8 * (n + 1) * (n + 1) {
                 return Err(ImageError {
                     field: "controller.ss",
                 });
             }
-            SsMatrices::from_fn(n, |_, _| r.f64().unwrap_or(f64::NAN))
+            let m = d.controller.ss.get_or_insert(SsMatrices::BLANK);
+            m.refill(n, |_, _| r.f64().unwrap_or(f64::NAN));
         }
         _ => {
             return Err(ImageError {
                 field: "controller.ss",
             })
         }
-    };
-    let controller = ControllerSpec {
-        kind,
-        pid,
-        ka,
-        kg_scaling,
-        accel_filter_hz,
-        accel_filter_order,
-        ss,
-        limit_v,
-    };
+    }
+    let c = &mut d.controller;
+    (c.kind, c.pid, c.ka, c.kg_scaling) = (kind, pid, ka, kg_scaling);
+    (c.accel_filter_hz, c.accel_filter_order, c.limit_v) =
+        (accel_filter_hz, accel_filter_order, limit_v);
     let stability = match field!(r, u8, "stability") {
         0 => None,
         1 => Some(Stability {
@@ -379,16 +383,10 @@ pub fn decode(bytes: &[u8]) -> Result<Deployment, ImageError> {
     if r.rest() != 0 {
         return Err(ImageError { field: "length" });
     }
-    Ok(Deployment {
-        servo_rate_hz,
-        stage,
-        controller,
-        stability,
-        reference,
-        feedforward,
-        smoothing_hz,
-        protection,
-    })
+    (d.servo_rate_hz, d.stage, d.stability) = (servo_rate_hz, stage, stability);
+    (d.reference, d.feedforward) = (reference, feedforward);
+    (d.smoothing_hz, d.protection) = (smoothing_hz, protection);
+    Ok(())
 }
 
 #[cfg(test)]

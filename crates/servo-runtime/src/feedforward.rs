@@ -8,31 +8,44 @@ use servo_config::{Allowed, Invalid};
 use servo_config::{FeedforwardSpec, Stage, ZPETC_SECTIONS};
 use servo_core::{Block, Limits, Setpoint, Zpetc};
 
-/// A feedforward ready to run.
-// Fixed storage: nothing is allocated.
+/// The feedforward of a loop: which law, and the FIR's storage beside it (so the law changes
+/// in place and the storage is loaded in place). Fixed storage: nothing is allocated.
+#[derive(Debug, Clone)]
+#[repr(C)]
+pub(crate) struct Feedforward {
+    kind: Kind,
+    fir: Fir,
+}
+
+/// Which feedforward law runs (a ZPETC filter's sections in place: fixed storage, nothing
+/// is allocated).
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
-pub(crate) enum Feedforward {
-    /// Feedback only.
+enum Kind {
     None,
-    /// Stage-model inverse on finite differences of the window (V).
     Model(servo_core::Feedforward),
-    /// Reshaped reference (m).
     Zpetc(Zpetc<ZPETC_SECTIONS>),
-    /// Reshaped reference (m) by fixed taps over the trajectory's past.
-    Fir(Fir),
+    Fir,
 }
 
 impl Feedforward {
-    /// The feedforward of `spec` on `stage`, clamped to ±`limit_v`.
-    pub(crate) fn build(
+    /// None yet: storage for [`Feedforward::rebuild`].
+    pub(crate) const UNBUILT: Feedforward = Feedforward {
+        kind: Kind::None,
+        fir: Fir::EMPTY,
+    };
+
+    /// The feedforward of `spec` for `stage`, its output within ±`limit_v`, written in place;
+    /// refused (naming the key), `self` untouched, when a filter is invalid.
+    pub(crate) fn rebuild(
+        &mut self,
         spec: &FeedforwardSpec,
         stage: &Stage,
         limit_v: f64,
-    ) -> Result<Self, Invalid> {
-        Ok(match spec {
-            FeedforwardSpec::None => Feedforward::None,
-            FeedforwardSpec::Model => Feedforward::Model(
+    ) -> Result<(), Invalid> {
+        self.kind = match spec {
+            FeedforwardSpec::None => Kind::None,
+            FeedforwardSpec::Model => Kind::Model(
                 servo_core::FeedforwardConfig {
                     mass_kg: stage.suspended_mass_kg,
                     damping_n_s_per_m: stage.damping_n_s_per_m,
@@ -52,7 +65,7 @@ impl Feedforward {
                     )
                 })?,
             ),
-            FeedforwardSpec::Zpetc(z) => Feedforward::Zpetc(z.build().map_err(|_| {
+            FeedforwardSpec::Zpetc(z) => Kind::Zpetc(z.build().map_err(|_| {
                 Invalid::new(
                     "feedforward",
                     "sections",
@@ -60,27 +73,30 @@ impl Feedforward {
                     Allowed::Text("a ZPETC filter servo-core accepts"),
                 )
             })?),
-            FeedforwardSpec::Fir(f) => Feedforward::Fir(Fir::new(f)),
-        })
+            FeedforwardSpec::Fir(f) => {
+                self.fir.load(f);
+                Kind::Fir
+            }
+        };
+        Ok(())
     }
 
-    /// A block latched a fault.
     pub(crate) fn faulted(&self) -> bool {
-        match self {
-            Feedforward::None => false,
-            Feedforward::Model(f) => f.faulted(),
-            Feedforward::Zpetc(z) => z.faulted(),
-            Feedforward::Fir(f) => f.faulted(),
+        match &self.kind {
+            Kind::None => false,
+            Kind::Model(f) => f.faulted(),
+            Kind::Zpetc(z) => z.faulted(),
+            Kind::Fir => self.fir.faulted(),
         }
     }
 
     /// Back to the initial state.
     pub(crate) fn reset(&mut self) {
-        match self {
-            Feedforward::None => {}
-            Feedforward::Model(f) => f.reset(),
-            Feedforward::Zpetc(z) => z.reset(),
-            Feedforward::Fir(f) => f.reset(),
+        match &mut self.kind {
+            Kind::None => {}
+            Kind::Model(f) => f.reset(),
+            Kind::Zpetc(z) => z.reset(),
+            Kind::Fir => self.fir.reset(),
         }
     }
 
@@ -88,9 +104,9 @@ impl Feedforward {
     /// window `w` (at `period_s`, s).
     #[inline]
     pub(crate) fn evaluate(&mut self, w: &Window, period_s: f64) -> (f64, f64) {
-        match self {
-            Feedforward::None => (w.smooth(0), 0.0),
-            Feedforward::Model(ff) => {
+        match &mut self.kind {
+            Kind::None => (w.smooth(0), 0.0),
+            Kind::Model(ff) => {
                 let t = period_s;
                 let (prev, now, next) = (w.smooth(-1), w.smooth(0), w.smooth(1));
                 let sp = Setpoint {
@@ -100,8 +116,8 @@ impl Feedforward {
                 };
                 (now, ff.update(sp))
             }
-            Feedforward::Zpetc(z) => (z.update(w.smooth(z.preview() as isize)), 0.0),
-            Feedforward::Fir(f) => (f.evaluate(), 0.0),
+            Kind::Zpetc(z) => (z.update(w.smooth(z.preview() as isize)), 0.0),
+            Kind::Fir => (self.fir.evaluate(), 0.0),
         }
     }
 
@@ -111,8 +127,8 @@ impl Feedforward {
     pub(crate) fn follow(&mut self, w: &Window, fresh: bool) {
         if fresh {
             self.prime(w);
-        } else if let Feedforward::Fir(f) = self {
-            f.follow(w);
+        } else if let Kind::Fir = self.kind {
+            self.fir.follow(w);
         }
     }
 
@@ -123,15 +139,15 @@ impl Feedforward {
     #[cold]
     #[inline(never)]
     fn prime(&mut self, w: &Window) {
-        match self {
-            Feedforward::Fir(f) => f.prime(w),
-            Feedforward::Zpetc(z) => {
+        match &mut self.kind {
+            Kind::Fir => self.fir.prime(w),
+            Kind::Zpetc(z) => {
                 z.prime(w.smooth(-1));
                 for j in 0..z.preview() as isize {
                     z.update(w.smooth(j));
                 }
             }
-            Feedforward::None | Feedforward::Model(_) => {}
+            Kind::None | Kind::Model(_) => {}
         }
     }
 }

@@ -26,23 +26,40 @@ pub(crate) struct Fir {
 }
 
 impl Fir {
+    /// No filter: storage for [`Fir::load`].
+    pub(crate) const EMPTY: Fir = Fir {
+        spec: FirSpec {
+            taps: [0.0; MAX_FIR_TAPS],
+            taps_used: 0,
+            preview: 0,
+            stride: 1,
+        },
+        rest: [0.0; MAX_FIR_TAPS + 1],
+        history: [0.0; MAX_FIR_SPAN],
+        phase: 0,
+        column: 0,
+        known: 0,
+        at_rest: 0.0,
+        fault: false,
+    };
+
     /// The filter of `spec` (checked with its deployment: `taps_used·stride` ≤
-    /// [`MAX_FIR_SPAN`]).
-    pub(crate) fn new(spec: &FirSpec) -> Self {
-        let mut rest = [0.0; MAX_FIR_TAPS + 1];
-        for i in (0..spec.taps_used.min(MAX_FIR_TAPS)).rev() {
-            rest[i] = rest[i + 1] + spec.taps[i];
+    /// [`MAX_FIR_SPAN`]), written in place: its past is filled when the window is
+    /// ([`Fir::prime`]).
+    pub(crate) fn load(&mut self, spec: &FirSpec) {
+        self.spec = *spec;
+        self.rest[MAX_FIR_TAPS] = 0.0;
+        for i in (0..MAX_FIR_TAPS).rev() {
+            let tap = if i < spec.taps_used {
+                spec.taps[i]
+            } else {
+                0.0
+            };
+            self.rest[i] = self.rest[i + 1] + tap;
         }
-        Fir {
-            spec: *spec,
-            rest,
-            history: [0.0; MAX_FIR_SPAN],
-            phase: 0,
-            column: 0,
-            known: 0,
-            at_rest: 0.0,
-            fault: false,
-        }
+        self.history.fill(0.0);
+        (self.phase, self.column, self.known) = (0, 0, 0);
+        (self.at_rest, self.fault) = (0.0, false);
     }
 
     /// One more entry of the past.
@@ -157,7 +174,8 @@ mod tests {
                 *v = y(j as isize);
             }
         });
-        let mut fir = Fir::new(&spec);
+        let mut fir = Fir::EMPTY;
+        fir.load(&spec);
         fir.prime(&w);
         for k in 0..2600isize {
             if k > 0 {

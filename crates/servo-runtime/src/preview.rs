@@ -17,38 +17,53 @@ const RING: usize = (2 * LEN).next_power_of_two();
 /// A ring written twice (at `i` and `i + len`), so the window is always the contiguous
 /// `y[start..start + len]`: a tick writes two values instead of sliding the window.
 #[derive(Debug, Clone)]
+#[repr(C)]
 pub(crate) struct Window {
-    y: [f64; RING],
     /// Where the window's oldest value sits (`0..len`).
     start: usize,
     /// The window's length, `past + preview + 1`.
     len: usize,
     past: usize,
     preview: usize,
+    half: usize,
     /// Normalised Hann weights `w[|i|]`, `i ∈ −half..=half`.
     weights: [f64; MAX_PREVIEW + 1],
-    half: usize,
+    y: [f64; RING],
 }
 
 impl Window {
+    /// No window yet: storage for [`Window::reset`].
+    pub(crate) const EMPTY: Window = Window {
+        y: [0.0; RING],
+        start: 0,
+        len: 1,
+        past: 0,
+        preview: 0,
+        weights: [0.0; MAX_PREVIEW + 1],
+        half: 0,
+    };
+
     /// A window for a feedforward needing `lead` ticks of preview, smoothed over `2·half + 1`
     /// ticks (0: none). None when the preview would exceed [`MAX_PREVIEW`].
+    #[cfg(test)]
     pub(crate) fn new(lead: usize, half: usize) -> Option<Self> {
+        let mut w = Window::EMPTY;
+        w.reset(lead, half).then_some(w)
+    }
+
+    /// [`Window::new`] in place: false, `self` untouched, when the preview would exceed
+    /// [`MAX_PREVIEW`].
+    pub(crate) fn reset(&mut self, lead: usize, half: usize) -> bool {
         let preview = lead + half;
         if preview > MAX_PREVIEW {
-            return None;
+            return false;
         }
-        let weights = hann_weights(half);
+        self.weights = hann_weights(half);
+        self.y.fill(0.0);
         let past = half + 1;
-        Some(Window {
-            y: [0.0; RING],
-            start: 0,
-            len: past + preview + 1,
-            past,
-            preview,
-            weights,
-            half,
-        })
+        (self.start, self.len, self.past) = (0, past + preview + 1, past);
+        (self.preview, self.half) = (preview, half);
+        true
     }
 
     /// Ticks of preview the window needs.

@@ -94,6 +94,22 @@ pub(crate) struct Protection {
 }
 
 impl Protection {
+    /// Off: storage for a loop not yet built.
+    pub(crate) const OFF: Protection = Protection {
+        enabled: false,
+        following_limit_m: f64::INFINITY,
+        position_limit_m: f64::INFINITY,
+        saturation_ticks: u64::MAX,
+        safe_state: SafeState::Zero,
+        retract_v: 0.0,
+        retract_step_v: 0.0,
+        after_ticks: 0,
+        saturated_for: 0,
+        trip: None,
+        trips: 0,
+        safe_v: 0.0,
+    };
+
     /// The limits of `p` for a loop at `rate_hz` on a stage of static gain `gain` (m/V, which
     /// turns the retract position and speed into volts).
     pub fn new(p: &ProtectionConfig, rate: f64, gain: f64) -> Self {

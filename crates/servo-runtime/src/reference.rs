@@ -45,6 +45,10 @@ enum Kind {
 }
 
 impl Generator {
+    /// Holds position 0.
+    #[cfg(not(feature = "std"))]
+    pub(crate) const HOLD: Generator = Generator { kind: Kind::Zero };
+
     /// The generator of `spec` at `period_s` (s).
     pub(crate) fn build(spec: &ReferenceSpec, period_s: f64) -> Result<Self, Invalid> {
         let invalid = |e: servo_core::Error| match e {

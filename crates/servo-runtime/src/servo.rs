@@ -30,22 +30,53 @@ use servo_config::{Deployment, Stability};
 /// assert_eq!(servo.status().ticks, 1000);
 /// # Ok::<(), servo_runtime::Invalid>(())
 /// ```
+// In declaration order, what every tick touches first and the loop's large storage last: a
+// microcontroller reaches a field within a few KiB of the loop's address in one instruction.
+#[repr(C)]
 pub struct Servo {
-    core: ServoLoop,
-    generator: Generator,
-    #[cfg(feature = "std")]
-    stage: Stage,
-    period_s: f64,
-    stability: Option<Stability>,
     /// The last tick's telemetry, written in place by the tick; valid when `has_last`.
     last: Telemetry,
     has_last: bool,
     status: Status,
+    period_s: f64,
+    stability: Option<Stability>,
+    generator: Generator,
+    #[cfg(feature = "std")]
+    stage: Stage,
+    core: ServoLoop,
     #[cfg(feature = "std")]
     host: crate::host::Host,
     #[cfg(feature = "serve")]
     link: Option<crate::serve::Link>,
 }
+
+/// What a loop has done when it starts.
+const STARTED: Status = Status {
+    ticks: 0,
+    trip: None,
+    trip_settled: false,
+    stop: None,
+    gain_scale: 1.0,
+    saturated_ticks: 0,
+    handovers: 0,
+    trips: 0,
+    overruns: 0,
+    telemetry_dropped: 0,
+};
+
+/// The telemetry before a first tick.
+const NO_TELEMETRY: Telemetry = Telemetry {
+    seq: 0,
+    time_s: 0.0,
+    reference_m: 0.0,
+    measured_m: 0.0,
+    following_error_m: 0.0,
+    controller_error_m: 0.0,
+    control_v: 0.0,
+    accel_m_s2: 0.0,
+    flags: 0,
+    reserved: 0,
+};
 
 impl Servo {
     /// The loop of `deployment`, checked ([`Deployment::check`]) and built, in its initial
@@ -59,20 +90,9 @@ impl Servo {
             stage: deployment.stage,
             period_s: deployment.period_s(),
             stability: deployment.stability,
-            last: Telemetry::default(),
+            last: NO_TELEMETRY,
             has_last: false,
-            status: Status {
-                ticks: 0,
-                trip: None,
-                trip_settled: false,
-                stop: None,
-                gain_scale: 1.0,
-                saturated_ticks: 0,
-                handovers: 0,
-                trips: 0,
-                overruns: 0,
-                telemetry_dropped: 0,
-            },
+            status: STARTED,
             #[cfg(feature = "std")]
             host: crate::host::Host::new(deployment),
             #[cfg(feature = "serve")]
@@ -229,6 +249,37 @@ impl Servo {
                 },
             );
         }
+    }
+}
+
+/// Without the standard library: a loop built where it runs (a microcontroller's `static`).
+#[cfg(not(feature = "std"))]
+impl Servo {
+    /// No loop yet: its commands are 0 V. The initial value of a `static` that
+    /// [`Servo::rebuild`] builds the loop in, so that building needs a few KiB of stack
+    /// instead of the loop's size several times over.
+    pub const UNBUILT: Servo = Servo {
+        core: ServoLoop::UNBUILT,
+        generator: Generator::HOLD,
+        period_s: 0.0,
+        stability: None,
+        last: NO_TELEMETRY,
+        has_last: false,
+        status: STARTED,
+    };
+
+    /// [`Servo::new`] in place: the loop of `deployment`, checked and built where `self`
+    /// lies, in its initial state (the same loop, tick for tick). Refused, naming the key, as
+    /// `new` refuses; `self` is then partly rebuilt: rebuild it before it ticks.
+    pub fn rebuild(&mut self, deployment: &Deployment) -> Result<(), Invalid> {
+        deployment.check()?;
+        self.core.rebuild(deployment)?;
+        self.generator = Generator::build(&deployment.reference, deployment.period_s())?;
+        self.period_s = deployment.period_s();
+        self.stability = deployment.stability;
+        (self.last, self.has_last, self.status) = (NO_TELEMETRY, false, STARTED);
+        self.core.prime_for_tick_zero(&mut self.generator);
+        Ok(())
     }
 }
 

@@ -40,11 +40,10 @@ enum Primed {
     Yes,
 }
 
+// What every tick touches first, the large storage last (see `Servo`).
 #[derive(Debug, Clone)]
+#[repr(C)]
 pub(crate) struct ServoLoop {
-    controller: Controller,
-    feedforward: Feedforward,
-    window: Window,
     primed: Primed,
     /// The sample tick expected next (`seq` of the last one + 1).
     next_seq: u64,
@@ -75,49 +74,80 @@ pub(crate) struct ServoLoop {
     /// gain scale), added to the output and decaying by `handover_decay` a tick.
     handover_v: f64,
     handover_decay: f64,
+    window: Window,
+    feedforward: Feedforward,
+    controller: Controller,
 }
 
 impl ServoLoop {
+    /// No loop yet: storage for [`ServoLoop::rebuild`].
+    pub(crate) const UNBUILT: ServoLoop = ServoLoop {
+        controller: Controller::UNBUILT,
+        feedforward: Feedforward::UNBUILT,
+        window: Window::EMPTY,
+        primed: Primed::No,
+        next_seq: 0,
+        last_u: 0.0,
+        output_fault: false,
+        last_trip_flags: 0,
+        protection: Protection::OFF,
+        gain_scale: 1.0,
+        sensitivity: 1.0,
+        accel_scale: 1.0,
+        period_s: 0.0,
+        #[cfg(feature = "std")]
+        incoming: None,
+        #[cfg(feature = "std")]
+        replaced: None,
+        #[cfg(feature = "std")]
+        handed_over_at: None,
+        handovers: 0,
+        rearm: false,
+        handover_v: 0.0,
+        handover_decay: 0.0,
+    };
+
     /// The loop of `d` in its initial state (`d` checked by the caller).
     pub(crate) fn new(d: &Deployment) -> Result<Self, Invalid> {
+        let mut built = ServoLoop::UNBUILT;
+        built.rebuild(d)?;
+        Ok(built)
+    }
+
+    /// [`ServoLoop::new`] in place: the loop of `d` in its initial state, written where `self`
+    /// lies (`d` checked by the caller). Refused, naming the key, with `self` partly rebuilt:
+    /// rebuild it before it ticks.
+    pub(crate) fn rebuild(&mut self, d: &Deployment) -> Result<(), Invalid> {
         let period = d.period_s();
-        let controller = Controller::build(&d.controller, &d.stage, period)?;
-        let feedforward = Feedforward::build(&d.feedforward, &d.stage, d.controller.limit_v)?;
+        self.controller.rebuild(&d.controller, &d.stage, period)?;
+        self.feedforward
+            .rebuild(&d.feedforward, &d.stage, d.controller.limit_v)?;
         let lead = d.feedforward.preview();
-        let window = Window::new(lead, d.smoothing_half()).ok_or(Invalid::new(
-            "",
-            "smoothing_hz",
-            d.smoothing_hz,
-            Allowed::OffOrAtLeast {
-                low: d.servo_rate_hz / (2.0 * (MAX_PREVIEW.saturating_sub(lead)) as f64 + 1.0),
-                unit: "Hz (the preview holds 62 ticks, the feedforward takes its share)",
-            },
-        ))?;
-        Ok(ServoLoop {
-            controller,
-            feedforward,
-            window,
-            primed: Primed::No,
-            next_seq: 0,
-            last_u: 0.0,
-            output_fault: false,
-            last_trip_flags: 0,
-            protection: Protection::new(&d.protection, d.servo_rate_hz, d.stage.dc_gain_m_per_v),
-            gain_scale: 1.0,
-            sensitivity: d.stage.gap_sensitivity_v_per_m,
-            accel_scale: 1.0 / d.stage.accel_sensitivity_v_per_m_s2,
-            period_s: period,
-            #[cfg(feature = "std")]
-            incoming: None,
-            #[cfg(feature = "std")]
-            replaced: None,
-            #[cfg(feature = "std")]
-            handed_over_at: None,
-            handovers: 0,
-            rearm: false,
-            handover_v: 0.0,
-            handover_decay: libm::exp(-period / HANDOVER_TIME_CONSTANT_S),
-        })
+        if !self.window.reset(lead, d.smoothing_half()) {
+            return Err(Invalid::new(
+                "",
+                "smoothing_hz",
+                d.smoothing_hz,
+                Allowed::OffOrAtLeast {
+                    low: d.servo_rate_hz / (2.0 * (MAX_PREVIEW.saturating_sub(lead)) as f64 + 1.0),
+                    unit: "Hz (the preview holds 62 ticks, the feedforward takes its share)",
+                },
+            ));
+        }
+        (self.primed, self.next_seq, self.last_u) = (Primed::No, 0, 0.0);
+        (self.output_fault, self.last_trip_flags) = (false, 0);
+        self.protection = Protection::new(&d.protection, d.servo_rate_hz, d.stage.dc_gain_m_per_v);
+        self.gain_scale = 1.0;
+        self.sensitivity = d.stage.gap_sensitivity_v_per_m;
+        self.accel_scale = 1.0 / d.stage.accel_sensitivity_v_per_m_s2;
+        self.period_s = period;
+        #[cfg(feature = "std")]
+        {
+            (self.incoming, self.replaced, self.handed_over_at) = (None, None, None);
+        }
+        (self.handovers, self.rearm, self.handover_v) = (0, false, 0.0);
+        self.handover_decay = libm::exp(-period / HANDOVER_TIME_CONSTANT_S);
+        Ok(())
     }
 
     /// Hands the loop to `controller` at the next tick, bumplessly; returns the controller a
