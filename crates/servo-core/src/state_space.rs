@@ -48,34 +48,15 @@ pub struct StateSpaceConfig<const NX: usize, const NU: usize, const NY: usize> {
 impl<const NX: usize, const NU: usize, const NY: usize> StateSpaceConfig<NX, NU, NY> {
     /// Validates the matrices (all finite) for a controller sampled every `sample_period_s` s.
     pub fn try_build(&self, sample_period_s: f64) -> Result<StateSpace<NX, NU, NY>, Error> {
-        let sample_period_s = check_period(sample_period_s)?;
-        let finite = |s: &[f64]| s.iter().all(|x| x.is_finite());
-        for (name, ok) in [
-            ("a", finite(self.a.as_slice())),
-            ("b", finite(self.b.as_slice())),
-            ("c", finite(self.c.as_slice())),
-            ("d", finite(self.d.as_slice())),
-        ] {
-            if !ok {
-                return Err(Error::NotFinite { param: name });
-            }
-        }
-        // nalgebra stores column-major, which is the layout we want for A, B and D.
-        let a_cols = core::array::from_fn(|j| core::array::from_fn(|i| self.a[(i, j)]));
-        let b_cols = core::array::from_fn(|j| core::array::from_fn(|i| self.b[(i, j)]));
-        let c_rows = core::array::from_fn(|i| core::array::from_fn(|j| self.c[(i, j)]));
-        let d_cols = core::array::from_fn(|j| core::array::from_fn(|i| self.d[(i, j)]));
-        Ok(StateSpace {
-            a_cols,
-            b_cols,
-            c_rows,
-            d_cols,
-            limits: self.limits,
-            sample_period_s,
-            x: [[0.0; NX]; 2],
-            now: 0,
-            fault: FaultLatch::default(),
-        })
+        let mut built = StateSpace::EMPTY;
+        let entry = |i: usize, j: usize| match (i < NX, j < NX) {
+            (true, true) => self.a[(i, j)],
+            (true, false) => self.b[(i, j - NX)],
+            (false, true) => self.c[(i - NX, j)],
+            (false, false) => self.d[(i - NX, j - NX)],
+        };
+        built.load(NX, entry, self.limits, sample_period_s)?;
+        Ok(built)
     }
 }
 
@@ -127,6 +108,19 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
         limits: Limits,
         sample_period_s: f64,
     ) -> Result<(), Error> {
+        self.load_as(order, entry, limits, sample_period_s, BLOCKED)
+    }
+
+    /// [`StateSpace::load`] with `A` by column or `blocked` (this processor's layout, or the
+    /// other one's for a test).
+    fn load_as(
+        &mut self,
+        order: usize,
+        entry: impl Fn(usize, usize) -> f64,
+        limits: Limits,
+        sample_period_s: f64,
+        blocked: bool,
+    ) -> Result<(), Error> {
         let sample_period_s = check_period(sample_period_s)?;
         if !(1..=NX).contains(&order) {
             return Err(Error::OutOfRange {
@@ -136,27 +130,30 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
                 max: NX as f64,
             });
         }
-        // Which matrix an entry of [[A, B], [C, D]] belongs to.
-        let matrix = |i: usize, j: usize| match (i < order, j < order) {
-            (true, true) => "a",
-            (true, false) => "b",
-            (false, true) => "c",
-            (false, false) => "d",
-        };
-        for i in 0..order + NY {
-            for j in 0..order + NU {
-                if !entry(i, j).is_finite() {
-                    return Err(Error::NotFinite {
-                        param: matrix(i, j),
-                    });
+        // Matrix by matrix, as a configuration is checked.
+        let n = order;
+        for (name, rows, cols) in [
+            ("a", 0..n, 0..n),
+            ("b", 0..n, n..n + NU),
+            ("c", n..n + NY, 0..n),
+            ("d", n..n + NY, n..n + NU),
+        ] {
+            for i in rows {
+                if cols.clone().any(|j| !entry(i, j).is_finite()) {
+                    return Err(Error::NotFinite { param: name });
                 }
             }
         }
-        // Every array written where it lies: no copy of the storage on the stack. A's columns
-        // are packed `order` long (the layout of a `StateSpace` of that order).
-        for (k, a) in self.a_cols.as_flattened_mut().iter_mut().enumerate() {
-            let (j, i) = (k / order, k % order);
-            *a = if j < order { entry(i, j) } else { 0.0 };
+        // Every array written where it lies: no copy of the storage on the stack. `A` packed
+        // for `order` ([`a_at`]), the rest zero.
+        let a = self.a_cols.as_flattened_mut();
+        a.fill(0.0);
+        for j in 0..order {
+            for i in 0..order {
+                if let Some(v) = a.get_mut(a_at(order, i, j, blocked)) {
+                    *v = entry(i, j);
+                }
+            }
         }
         for (u, col) in self.b_cols.iter_mut().enumerate() {
             for (i, b) in col.iter_mut().enumerate() {
@@ -243,6 +240,25 @@ fn column<const N: usize, const NX: usize>(a_cols: &[[f64; NX]; NX], j: usize) -
         .unwrap_or(&[0.0; N])
 }
 
+/// How `A` lies in its storage: by column (x86-64, for the column kernel's vector lanes) or
+/// in blocks of [`ROWS`] rows, each block's columns side by side (elsewhere, for the row
+/// kernel: a block's entries all lie within a Cortex-M7 load's reach of the block's start).
+const BLOCKED: bool = cfg!(not(target_arch = "x86_64"));
+
+/// Where entry `(i, j)` of an order-`n` realisation's `A` lies in the flattened storage.
+#[inline(always)]
+const fn a_at(n: usize, i: usize, j: usize, blocked: bool) -> usize {
+    let full = n / ROWS * ROWS;
+    if !blocked {
+        j * n + i
+    } else if i < full {
+        (i / ROWS) * ROWS * n + j * ROWS + i % ROWS
+    } else {
+        // The rows left over, as one narrower block.
+        full * n + j * (n - full) + (i - full)
+    }
+}
+
 /// Rows of the state update the row kernel computes together: each column's `x[j]` is loaded
 /// once for four rows, and the eight accumulators, four entries of `A` and `x[j]` fit in a
 /// Cortex-M7's sixteen double registers.
@@ -258,18 +274,18 @@ fn rows<const N: usize, const CAP: usize, const NU: usize, const R: usize>(
     x: &[f64; CAP],
     e: &[f64; NU],
     first: usize,
+    blocked: bool,
 ) -> [f64; R] {
     let a = a_cols.as_flattened();
-    // Column `j`'s entries of these rows (contiguous).
-    let part = |j: usize| -> &[f64; R] { a[j * N + first..].first_chunk().unwrap_or(&[0.0; R]) };
+    // Column `j`'s entries of these rows, side by side.
+    let part = |j: usize| -> &[f64; R] {
+        a[a_at(N, first, j, blocked)..]
+            .first_chunk()
+            .unwrap_or(&[0.0; R])
+    };
     let (mut even, mut odd) = ([0.0; R], [0.0; R]);
-    // A loop the optimiser does not unroll (its count hidden from it): the addresses then
-    // advance with the columns and every load is one instruction at a small offset, where an
-    // unrolled body (constant offsets kilobytes in) costs an extra add per entry on a
-    // Cortex-M7.
-    let pairs = core::hint::black_box(N / 2);
     let mut j = 0;
-    while j / 2 < pairs {
+    while j + 1 < N {
         let (x_even, x_odd) = (x[j], x[j + 1]);
         let (a_even, a_odd) = (part(j), part(j + 1));
         for r in 0..R {
@@ -278,8 +294,7 @@ fn rows<const N: usize, const CAP: usize, const NU: usize, const R: usize>(
         }
         j += 2;
     }
-    if N % 2 == 1 {
-        let j = N - 1;
+    if j < N {
         let a_even = part(j);
         for r in 0..R {
             even[r] = mul_add(a_even[r], x[j], even[r]);
@@ -316,7 +331,7 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
-            self.tick_by_rows::<N>(e)
+            self.tick_by_rows::<N>(e, BLOCKED)
         }
     }
 
@@ -364,20 +379,21 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     /// FPv5-D16) runs best — a load and a multiply-add per entry.
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))] // the host's tests hold it to the column kernel
     #[inline(always)]
-    fn tick_by_rows<const N: usize>(&mut self, e: [f64; NU]) -> [f64; NY] {
+    fn tick_by_rows<const N: usize>(&mut self, e: [f64; NU], blocked: bool) -> [f64; NY] {
         let y = self.output::<N>(&e);
         // The new state is written into the same array the old one is read from: the compiler
         // cannot tell the halves apart, so it reads `x` where it is used instead of copying
         // the whole of it to the stack first (which it does with two separate borrows).
         let (now, xs) = (self.now, &mut self.x);
+        let (a, b) = (&self.a_cols, &self.b_cols);
         let blocks = N / ROWS;
-        for b in 0..blocks {
-            let block: [f64; ROWS] =
-                rows::<N, NX, NU, ROWS>(&self.a_cols, &self.b_cols, &xs[now], &e, b * ROWS);
-            xs[1 - now][b * ROWS..(b + 1) * ROWS].copy_from_slice(&block);
+        for k in 0..blocks {
+            let first = k * ROWS;
+            let block: [f64; ROWS] = rows::<N, NX, NU, ROWS>(a, b, &xs[now], &e, first, blocked);
+            xs[1 - now][first..first + ROWS].copy_from_slice(&block);
         }
         for i in blocks * ROWS..N {
-            xs[1 - now][i] = rows::<N, NX, NU, 1>(&self.a_cols, &self.b_cols, &xs[now], &e, i)[0];
+            xs[1 - now][i] = rows::<N, NX, NU, 1>(a, b, &xs[now], &e, i, blocked)[0];
         }
         self.now = 1 - self.now;
         self.checked::<N>(y)
@@ -497,13 +513,28 @@ mod tests {
         fn same<const NX: usize, const NU: usize>(seed: u64) {
             let mut seed = seed;
             let cfg = random_config::<NX, NU, 1>(&mut seed);
-            let (mut by_cols, mut by_rows) =
-                (cfg.try_build(5e-5).unwrap(), cfg.try_build(5e-5).unwrap());
+            let entry = |i: usize, j: usize| match (i < NX, j < NX) {
+                (true, true) => cfg.a[(i, j)],
+                (true, false) => cfg.b[(i, j - NX)],
+                (false, true) => cfg.c[(0, j)],
+                (false, false) => cfg.d[(0, j - NX)],
+            };
+            // Each kernel on its own layout of `A`, whatever this machine's is.
+            let (mut by_cols, mut by_rows) = (
+                StateSpace::<NX, NU, 1>::EMPTY,
+                StateSpace::<NX, NU, 1>::EMPTY,
+            );
+            by_cols
+                .load_as(NX, entry, Limits::UNLIMITED, 5e-5, false)
+                .unwrap();
+            by_rows
+                .load_as(NX, entry, Limits::UNLIMITED, 5e-5, true)
+                .unwrap();
             for _ in 0..2000 {
                 let e: [f64; NU] = core::array::from_fn(|_| lcg(&mut seed));
                 let (yc, yr) = (
                     by_cols.tick_by_columns::<NX>(e),
-                    by_rows.tick_by_rows::<NX>(e),
+                    by_rows.tick_by_rows::<NX>(e, true),
                 );
                 assert_eq!(yc[0].to_bits(), yr[0].to_bits());
                 let bits = |x: &[f64; NX]| x.map(f64::to_bits);
@@ -515,6 +546,7 @@ mod tests {
         same::<13, 1>(33);
         same::<28, 2>(34);
         same::<29, 1>(35);
+        same::<40, 1>(36);
     }
 
     /// An order-`N` realisation loaded in place into storage for 40 states runs with the bits
