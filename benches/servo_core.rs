@@ -1,6 +1,7 @@
 //! One servo tick of the servo-core controllers (thesis Table 6-1 sizes), with a plain
 //! nalgebra state-space product and the tick forced to the baseline instruction set as the
-//! same-run baselines (`benches/fma_compare.sh` adds a native FMA build beside it). `python3 benches/report.py` turns
+//! same-run baselines, and the whole runtime tick (`servo_runtime::Servo`: reference,
+//! protection, telemetry around the law) of the PID and of 13- and 27-state controllers (`benches/fma_compare.sh` adds a native FMA build beside it). `python3 benches/report.py` turns
 //! the criterion estimates into the README's ratios.
 
 #![allow(missing_docs)] // criterion_group! generates undocumented items.
@@ -52,6 +53,37 @@ fn state_space<const N: usize>(c: &mut Criterion) {
         })
     });
     group.finish();
+}
+
+/// The runtime's tick (`Servo::tick`) of the thesis prototype's deployment with its PID, or
+/// with the order-`N` realisation as a state-space controller.
+fn servo_tick<const N: usize>(c: &mut Criterion) {
+    use servo_runtime::deployment::{ControllerKind, SsMatrices};
+    let mut d = servo_runtime::Deployment::thesis_prototype();
+    let name = if N == 0 {
+        "servo_tick/pid".to_string()
+    } else {
+        let cfg = realisation::<N>();
+        d.controller.kind = ControllerKind::Ss;
+        d.controller.ss = SsMatrices::from_fn(N, |i, j| match (i < N, j < N) {
+            (true, true) => cfg.a[(i, j)],
+            (true, false) => cfg.b[(i, 0)],
+            (false, true) => cfg.c[(0, j)],
+            (false, false) => cfg.d[(0, 0)],
+        });
+        d.stability = None;
+        format!("servo_tick/state_space_{N}")
+    };
+    let mut servo = servo_runtime::Servo::new(&d).unwrap();
+    let mut sample = daq_io::Sensor::default();
+    c.bench_function(&name, |b| {
+        b.iter(|| {
+            // A zero-mean reading: the loop stays in its range, never trips.
+            sample.seq += 1;
+            sample.gap_v = black_box(if sample.seq % 2 == 0 { 1e-6 } else { -1e-6 });
+            servo.tick(&sample)
+        })
+    });
 }
 
 fn pid(c: &mut Criterion) {
@@ -214,6 +246,9 @@ criterion_group!(
     zpetc,
     state_space::<8>,
     state_space::<13>,
-    state_space::<27>
+    state_space::<27>,
+    servo_tick::<0>,
+    servo_tick::<13>,
+    servo_tick::<27>
 );
 criterion_main!(benches);
