@@ -39,9 +39,12 @@ const ANSWER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(20);
 pub struct TargetModel {
     /// The part's processor clock in Hz (480 MHz: an STM32H743/H753).
     pub clock_hz: f64,
-    /// Cycles per instruction assumed: 1. The M7 dual-issues some pairs (< 1) but stalls on
-    /// chains of dependent f64 operations, divides, square roots and memory outside the TCMs
-    /// (> 1): for the state-space tick, a floor; QEMU models none of it.
+    /// Cycles per instruction assumed: 1.5, an estimate. QEMU counts instructions and models
+    /// no pipeline; replayed through a model of the M7's dual issue and FPU latencies
+    /// (`scripts/m7_cycles.py`, after the M7 machine model LLVM schedules with) the ticks
+    /// here take 1.2 (PID) to 1.45 (state space) cycles an instruction. Memory outside the
+    /// tightly coupled memories, cache misses and mispredicted branches add to it: measure on
+    /// the board.
     pub cycles_per_instruction: f64,
     /// Share of the period the tick may take; the rest is interrupt entry, the converters'
     /// I/O and headroom.
@@ -52,7 +55,7 @@ impl Default for TargetModel {
     fn default() -> Self {
         TargetModel {
             clock_hz: 480e6,
-            cycles_per_instruction: 1.0,
+            cycles_per_instruction: 1.5,
             budget: 0.8,
         }
     }
@@ -164,7 +167,7 @@ fn check_rate(
     if tick_s > allowed_s && !force {
         let max_rate = m.budget / tick_s;
         return Err(PilError::Refused(format!(
-            "a tick takes {instructions:.0} instructions on the target: at least {:.2} µs at {:.0} MHz ({} cycle per instruction), over {:.0} % of the {:.2} µs period; the part holds at most {:.0} Hz (plant.timing.servo_rate_hz) — or run it anyway to measure it (--force)",
+            "a tick takes {instructions:.0} instructions on the target: about {:.2} µs at {:.0} MHz ({} cycles per instruction, estimated), over {:.0} % of the {:.2} µs period; the part holds at most {:.0} Hz (plant.timing.servo_rate_hz) — or run it anyway to measure it (--force)",
             tick_s * 1e6,
             m.clock_hz / 1e6,
             m.cycles_per_instruction,
@@ -217,15 +220,16 @@ mod tests {
     #[test]
     fn the_rate_check_converts_counts_to_time_on_the_part() {
         let m = TargetModel::default();
-        let period = 1.0 / 199_600.0; // 5.01 µs; 80 % of it is 4.008 µs = 1924 cycles at 480 MHz
-        assert!(check_rate(&m, period, 1920.0, false).is_ok());
-        let Err(PilError::Refused(why)) = check_rate(&m, period, 1960.0, false) else {
-            panic!("1960 instructions exceed 80 % of 5.01 µs at 480 MHz");
+        // 5.01 µs; 80 % of it is 4.008 µs = 1924 cycles at 480 MHz = 1282 instructions at 1.5.
+        let period = 1.0 / 199_600.0;
+        assert!(check_rate(&m, period, 1280.0, false).is_ok());
+        let Err(PilError::Refused(why)) = check_rate(&m, period, 1290.0, false) else {
+            panic!("1290 instructions exceed 80 % of 5.01 µs at 480 MHz");
         };
-        // The rate it would hold: 0.8 / (1960 / 480 MHz) = 195 918 Hz.
-        assert!(why.contains("195918 Hz"), "{why}");
+        // The rate it would hold: 0.8 / (1290 · 1.5 / 480 MHz) = 198 450 Hz.
+        assert!(why.contains("198450 Hz"), "{why}");
         assert!(
-            check_rate(&m, period, 1960.0, true).is_ok(),
+            check_rate(&m, period, 1290.0, true).is_ok(),
             "--force runs it"
         );
         // QEMU's clock at shift 5 (32 ns an instruction) against the MPS2's 25 MHz SysTick.
