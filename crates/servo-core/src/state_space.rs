@@ -380,7 +380,6 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))] // the host's tests hold it to the column kernel
     #[inline(always)]
     fn tick_by_rows<const N: usize>(&mut self, e: [f64; NU], blocked: bool) -> [f64; NY] {
-        let y = self.output::<N>(&e);
         // The new state is written into the same array the old one is read from: the compiler
         // cannot tell the halves apart, so it reads `x` where it is used instead of copying
         // the whole of it to the stack first (which it does with two separate borrows).
@@ -395,6 +394,8 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
         for i in blocks * ROWS..N {
             xs[1 - now][i] = rows::<N, NX, NU, 1>(a, b, &xs[now], &e, i, blocked)[0];
         }
+        // The output from the state the update read (still in place).
+        let y = self.output::<N>(&e);
         self.now = 1 - self.now;
         self.checked::<N>(y)
     }
