@@ -5,7 +5,11 @@
 //! column so `A x` is a sum of column·scalar products (independent lanes, no horizontal sums),
 //! and even and odd columns go to separate accumulators to halve the dependency chain. `C` is
 //! stored by row and reduced with four partial sums. The tick runs with the widest vector
-//! instructions the machine has ([`crate::simd`]), with the same result on every CPU.
+//! instructions the machine has ([`crate::simd`]), with the same result on every CPU. Where
+//! there are no wide vector units (a microcontroller's scalar FPU) the update runs by row
+//! instead, four rows at a time with `A` stored in blocks of four rows: the same sums in the
+//! same order, the same bits. Storage for the largest order holds any smaller one, loaded in
+//! place ([`StateSpace::load`]) and run by [`StateSpace::update_order`].
 
 use crate::block::{Block, FaultLatch};
 use crate::error::{check_period, Error};
@@ -374,9 +378,10 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     }
 
     /// The state update row by row, each row's even and odd columns summed in the order
-    /// [`Self::tick_by_columns`] sums them (the same bits), two accumulators in registers
-    /// instead of two arrays in memory: what a scalar FPU with 16 registers (a Cortex-M7's
-    /// FPv5-D16) runs best — a load and a multiply-add per entry.
+    /// [`Self::tick_by_columns`] sums them (the same bits), [`ROWS`] rows at a time with their
+    /// accumulators in registers instead of two arrays in memory: what a scalar FPU with 16
+    /// registers (a Cortex-M7's FPv5-D16) runs best — a load and a multiply-add per entry, one
+    /// load of each state value per block. `blocked`: `A` in [`ROWS`]-row blocks ([`a_at`]).
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))] // the host's tests hold it to the column kernel
     #[inline(always)]
     fn tick_by_rows<const N: usize>(&mut self, e: [f64; NU], blocked: bool) -> [f64; NY] {
