@@ -46,7 +46,6 @@ enum Kind {
 
 impl Generator {
     /// Holds position 0.
-    #[cfg(not(feature = "std"))]
     pub(crate) const HOLD: Generator = Generator { kind: Kind::Zero };
 
     /// The generator of `spec` at `period_s` (s).

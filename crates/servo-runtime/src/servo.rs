@@ -82,24 +82,37 @@ impl Servo {
     /// The loop of `deployment`, checked ([`Deployment::check`]) and built, in its initial
     /// state.
     pub fn new(deployment: &Deployment) -> Result<Self, Invalid> {
-        deployment.check()?;
         let mut servo = Servo {
-            core: ServoLoop::new(deployment)?,
-            generator: Generator::build(&deployment.reference, deployment.period_s())?,
-            #[cfg(feature = "std")]
-            stage: deployment.stage,
-            period_s: deployment.period_s(),
-            stability: deployment.stability,
             last: NO_TELEMETRY,
             has_last: false,
             status: STARTED,
+            period_s: 0.0,
+            stability: None,
+            generator: Generator::HOLD,
+            #[cfg(feature = "std")]
+            stage: deployment.stage,
+            core: ServoLoop::UNBUILT,
             #[cfg(feature = "std")]
             host: crate::host::Host::new(deployment),
             #[cfg(feature = "serve")]
             link: None,
         };
-        servo.core.prime_for_tick_zero(&mut servo.generator);
+        servo.build(deployment)?;
         Ok(servo)
+    }
+
+    /// Checks `deployment` and builds its loop where `self` lies, in its initial state (the
+    /// standard library's parts aside): what [`Servo::new`] and, without it,
+    /// `Servo::rebuild` do. Refused, naming the key, with the loop partly rebuilt.
+    fn build(&mut self, deployment: &Deployment) -> Result<(), Invalid> {
+        deployment.check()?;
+        self.core.rebuild(deployment)?;
+        self.generator = Generator::build(&deployment.reference, deployment.period_s())?;
+        self.period_s = deployment.period_s();
+        self.stability = deployment.stability;
+        (self.last, self.has_last, self.status) = (NO_TELEMETRY, false, STARTED);
+        self.core.prime_for_tick_zero(&mut self.generator);
+        Ok(())
     }
 
     /// One tick on the deployment's own reference: reads sample `k`, returns command `k`.
@@ -272,14 +285,7 @@ impl Servo {
     /// lies, in its initial state (the same loop, tick for tick). Refused, naming the key, as
     /// `new` refuses; `self` is then partly rebuilt: rebuild it before it ticks.
     pub fn rebuild(&mut self, deployment: &Deployment) -> Result<(), Invalid> {
-        deployment.check()?;
-        self.core.rebuild(deployment)?;
-        self.generator = Generator::build(&deployment.reference, deployment.period_s())?;
-        self.period_s = deployment.period_s();
-        self.stability = deployment.stability;
-        (self.last, self.has_last, self.status) = (NO_TELEMETRY, false, STARTED);
-        self.core.prime_for_tick_zero(&mut self.generator);
-        Ok(())
+        self.build(deployment)
     }
 }
 

@@ -21,13 +21,6 @@ pub(crate) type Slot = std::boxed::Box<Controller>;
 /// bandwidth, so the new controller's own states take over without a kick).
 pub(crate) const HANDOVER_TIME_CONSTANT_S: f64 = 5e-3;
 
-/// The controller's half of a tick: reads tick k's sample, returns tick k's command and its
-/// telemetry (the tick's reference with the reading it acted on). A non-finite reading latches
-/// the controller's fault: [`flags::FAULT_CONTROLLER`] on the command and telemetry, and a
-/// trip.
-/// Machine protection checks every sample; once tripped, the command is the configured safe
-/// state and carries [`flags::TRIPPED`] with the cause's bit (0 V on a fault when protection
-/// is disabled).
 /// What the preview window holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Primed {
@@ -40,6 +33,13 @@ enum Primed {
     Yes,
 }
 
+/// The controller's half of a tick: reads tick k's sample, returns tick k's command and its
+/// telemetry (the tick's reference with the reading it acted on). A non-finite reading latches
+/// the controller's fault: [`flags::FAULT_CONTROLLER`] on the command and telemetry, and a
+/// trip.
+/// Machine protection checks every sample; once tripped, the command is the configured safe
+/// state and carries [`flags::TRIPPED`] with the cause's bit (0 V on a fault when protection
+/// is disabled).
 // What every tick touches first, the large storage last (see `Servo`).
 #[derive(Debug, Clone)]
 #[repr(C)]
@@ -108,14 +108,15 @@ impl ServoLoop {
     };
 
     /// The loop of `d` in its initial state (`d` checked by the caller).
+    #[cfg(test)]
     pub(crate) fn new(d: &Deployment) -> Result<Self, Invalid> {
         let mut built = ServoLoop::UNBUILT;
         built.rebuild(d)?;
         Ok(built)
     }
 
-    /// [`ServoLoop::new`] in place: the loop of `d` in its initial state, written where `self`
-    /// lies (`d` checked by the caller). Refused, naming the key, with `self` partly rebuilt:
+    /// The loop of `d` in its initial state, written where `self` lies (`d` checked by the
+    /// caller). Refused, naming the key, with `self` partly rebuilt:
     /// rebuild it before it ticks.
     pub(crate) fn rebuild(&mut self, d: &Deployment) -> Result<(), Invalid> {
         let period = d.period_s();
@@ -355,15 +356,11 @@ impl ServoLoop {
     fn control(&mut self, s: &Sensor) -> (f64, f64) {
         let (reference, u_ff) = self.feedforward.evaluate(&self.window, self.period_s);
         let (error_v, accel_v) = (reference * self.sensitivity - s.gap_v, s.accel_v);
-        #[cfg(not(feature = "std"))]
         let raw = self.controller.update(error_v, accel_v);
         #[cfg(feature = "std")]
-        let raw = {
-            let raw = self.controller.update(error_v, accel_v);
-            match self.incoming.take() {
-                Some(new) => self.take_over(new, raw, error_v, accel_v, s.seq),
-                None => raw,
-            }
+        let raw = match self.incoming.take() {
+            Some(new) => self.take_over(new, raw, error_v, accel_v, s.seq),
+            None => raw,
         };
         if self.rearm {
             // Re-armed: this tick's command is the safe state's; the difference fades.
