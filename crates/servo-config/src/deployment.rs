@@ -136,17 +136,9 @@ impl SsMatrices {
 
     /// `[[A, B], [C, D]]` of order `n` from `entry(i, j)` for `i, j ∈ 0..=n`; None unless
     /// `1 ≤ n ≤` [`MAX_SS_ORDER`].
-    pub fn from_fn(n: usize, mut entry: impl FnMut(usize, usize) -> f64) -> Option<Self> {
-        if n == 0 || n > MAX_SS_ORDER {
-            return None;
-        }
-        let mut m = [[0.0; MAX_SS_ORDER + 1]; MAX_SS_ORDER + 1];
-        for (i, row) in m.iter_mut().enumerate().take(n + 1) {
-            for (j, v) in row.iter_mut().enumerate().take(n + 1) {
-                *v = entry(i, j);
-            }
-        }
-        Some(SsMatrices { order: n, m })
+    pub fn from_fn(n: usize, entry: impl FnMut(usize, usize) -> f64) -> Option<Self> {
+        let mut m = SsMatrices::BLANK;
+        m.refill(n, entry).then_some(m)
     }
 
     /// [`SsMatrices::from_fn`] in place (no copy of the storage on the stack): false, `self`

@@ -229,19 +229,17 @@ fn dot<const N: usize>(a: &[f64; N], b: &[f64; N]) -> f64 {
     (part[0] + part[1]) + (part[2] + part[3])
 }
 
-/// The first `N` entries of `a` (`N ≤ M`, checked where the order is chosen).
+/// The first `N` entries of `a` (there are `N`: the order is checked where it is chosen, and
+/// a block lies within the storage).
 #[inline(always)]
-fn head<const N: usize, const M: usize>(a: &[f64; M]) -> &[f64; N] {
+fn head<const N: usize>(a: &[f64]) -> &[f64; N] {
     a.first_chunk().unwrap_or(&[0.0; N])
 }
 
-/// Column `j` of the order-`N` realisation's `A`: its columns are packed `N` long from the
-/// start of the storage (for `N = NX`, the storage's own columns).
+/// Column `j` of the order-`N` realisation's `A`, stored by column ([`a_at`]).
 #[inline(always)]
 fn column<const N: usize, const NX: usize>(a_cols: &[[f64; NX]; NX], j: usize) -> &[f64; N] {
-    a_cols.as_flattened()[j * N..]
-        .first_chunk()
-        .unwrap_or(&[0.0; N])
+    head(&a_cols.as_flattened()[a_at(N, 0, j, false)..])
 }
 
 /// How `A` lies in its storage: by column (x86-64, for the column kernel's vector lanes) or
@@ -282,11 +280,7 @@ fn rows<const N: usize, const CAP: usize, const NU: usize, const R: usize>(
 ) -> [f64; R] {
     let a = a_cols.as_flattened();
     // Column `j`'s entries of these rows, side by side.
-    let part = |j: usize| -> &[f64; R] {
-        a[a_at(N, first, j, blocked)..]
-            .first_chunk()
-            .unwrap_or(&[0.0; R])
-    };
+    let part = |j: usize| -> &[f64; R] { head(&a[a_at(N, first, j, blocked)..]) };
     let (mut even, mut odd) = ([0.0; R], [0.0; R]);
     let mut j = 0;
     while j + 1 < N {
@@ -342,8 +336,8 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     /// The output `C x + D e` of the order-`N` realisation (before the limits).
     #[inline(always)]
     fn output<const N: usize>(&self, e: &[f64; NU]) -> [f64; NY] {
-        let x = head::<N, NX>(self.state());
-        let mut y: [f64; NY] = core::array::from_fn(|i| dot(head::<N, NX>(&self.c_rows[i]), x));
+        let x = head::<N>(self.state());
+        let mut y: [f64; NY] = core::array::from_fn(|i| dot(head::<N>(&self.c_rows[i]), x));
         for (col, &ej) in self.d_cols.iter().zip(e) {
             axpy(&mut y, col, ej);
         }
@@ -358,7 +352,7 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
         let y = self.output::<N>(&e);
         let mut even = [0.0; N];
         let mut odd = [0.0; N];
-        let x = head::<N, NX>(&self.x[self.now]);
+        let x = head::<N>(&self.x[self.now]);
         let (x_pairs, x_last) = x.as_chunks::<2>();
         for (p, xs) in x_pairs.iter().enumerate() {
             axpy(&mut even, column::<N, NX>(&self.a_cols, 2 * p), xs[0]);
@@ -409,7 +403,7 @@ impl<const NX: usize, const NU: usize, const NY: usize> StateSpace<NX, NU, NY> {
     /// first `N`) is not finite.
     #[inline(always)]
     fn checked<const N: usize>(&mut self, y: [f64; NY]) -> [f64; NY] {
-        if self.fault.check_all(&y) | self.fault.check_all(head::<N, NX>(&self.x[self.now])) {
+        if self.fault.check_all(&y) | self.fault.check_all(head::<N>(&self.x[self.now])) {
             return [0.0; NY];
         }
         y.map(|v| self.limits.clamp(v))
