@@ -316,6 +316,8 @@ pub fn identify(
             Ok((f, fitted))
         },
     )?;
+    // The points the stage alone was fitted on.
+    let stage_kept_hz = kept(freq_hz, &keep);
     let ratio: Vec<Complex64> = (0..freq_hz.len())
         .map(|i| measured[i] / fitted[i])
         .collect();
@@ -347,29 +349,24 @@ pub fn identify(
         })
         .flatten()
         .filter(|t| {
-            let (without, points, kept_hz) = match &resonances {
-                Some((_, w)) => (w.fit.cost, w.kept_hz.len(), w.kept_hz.clone()),
-                None => (
-                    f.cost,
-                    keep.iter().filter(|k| **k).count(),
-                    kept(freq_hz, &keep),
-                ),
+            let (without, kept_hz) = match &resonances {
+                Some((_, w)) => (w.fit.cost, &w.kept_hz),
+                None => (f.cost, &stage_kept_hz),
             };
             // Compared on the points the fit without it kept: the fit with it keeps each of them
             // (and any more only add to its cost).
             kept_hz.iter().all(|hz| t.kept_hz.contains(hz))
-                && tail::explains_more_than_noise(without, t.fit.cost, points, t.fit.params.len())
+                && tail::explains_more_than_noise(
+                    without,
+                    t.fit.cost,
+                    kept_hz.len(),
+                    t.fit.params.len(),
+                )
         });
     let (f, points, extra_modes, left_out, bands_fitted) =
         match with_tail.or(resonances.map(|(_, w)| w)) {
             Some(w) => (w.fit, w.kept_hz.len(), w.extra_modes, w.left_out, k),
-            None => (
-                f,
-                keep.iter().filter(|k| **k).count(),
-                Vec::new(),
-                Vec::new(),
-                0,
-            ),
+            None => (f, stage_kept_hz.len(), Vec::new(), Vec::new(), 0),
         };
     let uncertainty = if bands_fitted < misfits.len() || !left_out.is_empty() {
         UncertaintyBasis::BandsLeftOut
