@@ -109,10 +109,9 @@ def classify(mnem: str, ops: str) -> Op:
     f64 = ".f64" in base or any(r.startswith("d") for r in regs) and base.startswith("v")
     stem = base.split(".")[0]
     flags = ["flags"]
-    op = Op()
-    if stem in ("vldr",):
+    if stem == "vldr":
         op = Op(dests=regs, srcs=addr, latency=2 if f64 else 1, single=f64, fp64=f64, unit="load")
-    elif stem in ("vstr",):
+    elif stem == "vstr":
         op = Op(srcs=regs + addr, single=f64, fp64=f64, unit="store")
     elif stem in ("vldmia", "vldmdb", "vpop", "vldm"):
         lst = reg_list(ops)
@@ -137,8 +136,8 @@ def classify(mnem: str, ops: str) -> Op:
         op = Op(dests=regs + (addr[:1] if writeback else []), srcs=addr, latency=2, single=True, unit="load")
     elif stem == "strd":
         op = Op(dests=addr[:1] if writeback else [], srcs=regs + addr, single=True, unit="store")
-    elif stem.startswith("ldr") or stem.startswith("ldrex"):
-        slow = stem[3:4] in ("b", "h", "s") if len(stem) > 3 else False
+    elif stem.startswith("ldr"):
+        slow = stem[3:4] in ("b", "h", "s")
         op = Op(dests=regs + (addr[:1] if writeback else []), srcs=addr, latency=3 if slow else 2,
                 unit="load")
     elif stem.startswith("str"):
@@ -183,12 +182,10 @@ def classify(mnem: str, ops: str) -> Op:
     else:
         # Integer data processing: the first register written (none for compares and tests),
         # the flags written by compares and `s` forms.
-        sets_flags = stem in ("cmp", "cmn", "tst", "teq") or (stem.endswith("s") and stem not in ("bics",) and len(stem) > 3) or stem in ("movs", "adds", "subs", "ands", "orrs", "eors", "lsls", "lsrs", "asrs", "bics", "muls", "negs", "adcs", "sbcs", "rsbs", "mvns")
-        if stem in ("cmp", "cmn", "tst", "teq"):
-            dests, srcs = [], regs
-        else:
-            dests, srcs = regs[:1], regs[1:]
-        if stem in ("adc", "adcs", "sbc", "sbcs") or stem.startswith(("adc", "sbc")):
+        compare = stem in ("cmp", "cmn", "tst", "teq")
+        sets_flags = compare or (len(stem) > 3 and stem.endswith("s"))
+        dests, srcs = ([], regs) if compare else (regs[:1], regs[1:])
+        if stem.startswith(("adc", "sbc")):
             srcs = srcs + flags
         if stem in ("movt", "bfi", "bfc"):
             srcs = srcs + regs[:1]

@@ -22,8 +22,8 @@ pub struct TargetMeta {
     /// divided by the ticks: what work moved out of the timed tick would show in.
     #[serde(default)]
     pub instructions_per_tick_run: f64,
-    /// The worst tick as time on the modelled part, s (at the assumed cycles per instruction:
-    /// a floor for the state-space tick).
+    /// The worst tick as time on the modelled part, s (at the assumed cycles per instruction,
+    /// an estimate).
     pub tick_max_s: f64,
     /// The modelled part's clock, Hz.
     pub clock_hz: f64,
