@@ -223,24 +223,40 @@ def cycles(ops: list[Op]) -> int:
     return last + 1
 
 
-def windows(asm: dict[int, tuple[str, str]], trace: list[int], handler: set[int]) -> list[list[int]]:
-    """Each tick's timed instructions: in the tick interrupt's handler, from the read of
-    SysTick after the stopwatch's restart (a store to its current value register) to the next
-    read — the firmware's `servo.tick` window. The register is the one the handler builds
-    SysTick's address in (`movw`/`movt`)."""
-    base = None
+def systick_accesses(asm: dict[int, tuple[str, str]], handler: set[int]) -> set[int]:
+    """The handler's loads and stores through a register holding SysTick's current-value
+    address (built by `movw`/`movt`; the compiler may build it more than once, in different
+    registers), the handler's executed instructions scanned in address order."""
+    low: set[str] = set()  # movw #0xE018 done
+    held: set[str] = set()  # the whole address
+    out: set[int] = set()
     for pc in sorted(handler):
         mnem, ops = asm.get(pc, ("", ""))
         imm = ops.replace("0xe018", "57368").replace("0xe000", "57344")
-        if mnem.startswith("movt") and f"#{SYSTICK_CVR[1]}" in imm:
-            base = registers(ops)[0]
-    if base is None:
-        return []
+        regs = registers(ops)
+        if mnem.startswith(("ldr", "str")) and "[" in ops:
+            if registers(ops[ops.index("["):])[:1] and registers(ops[ops.index("["):])[0] in held:
+                out.add(pc)
+        if mnem.startswith("movw") and f"#{SYSTICK_CVR[0]}" in imm:
+            held.discard(regs[0])
+            low.add(regs[0])
+        elif mnem.startswith("movt") and f"#{SYSTICK_CVR[1]}" in imm and regs[0] in low:
+            held.add(regs[0])
+        else:
+            for d in classify(mnem, ops).dests:
+                held.discard(d)
+                low.discard(d)
+    return out
+
+
+def windows(asm: dict[int, tuple[str, str]], trace: list[int], handler: set[int]) -> list[list[int]]:
+    """Each tick's timed instructions: in the tick interrupt's handler, from the read of
+    SysTick after the stopwatch's restart (a store to its current value register) to the next
+    read — the firmware's `servo.tick` window."""
+    accesses = systick_accesses(asm, handler)
 
     def touches(pc: int, kind: str) -> bool:
-        mnem, ops = asm.get(pc, ("", ""))
-        return (pc in handler and mnem.startswith(kind) and "[" in ops
-                and registers(ops[ops.index("["):])[:1] == [base])
+        return pc in accesses and asm[pc][0].startswith(kind)
 
     out, i = [], 0
     while i < len(trace):

@@ -22,7 +22,7 @@ use core::fmt::Write as _;
 use cortex_m::peripheral::{syst::SystClkSource, NVIC, SYST};
 use cortex_m_rt::entry;
 use critical_section::Mutex;
-use daq_io::Sensor;
+use daq_io::{Command, Sensor};
 use servo_link::{self as link, image, kind, Boot, FrameReader, Ready, Report, TickReply};
 use servo_runtime::deployment::MAX_SS_ORDER;
 use servo_runtime::{Deployment, Servo};
@@ -84,7 +84,8 @@ struct Loop {
     /// A deployment's loop is built in `servo` (false until one is, and while one is built).
     ready: bool,
     sample: Sensor,
-    reply: Option<TickReply>,
+    /// The tick's command and its cost in SysTick counts, left by the tick interrupt.
+    done: Option<(Command, u32)>,
     report: Report,
 }
 
@@ -113,7 +114,7 @@ static LOOP: Mutex<RefCell<Loop>> = Mutex::new(RefCell::new(Loop {
     servo: Servo::UNBUILT,
     ready: false,
     sample: NO_SAMPLE,
-    reply: None,
+    done: None,
     report: NO_REPORT,
 }));
 
@@ -136,7 +137,8 @@ fn restart_stopwatch() -> u32 {
 }
 
 /// The servo tick: the sample in the mailbox through the loop, timed (`servo.tick` alone, not
-/// the interrupt's entry or the reply's copy), the reply left in it. It holds the critical
+/// the interrupt's entry), the command and its cost left in it (the main loop builds the
+/// reply from them and the loop's telemetry and status). It holds the critical
 /// section the main loop shares the loop with; on a board give the tick interrupt the loop to
 /// itself (README: porting) so that interrupts above it still preempt.
 #[export_name = "TIMER0"]
@@ -150,15 +152,7 @@ extern "C" fn servo_tick() {
         if l.ready {
             let start = restart_stopwatch();
             let command = l.servo.tick(&l.sample);
-            let cost = elapsed(start, SYST::get_current());
-            let status = l.servo.status();
-            l.reply = Some(TickReply {
-                command,
-                telemetry: l.servo.telemetry().copied(),
-                trip: status.trip,
-                trip_settled: status.trip_settled,
-                cost_counts: cost,
-            });
+            l.done = Some((command, elapsed(start, SYST::get_current())));
             l.report.ticks += 1;
         }
     });
@@ -234,7 +228,7 @@ fn load(payload: &[u8], why: &mut Text) -> Option<u32> {
         let worst = probe(core::hint::black_box(&mut l.servo));
         // The same deployment was accepted a moment ago.
         l.servo.rebuild(deployment).ok()?;
-        (l.ready, l.sample, l.reply, l.report) = (true, NO_SAMPLE, None, NO_REPORT);
+        (l.ready, l.sample, l.done, l.report) = (true, NO_SAMPLE, None, NO_REPORT);
         Some(worst)
     })
 }
@@ -246,7 +240,7 @@ fn tick(payload: &[u8], console: &mut Console) {
     };
     let loaded = critical_section::with(|cs| {
         let l = &mut *LOOP.borrow_ref_mut(cs);
-        (l.sample, l.reply) = (sample, None);
+        (l.sample, l.done) = (sample, None);
         l.ready
     });
     if !loaded {
@@ -260,7 +254,18 @@ fn tick(payload: &[u8], console: &mut Console) {
     // The interrupt is taken once the pend reaches the NVIC.
     cortex_m::asm::dsb();
     cortex_m::asm::isb();
-    let reply = critical_section::with(|cs| LOOP.borrow_ref_mut(cs).reply.take());
+    let reply = critical_section::with(|cs| {
+        let l = &mut *LOOP.borrow_ref_mut(cs);
+        let (command, cost_counts) = l.done.take()?;
+        let status = l.servo.status();
+        Some(TickReply {
+            command,
+            telemetry: l.servo.telemetry().copied(),
+            trip: status.trip,
+            trip_settled: status.trip_settled,
+            cost_counts,
+        })
+    });
     match reply {
         Some(r) => {
             let mut out = [0; link::TICK_BYTES];

@@ -73,6 +73,9 @@ include!(concat!(env!("OUT_DIR"), "/orders.rs"));
 /// Which law a controller runs (a state space's storage is beside it, not in it: the variant
 /// changes in place, the storage is loaded in place).
 #[derive(Debug, Clone)]
+// A tag byte of its own: read and dispatched in two instructions (a tag folded into a
+// variant's spare bits costs a range check and a shift at every dispatch).
+#[repr(u8)]
 enum Kind {
     Ss,
     Pid(Pid),
@@ -149,6 +152,16 @@ pub fn kg_of(c: &ControllerSpec, stage: &Stage) -> f64 {
         stage.current_gain_a_per_v,
         stage.kt_n_per_a,
     )
+}
+
+/// A law's command `u`, or NaN when the law has latched a fault.
+#[inline(always)]
+fn nan_if_faulted(u: f64, faulted: bool) -> f64 {
+    if faulted {
+        f64::NAN
+    } else {
+        u
+    }
 }
 
 /// A servo-core build error as the key of `[controller]` it came from.
@@ -280,16 +293,24 @@ impl Controller {
         }
     }
 
-    /// One tick: position error and accelerometer reading in V → command in V.
+    /// One tick: position error and accelerometer reading in V → command in V; NaN once the
+    /// controller has latched a fault ([`Controller::faulted`]), so that a caller's check of
+    /// its command for NaN also catches the latch (the block alone gives 0 V).
     #[inline]
     pub fn update(&mut self, error_v: f64, accel_v: f64) -> f64 {
         match &mut self.kind {
-            Kind::Pid(p) => p.update(error_v),
-            Kind::Accel(a) => a.update(CascadeInput {
-                error: error_v,
-                accel: accel_v,
-            }),
-            Kind::Ss => self.ss.update(error_v),
+            Kind::Pid(p) => nan_if_faulted(p.update(error_v), p.faulted()),
+            Kind::Accel(a) => {
+                let input = CascadeInput {
+                    error: error_v,
+                    accel: accel_v,
+                };
+                nan_if_faulted(a.update(input), a.faulted())
+            }
+            Kind::Ss => {
+                let u = self.ss.update(error_v);
+                nan_if_faulted(u, self.ss.faulted())
+            }
         }
     }
 }

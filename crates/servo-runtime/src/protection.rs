@@ -88,6 +88,8 @@ pub(crate) struct Protection {
     after_ticks: u64,
     saturated_for: u64,
     trip: Option<(TripCause, u64)>,
+    /// `trip`'s flag bits (0 untripped), read by every tick.
+    trip_flags: u32,
     /// Trips since the start (a clear does not reset it).
     trips: u64,
     safe_v: f64,
@@ -106,6 +108,7 @@ impl Protection {
         after_ticks: 0,
         saturated_for: 0,
         trip: None,
+        trip_flags: 0,
         trips: 0,
         safe_v: 0.0,
     };
@@ -129,6 +132,7 @@ impl Protection {
             after_ticks: libm::round(p.after_trip_s * rate) as u64,
             saturated_for: 0,
             trip: None,
+            trip_flags: 0,
             trips: 0,
             safe_v: 0.0,
         }
@@ -143,7 +147,7 @@ impl Protection {
     /// Flag bits for a command given while in the current state (0 before a trip).
     #[inline]
     pub fn flags(&self) -> u32 {
-        self.trip.map_or(0, |(c, _)| flags::TRIPPED | c.flag())
+        self.trip_flags
     }
 
     /// Checks the limits against what tick `seq`'s sample showed; trips (the command of `seq`
@@ -183,7 +187,7 @@ impl Protection {
 
     /// Clears a trip (an explicit re-arm): the limits are watched again from the next sample.
     pub(crate) fn clear(&mut self) {
-        self.trip = None;
+        (self.trip, self.trip_flags) = (None, 0);
         self.saturated_for = 0;
         self.safe_v = 0.0;
     }
@@ -194,7 +198,7 @@ impl Protection {
     }
 
     fn trip_now(&mut self, cause: TripCause, seq: u64, last_v: f64) {
-        self.trip = Some((cause, seq));
+        (self.trip, self.trip_flags) = (Some((cause, seq)), flags::TRIPPED | cause.flag());
         self.trips += 1;
         self.safe_v = if last_v.is_finite() { last_v } else { 0.0 };
     }

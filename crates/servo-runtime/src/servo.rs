@@ -122,7 +122,7 @@ impl Servo {
         #[cfg(feature = "std")]
         let started = self.host.start(sample);
         let command = self.core.tick(sample, &mut self.generator, &mut self.last);
-        let command = self.close_tick(sample, command);
+        self.close_tick(&command);
         #[cfg(feature = "std")]
         self.after_tick(sample, started);
         command
@@ -140,37 +140,23 @@ impl Servo {
         let started = self.host.start(sample);
         self.core.forget_tick_zero();
         let command = self.core.tick(sample, reference, &mut self.last);
-        let command = self.close_tick(sample, command);
+        self.close_tick(&command);
         #[cfg(feature = "std")]
         self.after_tick(sample, started);
         command
     }
 
-    /// Counts what tick `sample` did; the command (0 V with [`flags::END`] for a closing
-    /// sample, which leaves no telemetry).
+    /// Counts what tick `command` closed: the ticks and the saturated ones (the rest of
+    /// [`Status`] is read from the loop when asked for). A closing sample's command (0 V with
+    /// [`flags::END`]) leaves no telemetry.
     #[inline]
-    fn close_tick(&mut self, sample: &Sensor, command: Option<Command>) -> Command {
-        self.has_last = command.is_some();
-        let command = command.unwrap_or(Command {
-            seq: sample.seq,
-            dac_v: 0.0,
-            flags: flags::END,
-            reserved: 0,
-        });
-        self.account(&command);
-        command
-    }
-
-    /// Counts what tick `sample` did: the ticks and the saturated ones (the rest of
-    /// [`Status`] is read from the loop when asked for).
-    #[inline]
-    fn account(&mut self, command: &Command) {
-        if command.flags & flags::END != 0 {
-            return;
+    fn close_tick(&mut self, command: &Command) {
+        self.has_last = command.flags & flags::END == 0;
+        if self.has_last {
+            let st = &mut self.status;
+            st.saturated_ticks += u64::from(self.last.flags & flags::SATURATED != 0);
+            st.ticks += 1;
         }
-        let st = &mut self.status;
-        st.saturated_ticks += u64::from(self.last.flags & flags::SATURATED != 0);
-        st.ticks += 1;
     }
 
     /// The last tick's telemetry: its reference, the reading it acted on, the following error

@@ -48,6 +48,8 @@ pub(crate) struct ServoLoop {
     /// The sample tick expected next (`seq` of the last one + 1).
     next_seq: u64,
     last_u: f64,
+    /// `last_u` was at the controller's output limit.
+    last_saturated: bool,
     /// The command came out non-finite once (latched like a block fault).
     output_fault: bool,
     /// The protection flags of the last command.
@@ -88,6 +90,7 @@ impl ServoLoop {
         primed: Primed::No,
         next_seq: 0,
         last_u: 0.0,
+        last_saturated: false,
         output_fault: false,
         last_trip_flags: 0,
         protection: Protection::OFF,
@@ -135,7 +138,8 @@ impl ServoLoop {
                 },
             ));
         }
-        (self.primed, self.next_seq, self.last_u) = (Primed::No, 0, 0.0);
+        (self.primed, self.next_seq) = (Primed::No, 0);
+        (self.last_u, self.last_saturated) = (0.0, false);
         (self.output_fault, self.last_trip_flags) = (false, 0);
         self.protection = Protection::new(&d.protection, d.servo_rate_hz, d.stage.dc_gain_m_per_v);
         self.gain_scale = 1.0;
@@ -208,9 +212,10 @@ impl ServoLoop {
         self.rearm = true;
     }
 
-    /// The fault a block latched, as a trip cause (None: no fault).
+    /// The fault a block latched, as a trip cause (None: no fault). A controller's latch
+    /// shows as a NaN output ([`Controller::update`]), caught in `output_fault`.
     fn fault(&self, source_faulted: bool) -> Option<TripCause> {
-        if self.controller.faulted() || self.output_fault {
+        if self.output_fault {
             Some(TripCause::NotFinite)
         } else if source_faulted || self.feedforward.faulted() {
             Some(TripCause::ReferenceFault)
@@ -226,15 +231,16 @@ impl ServoLoop {
     fn advance<R: Reference + ?Sized>(&mut self, s: &Sensor, source: &mut R) {
         let p = self.window.preview();
         let skipped = s.seq > self.next_seq;
-        self.next_seq = s.seq.saturating_add(1);
-        match self.primed {
-            Primed::Yes if !skipped => {
-                let ahead = source.next(s, p);
-                self.window.push(ahead);
-                self.feedforward.follow(&self.window, false);
-            }
-            Primed::ForTickZero if s.seq == 0 => self.primed = Primed::Yes,
-            _ => self.prime(s, source),
+        // Wraps only past 2^64 ticks; a wrapped count reads as ticks skipped (a refill).
+        self.next_seq = s.seq.wrapping_add(1);
+        if self.primed == Primed::Yes && !skipped {
+            let ahead = source.next(s, p);
+            self.window.push(ahead);
+            self.feedforward.follow(&self.window, false);
+        } else if self.primed == Primed::ForTickZero && s.seq == 0 {
+            self.primed = Primed::Yes;
+        } else {
+            self.prime(s, source);
         }
     }
 
@@ -265,17 +271,22 @@ impl ServoLoop {
     }
 
     /// One tick for sample `s` with the trajectory `source`: the command, the tick's telemetry
-    /// (its reference with the reading it acted on) written into `telemetry`; None, and
-    /// `telemetry` untouched, when `s` closes the run.
+    /// (its reference with the reading it acted on) written into `telemetry`; when `s` closes
+    /// the run, 0 V with [`flags::END`] and `telemetry` untouched.
     #[inline]
     pub(crate) fn tick<R: Reference + ?Sized>(
         &mut self,
         s: &Sensor,
         source: &mut R,
         telemetry: &mut Telemetry,
-    ) -> Option<Command> {
+    ) -> Command {
         if s.flags & flags::END != 0 {
-            return None;
+            return Command {
+                seq: s.seq,
+                dac_v: 0.0,
+                flags: flags::END,
+                reserved: 0,
+            };
         }
         let measured = s.gap_v / self.sensitivity;
         self.advance(s, source);
@@ -286,15 +297,16 @@ impl ServoLoop {
             measured_m: measured,
             gap_clipped: s.flags & flags::GAP_CLIPPED != 0,
             // The previous command: at its limit, or clipped at the DAC (this sample's bit).
-            saturated: s.seq > 0
-                && (libm::fabs(self.last_u) >= self.controller.limit_v()
-                    || s.flags & flags::DAC_CLIPPED != 0),
+            saturated: s.seq > 0 && (self.last_saturated || s.flags & flags::DAC_CLIPPED != 0),
         };
         self.protection.watch(s.seq, &seen, self.last_u);
         // The controller runs until the loop trips; a fault it latches trips it now.
         let raw = self.protection.trip().is_none().then(|| {
             let (u, shaped) = self.control(s);
-            self.output_fault |= !u.is_finite();
+            // Clamped to the finite limit: only NaN is left to catch.
+            if u.is_nan() {
+                self.output_fault = true;
+            }
             (u, shaped)
         });
         let fault = self.fault(source.faulted());
@@ -312,6 +324,7 @@ impl ServoLoop {
         let controller_flags =
             if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.last_trip_flags;
         let saturated = libm::fabs(u) >= self.controller.limit_v();
+        self.last_saturated = saturated;
         *telemetry = Telemetry {
             seq: s.seq,
             time_s: s.time_s,
@@ -326,12 +339,12 @@ impl ServoLoop {
                 | controller_flags,
             reserved: 0,
         };
-        Some(Command {
+        Command {
             seq: s.seq,
             dac_v: u,
             flags: controller_flags,
             reserved: 0,
-        })
+        }
     }
 
     /// The handover at tick `seq`: `new` takes the loop, both having seen this tick's errors
@@ -340,6 +353,8 @@ impl ServoLoop {
     #[cold]
     #[inline(never)]
     fn take_over(&mut self, mut new: Slot, raw: f64, error_v: f64, accel_v: f64, seq: u64) -> f64 {
+        // A controller that faulted as it was replaced leaves no bump to fade.
+        let raw = if raw.is_nan() { 0.0 } else { raw };
         core::mem::swap(&mut self.controller, &mut *new);
         self.replaced = Some(new);
         let raw_new = self.controller.update(error_v, accel_v);
