@@ -314,3 +314,30 @@ impl Controller {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{ControllerKind, Deployment, SsMatrices};
+
+    /// Each law latches a non-finite input and then reads NaN (whatever its input) until
+    /// reset: what the runtime's one NaN check on its command relies on.
+    #[test]
+    fn a_latched_fault_reads_as_nan_until_reset() {
+        let d = Deployment::thesis_prototype();
+        // x' = 0.5 x + e, u = x + 2 e: a stable first-order law.
+        let ss = SsMatrices::from_fn(1, |i, j| [[0.5, 1.0], [1.0, 2.0]][i][j]).unwrap();
+        for kind in [ControllerKind::Pid, ControllerKind::Accel, ControllerKind::Ss] {
+            let mut spec = d.controller.clone();
+            (spec.kind, spec.ss) = (kind, Some(ss.clone()));
+            let mut c = Controller::build(&spec, &d.stage, d.period_s()).unwrap();
+            assert!(c.update(1e-3, 0.0).is_finite(), "{kind:?}");
+            assert!(c.update(f64::NAN, 0.0).is_nan(), "{kind:?}");
+            assert!(c.faulted(), "{kind:?}");
+            assert!(c.update(1e-3, 0.0).is_nan(), "{kind:?}: the latch holds");
+            c.reset();
+            let u = c.update(1e-3, 0.0);
+            assert!(u.is_finite() && u != 0.0 && !c.faulted(), "{kind:?}");
+        }
+    }
+}

@@ -42,7 +42,7 @@ pub struct TargetModel {
     /// Cycles per instruction assumed: 1.5, an estimate. QEMU counts instructions and models
     /// no pipeline; replayed through a model of the M7's dual issue and FPU latencies
     /// (`scripts/m7_cycles.py`, after the M7 machine model LLVM schedules with) the ticks
-    /// here take 1.2 (PID) to 1.6 (the full H2 controller) cycles an instruction. Memory
+    /// here take 1.3 (PID) to 1.6 (the full H2 controller) cycles an instruction. Memory
     /// outside the tightly coupled memories, cache misses and mispredicted branches add to it:
     /// measure on the board.
     pub cycles_per_instruction: f64,
