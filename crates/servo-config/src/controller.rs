@@ -327,7 +327,11 @@ mod tests {
         let d = Deployment::thesis_prototype();
         // x' = 0.5 x + e, u = x + 2 e: a stable first-order law.
         let ss = SsMatrices::from_fn(1, |i, j| [[0.5, 1.0], [1.0, 2.0]][i][j]).unwrap();
-        for kind in [ControllerKind::Pid, ControllerKind::Accel, ControllerKind::Ss] {
+        for kind in [
+            ControllerKind::Pid,
+            ControllerKind::Accel,
+            ControllerKind::Ss,
+        ] {
             let mut spec = d.controller.clone();
             (spec.kind, spec.ss) = (kind, Some(ss.clone()));
             let mut c = Controller::build(&spec, &d.stage, d.period_s()).unwrap();
