@@ -4,7 +4,7 @@ use crate::arrays::vector;
 use crate::servo_err;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use recorder::{Frame, Telemetry, Truth};
+use recorder::{Frame, TelemetryRecord, TruthRecord};
 use runner::recording::{FrameSink, RunHeader};
 use std::path::PathBuf;
 
@@ -12,8 +12,8 @@ use std::path::PathBuf;
 #[derive(Default)]
 pub struct Columns {
     time_s: Vec<f64>,
-    telemetry: [Vec<f32>; Telemetry::LEN],
-    truth: [Vec<f32>; Truth::LEN],
+    telemetry: [Vec<f32>; TelemetryRecord::LEN],
+    truth: [Vec<f32>; TruthRecord::LEN],
     header: Option<(String, String)>,
 }
 
@@ -43,9 +43,9 @@ impl Columns {
         };
         out.set_item(
             "telemetry",
-            group(Telemetry::FIELDS, self.telemetry.into())?,
+            group(TelemetryRecord::FIELDS, self.telemetry.into())?,
         )?;
-        out.set_item("truth", group(Truth::FIELDS, self.truth.into())?)?;
+        out.set_item("truth", group(TruthRecord::FIELDS, self.truth.into())?)?;
         if let Some((config, controller)) = self.header {
             out.set_item("config_toml", config)?;
             out.set_item("controller", controller)?;

@@ -9,7 +9,7 @@ use crate::common;
 
 use common::{servo, succeeded, tmp};
 use recorder::mcap_file::{op, McapFile, MAGIC};
-use recorder::{Message, Telemetry, Truth};
+use recorder::{Message, TelemetryRecord, TruthRecord};
 use std::path::{Path, PathBuf};
 
 /// A record of the file: opcode, offset, total length (opcode and length field included).
@@ -222,18 +222,18 @@ fn rewritten(
     let mut m = McapFile::create(file, "ros2", 1, 1 << 20).unwrap();
     m.schema(
         1,
-        Telemetry::SCHEMA_NAME,
+        TelemetryRecord::SCHEMA_NAME,
         "ros2msg",
-        Telemetry::schema_text().as_bytes(),
+        TelemetryRecord::schema_text().as_bytes(),
     );
     m.schema(
         2,
-        Truth::SCHEMA_NAME,
+        TruthRecord::SCHEMA_NAME,
         "ros2msg",
-        Truth::schema_text().as_bytes(),
+        TruthRecord::schema_text().as_bytes(),
     );
-    m.channel(1, 1, Telemetry::TOPIC, "cdr");
-    m.channel(2, 2, Truth::TOPIC, "cdr");
+    m.channel(1, 1, TelemetryRecord::TOPIC, "cdr");
+    m.channel(2, 2, TruthRecord::TOPIC, "cdr");
     m.metadata("run", &run).unwrap();
     let cut = |buf: &mut Vec<u8>, from: usize| {
         if let Some(n) = payload_bytes {

@@ -35,7 +35,7 @@ fn a_hidden_stage_is_measured_identified_designed_for_deployed_and_compared() {
         ..Default::default()
     };
     let mut stage = PracticeStage::new(&plant, SEED, steady).unwrap();
-    let truth = *stage.truth();
+    let truth = *stage.draw();
     let rate = plant.timing.servo_rate_hz;
     let ep = Endpoint::open(&p, "plant").unwrap();
     let daemon = std::thread::spawn(move || {

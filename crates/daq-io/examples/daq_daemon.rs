@@ -198,7 +198,7 @@ fn main() {
                     .create_new(true)
                     .open(path)
                     .unwrap_or_else(|e| panic!("daq daemon: --reveal {path}: {e}"));
-                let text = toml::to_string(stage.truth()).expect("the draw serialises");
+                let text = toml::to_string(stage.draw()).expect("the draw serialises");
                 std::io::Write::write_all(&mut file, text.as_bytes())
                     .unwrap_or_else(|e| panic!("daq daemon: --reveal {path}: {e}"));
             }

@@ -12,28 +12,26 @@ impl Simulator {
     #[inline]
     pub fn step_sensor(&mut self, dac_v: f64, extra_force_n: f64) -> Sensor {
         self.step_sensor_changed(dac_v, extra_force_n, CommandChange::NONE)
-            .0
     }
 
     /// [`Simulator::step_sensor`] with the command changed on its way to the amplifier
-    /// ([`Simulator::step_changed`]); also the simulator's own truth of the tick.
+    /// ([`Simulator::step_changed`]).
     #[inline(always)]
     pub(crate) fn step_sensor_changed(
         &mut self,
         dac_v: f64,
         extra_force_n: f64,
         change: CommandChange,
-    ) -> (Sensor, crate::sim::Truth) {
+    ) -> Sensor {
         let (s, t) = self.step_changed(dac_v, extra_force_n, change);
-        self.last_truth = t.to_contract(s.time_s);
-        let sensor = Sensor {
+        self.last_truth = t;
+        Sensor {
             time_s: s.time_s,
             gap_v: s.gap_v,
             accel_v: s.accel_v,
             flags: s.flags,
             ..Default::default()
-        };
-        (sensor, t)
+        }
     }
 }
 
@@ -71,7 +69,7 @@ mod tests {
                 (r.time_s, r.gap_v, r.accel_v, r.flags),
                 (s.time_s, s.gap_v, s.accel_v, s.flags)
             );
-            assert_eq!(Backend::truth(&backend), Some(t.to_contract(s.time_s)));
+            assert_eq!(Backend::truth(&backend), Some(t));
         }
     }
 }

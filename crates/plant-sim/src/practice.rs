@@ -17,7 +17,7 @@
 //! 3 mrad at 100 Hz). Through the current loop (400 kHz) that is the force itself below a few
 //! kHz; the current noise is not scaled and the drift's force passes the in-band mode — effects
 //! below 1 % of effects of a few per cent. What a DAQ daemon example serves, so that an
-//! identification has something real to find; [`PracticeStage::truth`] reveals the draw
+//! identification has something real to find; [`PracticeStage::draw`] reveals it
 //! afterwards.
 
 use crate::modes::{ExtraMode, ExtraModes, ModeSite};
@@ -99,7 +99,7 @@ impl Default for PracticeEffects {
 
 /// What the seed drew.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct PracticeTruth {
+pub struct PracticeDraw {
     /// The seed.
     pub seed: u64,
     /// The stage (the thesis stage with drawn Table 5-2 parameters).
@@ -115,13 +115,13 @@ pub struct PracticeTruth {
     /// The suspension stiffness's relative drift Δ.
     pub drift: f64,
     /// The tool's setting errors drawn, m: centre height and X offset (drawn whether or not
-    /// the effect is on; [`PracticeTruth::tool_setting_m`] says what the machine has).
+    /// the effect is on; [`PracticeDraw::tool_setting_m`] says what the machine has).
     pub tool_setting_drawn_m: [f64; 2],
     /// The effects that are on.
     pub effects: PracticeEffects,
 }
 
-impl PracticeTruth {
+impl PracticeDraw {
     /// The draw of `seed` around `thesis` (each Table 5-2 parameter within ±[`SPREAD`]; m1 kept,
     /// m2 carrying the change of m1 + m2; the mount within [`MOUNT_HZ`]; then the effects'
     /// values, drawn whether or not `effects` has them on, so that a seed is one stage).
@@ -142,7 +142,7 @@ impl PracticeTruth {
         let mount_hz = lo * libm::pow(hi / lo, rng.random::<f64>());
         let mut within = |(lo, hi): (f64, f64)| lo + (hi - lo) * rng.random::<f64>();
         let band_hz = BAND_HZ.0 * libm::pow(BAND_HZ.1 / BAND_HZ.0, within((0.0, 1.0)));
-        PracticeTruth {
+        PracticeDraw {
             seed,
             stage,
             mount_hz,
@@ -213,7 +213,7 @@ impl PracticeTruth {
     }
 
     /// The mount resonance as the extra mode it is: on the gap reading, a peak of
-    /// [`MOUNT_ZETA_ZERO`]/[`MOUNT_ZETA_POLE`] at [`PracticeTruth::mount_hz`] (what the reading
+    /// [`MOUNT_ZETA_ZERO`]/[`MOUNT_ZETA_POLE`] at [`PracticeDraw::mount_hz`] (what the reading
     /// sees of the gap: [`ExtraMode::response`]).
     pub fn mount(&self) -> ExtraMode {
         ExtraMode {
@@ -230,7 +230,7 @@ impl PracticeTruth {
 /// the effects it has on.
 pub struct PracticeStage {
     sim: Simulator,
-    truth: PracticeTruth,
+    draw: PracticeDraw,
     /// Command per newton on the coil, V/N (`1/(K_T·transconductance)`).
     volts_per_newton: f64,
     /// The coil's travel against the carriage `x2 − x3` at the end of the last tick, m.
@@ -257,17 +257,17 @@ impl PracticeStage {
         noise_seed: u64,
         effects: PracticeEffects,
     ) -> Result<Self, SimError> {
-        let truth = PracticeTruth::draw(seed, &PlantParams::default().stage, effects);
+        let draw = PracticeDraw::draw(seed, &PlantParams::default().stage, effects);
         let params = PlantParams {
-            stage: truth.stage,
-            modes: truth.modes(),
+            stage: draw.stage,
+            modes: draw.modes(),
             ..*plant
         };
         let sim = Simulator::new(&params, noise_seed, &Default::default())?;
         let a = &params.actuator;
         Ok(PracticeStage {
             sim,
-            truth,
+            draw,
             volts_per_newton: 1.0 / (a.kt_n_per_a * a.current_gain_a_per_v),
             coil_travel_m: 0.0,
             ticks: 0,
@@ -275,8 +275,8 @@ impl PracticeStage {
     }
 
     /// What the seed drew (for revealing after the workflow, never to the client).
-    pub fn truth(&self) -> &PracticeTruth {
-        &self.truth
+    pub fn draw(&self) -> &PracticeDraw {
+        &self.draw
     }
 
     /// The simulator of the drawn stage, its mount and in-band mode included (the force
@@ -291,11 +291,12 @@ impl PracticeStage {
         let x = self.coil_travel_m;
         let time_s = self.ticks as f64 * self.sim.period_s();
         let change = CommandChange {
-            scale: self.truth.force_constant_ratio(x),
-            offset_v: -self.truth.k2_change_n_per_m(time_s) * x * self.volts_per_newton,
+            scale: self.draw.force_constant_ratio(x),
+            offset_v: -self.draw.k2_change_n_per_m(time_s) * x * self.volts_per_newton,
         };
-        let (sensor, truth) = self.sim.step_sensor_changed(dac_v, extra_force_n, change);
-        self.coil_travel_m = truth.x_m[1] - truth.x_m[2];
+        let sensor = self.sim.step_sensor_changed(dac_v, extra_force_n, change);
+        let x = self.sim.motion().x_m;
+        self.coil_travel_m = x[1] - x[2];
         self.ticks += 1;
         sensor
     }
@@ -319,9 +320,9 @@ mod tests {
     fn the_draw_stays_in_its_ranges_and_differs_between_seeds() {
         let thesis = PlantParams::default().stage;
         let all = PracticeEffects::default();
-        let a = PracticeTruth::draw(7, &thesis, all);
-        assert_eq!(a, PracticeTruth::draw(7, &thesis, all));
-        assert_ne!(a, PracticeTruth::draw(8, &thesis, all));
+        let a = PracticeDraw::draw(7, &thesis, all);
+        assert_eq!(a, PracticeDraw::draw(7, &thesis, all));
+        assert_ne!(a, PracticeDraw::draw(8, &thesis, all));
         let ratio = |x: f64, y: f64| (x / y - 1.0).abs();
         assert!(ratio(a.stage.m1_kg + a.stage.m2_kg, thesis.m1_kg + thesis.m2_kg) <= SPREAD);
         for (x, y) in [
@@ -348,8 +349,8 @@ mod tests {
         let all = PracticeEffects::default();
         let a = PracticeStage::new(&thesis, 7, all).unwrap();
         let b = PracticeStage::new(&identified, 7, all).unwrap();
-        assert_eq!(a.truth(), b.truth());
-        assert_eq!(a.truth(), &PracticeTruth::draw(7, &thesis.stage, all));
+        assert_eq!(a.draw(), b.draw());
+        assert_eq!(a.draw(), &PracticeDraw::draw(7, &thesis.stage, all));
     }
 
     /// The draws of the effects stay in their ranges; switching an effect off keeps the
@@ -358,8 +359,8 @@ mod tests {
     fn the_effects_are_drawn_in_their_ranges_whatever_the_switches() {
         let thesis = PlantParams::default().stage;
         for seed in 0..50 {
-            let all = PracticeTruth::draw(seed, &thesis, PracticeEffects::default());
-            let none = PracticeTruth::draw(seed, &thesis, PracticeEffects::NONE);
+            let all = PracticeDraw::draw(seed, &thesis, PracticeEffects::default());
+            let none = PracticeDraw::draw(seed, &thesis, PracticeEffects::NONE);
             assert_eq!(
                 (all.stage, all.mount_hz, all.band_hz),
                 (none.stage, none.mount_hz, none.band_hz)
@@ -405,7 +406,7 @@ mod tests {
         };
         let practice = PracticeStage::new(&plant, 3, effects).unwrap();
         let bare = PlantParams {
-            stage: practice.truth().stage,
+            stage: practice.draw().stage,
             ..plant
         };
         // The complex amplitudes of the reading and of the tool at `f` over the last half of
@@ -425,7 +426,7 @@ mod tests {
             }
             sum
         };
-        let truth = practice.truth();
+        let truth = practice.draw();
         let (mount, band) = (truth.mount(), truth.band_mode().unwrap());
         for f in [50.0, truth.band_hz, truth.mount_hz, 60_000.0] {
             let mut with = PracticeStage::new(&plant, 3, effects).unwrap();
@@ -453,13 +454,13 @@ mod tests {
 
     /// Holds `command_v` for `seconds` on the quiet practice stage of seed 11 with `effects`;
     /// the coil's travel against the carriage at the end, m, and the drawn truth.
-    fn hold(command_v: f64, seconds: f64, effects: PracticeEffects) -> (f64, PracticeTruth) {
+    fn hold(command_v: f64, seconds: f64, effects: PracticeEffects) -> (f64, PracticeDraw) {
         let plant = quiet();
         let mut stage = PracticeStage::new(&plant, 11, effects).unwrap();
         for _ in 0..(seconds * plant.timing.servo_rate_hz) as usize {
             stage.step(command_v);
         }
-        (stage.coil_travel_m, *stage.truth())
+        (stage.coil_travel_m, *stage.draw())
     }
 
     /// The force constant over the stroke, by Hooke's law: held still, the suspension's spring

@@ -19,7 +19,7 @@ use crate::quantisation::{averaged_rounding_error, ConversionGrid};
 use crate::sampled_noise::SampledNoise;
 use crate::sensor_noise::SensorNoise;
 use crate::tick_matrix::TickMatrix;
-use daq_io::flags;
+use daq_io::{flags, Truth};
 use lti::zoh;
 use nalgebra::DMatrix;
 
@@ -42,55 +42,16 @@ pub struct SensorSample {
     pub flags: u32,
 }
 
-/// What no sensor can see, at the end of the tick.
+/// How the stage's masses move at the end of the last tick (what the truth record,
+/// [`daq_io::Truth`], leaves out).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Truth {
-    /// True tool position relative to the frame `x1 − xg` in m.
-    pub tool_m: f64,
-    /// Gap `x2 − xg` the capacitive sensor measures, in m.
-    pub gap_m: f64,
-    /// Motor force in N.
-    pub motor_force_n: f64,
-    /// Cutting force applied during the tick in N.
-    pub cutting_force_n: f64,
-    /// Coil current in A (from the current loop, without noise).
-    pub coil_current_a: f64,
-    /// Current noise in A.
-    pub current_noise_a: f64,
-    /// Base displacement in m.
-    pub base_m: f64,
-    /// Mean sensor noise added to this tick's gap conversions, in V.
-    pub sensor_noise_v: f64,
-    /// Absolute acceleration of m2 in m/s².
-    pub accel_m2_m_s2: f64,
+pub struct StageMotion {
     /// Absolute positions x1..x4 in m.
     pub x_m: [f64; 4],
     /// Absolute velocities v1..v4 in m/s.
     pub v_m_s: [f64; 4],
-    /// DAC output applied from τ into the tick, in V.
-    pub dac_v: f64,
-}
-
-impl Truth {
-    /// The truth record of the sample contract for the tick ending at `time_s` (s): what
-    /// crosses to the recorder (sequence number and flags set by the transport).
-    pub fn to_contract(&self, time_s: f64) -> daq_io::Truth {
-        daq_io::Truth {
-            seq: 0,
-            time_s,
-            tool_m: self.tool_m,
-            gap_m: self.gap_m,
-            motor_force_n: self.motor_force_n,
-            cutting_force_n: self.cutting_force_n,
-            coil_current_a: self.coil_current_a,
-            current_noise_a: self.current_noise_a,
-            base_m: self.base_m,
-            sensor_noise_v: self.sensor_noise_v,
-            dac_v: self.dac_v,
-            flags: 0,
-            reserved: 0,
-        }
-    }
+    /// Absolute acceleration of m2 in m/s².
+    pub accel_m2_m_s2: f64,
 }
 
 /// One tick as a linear system, in the simulator's balanced state coordinates, with the
@@ -315,7 +276,7 @@ pub struct Simulator {
     period_s: f64,
     /// The contract's truth of the last [`Simulator::step_sensor`] (what
     /// [`daq_io::Backend::truth`] returns).
-    pub(crate) last_truth: daq_io::Truth,
+    pub(crate) last_truth: Truth,
 }
 
 impl Simulator {
@@ -427,7 +388,7 @@ impl Simulator {
             gaussian: Gaussian::new(seed),
             tick: 0,
             period_s: period,
-            last_truth: daq_io::Truth::default(),
+            last_truth: Truth::default(),
         })
     }
 
@@ -511,7 +472,8 @@ impl Simulator {
     }
 
     /// Runs one tick: `command_v` goes to the DAC now and reaches the coil τ later. Returns the
-    /// ADC sample closing the tick (the controller's next input) and the truth at that time.
+    /// ADC sample closing the tick (the controller's next input) and the truth at that time
+    /// (`seq` and `flags` 0: the transport's); [`Simulator::motion`] has the masses' motion.
     #[inline]
     pub fn step(&mut self, command_v: f64) -> (SensorSample, Truth) {
         self.step_with_force(command_v, 0.0)
@@ -605,13 +567,14 @@ impl Simulator {
             flags: flag,
         };
         let tr = &self.out[n + 2 * self.oversampling..];
-        let (m, x) = (self.mech.start, &self.z);
         // The coil model's current comes from its ODE (the matrix saw sub-step means).
         let (coil_current, motor_force) = match &self.coil {
             None => (tr[3], tr[2]),
             Some(c) => (c.i, c.kt * (c.i + tr[4])),
         };
         let truth = Truth {
+            seq: 0,
+            time_s: sample.time_s,
             tool_m: tr[0],
             gap_m: tr[1],
             motor_force_n: motor_force,
@@ -620,12 +583,21 @@ impl Simulator {
             current_noise_a: tr[4],
             base_m: tr[5],
             sensor_noise_v: noise_sum / k,
-            accel_m2_m_s2: tr[6],
-            x_m: std::array::from_fn(|i| x[m + i] * self.mech_scale[i]),
-            v_m_s: std::array::from_fn(|i| x[m + 4 + i] * self.mech_scale[4 + i]),
             dac_v,
+            flags: 0,
+            reserved: 0,
         };
         (sample, truth)
+    }
+
+    /// How the masses move at the end of the last tick (at rest before the first).
+    pub fn motion(&self) -> StageMotion {
+        let (m, x) = (self.mech.start, &self.z);
+        StageMotion {
+            x_m: std::array::from_fn(|i| x[m + i] * self.mech_scale[i]),
+            v_m_s: std::array::from_fn(|i| x[m + 4 + i] * self.mech_scale[4 + i]),
+            accel_m2_m_s2: self.out[self.n + 2 * self.oversampling + 6],
+        }
     }
 
     /// Back to rest at t = 0 with the noise generator reseeded.

@@ -2,11 +2,12 @@
 //! specified spectrum (the sensor's: as its conversions sample it) (DESIGN.md noise table, thesis eq 6-6..6-8, Table 7-2) in bands of
 //! at least a third of an octave and five bins.
 
+use daq_io::Truth;
 use lti::spectral::{welch, WelchConfig};
 use num_complex::Complex64 as C;
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::params::{NoiseParams, PlantParams};
-use plant_sim::{SensorSample, Simulator, Truth};
+use plant_sim::{SensorSample, Simulator};
 use std::f64::consts::PI;
 
 fn only(sensor: bool, current: bool, base: bool, accel: bool) -> PlantParams {

@@ -109,7 +109,7 @@ const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
 fields!(
     /// What the controller knew this tick (all SI; the reference and measurement in m): the
     /// tick's reference with the reading it acted on.
-    Telemetry {
+    TelemetryRecord {
     /// Reference position in m.
     reference_m,
     /// Measured position the tick acted on (ADC gap reading / sensitivity) in m.
@@ -125,11 +125,11 @@ fields!(
     /// Status flags of the tick ([`daq_io::flags`] bits) as a number.
     flags,
 });
-message!(Telemetry, "/telemetry", "fts_servo/msg/Telemetry");
+message!(TelemetryRecord, "/telemetry", "fts_servo/msg/Telemetry");
 
 fields!(
     /// What no sensor sees, at the same tick.
-    Truth {
+    TruthRecord {
     /// True tool position relative to the frame `x1 − xg` in m.
     tool_m,
     /// True positioning error `tool − reference` in m.
@@ -149,7 +149,7 @@ fields!(
     /// Sensor noise in the tick's reading in V.
     sensor_noise_v,
 });
-message!(Truth, "/truth", "fts_servo/msg/Truth");
+message!(TruthRecord, "/truth", "fts_servo/msg/Truth");
 
 /// One tick: both groups, stamped with the tick time (the MCAP log time of both messages).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -157,9 +157,9 @@ pub struct Frame {
     /// Tick time in ns of simulation time.
     pub time_ns: u64,
     /// Controller-side signals.
-    pub telemetry: Telemetry,
+    pub telemetry: TelemetryRecord,
     /// Ground truth.
-    pub truth: Truth,
+    pub truth: TruthRecord,
 }
 
 impl Frame {
@@ -169,7 +169,7 @@ impl Frame {
     pub fn join(t: &daq_io::Telemetry, truth: &daq_io::Truth) -> Frame {
         Frame {
             time_ns: (truth.time_s * 1e9).round() as u64,
-            telemetry: Telemetry {
+            telemetry: TelemetryRecord {
                 reference_m: t.reference_m as f32,
                 measured_m: t.measured_m as f32,
                 following_error_m: t.following_error_m as f32,
@@ -178,7 +178,7 @@ impl Frame {
                 accel_m_s2: t.accel_m_s2 as f32,
                 flags: (t.flags | truth.flags) as f32,
             },
-            truth: Truth {
+            truth: TruthRecord {
                 tool_m: known(truth, truth.tool_m),
                 // Without the controller's telemetry the tick's reference is not known.
                 true_error_m: if t.flags & daq_io::flags::NO_TELEMETRY != 0 {
@@ -213,14 +213,14 @@ pub(crate) const LEGACY_TELEMETRY_BYTES: usize = 4 + 6 * 4;
 /// The recorded telemetry of a recording made before contract v6 (no `controller_error_m`;
 /// the reference paired with the next reading): its five signals and flags, the controller's
 /// error taken as the following error.
-pub(crate) fn legacy_telemetry(data: &[u8]) -> Option<Telemetry> {
+pub(crate) fn legacy_telemetry(data: &[u8]) -> Option<TelemetryRecord> {
     let body = data.strip_prefix(&CDR_LE_HEADER[..])?;
     if data.len() != LEGACY_TELEMETRY_BYTES {
         return None;
     }
     let mut f = floats(body);
     let (reference_m, measured_m, following_error_m) = (f.next()?, f.next()?, f.next()?);
-    Some(Telemetry {
+    Some(TelemetryRecord {
         reference_m,
         measured_m,
         following_error_m,
@@ -237,7 +237,7 @@ mod tests {
 
     #[test]
     fn cdr_round_trip_and_layout() {
-        let t = Telemetry {
+        let t = TelemetryRecord {
             reference_m: 1.5,
             measured_m: -2e-9,
             flags: 4.0,
@@ -245,10 +245,12 @@ mod tests {
         };
         let mut buf = Vec::new();
         t.encode(&mut buf);
-        assert_eq!(buf.len(), 4 + 4 * Telemetry::FIELDS.len());
+        assert_eq!(buf.len(), 4 + 4 * TelemetryRecord::FIELDS.len());
         assert_eq!(&buf[4..8], &1.5f32.to_le_bytes());
-        assert_eq!(Telemetry::decode(&buf), Some(t));
-        assert!(Telemetry::schema_text().starts_with("float32 reference_m\nfloat32 measured_m\n"));
-        assert_eq!(Telemetry::decode(&buf[..12]), None);
+        assert_eq!(TelemetryRecord::decode(&buf), Some(t));
+        assert!(
+            TelemetryRecord::schema_text().starts_with("float32 reference_m\nfloat32 measured_m\n")
+        );
+        assert_eq!(TelemetryRecord::decode(&buf[..12]), None);
     }
 }

@@ -27,7 +27,7 @@ mod verify;
 pub mod writer;
 
 pub use error::{Kept, RecordError};
-pub use frame::{Frame, Message, Telemetry, Truth};
+pub use frame::{Frame, Message, TelemetryRecord, TruthRecord};
 pub use index::visit_indexed;
 pub use overview::{Overview, OverviewBin, Signals, OVERVIEW_PERIOD_NS};
 pub use placement::{

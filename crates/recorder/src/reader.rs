@@ -6,7 +6,7 @@
 //! official `mcap` crate reads the same files in the tests.
 
 use crate::fields::Fields;
-use crate::frame::{Frame, Message, Telemetry, Truth};
+use crate::frame::{Frame, Message, TelemetryRecord, TruthRecord};
 use crate::mcap_format::{op, MAGIC};
 use crate::overview::Overview;
 use crate::verify::{ChunkIndex, Counts, Ledger};
@@ -266,7 +266,7 @@ fn read_full(input: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
 pub(crate) struct Streamer {
     topics: BTreeMap<u16, String>,
     epoch_ns: u64,
-    pending: Option<(u32, u64, Telemetry)>,
+    pending: Option<(u32, u64, TelemetryRecord)>,
     messages: u64,
     frames: u64,
     last_time_ns: Option<u64>,
@@ -422,11 +422,11 @@ impl Streamer {
             }
         };
         match topic {
-            Telemetry::TOPIC => sized(&[
-                Telemetry::PAYLOAD_BYTES,
+            TelemetryRecord::TOPIC => sized(&[
+                TelemetryRecord::PAYLOAD_BYTES,
                 crate::frame::LEGACY_TELEMETRY_BYTES,
             ])?,
-            Truth::TOPIC => sized(&[Truth::PAYLOAD_BYTES])?,
+            TruthRecord::TOPIC => sized(&[TruthRecord::PAYLOAD_BYTES])?,
             Overview::TOPIC => sized(&[Overview::PAYLOAD_BYTES])?,
             _ => {}
         }
@@ -436,16 +436,16 @@ impl Streamer {
         }));
         visit.message(topic, sequence, time_ns, data);
         match topic {
-            Telemetry::TOPIC => {
+            TelemetryRecord::TOPIC => {
                 self.messages += 1;
-                self.pending = Telemetry::decode(data)
+                self.pending = TelemetryRecord::decode(data)
                     .or_else(|| crate::frame::legacy_telemetry(data))
                     .map(|t| (sequence, time_ns, t));
             }
-            Truth::TOPIC => {
+            TruthRecord::TOPIC => {
                 self.messages += 1;
                 if let (Some((seq, time_ns, telemetry)), Some(truth)) =
-                    (self.pending.take(), Truth::decode(data))
+                    (self.pending.take(), TruthRecord::decode(data))
                 {
                     if seq == sequence {
                         self.frames += 1;

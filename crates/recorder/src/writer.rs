@@ -19,7 +19,7 @@
 //! [`SYNC_INTERVAL`] and one sync's duration more. The reader recovers the rest.
 
 use crate::error::{Kept, RecordError};
-use crate::frame::{Frame, Message, Telemetry, Truth};
+use crate::frame::{Frame, Message, TelemetryRecord, TruthRecord};
 use crate::mcap_file::McapFile;
 use crate::overview::{Overview, OverviewBin};
 use crate::placement::{check_target, create_private, partial_path, publish, Overwrite};
@@ -215,8 +215,8 @@ impl Opening {
     /// `environment` records, the attachments; then the first point a failed write goes
     /// back to.
     fn records(&self, w: &mut McapFile<File>) -> std::io::Result<()> {
-        register::<Telemetry>(w, TELEMETRY_CH);
-        register::<Truth>(w, TRUTH_CH);
+        register::<TelemetryRecord>(w, TELEMETRY_CH);
+        register::<TruthRecord>(w, TRUTH_CH);
         register::<Overview>(w, OVERVIEW_CH);
         w.metadata("run", &self.run)?;
         w.metadata("environment", &self.environment)?;

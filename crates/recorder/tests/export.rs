@@ -6,7 +6,7 @@ use crate::common;
 
 use common::{frames, tmp, write};
 use recorder::export::{export, Format, Selection};
-use recorder::{Overwrite, Telemetry};
+use recorder::{Overwrite, TelemetryRecord};
 use std::io::Read;
 
 /// The arrays of an `.npz`: name → (dtype, raw little-endian values).
@@ -85,7 +85,7 @@ fn csv_window_and_decimation_keep_the_right_ticks() {
     let text = std::fs::read_to_string(&out).unwrap();
     let mut lines = text.lines();
     let header: Vec<_> = lines.next().unwrap().split(',').collect();
-    assert_eq!(header.len(), 1 + Telemetry::FIELDS.len());
+    assert_eq!(header.len(), 1 + TelemetryRecord::FIELDS.len());
     let kept: Vec<_> = data
         .iter()
         .filter(|f| (0.01..=0.03).contains(&(f.time_ns as f64 * 1e-9)))

@@ -185,7 +185,7 @@ impl Machining {
     /// on the practice stage of `run`, its hidden ones.
     pub fn tool_setting_m(&self, run: &super::RunSection) -> [f64; 2] {
         let hidden = run.practice_seed.map_or([0.0; 2], |seed| {
-            plant_sim::practice::PracticeTruth::draw(
+            plant_sim::practice::PracticeDraw::draw(
                 seed,
                 &plant_sim::PlantParams::default().stage,
                 run.practice_effects,

@@ -83,9 +83,9 @@ pub struct SummaryBuilder {
     saturated: u64,
     adc_clipped: u64,
     /// The telemetry of the frame before the last one added.
-    before: recorder::Telemetry,
+    before: recorder::TelemetryRecord,
     /// The first tripped frame: its cause, time and the telemetry before it.
-    trip: Option<(TripCause, u64, recorder::Telemetry)>,
+    trip: Option<(TripCause, u64, recorder::TelemetryRecord)>,
 }
 
 impl SummaryBuilder {

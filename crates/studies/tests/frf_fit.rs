@@ -8,7 +8,7 @@ use crate::common;
 
 use num_complex::Complex64;
 use plant_sim::modes::ModeSite;
-use plant_sim::practice::PracticeTruth;
+use plant_sim::practice::PracticeDraw;
 use run_config::frf_file::{AccelFrf, MeasuredFrf};
 use run_config::Loaded;
 use runner::closed_loop::ClosedLoop;
@@ -47,7 +47,7 @@ fn measure(seed: u64) -> MeasuredFrf {
 fn a_practice_stage_is_fitted_within_its_uncertainty_and_its_mount_is_named() {
     for seed in [7, 2026, 2027] {
         let frf = measure(seed);
-        let truth = PracticeTruth::draw(seed, &Default::default(), common::STEADY);
+        let truth = PracticeDraw::draw(seed, &Default::default(), common::STEADY);
         // The model knows the drawn stage, not its modes.
         let mut model = Loaded::default();
         model.config.plant.stage = truth.stage;

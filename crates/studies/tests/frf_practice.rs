@@ -1,6 +1,6 @@
 //! `servo frf` in process measures the stage the run simulates: with `[run] practice_seed` set
 //! it is the practice stage (a ±15 % draw of Table 5-2 and a sensor-mount resonance, hidden),
-//! not the configured model. Judged against the draw itself (`PracticeTruth::draw`): the
+//! not the configured model. Judged against the draw itself (`PracticeDraw::draw`): the
 //! measured open-loop response is the drawn stage's exact model with its modes, and around the
 //! suspension resonance it is far from the configured one. The suspension drift is off here: a
 //! stage that changes during the measurement has no one response to be judged against.
@@ -9,7 +9,7 @@ use crate::common;
 
 use common::{plan, STEADY};
 use num_complex::Complex64;
-use plant_sim::practice::PracticeTruth;
+use plant_sim::practice::PracticeDraw;
 use run_config::Loaded;
 use studies::frf::{FrfLoop, FrfPoint, FrfSettings};
 
@@ -35,7 +35,7 @@ fn the_practice_stage_is_measured_not_the_model() {
         let on_practice = common::open_loop_frf(&plan(&practice), &freqs);
         // The drawn stage, configured as the model: its model is the truth's exact response.
         let mut drawn = Loaded::default();
-        let truth = PracticeTruth::draw(seed, &drawn.config.plant.stage, STEADY);
+        let truth = PracticeDraw::draw(seed, &drawn.config.plant.stage, STEADY);
         drawn.config.plant.stage = truth.stage;
         drawn.config.plant.modes = truth.modes();
         let on_drawn = common::open_loop_frf(&plan(&drawn), &freqs);
@@ -79,7 +79,7 @@ fn the_stated_uncertainty_covers_the_truth_at_its_rate() {
     let plan = plan(&practice);
     // The truth: the drawn stage's model with its modes (its exact sampled response).
     let mut drawn = Loaded::default();
-    let truth = PracticeTruth::draw(SEED, &drawn.config.plant.stage, STEADY);
+    let truth = PracticeDraw::draw(SEED, &drawn.config.plant.stage, STEADY);
     drawn.config.plant.stage = truth.stage;
     drawn.config.plant.modes = truth.modes();
     let truth_plan = common::plan(&drawn);

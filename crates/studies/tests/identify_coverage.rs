@@ -12,7 +12,7 @@
 
 use crate::common;
 use num_complex::Complex64;
-use plant_sim::practice::PracticeTruth;
+use plant_sim::practice::PracticeDraw;
 use run_config::Loaded;
 
 #[test]
@@ -32,7 +32,7 @@ fn the_stated_uncertainty_holds_the_drawn_values_at_its_rate() {
             .map(|p| Complex64::from_polar(p.magnitude, p.phase_deg.to_radians()))
             .collect();
         let id = studies::identify::identify(&model, &measured_at, &measured).unwrap();
-        let truth = PracticeTruth::draw(seed, &Default::default(), common::STEADY);
+        let truth = PracticeDraw::draw(seed, &Default::default(), common::STEADY);
         let drawn = studies::identify::table_5_2(&truth.stage);
         let mount = id
             .extra_modes

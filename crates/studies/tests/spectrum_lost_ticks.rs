@@ -44,7 +44,7 @@ fn spectrum_of(skipped: &[u64], no_telemetry: &[u64]) -> Result<(), String> {
         f.telemetry.control_v = v * 1e6;
         f.truth.true_error_m = v;
         if no_telemetry.contains(&k) {
-            f.telemetry = recorder::Telemetry {
+            f.telemetry = recorder::TelemetryRecord {
                 flags: daq_io::flags::NO_TELEMETRY as f32,
                 ..Default::default()
             };

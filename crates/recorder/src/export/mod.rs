@@ -9,7 +9,7 @@ mod csv;
 mod npz;
 
 use crate::error::RecordError;
-use crate::frame::{Frame, Message, Telemetry, Truth};
+use crate::frame::{Frame, Message, TelemetryRecord, TruthRecord};
 use crate::overview::{Overview, Signals};
 use crate::placement::Overwrite;
 use crate::reader::{stream, ReadError, ReadReport, Visit};
@@ -135,14 +135,14 @@ impl Selection {
             let mut c = vec![col("time_s".into(), Kind::F64)];
             if self.telemetry {
                 c.extend(
-                    Telemetry::FIELDS
+                    TelemetryRecord::FIELDS
                         .iter()
                         .map(|f| col(format!("telemetry.{f}"), Kind::F32)),
                 );
             }
             if self.truth {
                 c.extend(
-                    Truth::FIELDS
+                    TruthRecord::FIELDS
                         .iter()
                         .map(|f| col(format!("truth.{f}"), Kind::F32)),
                 );

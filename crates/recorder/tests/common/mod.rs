@@ -1,7 +1,7 @@
 //! What the recorder tests share: synthetic frames, a scratch folder, writing a recording.
 #![allow(dead_code)] // each test file uses a part
 
-use recorder::{Frame, RecordOptions, Recorder, Telemetry, Truth};
+use recorder::{Frame, RecordOptions, Recorder, TelemetryRecord, TruthRecord};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -11,7 +11,7 @@ pub fn frames(n: usize) -> Vec<Frame> {
             let t = k as f64 / 199_600.0;
             Frame {
                 time_ns: (t * 1e9).round() as u64,
-                telemetry: Telemetry {
+                telemetry: TelemetryRecord {
                     reference_m: (1e-9 * libm::sin(t * 300.0)) as f32,
                     measured_m: k as f32 * 1e-12,
                     following_error_m: -1e-10,
@@ -20,7 +20,7 @@ pub fn frames(n: usize) -> Vec<Frame> {
                     accel_m_s2: 0.0,
                     flags: (k % 3) as f32,
                 },
-                truth: Truth {
+                truth: TruthRecord {
                     tool_m: 2e-9,
                     cutting_force_n: 1.0,
                     ..Default::default()
