@@ -25,13 +25,7 @@ impl Simulator {
     ) -> Sensor {
         let (s, t) = self.step_changed(dac_v, extra_force_n, change);
         self.last_truth = t;
-        Sensor {
-            time_s: s.time_s,
-            gap_v: s.gap_v,
-            accel_v: s.accel_v,
-            flags: s.flags,
-            ..Default::default()
-        }
+        s
     }
 }
 
@@ -65,10 +59,7 @@ mod tests {
             let dac_v = 0.01 * libm::sin(f64::from(k) * 0.1);
             let (s, t) = plain.step(dac_v);
             let r = Backend::step(&mut backend, dac_v);
-            assert_eq!(
-                (r.time_s, r.gap_v, r.accel_v, r.flags),
-                (s.time_s, s.gap_v, s.accel_v, s.flags)
-            );
+            assert_eq!(r, s);
             assert_eq!(Backend::truth(&backend), Some(t));
         }
     }

@@ -25,4 +25,4 @@ mod tick_matrix;
 
 pub use model::PlantModel;
 pub use params::PlantParams;
-pub use sim::{LinearTick, SensorSample, Simulator, StageMotion};
+pub use sim::{LinearTick, Simulator, StageMotion};

@@ -19,28 +19,9 @@ use crate::quantisation::{averaged_rounding_error, ConversionGrid};
 use crate::sampled_noise::SampledNoise;
 use crate::sensor_noise::SensorNoise;
 use crate::tick_matrix::TickMatrix;
-use daq_io::{flags, Truth};
+use daq_io::{flags, Sensor, Truth};
 use lti::zoh;
 use nalgebra::DMatrix;
-
-/// What the controller sees at the end of a tick: averaged ADC readings.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct SensorSample {
-    /// Index of the tick this sample closes (1 for the first [`Simulator::step`]).
-    pub tick: u64,
-    /// Time of the tick in s.
-    pub time_s: f64,
-    /// Capacitive sensor reading in V (mean of the oversampled conversions).
-    pub gap_v: f64,
-    /// Accelerometer reading in V.
-    pub accel_v: f64,
-    /// Sum of the gap channel's ADC codes over the oversampled conversions (0: ideal ADC).
-    pub gap_code_sum: i32,
-    /// Sum of the accelerometer channel's ADC codes.
-    pub accel_code_sum: i32,
-    /// [`daq_io::flags`] bits (the converters': ADC/DAC clipping, non-finite command).
-    pub flags: u32,
-}
 
 /// How the stage's masses move at the end of the last tick (what the truth record,
 /// [`daq_io::Truth`], leaves out).
@@ -472,17 +453,19 @@ impl Simulator {
     }
 
     /// Runs one tick: `command_v` goes to the DAC now and reaches the coil τ later. Returns the
-    /// ADC sample closing the tick (the controller's next input) and the truth at that time
-    /// (`seq` and `flags` 0: the transport's); [`Simulator::motion`] has the masses' motion.
+    /// ADC readings closing the tick (the controller's next input: the mean of the oversampled
+    /// conversions, the converters' flags) and the truth at that time, as the sample contract
+    /// has them (`seq`, the encoder count and the run's identity left to the transport);
+    /// [`Simulator::motion`] has the masses' motion.
     #[inline]
-    pub fn step(&mut self, command_v: f64) -> (SensorSample, Truth) {
+    pub fn step(&mut self, command_v: f64) -> (Sensor, Truth) {
         self.step_with_force(command_v, 0.0)
     }
 
     /// [`Simulator::step`] with `extra_force_n` (N, positive away from the workpiece, held over
     /// the tick) added to the configured cutting profile: the force of a cut the caller
     /// models (a freeform surface at the spindle position).
-    pub fn step_with_force(&mut self, command_v: f64, extra_force_n: f64) -> (SensorSample, Truth) {
+    pub fn step_with_force(&mut self, command_v: f64, extra_force_n: f64) -> (Sensor, Truth) {
         self.step_changed(command_v, extra_force_n, CommandChange::NONE)
     }
 
@@ -495,7 +478,7 @@ impl Simulator {
         command_v: f64,
         extra_force_n: f64,
         change: CommandChange,
-    ) -> (SensorSample, Truth) {
+    ) -> (Sensor, Truth) {
         let mut flag = 0;
         let (u_now, _, clipped) = self.dac_q.convert(command_v);
         let u_now = if command_v.is_finite() {
@@ -536,7 +519,7 @@ impl Simulator {
         }
         self.tick_matrix.apply(&self.z, &mut self.out);
         // Conversions inside the tick (rows n.. of the product), with sensor noise on the gap.
-        let (mut gap_sum, mut acc_sum, mut noise_sum) = (0i32, 0i32, 0.0);
+        let mut noise_sum = 0.0;
         let (mut gap_v, mut acc_v) = (0.0, 0.0);
         for j in 0..self.oversampling {
             let noise = match &mut self.sensor_noise {
@@ -544,11 +527,9 @@ impl Simulator {
                 None => 0.0,
             };
             noise_sum += noise;
-            let (gv, g, gc) = self.adc_q.convert(self.out[n + 2 * j] + noise);
-            let (av, a, ac) = self.adc_q.convert(self.out[n + 2 * j + 1]);
+            let (gv, _, gc) = self.adc_q.convert(self.out[n + 2 * j] + noise);
+            let (av, _, ac) = self.adc_q.convert(self.out[n + 2 * j + 1]);
             (gap_v, acc_v) = (gap_v + gv, acc_v + av);
-            gap_sum += g;
-            acc_sum += a;
             flag |=
                 if gc { flags::GAP_CLIPPED } else { 0 } | if ac { flags::ACCEL_CLIPPED } else { 0 };
         }
@@ -557,14 +538,12 @@ impl Simulator {
         self.tick += 1;
 
         let k = self.oversampling as f64;
-        let sample = SensorSample {
-            tick: self.tick,
+        let sample = Sensor {
             time_s: self.tick as f64 * self.period_s,
             gap_v: gap_v / k,
             accel_v: acc_v / k,
-            gap_code_sum: gap_sum,
-            accel_code_sum: acc_sum,
             flags: flag,
+            ..Default::default()
         };
         let tr = &self.out[n + 2 * self.oversampling..];
         // The coil model's current comes from its ODE (the matrix saw sub-step means).

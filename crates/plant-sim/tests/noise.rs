@@ -2,12 +2,12 @@
 //! specified spectrum (the sensor's: as its conversions sample it) (DESIGN.md noise table, thesis eq 6-6..6-8, Table 7-2) in bands of
 //! at least a third of an octave and five bins.
 
-use daq_io::Truth;
+use daq_io::{Sensor, Truth};
 use lti::spectral::{welch, WelchConfig};
 use num_complex::Complex64 as C;
 use plant_sim::cutting::CuttingProfile;
 use plant_sim::params::{NoiseParams, PlantParams};
-use plant_sim::{SensorSample, Simulator};
+use plant_sim::Simulator;
 use std::f64::consts::PI;
 
 fn only(sensor: bool, current: bool, base: bool, accel: bool) -> PlantParams {
@@ -23,12 +23,7 @@ fn only(sensor: bool, current: bool, base: bool, accel: bool) -> PlantParams {
 }
 
 /// Runs `n` ticks at zero command after `skip` ticks and records `pick`.
-fn record(
-    p: &PlantParams,
-    n: usize,
-    skip: usize,
-    pick: fn(&SensorSample, &Truth) -> f64,
-) -> Vec<f64> {
+fn record(p: &PlantParams, n: usize, skip: usize, pick: fn(&Sensor, &Truth) -> f64) -> Vec<f64> {
     let mut sim = Simulator::new(p, 2024, &CuttingProfile::None).unwrap();
     for _ in 0..skip {
         sim.step(0.0);

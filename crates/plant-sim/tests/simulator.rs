@@ -41,7 +41,7 @@ fn measured(
     f_cycles: usize,
     n: usize,
     settle: usize,
-    channel: fn(&plant_sim::SensorSample) -> f64,
+    channel: fn(&daq_io::Sensor) -> f64,
 ) -> C {
     let mut sim = Simulator::new(p, 1, &CuttingProfile::None).unwrap();
     let w = 2.0 * PI * f_cycles as f64 / n as f64;
