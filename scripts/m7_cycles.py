@@ -234,9 +234,9 @@ def systick_accesses(asm: dict[int, tuple[str, str]], handler: set[int]) -> set[
         mnem, ops = asm.get(pc, ("", ""))
         imm = ops.replace("0xe018", "57368").replace("0xe000", "57344")
         regs = registers(ops)
-        if mnem.startswith(("ldr", "str")) and "[" in ops:
-            if registers(ops[ops.index("["):])[:1] and registers(ops[ops.index("["):])[0] in held:
-                out.add(pc)
+        base = registers(ops[ops.index("["):])[:1] if "[" in ops else []
+        if mnem.startswith(("ldr", "str")) and base and base[0] in held:
+            out.add(pc)
         if mnem.startswith("movw") and f"#{SYSTICK_CVR[0]}" in imm:
             held.discard(regs[0])
             low.add(regs[0])

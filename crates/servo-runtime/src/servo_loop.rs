@@ -52,8 +52,6 @@ pub(crate) struct ServoLoop {
     last_saturated: bool,
     /// The command came out non-finite once (latched like a block fault).
     output_fault: bool,
-    /// The protection flags of the last command.
-    last_trip_flags: u32,
     protection: Protection,
     gain_scale: f64,
     sensitivity: f64,
@@ -92,7 +90,6 @@ impl ServoLoop {
         last_u: 0.0,
         last_saturated: false,
         output_fault: false,
-        last_trip_flags: 0,
         protection: Protection::OFF,
         gain_scale: 1.0,
         sensitivity: 1.0,
@@ -140,7 +137,7 @@ impl ServoLoop {
         }
         (self.primed, self.next_seq) = (Primed::No, 0);
         (self.last_u, self.last_saturated) = (0.0, false);
-        (self.output_fault, self.last_trip_flags) = (false, 0);
+        self.output_fault = false;
         self.protection = Protection::new(&d.protection, d.servo_rate_hz, d.stage.dc_gain_m_per_v);
         self.gain_scale = 1.0;
         self.sensitivity = d.stage.gap_sensitivity_v_per_m;
@@ -208,7 +205,6 @@ impl ServoLoop {
         self.controller.reset();
         self.feedforward.reset();
         self.output_fault = false;
-        self.last_trip_flags = 0;
         self.rearm = true;
     }
 
@@ -320,9 +316,8 @@ impl ServoLoop {
         };
         let faulted = fault.is_some();
         self.last_u = u;
-        self.last_trip_flags = self.protection.flags();
         let controller_flags =
-            if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.last_trip_flags;
+            if faulted { flags::FAULT_CONTROLLER } else { 0 } | self.protection.flags();
         let saturated = libm::fabs(u) >= self.controller.limit_v();
         self.last_saturated = saturated;
         *telemetry = Telemetry {
