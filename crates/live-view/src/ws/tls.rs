@@ -86,12 +86,18 @@ impl Tls {
             why: e.to_string(),
         };
         let provider = Arc::new(rustls::crypto::ring::default_provider());
-        let config = rustls::ServerConfig::builder_with_provider(provider)
+        let mut config = rustls::ServerConfig::builder_with_provider(provider)
             .with_safe_default_protocol_versions()
             .map_err(rejected)?
             .with_no_client_auth()
             .with_single_cert(chain, key_der)
             .map_err(rejected)?;
+        // No TLS 1.3 session tickets: a view has a few long-lived clients, so resumption saves
+        // nothing, and a ticket arriving while a client sends its upgrade request loses that
+        // request in clients that read and write one TLS connection from two threads (Python's
+        // `websockets.sync` client: about one connection in twenty stalled until the 5 s
+        // handshake limit).
+        config.send_tls13_tickets = 0;
         Ok(Tls {
             config: Arc::new(config),
             fingerprint,
@@ -268,6 +274,7 @@ mod tests {
     use super::*;
     use crate::ws::{Front, FrontOptions};
     use rustls::client::danger::{HandshakeSignatureValid, ServerCertVerified, ServerCertVerifier};
+    use rustls::client::{ClientSessionMemoryCache, ClientSessionStore, Resumption};
     use rustls::pki_types::{ServerName, UnixTime};
     use rustls::{DigitallySignedStruct, SignatureScheme};
     use std::net::TcpStream;
@@ -391,6 +398,16 @@ mod tests {
         pin: &str,
         token: &str,
     ) -> tungstenite::Result<tungstenite::WebSocket<Secure>> {
+        connect_keeping_tickets(port, pin, token, Arc::new(ClientSessionMemoryCache::new(8)))
+    }
+
+    /// [`connect`], keeping the session tickets the server sends in `tickets`.
+    fn connect_keeping_tickets(
+        port: u16,
+        pin: &str,
+        token: &str,
+        tickets: Arc<ClientSessionMemoryCache>,
+    ) -> tungstenite::Result<tungstenite::WebSocket<Secure>> {
         let provider = Arc::new(rustls::crypto::ring::default_provider());
         let verifier = Arc::new(Pinned {
             fingerprint: pin.to_owned(),
@@ -402,6 +419,8 @@ mod tests {
             .dangerous()
             .with_custom_certificate_verifier(verifier)
             .with_no_client_auth();
+        let mut config = config;
+        config.resumption = Resumption::store(tickets);
         let name = ServerName::try_from("localhost").unwrap();
         let connection = rustls::ClientConnection::new(Arc::new(config), name).unwrap();
         let tcp = TcpStream::connect(("127.0.0.1", port))?;
@@ -423,7 +442,7 @@ mod tests {
     }
 
     /// A front with an identity: a client pinned to its fingerprint with the token reads the
-    /// server's info over TLS; the wrong token is refused (401, inside TLS); a client pinned to
+    /// server's info over TLS and was sent no session ticket; the wrong token is refused (401, inside TLS); a client pinned to
     /// another certificate does not get through the TLS handshake; a cleartext WebSocket client
     /// gets no handshake.
     #[test]
@@ -448,12 +467,17 @@ mod tests {
         )
         .unwrap();
         let port = front.port();
-        let mut ws = connect(port, &pin, "secret").unwrap();
+        let tickets = Arc::new(ClientSessionMemoryCache::new(8));
+        let mut ws = connect_keeping_tickets(port, &pin, "secret", tickets.clone()).unwrap();
         match ws.read().unwrap() {
             tungstenite::Message::Text(t) => assert!(t.contains("serverInfo"), "{t}"),
             other => panic!("{other:?}"),
         }
         drop(ws);
+        // No session tickets (they precede the upgrade's answer, so they would be here):
+        // see `Tls::from_pem_files`.
+        let localhost = ServerName::try_from("localhost").unwrap();
+        assert!(tickets.take_tls13_ticket(&localhost).is_none());
         match connect(port, &pin, "guess") {
             Err(tungstenite::Error::Http(r)) => assert_eq!(r.status(), 401),
             other => panic!("a wrong token: {:?}", other.map(|_| ())),
