@@ -2,6 +2,7 @@
 //! so a flag it would ignore is a clap error, not a silent no-op. Each group applies itself on
 //! top of the configuration: defaults, then the `--config` file, then the flags.
 
+use crate::choice::{choice, name_of};
 use clap::Args;
 use plant_sim::params::NoiseParams;
 use run_config::presets::{ScenarioKind, ScenarioValues, StagePreset};
@@ -23,7 +24,7 @@ pub struct PlantArgs {
     #[arg(long, conflicts_with = "mass")]
     pub plant: Option<PathBuf>,
     /// Stage preset (replaces [plant.stage]).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<StagePreset>())]
     pub mass: Option<StagePreset>,
     /// Noise sources on: comma list of sensor,current,base,accel, or `none` / `all`.
     #[arg(long)]
@@ -45,8 +46,7 @@ impl PlantArgs {
             out += &format!(" --rate {r}");
         }
         if let Some(m) = self.mass {
-            let name = clap::ValueEnum::to_possible_value(&m).map(|v| v.get_name().to_owned());
-            out += &format!(" --mass {}", name.unwrap_or_default());
+            out += &format!(" --mass {}", name_of(&m));
         }
         if let Some(n) = &self.noise {
             out += &format!(" --noise {n}");
@@ -124,7 +124,7 @@ impl AccelArgs {
 #[derive(Args, Debug, Clone)]
 pub struct ControllerArgs {
     /// Controller.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<ControllerKind>())]
     pub controller: Option<ControllerKind>,
     /// Acceleration feedback gain Ka (V/V), for --controller accel.
     #[arg(value_parser = crate::args::finite, long)]
@@ -159,7 +159,7 @@ impl ControllerArgs {
 #[derive(Args, Debug, Clone)]
 pub struct FeedforwardArgs {
     /// Feedforward from the reference.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<FeedforwardKind>())]
     pub feedforward: Option<FeedforwardKind>,
     /// Zero-phase smoothing of the previewed reference in Hz (Hann window; 0 = off), for
     /// surfaces with kinks or steps.
@@ -248,7 +248,7 @@ fn from_working_dir(path: &Path, config_file: Option<&Path>) -> PathBuf {
 #[derive(Args, Debug, Clone)]
 pub struct ScenarioArgs {
     /// Scenario.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<ScenarioKind>())]
     pub scenario: Option<ScenarioKind>,
     /// Reference amplitude in m (sine, step, chirp).
     #[arg(value_parser = crate::args::finite, long)]
@@ -513,7 +513,7 @@ pub struct RealtimeArgs {
     #[arg(long)]
     pub lock_memory: bool,
     /// How plant and controller wait for each tick.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<run_config::WaitKind>())]
     pub wait: Option<run_config::WaitKind>,
     /// With --wait sleep-spin: spin this long before each tick, µs.
     #[arg(value_parser = crate::args::finite, long)]

@@ -6,6 +6,7 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 mod args;
+mod choice;
 mod commands;
 mod interrupt;
 mod output;

@@ -313,7 +313,6 @@ impl ControllerConfig {
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, schemars::JsonSchema,
 )]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum FeedforwardKind {
     /// Feedback only (the thesis's experiments).

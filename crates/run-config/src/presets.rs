@@ -1,14 +1,16 @@
 //! Thesis presets a user picks by name: the two stage masses, the reference scenarios and the
-//! machined surfaces of Chapter 8 with the spindle speed each was cut at. With the `clap`
-//! feature these enums are command-line value lists (their doc comments are the help).
+//! machined surfaces of Chapter 8 with the spindle speed each was cut at. Each serializes as
+//! its kebab-case name (`intermittent-cut`), the name the command line takes.
 
 use super::{Machining, Scenario, SurfaceConfig};
 use plant_sim::params::StageParams;
 use std::path::PathBuf;
 
 /// The stage masses of the thesis.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "kebab-case")]
 pub enum StagePreset {
     /// 0.074 kg moving mass (Table 5-2).
     Light,
@@ -27,8 +29,10 @@ impl StagePreset {
 }
 
 /// Scenario kinds, each with thesis defaults for the values not given.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "kebab-case")]
 pub enum ScenarioKind {
     /// Hold position (§5.7.3).
     Hold,
@@ -104,8 +108,10 @@ impl ScenarioKind {
 }
 
 /// The surfaces machined in the thesis (Tables 8-3 … 8-6).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "kebab-case")]
 pub enum SurfacePreset {
     /// Flat face, 2 µm/rev (Table 8-2; 250 rpm): the roughness test of §8.5.1.
     Flat,

@@ -2,6 +2,7 @@
 //! the transport on any plant serving a prefix — beside the model.
 
 use crate::args::{ControllerArgs, PlantArgs};
+use crate::choice::choice;
 use crate::output::{points_bar, print_json, print_written, CliError};
 use clap::Args;
 use runner::remote_plant::RemotePlant;
@@ -31,7 +32,7 @@ pub struct FrfCmd {
     #[arg(long)]
     seed: Option<u64>,
     /// Which loop.
-    #[arg(long = "loop", value_enum, default_value = "open")]
+    #[arg(long = "loop", value_parser = choice::<FrfLoop>(), default_value = "open")]
     which: FrfLoop,
     /// Lowest frequency in Hz.
     #[arg(value_parser = crate::args::finite, long, default_value_t = 10.0)]
@@ -48,7 +49,7 @@ pub struct FrfCmd {
     #[arg(value_parser = crate::args::finite, long)]
     amplitude: Option<f64>,
     /// Stepped sine (§5.5.1) or a repeated exponential chirp with a Welch H1 estimate.
-    #[arg(long, value_enum, default_value = "stepped")]
+    #[arg(long, value_parser = choice::<FrfMethod>(), default_value = "stepped")]
     method: FrfMethod,
     /// Output directory for CSV, JSON, PNG and SVG.
     #[arg(long, default_value = "frf")]

@@ -3,6 +3,7 @@
 //! survives the stalls measured.
 
 use crate::args::RtPolicy;
+use crate::choice::choice;
 use crate::output::{print_json, tick_bar, CliError};
 use clap::Args;
 use run_config::{Loaded, Origin, RealtimeConfig, Role, WaitKind};
@@ -33,7 +34,7 @@ pub struct LatencyCmd {
     #[arg(value_parser = crate::args::finite, long, default_value_t = 5.0)]
     duration: f64,
     /// How each tick waits for its deadline.
-    #[arg(long, value_enum, default_value_t = WaitKind::Spin)]
+    #[arg(long, value_parser = choice::<WaitKind>(), default_value = "spin")]
     wait: WaitKind,
     /// With --wait sleep-spin: spin this long before each deadline, in µs (0 – 10 000).
     #[arg(value_parser = crate::args::finite, long, default_value_t = 50.0)]

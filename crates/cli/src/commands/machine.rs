@@ -2,6 +2,7 @@
 
 use super::run::with_progress;
 use crate::args::{ControllerArgs, FeedforwardArgs, PlantArgs, RecordingArgs, RunLengthArgs};
+use crate::choice::choice;
 use crate::interrupt::stop_on_signals;
 use crate::output::{print_json, print_summary, print_written, CliError};
 use clap::Args;
@@ -32,7 +33,7 @@ pub struct MachineCmd {
     #[command(flatten)]
     recording: RecordingArgs,
     /// Surface (default: the configured one, else the sinusoidal grid of Table 8-5).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<SurfacePreset>())]
     surface: Option<SurfacePreset>,
     /// Greyscale PNG height map for --surface image.
     #[arg(long)]

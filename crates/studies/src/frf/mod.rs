@@ -18,8 +18,10 @@ use serde::Serialize;
 use servo_core::{Block, SteppedSineConfig};
 
 /// Which loop is measured.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "kebab-case")]
 pub enum FrfLoop {
     /// No controller: DAC command → measured position.
     Open,
@@ -156,8 +158,10 @@ impl FrfSettings {
 }
 
 /// How the FRF is measured.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "kebab-case")]
 pub enum FrfMethod {
     /// One frequency at a time, exact-bin DFT, block coherence (§5.5.1).
     Stepped,
