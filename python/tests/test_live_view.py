@@ -148,8 +148,8 @@ def test_a_view_beyond_loopback_speaks_tls_to_a_pinned_certificate(tmp_path: Pat
     """Beyond loopback the view serves wss:// with a self-signed certificate made on first use
     (in XDG_CONFIG_HOME) and prints its SHA-256 fingerprint after the URL. Python's ssl pins it:
     the certificate fetched, its fingerprint compared with the printed one, then trusted alone.
-    With the token forty clients in a row each read the server's info; a wrong token is refused (401, inside
-    TLS); a cleartext client gets no WebSocket handshake."""
+    With the token forty clients in a row each read the server's info; a wrong token is refused
+    (401, inside TLS); a cleartext client gets no WebSocket handshake."""
     import hashlib
     import ssl
 

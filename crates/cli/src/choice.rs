@@ -25,24 +25,20 @@ pub fn name_of<T: Serialize>(value: &T) -> String {
     }
 }
 
-/// `T`'s names with their help: the schema's `oneOf` of documented constants, or its `enum`.
+/// `T`'s names with their help: the schema's `oneOf`, a documented constant per variant (the
+/// workspace denies missing docs, so every variant has its description).
 fn possible_values<T: JsonSchema>() -> Vec<PossibleValue> {
     let schema = serde_json::to_value(schemars::schema_for!(T)).unwrap_or_default();
     let named = |v: &Value| -> Option<PossibleValue> {
-        let name = v.get("const").or_else(|| v.get("enum")?.get(0))?.as_str()?;
+        let name = v.get("const")?.as_str()?;
         let value = PossibleValue::new(name.to_owned());
         Some(match v.get("description").and_then(Value::as_str) {
             Some(doc) => value.help(first_paragraph(doc)),
             None => value,
         })
     };
-    match (schema.get("oneOf"), schema.get("enum")) {
-        (Some(Value::Array(variants)), _) => variants.iter().filter_map(named).collect(),
-        (_, Some(Value::Array(names))) => names
-            .iter()
-            .filter_map(Value::as_str)
-            .map(|n| PossibleValue::new(n.to_owned()))
-            .collect(),
+    match schema.get("oneOf") {
+        Some(Value::Array(variants)) => variants.iter().filter_map(named).collect(),
         _ => Vec::new(),
     }
 }

@@ -413,13 +413,12 @@ mod tests {
             fingerprint: pin.to_owned(),
             provider: provider.clone(),
         });
-        let config = rustls::ClientConfig::builder_with_provider(provider)
+        let mut config = rustls::ClientConfig::builder_with_provider(provider)
             .with_safe_default_protocol_versions()
             .unwrap()
             .dangerous()
             .with_custom_certificate_verifier(verifier)
             .with_no_client_auth();
-        let mut config = config;
         config.resumption = Resumption::store(tickets);
         let name = ServerName::try_from("localhost").unwrap();
         let connection = rustls::ClientConnection::new(Arc::new(config), name).unwrap();
@@ -442,9 +441,9 @@ mod tests {
     }
 
     /// A front with an identity: a client pinned to its fingerprint with the token reads the
-    /// server's info over TLS and was sent no session ticket; the wrong token is refused (401, inside TLS); a client pinned to
-    /// another certificate does not get through the TLS handshake; a cleartext WebSocket client
-    /// gets no handshake.
+    /// server's info over TLS and was sent no session ticket; the wrong token is refused (401,
+    /// inside TLS); a client pinned to another certificate does not get through the TLS
+    /// handshake; a cleartext WebSocket client gets no handshake.
     #[test]
     fn a_tls_front_serves_only_the_pinned_certificate_and_the_token() {
         let scratch = tempfile::tempdir().unwrap();
