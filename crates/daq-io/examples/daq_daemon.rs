@@ -93,7 +93,7 @@ impl Backend for FakeHardware {
     }
 
     fn step(&mut self, dac_v: f64) -> Sensor {
-        let (out_v, _, dac_clipped) = self.dac.convert(dac_v);
+        let (out_v, dac_clipped) = self.dac.convert(dac_v);
         let w = 2.0 * std::f64::consts::PI * Self::F_N_HZ;
         let dt = 1.0 / RATE_HZ;
         // Semi-implicit Euler is plenty for a stand-in (w·dt = 0.025).
@@ -101,7 +101,7 @@ impl Backend for FakeHardware {
         self.v_m_s += a * dt;
         self.x_m += self.v_m_s * dt;
         self.t_s += dt;
-        let (gap_v, _, adc_clipped) = self.adc.convert(self.x_m * Self::SENSOR_V_PER_M);
+        let (gap_v, adc_clipped) = self.adc.convert(self.x_m * Self::SENSOR_V_PER_M);
         Sensor {
             time_s: self.t_s,
             gap_v,

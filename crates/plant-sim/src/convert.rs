@@ -44,14 +44,14 @@ impl Quantizer {
         self.lsb == 0.0
     }
 
-    /// The converted value in V, its code (0 when ideal) and whether it clipped.
+    /// The converted value in V and whether it clipped.
     #[inline]
-    pub fn convert(&self, volts: f64) -> (f64, i32, bool) {
+    pub fn convert(&self, volts: f64) -> (f64, bool) {
         if self.is_ideal() {
-            return (volts, 0, false);
+            return (volts, false);
         }
         let (code, clipped) = self.code(volts);
-        (self.volts(code), code, clipped)
+        (self.volts(code), clipped)
     }
 
     /// Volts per code step.
@@ -98,8 +98,9 @@ mod tests {
         assert_eq!(adc.code(f64::NAN), (0, true));
         let dac = Quantizer::new(18, 10.0);
         assert_eq!(dac.lsb_v(), 20.0 / 262144.0);
-        assert_eq!(dac.convert(10.0), (dac.volts(131071), 131071, true));
+        assert_eq!(dac.code(10.0), (131071, true));
+        assert_eq!(dac.convert(10.0), (dac.volts(131071), true));
         let ideal = Quantizer::new(0, 10.0);
-        assert_eq!(ideal.convert(123.456), (123.456, 0, false));
+        assert_eq!(ideal.convert(123.456), (123.456, false));
     }
 }

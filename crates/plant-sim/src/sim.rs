@@ -480,7 +480,7 @@ impl Simulator {
         change: CommandChange,
     ) -> (Sensor, Truth) {
         let mut flag = 0;
-        let (u_now, _, clipped) = self.dac_q.convert(command_v);
+        let (u_now, clipped) = self.dac_q.convert(command_v);
         let u_now = if command_v.is_finite() {
             flag |= if clipped { flags::DAC_CLIPPED } else { 0 };
             u_now
@@ -527,8 +527,8 @@ impl Simulator {
                 None => 0.0,
             };
             noise_sum += noise;
-            let (gv, _, gc) = self.adc_q.convert(self.out[n + 2 * j] + noise);
-            let (av, _, ac) = self.adc_q.convert(self.out[n + 2 * j + 1]);
+            let (gv, gc) = self.adc_q.convert(self.out[n + 2 * j] + noise);
+            let (av, ac) = self.adc_q.convert(self.out[n + 2 * j + 1]);
             (gap_v, acc_v) = (gap_v + gv, acc_v + av);
             flag |=
                 if gc { flags::GAP_CLIPPED } else { 0 } | if ac { flags::ACCEL_CLIPPED } else { 0 };
