@@ -195,10 +195,11 @@ fn zpetc(c: &mut Criterion) {
         ..Default::default()
     };
     let plan = runner::Plan::new(&cfg).unwrap();
-    let mut z = runner::feedforward::zpetc(&plan.closed_loop, run_config::FeedforwardKind::Zpetc)
-        .unwrap()
-        .build()
-        .unwrap();
+    let mut z =
+        loop_model::feedforward::zpetc(&plan.closed_loop, run_config::FeedforwardKind::Zpetc)
+            .unwrap()
+            .build()
+            .unwrap();
     let mut y = 0.0;
     c.bench_function("zpetc/12_sections", |b| {
         b.iter(|| {

@@ -4,10 +4,10 @@
 use crate::arrays::matrix;
 use crate::config::plan;
 use crate::servo_err;
+use loop_model::closed_loop::{self, input, output, ClosedLoop};
 use lti::StateSpace;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use runner::closed_loop::{self, input, output, ClosedLoop};
 
 /// One model as a dict: `abcd_dt` (the 5-tuple), `inputs`, `outputs`, `what`.
 pub fn model<'py>(

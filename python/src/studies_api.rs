@@ -4,9 +4,9 @@
 use crate::arrays::vector;
 use crate::config::{built, load, plan};
 use crate::servo_err;
+use loop_model::closed_loop::{input, output, ClosedLoop};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use runner::closed_loop::{input, output, ClosedLoop};
 
 /// The error budget of `config` with `overrides` on `points` log-spaced frequencies, with the
 /// loop's margins and −3 dB bandwidth: the JSON of `servo budget --json`'s `budget`, plus

@@ -2,7 +2,7 @@
 
 use crate::plot::{Figure, Series};
 use crate::plot_files;
-use runner::closed_loop::SOURCES;
+use loop_model::closed_loop::SOURCES;
 use std::fmt::Write as _;
 use std::path::Path;
 use studies::budget::Budget;

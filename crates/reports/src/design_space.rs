@@ -5,7 +5,7 @@
 
 use crate::plot::{Bars, Contour, Figure, Series, Stacked};
 use crate::plot_file;
-use runner::closed_loop::SOURCES;
+use loop_model::closed_loop::SOURCES;
 use std::path::Path;
 use studies::design_space::evaluate::Point;
 use studies::design_space::sensitivity::Sensitivity;

@@ -1,6 +1,6 @@
 //! What can stop a run from being built or from running, each failure named.
 
-use crate::feedforward::FeedforwardError;
+use loop_model::feedforward::FeedforwardError;
 use run_config::ConfigError;
 use std::path::PathBuf;
 

@@ -4,11 +4,11 @@
 //! resonance go unstable, too much the high-frequency crossover). A change is allowed only if
 //! it leaves [`servo_config::GAIN_MARGIN`] of gain margin on each side.
 
-use crate::closed_loop::ClosedLoop;
-use crate::controller::LinearController;
 use crate::error::RunError;
-use crate::measured_loop::MeasuredLoop;
 use crate::plan::{linear_tick_of, Plan};
+use loop_model::closed_loop::ClosedLoop;
+use loop_model::controller::LinearController;
+use loop_model::measured_loop::MeasuredLoop;
 use servo_config::{Deployment, Stability};
 
 /// The plan's deployment with its loop checked: its spectral radius and gain range added.
@@ -22,7 +22,7 @@ pub fn checked(plan: &Plan) -> Result<Deployment, RunError> {
 /// The stability of `plan`'s loop, sealed to it ([`Stability::sealed`]): its spectral radius and
 /// its gain range, by bisection on the spectral radius of the sampled closed loop with the
 /// controller's output scaled (to 1e-6 relative) and, with a measured FRF, on the loop closed on
-/// it over every bin's uncertainty disk ([`crate::measured_loop::Verdict`]: the range is the one
+/// it over every bin's uncertainty disk ([`loop_model::measured_loop::Verdict`]: the range is the one
 /// both allow); [`RunError::Unstable`] when the loop is not stable as it is.
 pub fn gain_range(plan: &Plan) -> Result<Stability, RunError> {
     let spectral_radius = plan.check_stable()?;

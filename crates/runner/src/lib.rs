@@ -20,17 +20,13 @@
 //! # Ok::<(), runner::RunError>(())
 //! ```
 
-pub mod closed_loop;
-pub mod controller;
 pub mod deploy;
 mod error;
-pub mod feedforward;
 pub mod gain_range;
 pub mod hil;
 pub mod hot_swap;
 pub mod join;
 pub mod machining;
-pub mod measured_loop;
 pub mod operator_log;
 pub mod pil;
 pub mod plan;

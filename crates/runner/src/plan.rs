@@ -4,15 +4,15 @@
 //! in-process loop, each HIL process, every study) is built from a [`Plan`], never from the
 //! raw configuration.
 
-use crate::closed_loop::ClosedLoop;
-use crate::controller::{stage_of, RunController};
 use crate::error::RunError;
-use crate::feedforward::{feedforward_spec, FirFit};
-use crate::measured_loop::MeasuredLoop;
 use crate::recorded_deployment;
 pub use crate::recorded_deployment::DEPLOYMENT_INPUT;
 use crate::repetitive::RepetitivePlan;
 use crate::run_input::input_or_read;
+use loop_model::closed_loop::ClosedLoop;
+use loop_model::controller::{stage_of, RunController};
+use loop_model::feedforward::{feedforward_spec, FirFit};
+use loop_model::measured_loop::MeasuredLoop;
 use plant_sim::params::CurrentLoopModel;
 use plant_sim::Simulator;
 use recorder::Input;

@@ -9,10 +9,10 @@
 //! the sensor, the error is taken against the surface `lag_ticks` earlier — the model's delay
 //! from the tool to the reading at low frequency — and the tool converges to the surface.
 
-use crate::closed_loop::{input, output, reference_path_response, ClosedLoop};
 use crate::error::RunError;
-use crate::measured_loop::{Extended, MeasuredLoop};
 use design::repetitive::{Convergence, Harmonics, Learning};
+use loop_model::closed_loop::{input, output, reference_path_response, ClosedLoop};
+use loop_model::measured_loop::{Extended, MeasuredLoop};
 use recorder::Input;
 use run_config::Origin;
 use run_config::{FeedforwardKind, Machining, RepetitiveSection, RunConfig, MAX_BINS};

@@ -2,9 +2,12 @@
 //! model's exact response (so the measured loop must be the model's), with a stated
 //! uncertainty that the repetitive controller's check must take at its worst.
 
+use loop_model::closed_loop::{input, output, reference_path_response, ClosedLoop};
+use loop_model::measured_loop::MeasuredLoop;
+use lti::FrequencyResponse;
 use num_complex::Complex64;
-use run_config::{FeedforwardKind, Loaded, Machining, RepetitiveSection, Scenario};
-use runner::closed_loop::{output, reference_path_response, ClosedLoop};
+use run_config::frf_file::MeasuredFrf;
+use run_config::{ControllerKind, FeedforwardKind, Loaded, Machining, RepetitiveSection, Scenario};
 use runner::Plan;
 use std::path::Path;
 
@@ -159,4 +162,63 @@ fn the_loop_on_a_measured_frf_is_as_stable_as_its_eigenvalues_say() {
         .err()
         .expect("the disks reach −1");
     assert!(e.to_string().contains("allows an unstable loop"), "{e}");
+}
+
+/// Closed on the model's own open-loop response, the measured loop is the model's closed
+/// loop (reference → tool) to rounding: the PID, and the acceleration loop whose
+/// accelerometer path comes from the model.
+#[test]
+fn on_the_models_own_frf_it_is_the_models_loop() {
+    for (kind, ka) in [(ControllerKind::Pid, 0.0), (ControllerKind::Accel, 1.0)] {
+        let mut loaded = Loaded::default();
+        loaded.config.controller.kind = kind;
+        loaded.config.controller.ka = ka;
+        let plan = Plan::new(&loaded).unwrap();
+        let s = plan.config.plant.capa.sensitivity_v_per_m;
+        let open = ClosedLoop::open(&plan.sim, s).unwrap();
+        let freq_hz = lti::spectral::log_space(10.0, 20_000.0, 40);
+        let frf = MeasuredFrf {
+            response: freq_hz
+                .iter()
+                .map(|&f| open.command_response(f).unwrap())
+                .collect(),
+            coherence: vec![1.0; freq_hz.len()],
+            uncertainty: None,
+            accel: None,
+            source: "the model".into(),
+            freq_hz,
+        };
+        let m = MeasuredLoop::new(&frf, &open, &plan.controller.linear, s).unwrap();
+        for (f, t) in m.freq_hz.iter().zip(&m.reference_to_tool) {
+            let want = plan
+                .closed_loop
+                .response(output::TOOL_M, input::REFERENCE_M, *f)
+                .unwrap();
+            assert!(
+                (t / want - 1.0).norm() < 1e-8,
+                "{kind:?} {f} Hz: {t} vs {want}"
+            );
+        }
+        assert!(m.uncertainty.iter().all(|u| *u == 0.0));
+        let l = FrequencyResponse::new(&open.loop_gain(&plan.controller.linear, s).unwrap());
+        for (f, (g, _)) in m.freq_hz.iter().zip(&m.loop_gain) {
+            let want = l.discrete(*f, open.period_s).unwrap()[(0, 0)];
+            assert!(
+                (g / want - 1.0).norm() < 1e-8,
+                "{kind:?} {f} Hz: L {g} vs {want}"
+            );
+        }
+        let model_loop = |f: f64| l.discrete(f, open.period_s).unwrap()[(0, 0)];
+        let on_model = design::loops::margins(model_loop, 1.0, 0.499 / open.period_s);
+        let got = m.stability.margins;
+        for (a, b) in [
+            (got.phase_margin_deg, on_model.phase_margin_deg),
+            (got.gain_margin_db, on_model.gain_margin_db),
+            (got.lower_gain_margin_db, on_model.lower_gain_margin_db),
+        ] {
+            let (a, b) = (a.unwrap(), b.unwrap());
+            assert!((a - b).abs() < 1e-6, "{kind:?}: {a} vs the model's {b}");
+        }
+        assert!(m.stability.verdict.robustly_stable(), "{kind:?}");
+    }
 }

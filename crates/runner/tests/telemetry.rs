@@ -3,8 +3,8 @@
 //! error, `S(e^{jωT})·r`, within 0.5 % in amplitude and phase — which the pairing with the next
 //! reading (contract v5) missed by ωT·|r|/|e| ≈ 3 %.
 
+use loop_model::closed_loop::{input, output};
 use run_config::{Loaded, Scenario};
-use runner::closed_loop::{input, output};
 use runner::run::run_to_end_with;
 use runner::Plan;
 

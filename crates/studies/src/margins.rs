@@ -1,7 +1,7 @@
 //! Gain and phase margins of a plan's loop broken at the actuator input.
 
 use crate::error::StudyError;
-use runner::closed_loop::ClosedLoop;
+use loop_model::closed_loop::ClosedLoop;
 use runner::Plan;
 
 /// Gain and phase margins of the loop of `plan` broken at the actuator input

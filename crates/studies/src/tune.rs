@@ -6,12 +6,12 @@
 use crate::budget::Budget;
 use crate::error::StudyError;
 use design::tune::{PidTuned, PidTuning};
+use loop_model::closed_loop::ClosedLoop;
+use loop_model::controller::dm;
 use lti::StateSpace;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 use run_config::PidGains;
-use runner::closed_loop::ClosedLoop;
-use runner::controller::dm;
 use runner::Plan;
 use servo_core::PidConfig;
 

@@ -9,9 +9,9 @@ use studies::design_space::sensitivity::sensitivities;
 use studies::design_space::spec::Study;
 use studies::design_space::{gather, optima, table};
 
-/// Index of a source in the per-source columns (`runner::closed_loop::SOURCES`).
+/// Index of a source in the per-source columns (`loop_model::closed_loop::SOURCES`).
 fn source(name: &str) -> usize {
-    runner::closed_loop::SOURCES
+    loop_model::closed_loop::SOURCES
         .iter()
         .position(|(n, _)| *n == name)
         .expect("a source")

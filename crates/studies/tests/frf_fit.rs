@@ -6,12 +6,12 @@
 
 use crate::common;
 
+use loop_model::closed_loop::ClosedLoop;
 use num_complex::Complex64;
 use plant_sim::modes::ModeSite;
 use plant_sim::practice::PracticeDraw;
 use run_config::frf_file::{AccelFrf, MeasuredFrf};
 use run_config::Loaded;
-use runner::closed_loop::ClosedLoop;
 use studies::fit::{fit_frf, DEFAULT_MAX_ORDER};
 
 /// The open-loop FRF of practice stage `seed` by stepped sine, 120 points from 20 Hz to 10 kHz

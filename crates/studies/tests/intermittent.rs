@@ -5,8 +5,8 @@
 use crate::common;
 
 use common::plan;
+use loop_model::closed_loop::{input, output};
 use run_config::{ControllerKind, Loaded, Scenario};
-use runner::closed_loop::{input, output};
 use studies::intermittent::study;
 
 fn cfg() -> Loaded {

@@ -4,9 +4,9 @@
 use crate::common;
 
 use common::{machine, plan};
+use loop_model::closed_loop::{input, output};
 use run_config::Machining;
 use run_config::{FeedforwardKind, Loaded, Scenario};
-use runner::closed_loop::{input, output};
 use std::f64::consts::TAU;
 use studies::form::FormReport;
 

@@ -91,8 +91,8 @@ fn astigmatism_demands_are_the_closed_forms() {
     let t = plan
         .closed_loop
         .response(
-            runner::closed_loop::output::TOOL_M,
-            runner::closed_loop::input::REFERENCE_M,
+            loop_model::closed_loop::output::TOOL_M,
+            loop_model::closed_loop::input::REFERENCE_M,
             2.0 * rpm / 60.0,
         )
         .unwrap();

@@ -31,7 +31,6 @@
 //! budget's case, not a stall), or one descheduled between reading a sample and sending its
 //! command (its state is then a tick further on).
 
-use crate::closed_loop::{input, output, ClosedLoop, SOURCES};
 use crate::error::RunError;
 use crate::hil::{serve_options, PlantOptions};
 use crate::plan::{linear_tick_of, Plan};
@@ -39,6 +38,7 @@ use crate::plan_loop::PlanLoop;
 use daq_io::serve::Pacing;
 use daq_io::watchdog::{Verdict, Watchdog};
 use daq_io::{Backend, Sensor};
+use loop_model::closed_loop::{input, output, ClosedLoop, SOURCES};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use run_config::Scenario;

@@ -2,10 +2,10 @@
 //! following error and of the true error, their CAS, and exact RMS values from the discrete
 //! Lyapunov equation of the sampled closed loop.
 
+use loop_model::closed_loop::{output, ClosedLoop, SOURCES};
 use lti::spectral::cas;
 use lti::{dlyap, LtiError, StateSpace};
 use nalgebra::DMatrix;
-use runner::closed_loop::{output, ClosedLoop, SOURCES};
 use serde::Serialize;
 
 /// One source's share of the errors.

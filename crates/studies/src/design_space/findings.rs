@@ -7,7 +7,7 @@ use super::sensitivity::Sensitivity;
 use super::spec::{Objective, Study};
 use super::{columnar, optima, table, Optimum};
 use crate::report::{to_json, write_files, ReportError, Written};
-use runner::closed_loop::SOURCES;
+use loop_model::closed_loop::SOURCES;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;

@@ -24,7 +24,7 @@ pub struct Sensitivity {
     pub following: f64,
     /// d ln(RMS true error) / d ln(parameter).
     pub true_error: f64,
-    /// The same per source (following error), [`runner::closed_loop::SOURCES`] order; NaN for
+    /// The same per source (following error), [`loop_model::closed_loop::SOURCES`] order; NaN for
     /// a source that contributes nothing.
     pub following_by_source: Vec<f64>,
     /// The same per source (true error).

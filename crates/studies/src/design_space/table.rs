@@ -6,7 +6,7 @@
 
 use super::evaluate::{Metrics, Point, SOURCE_COUNT};
 use super::spec::Study;
-use runner::closed_loop::SOURCES;
+use loop_model::closed_loop::SOURCES;
 use std::fmt::Write as _;
 
 /// The metrics of a point before the per-source columns, with their units in the names.

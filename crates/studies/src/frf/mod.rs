@@ -7,11 +7,11 @@
 
 use crate::error::StudyError;
 use daq_io::{Backend, Sensor};
+use loop_model::closed_loop::ClosedLoop;
+use loop_model::controller::LinearController;
 use lti::spectral::h1_at_bin;
 use num_complex::Complex64;
 use run_config::SimBackend;
-use runner::closed_loop::ClosedLoop;
-use runner::controller::LinearController;
 use runner::remote_plant::RemotePlant;
 use runner::Plan;
 use serde::Serialize;

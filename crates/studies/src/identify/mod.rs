@@ -12,13 +12,13 @@ pub use misfit::{Misfit, MISFIT_MIN_RELATIVE, MISFIT_SIGMAS};
 pub use site::{describe_site, place_modes, SiteEvidence};
 
 use crate::error::StudyError;
+use loop_model::closed_loop::ClosedLoop;
 use num_complex::Complex64;
 use plant_sim::modes::{ExtraMode, ModeSite, MAX_MODES};
 use plant_sim::params::StageParams;
 use plant_sim::PlantParams;
 use plant_sim::Simulator;
 use run_config::frf_file::MeasuredFrf;
-use runner::closed_loop::ClosedLoop;
 use runner::Plan;
 
 /// The identified parameters, in Table 5-2 order.

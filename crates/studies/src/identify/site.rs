@@ -9,11 +9,11 @@
 //! the reading (ZPETC, the FIR, a tool-path prediction).
 
 use crate::error::StudyError;
+use loop_model::closed_loop::{input, output};
 use num_complex::Complex64;
 use plant_sim::modes::{ExtraMode, ModeSite};
 use plant_sim::PlantParams;
 use run_config::frf_file::MeasuredFrf;
-use runner::closed_loop::{input, output};
 
 /// A mode's bins are where it moves the response by more than this (relative).
 const MOVES: f64 = 0.1;

@@ -9,11 +9,11 @@
 //! the one `servo ctl load` swapped in, for the part of the run after the swap.
 
 use crate::StudyError;
+use loop_model::closed_loop::{output, SOURCES};
 use lti::spectral::{Psd, Welch, WelchConfig};
 use lti::welch_statistics::{expected_welch, BandScatter};
 use recorder::Frame;
 use run_config::MadeFor;
-use runner::closed_loop::{output, SOURCES};
 use runner::operator_log::Swap;
 use runner::recording::{FrameSink, RunHeader};
 use runner::RunError;

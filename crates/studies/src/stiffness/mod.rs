@@ -9,10 +9,10 @@
 //! * sampled loop — the simulator's exact discretisation, cutting force → tool position.
 
 use crate::error::StudyError;
+use loop_model::closed_loop::{input, output};
 use num_complex::Complex64 as C;
 use plant_sim::impedance::Impedances;
 use run_config::{ControllerConfig, ControllerKind};
-use runner::closed_loop::{input, output};
 use runner::Plan;
 use serde::Serialize;
 use servo_config::accel_shaping;

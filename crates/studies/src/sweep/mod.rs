@@ -205,7 +205,7 @@ fn pid_for(
 }
 
 /// The gain scale giving bandwidth `target_hz` (the first −3 dB crossing,
-/// [`runner::closed_loop::ClosedLoop::bandwidth_hz`]): a log scan from 1/100 to 100 finds the
+/// [`loop_model::closed_loop::ClosedLoop::bandwidth_hz`]): a log scan from 1/100 to 100 finds the
 /// first pair of neighbouring *stable* gains that bracket the target (very low gains can be
 /// unstable too, so plain bisection would be misled), then bisection refines it. `None` when no
 /// stable gain gives it within 1 %: none reaches it, or the crossing jumps past it as the gain

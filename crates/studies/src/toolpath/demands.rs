@@ -10,12 +10,12 @@
 //! voltage `V(jnΩ)·Xₙ` and the tool error `(T(jnΩ) − 1)·Xₙ`, with `V` and `T` the loop's
 //! responses from the surface reference to the DAC command and to the true tool position.
 
+use loop_model::closed_loop::{output, reference_path_response};
 use num_complex::Complex64 as C;
 use optics::toolpath::ToolPath;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use run_config::surface::LoadedSurface;
 use run_config::{Machining, Scenario, SurfaceConfig};
-use runner::closed_loop::{output, reference_path_response};
 use runner::{Plan, RunError};
 use serde::Serialize;
 use std::f64::consts::TAU;
@@ -103,7 +103,11 @@ impl RingLoop {
 
     /// The loop `closed_loop` (a stage's sampled loop with `plan`'s controller) with `plan`'s
     /// reference path (its feedforward) at a spindle turning at `spindle_hz` Hz.
-    pub fn of(closed_loop: &runner::closed_loop::ClosedLoop, plan: &Plan, spindle_hz: f64) -> Self {
+    pub fn of(
+        closed_loop: &loop_model::closed_loop::ClosedLoop,
+        plan: &Plan,
+        spindle_hz: f64,
+    ) -> Self {
         let tool = reference_path_response(closed_loop, &plan.deployment, output::TOOL_M);
         let dac = reference_path_response(closed_loop, &plan.deployment, output::CONTROL_V);
         let harmonics = 0..=RING_SAMPLES / 2;
