@@ -6,7 +6,8 @@ order, and what a block is shown to print is compared with what it prints.
     python3 scripts/check_docs.py PAGE.md ...     # these pages only
     python3 scripts/check_docs.py --list [PAGE]   # what would run, and what is not run and why
     python3 scripts/check_docs.py --self-test     # a copy of the README with one shown number
-                                                  # changed must fail the check
+                                                  # changed must fail the check, a failed
+                                                  # block must leave no process behind
     python3 scripts/check_docs.py --jobs N        # pages at once (default: the CPU count)
     python3 scripts/check_docs.py --update [PAGE] # writes what each block printed into its
                                                   # shown output where they differ (blocks
@@ -40,6 +41,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -231,13 +233,12 @@ def run_page(page: Page, stop_after_first_output: bool = False, update: Update |
                 strict = "set -euo pipefail\n" if expect == 0 else ""
                 command = ["bash", "-c", f"{strict}{script}\nstatus=$?\nwait\nexit $status\n"]
             started = time.monotonic()
-            p = subprocess.run(command, cwd=work, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True, timeout=TIMEOUT_S)
+            returncode, printed = run_block(command, work, env)
             took = time.monotonic() - started
             where = f"{page.name}:{block.line}"
-            out = p.stdout.replace(str(work) + "/", "").replace(str(work), ".")
-            if p.returncode != expect:
-                fail(where, f"exit {p.returncode}, expected {expect}", script,
+            out = printed.replace(str(work) + "/", "").replace(str(work), ".")
+            if returncode != expect:
+                fail(where, f"exit {returncode}, expected {expect}", script,
                      out + side_logs(work))
             if block.shown is not None:
                 tolerance = DEFAULT_TOLERANCE
@@ -284,6 +285,45 @@ def side_logs(work: Path) -> str:
         tail = f.read_text(errors="replace")[-2000:]
         text += f"\n--- {f.name}\n{tail}"
     return text
+
+
+def run_block(command: list[str], work: Path, env: dict[str, str]) -> tuple[int, str]:
+    """Runs one block in a process group of its own: its exit status and what it printed
+    (stdout and stderr). Whatever of the group outlives it — the background processes of a
+    block that failed before its final `wait`, or of one that ran out of time — is ended with
+    it, so that a failed page leaves no run or view behind."""
+    p = subprocess.Popen(command, cwd=work, env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    chunks: list[str] = []
+    # Read while the block runs (a full pipe would stall it), until every writer is gone.
+    reader = threading.Thread(target=lambda: chunks.extend(iter(p.stdout.readline, "")))
+    reader.start()
+    try:
+        returncode = p.wait(timeout=TIMEOUT_S)
+        note = ""
+    except subprocess.TimeoutExpired:
+        returncode = -9
+        note = f"\n(the block ran out of its {TIMEOUT_S} s and was ended)"
+    end_group(p.pid)
+    p.wait()
+    reader.join(timeout=10)
+    return returncode, "".join(chunks) + note
+
+
+def end_group(pgid: int) -> None:
+    """Ends process group `pgid` (SIGTERM, then SIGKILL after 5 s); nothing if it is empty."""
+    for sig, grace_s in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 0.0)):
+        try:
+            os.killpg(pgid, sig)
+        except ProcessLookupError:
+            return
+        deadline = time.monotonic() + grace_s
+        while time.monotonic() < deadline:
+            try:
+                os.killpg(pgid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.05)
 
 
 def fail(where: str, why: str, script: str, out: str, diff: str = "") -> None:
@@ -339,7 +379,8 @@ def run_pages(pages: list[Page], jobs: int, first_output: bool) -> int:
 
 
 def self_test() -> None:
-    """A copy of the README whose first shown output has one number changed must fail."""
+    """A copy of the README whose first shown output has one number changed must fail; a
+    failed block must end its background processes."""
     readme = ROOT / "README.md"
     page = parse(readme)
     shown = next(b.shown for b in page.blocks if b.shown is not None)
@@ -355,6 +396,15 @@ def self_test() -> None:
         sys.exit(f"self-test: a changed number ({m.group()} → ×1.5) passed the check:\n{p.stdout}")
     print(f"self-test: the README with {m.group()} shown as {float(m.group()) * 1.5!r} fails the "
           "check, as it must")
+    # A block failing under `set -e` before its `wait` ends with its background processes.
+    with tempfile.TemporaryDirectory() as d:
+        script = "set -euo pipefail\nsleep 300 &\necho $! > bg.pid\nfalse\nwait\n"
+        started = time.monotonic()
+        code, _ = run_block(["bash", "-c", script], Path(d), dict(os.environ))
+        background = Path(f"/proc/{(Path(d) / 'bg.pid').read_text().strip()}")
+        if code != 1 or background.exists() or time.monotonic() - started > 60:
+            sys.exit("self-test: a failed block's background process outlived it")
+    print("self-test: a block that fails leaves none of its background processes running")
 
 
 def main() -> None:
