@@ -16,22 +16,42 @@
 //! | [`spectral`] | log grids, exact-bin DFT, Welch PSD, H1 FRF and coherence, CAS |
 //! | [`vector_fit`] | a stable rational fit of a sampled system's measured frequency response (z-domain vector fitting) |
 //! | [`welch_statistics`] | what a Welch estimate of a modelled signal should read, and how far it strays by chance |
+//!
+//! The eigenvalue, Schur/QZ, Lyapunov and Riccati solvers (faer) and what stands on them —
+//! [`eigenvalues`] and poles, [`lyapunov`], [`riccati`], [`schur_lyapunov`], [`reduce`],
+//! [`level_crossing`], [`vector_fit`], [`welch_statistics`] — come with the `solvers` feature.
+//! Without it the crate is what a simulated stage needs to step (state space, interconnection,
+//! `expm`, exact hold, [`sqrt_factor`], spectra), so libfts_plant links no faer.
+
+// The table above names the solvers' modules, which a build without them does not have.
+#![cfg_attr(not(feature = "solvers"), allow(rustdoc::broken_intra_doc_links))]
 
 pub mod discretise;
 pub mod frequency_response;
 pub mod interconnect;
+#[cfg(feature = "solvers")]
 pub mod level_crossing;
+#[cfg(feature = "solvers")]
 pub mod lyapunov;
+#[cfg(feature = "solvers")]
 pub mod reduce;
+#[cfg(feature = "solvers")]
 pub mod riccati;
+#[cfg(feature = "solvers")]
 pub mod schur_lyapunov;
 pub mod spectral;
+pub mod square_root;
 pub mod state_space;
+#[cfg(feature = "solvers")]
 pub mod vector_fit;
+#[cfg(feature = "solvers")]
 pub mod welch_statistics;
 
 pub use discretise::{c2d_tustin, expm, zoh, DelayedZoh};
 pub use frequency_response::FrequencyResponse;
+#[cfg(feature = "solvers")]
 pub use lyapunov::dlyap;
-pub use reduce::sqrt_factor;
-pub use state_space::{eigenvalues, LtiError, StateSpace};
+pub use square_root::sqrt_factor;
+#[cfg(feature = "solvers")]
+pub use state_space::eigenvalues;
+pub use state_space::{LtiError, StateSpace};

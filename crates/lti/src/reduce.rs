@@ -4,6 +4,7 @@
 //! `‖G − G_r‖_∞ ≤ 2 Σ σ_discarded`.
 
 use crate::lyapunov::dlyap;
+use crate::square_root::sqrt_factor;
 use crate::state_space::{balance_system, LtiError, StateSpace};
 use nalgebra::DMatrix;
 
@@ -16,16 +17,6 @@ pub struct Reduced {
     pub hankel: Vec<f64>,
     /// The a-priori H∞ error bound `2 Σ σ_i` over the discarded states.
     pub error_bound: f64,
-}
-
-/// A square root `R` with `P = Rᵀ R` of a symmetric positive semi-definite matrix, through
-/// its eigen-decomposition (`R = Λ^½ Vᵀ`; eigenvalues below zero by rounding count as zero, so
-/// it is robust to the near-singular gramians of lightly coupled states).
-pub fn sqrt_factor(p: &DMatrix<f64>) -> DMatrix<f64> {
-    let sym = (p + p.transpose()) * 0.5;
-    let e = sym.symmetric_eigen();
-    let d = DMatrix::from_diagonal(&e.eigenvalues.map(|l| l.max(0.0).sqrt()));
-    d * e.eigenvectors.transpose()
 }
 
 /// The balancing of a stable discrete system, computed once (two gramians and an SVD) and

@@ -169,6 +169,7 @@ impl StateSpace {
     }
 
     /// Poles: [`eigenvalues`] of `A` (s-plane for continuous, z-plane for discrete models).
+    #[cfg(feature = "solvers")]
     pub fn poles(&self) -> Vec<Complex64> {
         eigenvalues(&self.a)
     }
@@ -243,6 +244,7 @@ pub fn balance_system(
 /// faer's Hessenberg–QR eigensolver. Balancing is essential for sampled closed loops whose
 /// entries span 60 decades (volts, metres and controller states side by side): unbalanced, both
 /// faer and nalgebra returned |z| ≈ 2 for a loop that runs stably (regression test below).
+#[cfg(feature = "solvers")]
 pub fn eigenvalues(a: &DMatrix<f64>) -> Vec<Complex64> {
     let n = a.nrows();
     let (a, _) = balance(a.clone());

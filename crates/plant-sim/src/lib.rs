@@ -4,6 +4,12 @@
 //! four-mass flexure mechanics, FVCM current loop, capacitive sensor, accelerometer, ADC/DAC,
 //! transport delay, coloured noise and cutting forces; and the spindle metrology rig of
 //! Appendix D (artefact, spindle error motion, probes). See `README.md` for the calibration.
+//!
+//! The linear model of the tick, for analysis, comes with the `linear` feature (lti's solvers);
+//! stepping the stage needs none of it.
+
+// The docs link the linear model's items, which a build without them does not have.
+#![cfg_attr(not(feature = "linear"), allow(rustdoc::broken_intra_doc_links))]
 
 mod backend;
 mod coil_loop;
@@ -17,6 +23,7 @@ pub mod model;
 pub mod modes;
 pub mod params;
 pub mod practice;
+#[cfg(feature = "linear")]
 pub mod quantisation;
 pub mod sampled_noise;
 pub mod sensor_noise;

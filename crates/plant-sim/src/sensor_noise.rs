@@ -15,6 +15,7 @@
 //! process in innovations form ([`SampledNoise`]: one white input, the same spectrum), which
 //! the closed loop, the budget and the H2 design use.
 
+#[cfg(feature = "linear")]
 use crate::sampled_noise::SampledNoise;
 use lti::expm;
 use nalgebra::{DMatrix, SMatrix, SVector};
@@ -95,9 +96,11 @@ pub struct SensorNoise {
     /// Filter states in use (2, or 3 with the anti-aliasing stage) and the one read out.
     states: usize,
     out: usize,
-    /// The filter's continuous dynamics and the stationary covariance of its states, V².
+    /// The filter's continuous dynamics and the covariance rate of its white input, V²/s.
+    #[cfg(feature = "linear")]
     a: Mat,
-    p: Mat,
+    #[cfg(feature = "linear")]
+    q: Mat,
     xi: Vect,
 }
 
@@ -118,25 +121,35 @@ impl SensorNoise {
         let intensity = density_v_per_rt_hz * density_v_per_rt_hz / 2.0;
         let spacing = 1.0 / conversion_rate_hz;
         let gap = (period_s - (oversampling as f64 - 1.0) * spacing).max(0.0);
-        // Stationary covariance: A P + P Aᵀ + b bᵀ·intensity = 0.
-        let q = &b * b.transpose() * intensity;
-        let stationary = lti::riccati::lyap(&a, &q)
-            .map_or_else(|_| Mat::from_element(f64::NAN), |(p, _)| padded(&p));
         SensorNoise {
             between_ticks: Step::new(&a, &b, intensity, gap),
             between_conversions: Step::new(&a, &b, intensity, spacing),
             states: a.nrows(),
             out,
+            #[cfg(feature = "linear")]
             a: padded(&a),
-            p: stationary,
+            #[cfg(feature = "linear")]
+            q: padded(&(&b * b.transpose() * intensity)),
             xi: Vect::zeros(),
         }
     }
 
     /// Variance of the noise one conversion sees, V² (without the anti-aliasing stage
     /// `Ws²·π f_c/(2√2)`), whatever the rate.
+    #[cfg(feature = "linear")]
     pub fn conversion_variance(&self) -> f64 {
-        self.p[(self.out, self.out)]
+        self.stationary()[(self.out, self.out)]
+    }
+
+    /// The stationary covariance `P` of the filter states, V²: `A P + P Aᵀ + Q = 0` (NaN
+    /// where the solver fails).
+    #[cfg(feature = "linear")]
+    fn stationary(&self) -> DMatrix<f64> {
+        let n = self.states;
+        let a = DMatrix::from_fn(n, n, |i, j| self.a[(i, j)]);
+        let q = DMatrix::from_fn(n, n, |i, j| self.q[(i, j)]);
+        lti::riccati::lyap(&a, &q)
+            .map_or_else(|_| DMatrix::from_element(n, n, f64::NAN), |(p, _)| p)
     }
 
     /// Back to rest (the process starts at zero with the rest of the plant and is stationary
@@ -162,22 +175,24 @@ impl SensorNoise {
 
     /// The averaged noise of one tick of `oversampling` conversions as a discrete process
     /// in innovations form.
+    #[cfg(feature = "linear")]
     pub fn sampled(&self, oversampling: u32) -> SampledNoise {
         averaged(self, oversampling as usize)
     }
 
     /// Covariance of the noise at two instants `lag_s` seconds apart, V² (the conversion
     /// variance at 0): `cᵀ e^{A|τ|} P c`, P the stationary covariance of the filter states.
+    #[cfg(feature = "linear")]
     pub fn lag_covariance(&self, lag_s: f64) -> f64 {
         let n = self.states;
         let a = DMatrix::from_fn(n, n, |i, j| self.a[(i, j)]);
-        let p = DMatrix::from_fn(n, n, |i, j| self.p[(i, j)]);
         let phi = expm(&(a * lag_s.abs()));
-        (phi * p)[(self.out, self.out)]
+        (phi * self.stationary())[(self.out, self.out)]
     }
 }
 
 /// The tick-averaged noise of `os` conversions as a discrete process in innovations form.
+#[cfg(feature = "linear")]
 fn averaged(noise: &SensorNoise, os: usize) -> SampledNoise {
     // Exact model with the n·os unit draws v of the tick: ξ_{k+1} = Φ ξ_k + B v,
     // n_k = C ξ_k + D v (the mean of the conversions' read-out state).

@@ -15,6 +15,7 @@ use crate::cutting::{CuttingError, CuttingForce, CuttingProfile};
 use crate::gaussian::Gaussian;
 use crate::model::{check, input, output, within, ModelError, PlantModel};
 use crate::params::{CurrentLoopModel, PlantParams};
+#[cfg(feature = "linear")]
 use crate::quantisation::{averaged_rounding_error, ConversionGrid};
 use crate::sampled_noise::SampledNoise;
 use crate::sensor_noise::SensorNoise;
@@ -240,6 +241,7 @@ pub struct Simulator {
     oversampling: usize,
     mech: std::ops::Range<usize>,
     /// Truth rows of the continuous model at the tick start (for [`Simulator::linear_tick`]).
+    #[cfg(feature = "linear")]
     truth_start: DMatrix<f64>,
     /// Balancing scale of the mechanics states (state = scale · stored value).
     mech_scale: [f64; 8],
@@ -346,6 +348,7 @@ impl Simulator {
             tick_matrix,
             oversampling: adc.oversampling as usize,
             mech: model.mechanics,
+            #[cfg(feature = "linear")]
             truth_start: pick(c, &TRUTH_ROWS),
             mech_scale,
             u_prev: 0.0,
@@ -386,6 +389,7 @@ impl Simulator {
     /// The tick as a linear map from the command, for stability analysis: `None` for the
     /// nonlinear `coil` model. Noise and cutting inputs are left out (they do not affect
     /// stability).
+    #[cfg(feature = "linear")]
     pub fn linear_tick(&self) -> Option<LinearTick> {
         if self.coil.is_some() {
             return None;

@@ -108,7 +108,7 @@ impl ServoLoop {
     };
 
     /// The loop of `d` in its initial state (`d` checked by the caller).
-    #[cfg(test)]
+    #[cfg(all(test, feature = "serve"))]
     pub(crate) fn new(d: &Deployment) -> Result<Self, Invalid> {
         let mut built = ServoLoop::UNBUILT;
         built.rebuild(d)?;
