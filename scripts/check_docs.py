@@ -289,40 +289,74 @@ def side_logs(work: Path) -> str:
 
 def run_block(command: list[str], work: Path, env: dict[str, str]) -> tuple[int, str]:
     """Runs one block in a process group of its own: its exit status and what it printed
-    (stdout and stderr). Whatever of the group outlives it — the background processes of a
-    block that failed before its final `wait`, or of one that ran out of time — is ended with
-    it, so that a failed page leaves no run or view behind."""
+    (stdout and stderr). A block waits for its own background jobs (every page's `&` jobs end
+    within their block); whatever of its group still runs when it ends — the background
+    processes of a block that failed before its `wait`, or of one that ran out of time — is
+    ended with it, so that a failed page leaves no run or view behind."""
     p = subprocess.Popen(command, cwd=work, env=env, stdout=subprocess.PIPE,
-                         stderr=subprocess.STDOUT, text=True, start_new_session=True)
-    chunks: list[str] = []
+                         stderr=subprocess.STDOUT, start_new_session=True)
+    with ACTIVE_LOCK:
+        ACTIVE.add(p.pid)
+    chunks: list[bytes] = []
     # Read while the block runs (a full pipe would stall it), until every writer is gone.
-    reader = threading.Thread(target=lambda: chunks.extend(iter(p.stdout.readline, "")))
+    reader = threading.Thread(target=lambda: chunks.extend(iter(p.stdout.readline, b"")),
+                              daemon=True)
     reader.start()
+    note = ""
     try:
-        returncode = p.wait(timeout=TIMEOUT_S)
-        note = ""
-    except subprocess.TimeoutExpired:
-        returncode = -9
-        note = f"\n(the block ran out of its {TIMEOUT_S} s and was ended)"
-    end_group(p.pid)
-    p.wait()
+        if not exited_within(p.pid, TIMEOUT_S):
+            note = f"\n(the block ran out of its {TIMEOUT_S} s and was ended)"
+    finally:
+        # The shell is not reaped yet: its pid, the group's id, cannot be another's meanwhile.
+        end_group(p.pid)
+        returncode = p.wait()
+        with ACTIVE_LOCK:
+            ACTIVE.discard(p.pid)
     reader.join(timeout=10)
-    return returncode, "".join(chunks) + note
+    return returncode, b"".join(chunks).decode(errors="replace") + note
+
+
+ACTIVE: set[int] = set()
+"""The process groups of the blocks running now (ended on Ctrl-C)."""
+ACTIVE_LOCK = threading.Lock()
+
+
+def exited_within(pid: int, timeout_s: float) -> bool:
+    """Whether child `pid` exits within `timeout_s`, leaving it unreaped."""
+    deadline = time.monotonic() + timeout_s
+    while os.waitid(os.P_PID, pid, os.WEXITED | os.WNOWAIT | os.WNOHANG) is None:
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def running(pid: int, pgid: int | None = None) -> bool:
+    """Whether process `pid` runs (a zombie does not), in group `pgid` if given."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    state, _parent, group = stat[stat.rindex(")") + 2:].split()[:3]
+    return state != "Z" and (pgid is None or int(group) == pgid)
+
+
+def group_running(pgid: int) -> bool:
+    """Whether any process of group `pgid` runs."""
+    return any(running(int(d), pgid) for d in os.listdir("/proc") if d.isdigit())
 
 
 def end_group(pgid: int) -> None:
-    """Ends process group `pgid` (SIGTERM, then SIGKILL after 5 s); nothing if it is empty."""
-    for sig, grace_s in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 0.0)):
+    """Ends process group `pgid`: SIGTERM (a run finishes its recording), SIGKILL 5 s later."""
+    for sig, grace_s in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 1.0)):
+        if not group_running(pgid):
+            return
         try:
             os.killpg(pgid, sig)
         except ProcessLookupError:
             return
         deadline = time.monotonic() + grace_s
-        while time.monotonic() < deadline:
-            try:
-                os.killpg(pgid, 0)
-            except ProcessLookupError:
-                return
+        while group_running(pgid) and time.monotonic() < deadline:
             time.sleep(0.05)
 
 
@@ -401,8 +435,8 @@ def self_test() -> None:
         script = "set -euo pipefail\nsleep 300 &\necho $! > bg.pid\nfalse\nwait\n"
         started = time.monotonic()
         code, _ = run_block(["bash", "-c", script], Path(d), dict(os.environ))
-        background = Path(f"/proc/{(Path(d) / 'bg.pid').read_text().strip()}")
-        if code != 1 or background.exists() or time.monotonic() - started > 60:
+        background = int((Path(d) / "bg.pid").read_text())
+        if code != 1 or running(background) or time.monotonic() - started > 60:
             sys.exit("self-test: a failed block's background process outlived it")
     print("self-test: a block that fails leaves none of its background processes running")
 
@@ -450,4 +484,13 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except KeyboardInterrupt:
+        # The blocks run in sessions of their own, out of the terminal's reach: end them here.
+        with ACTIVE_LOCK:
+            groups = list(ACTIVE)
+        for group in groups:
+            end_group(group)
+        print("interrupted: the running blocks were ended", file=sys.stderr)
+        os._exit(130)

@@ -5,13 +5,14 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`state_space`] | continuous/discrete state space, frequency response, balancing, poles |
+//! | [`state_space`] | continuous/discrete state space, frequency response, balancing, poles (`solvers`) |
 //! | [`discretise`] | `expm`, zero-order hold, the delayed hold of DESIGN.md "Time and delay", Tustin |
 //! | [`lyapunov`] | the discrete Lyapunov equation (exact variances of sampled loops) |
 //! | [`riccati`] | continuous and discrete algebraic Riccati equations |
 //! | [`schur_lyapunov`] | Lyapunov and Stein equations by the Schur form (many right-hand sides, one matrix) |
 //! | [`reduce`] | balanced truncation |
 //! | [`level_crossing`] | where a sampled response first falls below a level (bandwidth), found exactly |
+//! | [`square_root`] | the square root of a covariance (exact noise steps, gramian factors) |
 //! | [`interconnect`] | named-signal block interconnection (the four-mass stage is built with it) |
 //! | [`spectral`] | log grids, exact-bin DFT, Welch PSD, H1 FRF and coherence, CAS |
 //! | [`vector_fit`] | a stable rational fit of a sampled system's measured frequency response (z-domain vector fitting) |

@@ -25,6 +25,7 @@ pub mod params;
 pub mod practice;
 #[cfg(feature = "linear")]
 pub mod quantisation;
+#[cfg(feature = "linear")]
 pub mod sampled_noise;
 pub mod sensor_noise;
 pub mod sim;
@@ -32,4 +33,6 @@ mod tick_matrix;
 
 pub use model::PlantModel;
 pub use params::PlantParams;
-pub use sim::{LinearTick, Simulator, StageMotion};
+#[cfg(feature = "linear")]
+pub use sim::LinearTick;
+pub use sim::{Simulator, StageMotion};

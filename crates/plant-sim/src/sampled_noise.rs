@@ -91,7 +91,6 @@ impl SampledNoise {
     }
 
     /// Its variance per tick (unit²): `c Σ cᵀ + variance`, Σ the stationary state covariance.
-    #[cfg(feature = "linear")]
     pub fn total_variance(&self) -> f64 {
         if self.states() == 0 {
             return self.variance;

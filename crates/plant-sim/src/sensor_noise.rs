@@ -96,11 +96,11 @@ pub struct SensorNoise {
     /// Filter states in use (2, or 3 with the anti-aliasing stage) and the one read out.
     states: usize,
     out: usize,
-    /// The filter's continuous dynamics and the covariance rate of its white input, V²/s.
+    /// The filter's continuous dynamics and the stationary covariance of its states, V².
     #[cfg(feature = "linear")]
     a: Mat,
     #[cfg(feature = "linear")]
-    q: Mat,
+    p: Mat,
     xi: Vect,
 }
 
@@ -128,8 +128,10 @@ impl SensorNoise {
             out,
             #[cfg(feature = "linear")]
             a: padded(&a),
+            // Stationary covariance: A P + P Aᵀ + b bᵀ·intensity = 0.
             #[cfg(feature = "linear")]
-            q: padded(&(&b * b.transpose() * intensity)),
+            p: lti::riccati::lyap(&a, &(&b * b.transpose() * intensity))
+                .map_or_else(|_| Mat::from_element(f64::NAN), |(p, _)| padded(&p)),
             xi: Vect::zeros(),
         }
     }
@@ -138,18 +140,7 @@ impl SensorNoise {
     /// `Ws²·π f_c/(2√2)`), whatever the rate.
     #[cfg(feature = "linear")]
     pub fn conversion_variance(&self) -> f64 {
-        self.stationary()[(self.out, self.out)]
-    }
-
-    /// The stationary covariance `P` of the filter states, V²: `A P + P Aᵀ + Q = 0` (NaN
-    /// where the solver fails).
-    #[cfg(feature = "linear")]
-    fn stationary(&self) -> DMatrix<f64> {
-        let n = self.states;
-        let a = DMatrix::from_fn(n, n, |i, j| self.a[(i, j)]);
-        let q = DMatrix::from_fn(n, n, |i, j| self.q[(i, j)]);
-        lti::riccati::lyap(&a, &q)
-            .map_or_else(|_| DMatrix::from_element(n, n, f64::NAN), |(p, _)| p)
+        self.p[(self.out, self.out)]
     }
 
     /// Back to rest (the process starts at zero with the rest of the plant and is stationary
@@ -186,8 +177,9 @@ impl SensorNoise {
     pub fn lag_covariance(&self, lag_s: f64) -> f64 {
         let n = self.states;
         let a = DMatrix::from_fn(n, n, |i, j| self.a[(i, j)]);
+        let p = DMatrix::from_fn(n, n, |i, j| self.p[(i, j)]);
         let phi = expm(&(a * lag_s.abs()));
-        (phi * self.stationary())[(self.out, self.out)]
+        (phi * p)[(self.out, self.out)]
     }
 }
 

@@ -17,6 +17,7 @@ use crate::model::{check, input, output, within, ModelError, PlantModel};
 use crate::params::{CurrentLoopModel, PlantParams};
 #[cfg(feature = "linear")]
 use crate::quantisation::{averaged_rounding_error, ConversionGrid};
+#[cfg(feature = "linear")]
 use crate::sampled_noise::SampledNoise;
 use crate::sensor_noise::SensorNoise;
 use crate::tick_matrix::TickMatrix;
@@ -50,6 +51,7 @@ pub struct StageMotion {
 /// The held white inputs have variance `white_variance` per tick (a one-sided PSD of 1/Hz);
 /// the averaged sensor noise on the gap reading is the coloured process `sensor_noise` (None
 /// when that noise is off).
+#[cfg(feature = "linear")]
 #[derive(Debug, Clone)]
 pub struct LinearTick {
     /// State transition over one tick (n × n).
@@ -84,6 +86,7 @@ pub struct LinearTick {
     pub dac_quantisation_variance: f64,
 }
 
+#[cfg(feature = "linear")]
 impl LinearTick {
     /// Input columns.
     pub const INPUTS: [&'static str; 6] =

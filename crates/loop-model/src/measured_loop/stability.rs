@@ -1,7 +1,7 @@
 //! The feedback loop's stability on a measured FRF: margins, sensitivity peak, and whether
 //! every loop within the measurement's uncertainty disks is stable.
 //!
-//! The model's closed loop is checked stable ([`crate::Plan::check_stable`]); the loop on the
+//! The model's closed loop is checked stable (`runner::Plan::check_stable`); the loop on the
 //! measured FRF has the same open-loop poles (the same controller, a stage measured in open
 //! loop, hence stable), so it is stable when its Nyquist plot encircles −1 as often as the
 //! model's: when the phase of `(1 + L_measured)/(1 + L_model)` returns between 1 Hz and Nyquist
