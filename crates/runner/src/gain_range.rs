@@ -22,8 +22,8 @@ pub fn checked(plan: &Plan) -> Result<Deployment, RunError> {
 /// The stability of `plan`'s loop, sealed to it ([`Stability::sealed`]): its spectral radius and
 /// its gain range, by bisection on the spectral radius of the sampled closed loop with the
 /// controller's output scaled (to 1e-6 relative) and, with a measured FRF, on the loop closed on
-/// it over every bin's uncertainty disk ([`loop_model::measured_loop::Verdict`]: the range is the one
-/// both allow); [`RunError::Unstable`] when the loop is not stable as it is.
+/// it over every bin's uncertainty disk ([`loop_model::measured_loop::Verdict`]: the range is
+/// the one both allow); [`RunError::Unstable`] when the loop is not stable as it is.
 pub fn gain_range(plan: &Plan) -> Result<Stability, RunError> {
     let spectral_radius = plan.check_stable()?;
     let c = &plan.config;
